@@ -1,0 +1,66 @@
+"""Errors raised by `hrc`.
+
+Expected outcomes ("not DC", "inconsistent") are results, not exceptions; these are for bad input
+and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit status 2.
+
+    HrcError
+    ├── InputError                 a file given by the user is wrong (says file, line, key path)
+    │   ├── TaskFileError          task YAML
+    │   ├── MapFileError           map YAML or DXF floor plan
+    │   └── NetworkFileError       STNU file (GraphML, .stnu, HEATlab JSON)
+    ├── UnreachableLocationError   no collision-free path between two locations
+    └── ExecutorError              a parallel or distributed executor failed or cannot be reached
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ExecutorError",
+    "HrcError",
+    "InputError",
+    "MapFileError",
+    "NetworkFileError",
+    "TaskFileError",
+    "UnreachableLocationError",
+]
+
+
+class HrcError(Exception):
+    """Root of every error `hrc` raises on purpose."""
+
+
+class InputError(HrcError):
+    """A user's file is wrong: `FILE:LINE: KEY.PATH: what is wrong`.
+
+    `line` is 1-based and optional (YAML gives it, other formats may not); `key` is a dotted key path
+    such as ``actions[2].phases[0].duration.human`` and may be empty when the whole file is at fault.
+    """
+
+    def __init__(self, file: str, key: str, message: str, line: int | None = None) -> None:
+        self.file = str(file)
+        self.key = key
+        self.message = message
+        self.line = line
+        where = self.file if line is None else f"{self.file}:{line}"
+        text = f"{where}: {key}: {message}" if key else f"{where}: {message}"
+        super().__init__(text)
+
+
+class TaskFileError(InputError):
+    """The task YAML is malformed or inconsistent."""
+
+
+class MapFileError(InputError):
+    """The map YAML (or its DXF floor plan) is malformed or inconsistent."""
+
+
+class NetworkFileError(InputError):
+    """An STNU file (GraphML, .stnu, HEATlab JSON) is malformed."""
+
+
+class UnreachableLocationError(HrcError):
+    """Motion planning found no collision-free path between two locations for an agent."""
+
+
+class ExecutorError(HrcError):
+    """A parallel or distributed executor failed or could not be reached."""

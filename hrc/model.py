@@ -1,0 +1,293 @@
+"""The core data model: task, workspace, agents, actions, phases, constraints, plans.
+
+Everything here is an immutable value (frozen dataclass with tuple fields); the model imports nothing
+from the rest of `hrc`. Times are seconds and lengths metres (floats) at this level; the temporal core
+converts them to exact integer ticks in one place (`hrc.temporal.ticks`).
+
+Vocabulary (../shared/DESIGN.md): an *action* is a unit of the task made of *phases*, each done at one
+location; an *allocation* maps actions to agents; a *sequence* is one agent's order of actions; a *plan*
+is an allocation plus one sequence per agent.
+"""
+
+from __future__ import annotations
+
+import enum
+import hashlib
+from dataclasses import dataclass, field
+
+__all__ = [
+    "Action",
+    "Agent",
+    "AgentKind",
+    "Event",
+    "Interval",
+    "Location",
+    "Obstacle",
+    "Phase",
+    "PhaseRef",
+    "Plan",
+    "Precedence",
+    "Preference",
+    "PreferenceKind",
+    "Task",
+    "TemporalConstraint",
+    "Workspace",
+]
+
+
+class AgentKind(enum.Enum):
+    """Who controls an agent's durations: the robot's are controllable, the human's contingent."""
+
+    HUMAN = "human"
+    ROBOT = "robot"
+
+
+@dataclass(frozen=True, slots=True)
+class Interval:
+    """A closed interval ``[lb, ub]`` in seconds; ``ub`` may be ``inf``."""
+
+    lb: float
+    ub: float
+
+    def __iter__(self):  # allows ``lb, ub = interval``
+        yield self.lb
+        yield self.ub
+
+    def contains(self, value: float) -> bool:
+        return self.lb <= value <= self.ub
+
+
+@dataclass(frozen=True, slots=True)
+class Location:
+    """A named point on the map (m)."""
+
+    id: str
+    x: float
+    y: float
+
+    @property
+    def xy(self) -> tuple[float, float]:
+        return (self.x, self.y)
+
+
+@dataclass(frozen=True, slots=True)
+class Obstacle:
+    """A simple polygon (counter-clockwise or not) the agents may not enter."""
+
+    id: str
+    polygon: tuple[tuple[float, float], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Workspace:
+    """The shop floor: rectangular bounds ``(xmin, ymin, xmax, ymax)``, obstacles and named locations.
+
+    `obstacles` includes those read from the optional DXF floor plan (`floorplan`, as written in the
+    map file, relative to it); `source` is the map file's path as given to the loader.
+    """
+
+    name: str
+    bounds: tuple[float, float, float, float]
+    obstacles: tuple[Obstacle, ...]
+    locations: tuple[Location, ...]
+    floorplan: str | None = None
+    source: str = ""
+
+    def location(self, loc_id: str) -> Location:
+        for loc in self.locations:
+            if loc.id == loc_id:
+                return loc
+        raise KeyError(loc_id)
+
+    @property
+    def location_ids(self) -> tuple[str, ...]:
+        return tuple(loc.id for loc in self.locations)
+
+
+@dataclass(frozen=True, slots=True)
+class Agent:
+    """A co-worker: a disc of `radius` (m) moving at up to `speed` (m/s), starting at location `start`."""
+
+    id: str
+    kind: AgentKind
+    radius: float
+    speed: float
+    start: str
+
+    @property
+    def is_human(self) -> bool:
+        return self.kind is AgentKind.HUMAN
+
+
+@dataclass(frozen=True, slots=True)
+class Phase:
+    """A part of an action done at one location; `durations` maps agent id -> manipulation time bounds."""
+
+    id: str
+    location: str
+    durations: tuple[tuple[str, Interval], ...]
+
+    def duration(self, agent_id: str) -> Interval:
+        for aid, interval in self.durations:
+            if aid == agent_id:
+                return interval
+        raise KeyError(agent_id)
+
+
+@dataclass(frozen=True, slots=True)
+class Action:
+    """A unit of the task, done by exactly one of `agents`, its phases in the given order."""
+
+    id: str
+    name: str
+    agents: tuple[str, ...]
+    phases: tuple[Phase, ...]
+
+    def phase(self, phase_id: str) -> Phase:
+        for ph in self.phases:
+            if ph.id == phase_id:
+                return ph
+        raise KeyError(phase_id)
+
+
+@dataclass(frozen=True, slots=True)
+class PhaseRef:
+    """``ACTION.PHASE``: one phase of one action."""
+
+    action: str
+    phase: str
+
+    def __str__(self) -> str:
+        return f"{self.action}.{self.phase}"
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """``ACTION.PHASE.start`` or ``ACTION.PHASE.end``: the start or end of a phase's manipulation."""
+
+    action: str
+    phase: str
+    boundary: str  # "start" | "end"
+
+    def __str__(self) -> str:
+        return f"{self.action}.{self.phase}.{self.boundary}"
+
+
+@dataclass(frozen=True, slots=True)
+class Precedence:
+    """A task-graph edge: phase `after` starts no earlier than phase `before` ends."""
+
+    before: PhaseRef
+    after: PhaseRef
+
+
+@dataclass(frozen=True, slots=True)
+class TemporalConstraint:
+    """``bounds.lb <= T(target) - T(source) <= bounds.ub`` between two events (s)."""
+
+    source: Event
+    target: Event
+    bounds: Interval
+
+
+class PreferenceKind(enum.Enum):
+    """APA preference function shapes (Wilcox, Nikolaidis & Shah 2012, section IV)."""
+
+    CONSTANT = "constant"
+    LINEAR = "linear"
+    QUADRATIC = "quadratic"
+
+
+@dataclass(frozen=True, slots=True)
+class Preference:
+    """A soft constraint on ``d = T(target) - T(source)`` over `domain`: value ``sum(c_i * d**i)``.
+
+    `coefficients` are ``(c0,)``, ``(c0, c1)`` or ``(c0, c1, c2)`` for constant, linear and quadratic
+    preferences; quadratic ones must be concave (``c2 <= 0``) so that APA's QP stays convex.
+    """
+
+    source: Event
+    target: Event
+    domain: Interval
+    kind: PreferenceKind
+    coefficients: tuple[float, ...]
+
+    def value(self, d: float) -> float:
+        return sum(c * d**i for i, c in enumerate(self.coefficients))
+
+
+@dataclass(frozen=True, slots=True)
+class Task:
+    """A collaborative task on a workspace.
+
+    `map_path` is the map's path as written in the task file (relative to it); `workspace` is that
+    map, loaded. `deadline` bounds the makespan (s) from the task's start to the end of its last phase.
+    `safety_margin` (m) is added to every agent's radius for clearance from obstacles and the co-worker.
+    """
+
+    name: str
+    agents: tuple[Agent, ...]
+    actions: tuple[Action, ...]
+    precedence: tuple[Precedence, ...]
+    constraints: tuple[TemporalConstraint, ...]
+    deadline: float | None
+    preferences: tuple[Preference, ...]
+    map_path: str
+    workspace: Workspace
+    safety_margin: float = 0.1
+    source: str = field(default="", compare=False)
+
+    def agent(self, agent_id: str) -> Agent:
+        for ag in self.agents:
+            if ag.id == agent_id:
+                return ag
+        raise KeyError(agent_id)
+
+    def action(self, action_id: str) -> Action:
+        for ac in self.actions:
+            if ac.id == action_id:
+                return ac
+        raise KeyError(action_id)
+
+    @property
+    def agent_ids(self) -> tuple[str, ...]:
+        return tuple(a.id for a in self.agents)
+
+    @property
+    def action_ids(self) -> tuple[str, ...]:
+        return tuple(a.id for a in self.actions)
+
+    def action_precedence(self) -> tuple[tuple[str, str], ...]:
+        """Distinct action pairs ``(a, b)`` such that some phase of `b` must follow some phase of `a`."""
+        pairs = {(p.before.action, p.after.action) for p in self.precedence}
+        return tuple(sorted(pairs))
+
+
+@dataclass(frozen=True, slots=True)
+class Plan:
+    """An allocation (action -> agent) and one sequence of actions per agent.
+
+    Both are stored in a canonical order (task order of actions, task order of agents), so equal plans
+    compare equal and `id` depends only on what the plan is, not on when it was enumerated.
+    """
+
+    allocation: tuple[tuple[str, str], ...]
+    sequences: tuple[tuple[str, tuple[str, ...]], ...]
+
+    @property
+    def id(self) -> str:
+        """A stable 10-hex-digit id, derived from the allocation and the sequences."""
+        text = ";".join(f"{agent}:{','.join(seq)}" for agent, seq in self.sequences)
+        return hashlib.sha256(text.encode()).hexdigest()[:10]
+
+    def agent_of(self, action_id: str) -> str:
+        for action, agent in self.allocation:
+            if action == action_id:
+                return agent
+        raise KeyError(action_id)
+
+    def sequence(self, agent_id: str) -> tuple[str, ...]:
+        for agent, seq in self.sequences:
+            if agent == agent_id:
+                return seq
+        raise KeyError(agent_id)
