@@ -91,7 +91,7 @@ class Workspace:
     obstacles: tuple[Obstacle, ...]
     locations: tuple[Location, ...]
     floorplan: str | None = None
-    source: str = ""
+    source: str = field(default="", compare=False)
 
     def location(self, loc_id: str) -> Location:
         for loc in self.locations:

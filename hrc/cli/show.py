@@ -1,0 +1,90 @@
+"""`hrc show TASK.yaml [--json]`: the loaded task, its map and how many plans it admits."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from typing import Any
+
+from hrc.io.task_file import load_task
+from hrc.model import Task
+from hrc.plans import count_plans
+
+__all__ = ["add_parser", "run", "task_summary"]
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser("show", help="print a task, its map and its plan count")
+    p.add_argument("task", help="task YAML file")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.set_defaults(run=run)
+
+
+def _bound(x: float) -> float | str:
+    return "inf" if math.isinf(x) else x  # JSON has no infinity
+
+
+def task_summary(task: Task) -> dict[str, Any]:
+    """A JSON-ready summary of `task`, including ``plan_count``."""
+    ws = task.workspace
+    return {
+        "task": task.name,
+        "file": task.source,
+        "deadline": task.deadline,
+        "safety_margin": task.safety_margin,
+        "agents": [{"id": a.id, "kind": a.kind.value, "radius": a.radius, "speed": a.speed, "start": a.start}
+                   for a in task.agents],
+        "actions": [{"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
+            {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
+            for p in a.phases]} for a in task.actions],
+        "precedence": [[str(p.before), str(p.after)] for p in task.precedence],
+        "constraints": [{"from": str(c.source), "to": str(c.target),
+                         "bounds": [c.bounds.lb, _bound(c.bounds.ub)]} for c in task.constraints],
+        "preferences": [{"from": str(p.source), "to": str(p.target), "domain": [p.domain.lb, p.domain.ub],
+                         "kind": p.kind.value, "coefficients": list(p.coefficients)} for p in task.preferences],
+        "map": {"name": ws.name, "file": ws.source, "bounds": list(ws.bounds),
+                "obstacles": len(ws.obstacles), "floorplan": ws.floorplan,
+                "locations": {loc.id: [loc.x, loc.y] for loc in ws.locations}},
+        "plan_count": count_plans(task),
+    }
+
+
+def _text(s: dict[str, Any]) -> str:
+    lines = [f"task {s['task']}  ({s['file']})"]
+    deadline = "none" if s["deadline"] is None else f"{s['deadline']:g} s"
+    lines.append(f"  makespan deadline: {deadline}; safety margin: {s['safety_margin']:g} m")
+    lines.append("agents:")
+    for a in s["agents"]:
+        lines.append(f"  {a['id']:<8} {a['kind']:<6} radius {a['radius']:g} m, speed {a['speed']:g} m/s, "
+                     f"starts at {a['start']}")
+    lines.append("actions:")
+    for a in s["actions"]:
+        lines.append(f"  {a['id']:<10} {a['name']}  (by {', '.join(a['agents'])})")
+        for p in a["phases"]:
+            durs = ", ".join(f"{ag} [{lb:g}, {ub:g}] s" for ag, (lb, ub) in p["duration"].items())
+            lines.append(f"    {p['id']:<8} at {p['location']:<4} {durs}")
+    if s["precedence"]:
+        lines.append("precedence:")
+        lines.extend(f"  {b} -> {a}" for b, a in s["precedence"])
+    if s["constraints"]:
+        lines.append("temporal constraints (lb <= T(to) - T(from) <= ub):")
+        lines.extend(f"  {c['from']} -> {c['to']} in [{c['bounds'][0]:g}, {float(c['bounds'][1]):g}] s"
+                     for c in s["constraints"])
+    if s["preferences"]:
+        lines.append("preferences:")
+        lines.extend(f"  {p['from']} -> {p['to']} on [{p['domain'][0]:g}, {p['domain'][1]:g}] s: {p['kind']} "
+                     f"{p['coefficients']}" for p in s["preferences"])
+    m = s["map"]
+    xmin, ymin, xmax, ymax = m["bounds"]
+    lines.append(f"map {m['name']}  ({m['file']}): {xmax - xmin:g} m x {ymax - ymin:g} m, "
+                 f"{m['obstacles']} obstacles" + (f" (floor plan {m['floorplan']})" if m["floorplan"] else ""))
+    lines.append("  locations: " + ", ".join(f"{k} ({x:g}, {y:g})" for k, (x, y) in m["locations"].items()))
+    lines.append(f"plans: {s['plan_count']} (allocations x valid per-agent sequences)")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    summary = task_summary(load_task(args.task))
+    print(json.dumps(summary, indent=2) if args.json else _text(summary))
+    return 0

@@ -1,0 +1,1 @@
+"""I/O at the edges: task and map YAML, DXF floor plans, atomic output."""

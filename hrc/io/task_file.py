@@ -1,0 +1,265 @@
+"""Load and write task files (YAML); the format is documented in docs/task-format.md.
+
+`load_task` is the only way from a task file to a `Task`: it validates everything it can without
+planning (ids, bounds, the task graph, locations against the map and each agent's radius) and raises
+`TaskFileError` / `MapFileError` naming file, line and key path. `dump_task` writes the model back;
+``load_task(dump_task(t)) == t`` (tested).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import networkx as nx
+import yaml
+
+from hrc.errors import TaskFileError
+from hrc.io.atomic import write_text_atomic
+from hrc.io.map_file import clearance, load_workspace
+from hrc.io.yamldoc import Doc, read_yaml
+from hrc.model import (
+    Action,
+    Agent,
+    AgentKind,
+    Event,
+    Interval,
+    Phase,
+    PhaseRef,
+    Precedence,
+    Preference,
+    PreferenceKind,
+    Task,
+    TemporalConstraint,
+    Workspace,
+)
+
+__all__ = ["dump_task", "load_task", "task_to_dict"]
+
+_TOP_REQUIRED = ("name", "map", "agents", "actions")
+_TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "safety_margin")
+_COEFFS = {PreferenceKind.CONSTANT: 1, PreferenceKind.LINEAR: 2, PreferenceKind.QUADRATIC: 3}
+
+
+def load_task(path: str | os.PathLike[str]) -> Task:
+    """Read and validate a task file and the map it names."""
+    doc = read_yaml(path, TaskFileError)
+    top = doc.mapping(doc.value, (), required=_TOP_REQUIRED, optional=_TOP_OPTIONAL)
+    name = doc.ident(top["name"], ("name",))
+    map_path = doc.text(top["map"], ("map",))
+    map_file = os.path.normpath(os.path.join(os.path.dirname(doc.file), map_path))
+    if not os.path.isfile(map_file):
+        doc.fail(("map",), f"map file '{map_file}' does not exist")
+    workspace = load_workspace(map_file)
+    margin = doc.number(top.get("safety_margin", 0.1), ("safety_margin",), minimum=0)
+
+    agents = _agents(doc, top["agents"], workspace, margin)
+    raw_actions = doc.sequence(top["actions"], ("actions",), min_len=1)
+    actions = [_action(doc, raw, ("actions", i), agents, workspace, margin)
+               for i, raw in enumerate(raw_actions)]
+    doc.unique([a.id for a in actions], ("actions",), "action")
+    by_id = {a.id: a for a in actions}
+
+    precedence = [_precedence(doc, raw, ("precedence", i), by_id)
+                  for i, raw in enumerate(doc.sequence(top.get("precedence", []), ("precedence",)))]
+    _check_acyclic(doc, actions, precedence)
+    constraints = [_constraint(doc, raw, ("constraints", i), by_id)
+                   for i, raw in enumerate(doc.sequence(top.get("constraints", []), ("constraints",)))]
+    deadline = None
+    if top.get("deadline") is not None:
+        deadline = doc.number(top["deadline"], ("deadline",), positive=True)
+    preferences = [_preference(doc, raw, ("preferences", i), by_id)
+                   for i, raw in enumerate(doc.sequence(top.get("preferences", []), ("preferences",)))]
+    return Task(name=name, agents=tuple(agents), actions=tuple(actions), precedence=tuple(precedence),
+                constraints=tuple(constraints), deadline=deadline, preferences=tuple(preferences),
+                map_path=map_path, workspace=workspace, safety_margin=margin, source=doc.file)
+
+
+def _agents(doc: Doc, raw: Any, ws: Workspace, margin: float) -> list[Agent]:
+    items = doc.sequence(raw, ("agents",), min_len=1)
+    agents = []
+    for i, item in enumerate(items):
+        path = ("agents", i)
+        m = doc.mapping(item, path, required=("id", "kind", "radius", "speed", "start"))
+        aid = doc.ident(m["id"], path + ("id",))
+        kinds = [k.value for k in AgentKind]
+        if m["kind"] not in kinds:
+            doc.fail(path + ("kind",), f"expected one of {', '.join(kinds)}, found {m['kind']!r}")
+        radius = doc.number(m["radius"], path + ("radius",), positive=True)
+        speed = doc.number(m["speed"], path + ("speed",), positive=True)
+        start = doc.ident(m["start"], path + ("start",))
+        agent = Agent(id=aid, kind=AgentKind(m["kind"]), radius=radius, speed=speed, start=start)
+        _check_location(doc, path + ("start",), start, agent, ws, margin)
+        agents.append(agent)
+    doc.unique([a.id for a in agents], ("agents",), "agent")
+    kinds_seen = sorted(a.kind.value for a in agents)
+    if kinds_seen != ["human", "robot"]:
+        doc.fail(("agents",), f"expected exactly one human and one robot, found {kinds_seen}")
+    return agents
+
+
+def _check_location(doc: Doc, path: tuple, loc_id: str, agent: Agent, ws: Workspace, margin: float) -> None:
+    if loc_id not in ws.location_ids:
+        doc.fail(path, f"unknown location '{loc_id}' (map {ws.source} has: {', '.join(ws.location_ids)})")
+    loc = ws.location(loc_id)
+    dist, what = clearance(ws, loc.x, loc.y)
+    need = agent.radius + margin
+    if dist < need:
+        doc.fail(path, f"{agent.id} at location '{loc_id}' overlaps {what}: clearance {dist:.3f} m < "
+                       f"radius {agent.radius:g} + safety margin {margin:g} m")
+
+
+def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace, margin: float) -> Action:
+    m = doc.mapping(raw, path, required=("id", "agents", "phases"), optional=("name",))
+    aid = doc.ident(m["id"], path + ("id",))
+    name = doc.text(m.get("name", aid), path + ("name",))
+    known = {a.id: a for a in agents}
+    who = doc.sequence(m["agents"], path + ("agents",))
+    if not who:
+        doc.fail(path + ("agents",), f"no agent can do action '{aid}'")
+    for j, ag in enumerate(who):
+        if ag not in known:
+            doc.fail(path + ("agents", j), f"unknown agent '{ag}' (known: {', '.join(known)})")
+    doc.unique(list(who), path + ("agents",), "agent", key="")
+    phases = []
+    for j, raw_phase in enumerate(doc.sequence(m["phases"], path + ("phases",), min_len=1)):
+        ppath = path + ("phases", j)
+        pm = doc.mapping(raw_phase, ppath, required=("id", "location", "duration"))
+        pid = doc.ident(pm["id"], ppath + ("id",))
+        loc = doc.ident(pm["location"], ppath + ("location",))
+        dm = doc.mapping(pm["duration"], ppath + ("duration",), required=who)
+        durations = []
+        for ag in who:
+            lb, ub = doc.interval(dm[ag], ppath + ("duration", ag))
+            durations.append((ag, Interval(lb, ub)))
+            _check_location(doc, ppath + ("location",), loc, known[ag], ws, margin)
+        phases.append(Phase(id=pid, location=loc, durations=tuple(durations)))
+    doc.unique([p.id for p in phases], path + ("phases",), "phase")
+    return Action(id=aid, name=name, agents=tuple(who), phases=tuple(phases))
+
+
+def _phase_ref(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action], first: bool) -> PhaseRef:
+    """``ACTION.PHASE``, or ``ACTION`` alone (its first phase after, its last phase before)."""
+    text = doc.text(raw, path)
+    parts = text.split(".")
+    if parts[0] not in actions or len(parts) > 2:
+        doc.fail(path, f"unknown action '{parts[0]}' (expected ACTION or ACTION.PHASE)")
+    action = actions[parts[0]]
+    if len(parts) == 1:
+        return PhaseRef(action.id, action.phases[0 if first else -1].id)
+    if parts[1] not in [p.id for p in action.phases]:
+        doc.fail(path, f"action '{action.id}' has no phase '{parts[1]}'")
+    return PhaseRef(action.id, parts[1])
+
+
+def _event(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action]) -> Event:
+    text = doc.text(raw, path)
+    parts = text.split(".")
+    if len(parts) != 3 or parts[2] not in ("start", "end"):
+        doc.fail(path, f"expected ACTION.PHASE.start or ACTION.PHASE.end, found '{text}'")
+    ref = _phase_ref(doc, ".".join(parts[:2]), path, actions, first=True)
+    return Event(ref.action, ref.phase, parts[2])
+
+
+def _precedence(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action]) -> Precedence:
+    if isinstance(raw, list):
+        if len(raw) != 2:
+            doc.fail(path, f"expected [before, after], found a list of {len(raw)}")
+        before_raw, after_raw, bpath, apath = raw[0], raw[1], path + (0,), path + (1,)
+    else:
+        m = doc.mapping(raw, path, required=("before", "after"))
+        before_raw, after_raw, bpath, apath = m["before"], m["after"], path + ("before",), path + ("after",)
+    before = _phase_ref(doc, before_raw, bpath, actions, first=False)
+    after = _phase_ref(doc, after_raw, apath, actions, first=True)
+    if before.action == after.action:
+        doc.fail(path, f"precedence within one action ('{before.action}'): phases already run in order")
+    return Precedence(before=before, after=after)
+
+
+def _check_acyclic(doc: Doc, actions: list[Action], precedence: list[Precedence]) -> None:
+    g: nx.DiGraph = nx.DiGraph()
+    for a in actions:
+        for p, q in zip(a.phases, a.phases[1:], strict=False):
+            g.add_edge(str(PhaseRef(a.id, p.id)), str(PhaseRef(a.id, q.id)))
+    for pr in precedence:
+        g.add_edge(str(pr.before), str(pr.after))
+    try:
+        cycle = nx.find_cycle(g)
+    except nx.NetworkXNoCycle:
+        return
+    names = [u for u, _ in cycle] + [cycle[0][0]]
+    doc.fail(("precedence",), f"the task graph has a cycle: {' -> '.join(names)}")
+
+
+def _constraint(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action]) -> TemporalConstraint:
+    m = doc.mapping(raw, path, required=("from", "to", "bounds"))
+    source = _event(doc, m["from"], path + ("from",), actions)
+    target = _event(doc, m["to"], path + ("to",), actions)
+    lb, ub = _signed_interval(doc, m["bounds"], path + ("bounds",))
+    return TemporalConstraint(source=source, target=target, bounds=Interval(lb, ub))
+
+
+def _signed_interval(doc: Doc, raw: Any, path: tuple) -> tuple[float, float]:
+    """``[lb, ub]`` for ``lb <= T(to) - T(from) <= ub``: either may be negative, ``ub`` may be .inf."""
+    seq = doc.sequence(raw, path)
+    if len(seq) != 2:
+        doc.fail(path, f"expected [lb, ub], found a list of {len(seq)}")
+    lb = doc.number(seq[0], path + (0,))
+    ub = doc.number(seq[1], path + (1,), allow_inf=True)
+    if lb > ub:
+        doc.fail(path, f"lb {lb:g} > ub {ub:g}")
+    return lb, ub
+
+
+def _preference(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action]) -> Preference:
+    m = doc.mapping(raw, path, required=("from", "to", "domain", "kind", "coefficients"))
+    source = _event(doc, m["from"], path + ("from",), actions)
+    target = _event(doc, m["to"], path + ("to",), actions)
+    lb, ub = _signed_interval(doc, m["domain"], path + ("domain",))
+    if math.isinf(ub):
+        doc.fail(path + ("domain",), "a preference needs a finite domain")
+    kinds = [k.value for k in PreferenceKind]
+    if m["kind"] not in kinds:
+        doc.fail(path + ("kind",), f"expected one of {', '.join(kinds)}, found {m['kind']!r}")
+    kind = PreferenceKind(m["kind"])
+    coeffs = doc.sequence(m["coefficients"], path + ("coefficients",))
+    if len(coeffs) != _COEFFS[kind]:
+        doc.fail(path + ("coefficients",), f"a {kind.value} preference takes {_COEFFS[kind]} "
+                                           f"coefficient(s) [c0, c1, c2 ...], found {len(coeffs)}")
+    values = tuple(doc.number(c, path + ("coefficients", i)) for i, c in enumerate(coeffs))
+    if kind is PreferenceKind.QUADRATIC and values[2] > 0:
+        doc.fail(path + ("coefficients", 2), f"quadratic preference must be concave (c2 <= 0), "
+                                             f"found {values[2]:g}")
+    return Preference(source=source, target=target, domain=Interval(lb, ub), kind=kind,
+                      coefficients=values)
+
+
+def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
+    """The YAML-ready form of `task` (map path as in the task unless `map_path` is given)."""
+    out: dict[str, Any] = {"name": task.name, "map": map_path or task.map_path,
+                           "safety_margin": task.safety_margin}
+    if task.deadline is not None:
+        out["deadline"] = task.deadline
+    out["agents"] = [{"id": a.id, "kind": a.kind.value, "radius": a.radius, "speed": a.speed,
+                      "start": a.start} for a in task.agents]
+    out["actions"] = [{"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
+        {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
+        for p in a.phases]} for a in task.actions]
+    out["precedence"] = [[str(p.before), str(p.after)] for p in task.precedence]
+    out["constraints"] = [{"from": str(c.source), "to": str(c.target), "bounds": [c.bounds.lb, c.bounds.ub]}
+                          for c in task.constraints]
+    out["preferences"] = [{"from": str(p.source), "to": str(p.target), "domain": [p.domain.lb, p.domain.ub],
+                           "kind": p.kind.value, "coefficients": list(p.coefficients)}
+                          for p in task.preferences]
+    return out
+
+
+def dump_task(task: Task, path: str | os.PathLike[str]) -> None:
+    """Write `task` to `path` atomically, its `map` made relative to the new file's folder."""
+    target = os.fspath(path)
+    map_path = task.map_path
+    if task.workspace.source:
+        map_path = os.path.relpath(os.path.abspath(task.workspace.source),
+                                   os.path.dirname(os.path.abspath(target)))
+    write_text_atomic(target, yaml.safe_dump(task_to_dict(task, map_path), sort_keys=False))

@@ -1,0 +1,183 @@
+"""Read YAML keeping line numbers, and check shapes with errors that name file, line and key path.
+
+`read_yaml(path, error_cls)` returns a `Doc`: the plain Python value of the file plus the line of every
+node, so that a validator can say ``tasks/x.yaml:12: actions[1].phases[0].duration.human: lb 5 > ub 3``.
+Duplicate mapping keys are errors (PyYAML silently keeps the last one).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any, NoReturn
+
+import yaml
+
+from hrc.errors import InputError
+
+Path_ = tuple[str | int, ...]
+
+__all__ = ["Doc", "format_key", "read_yaml"]
+
+
+def format_key(path: Path_) -> str:
+    """``("actions", 1, "phases", 0)`` -> ``actions[1].phases[0]``."""
+    out = ""
+    for part in path:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+@dataclass
+class Doc:
+    """A parsed YAML file: its value, the line of each key path, and checkers that raise `error_cls`."""
+
+    file: str
+    value: Any
+    error_cls: type[InputError]
+    lines: dict[Path_, int] = field(default_factory=dict)
+
+    def line(self, path: Path_) -> int | None:
+        while True:
+            if path in self.lines:
+                return self.lines[path]
+            if not path:
+                return None
+            path = path[:-1]
+
+    def fail(self, path: Path_, message: str) -> NoReturn:
+        raise self.error_cls(self.file, format_key(path), message, self.line(path))
+
+    # --- shape checks -------------------------------------------------------------------------
+    def mapping(
+        self, value: Any, path: Path_, required: Iterable[str] = (), optional: Iterable[str] = ()
+    ) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            self.fail(path, f"expected a mapping, found {_kind(value)}")
+        required, optional = tuple(required), tuple(optional)
+        for key in value:
+            if not isinstance(key, str):
+                self.fail(path, f"keys must be strings, found {key!r}")
+            if key not in required and key not in optional:
+                allowed = ", ".join(sorted(required + optional))
+                self.fail(path + (key,), f"unknown key (allowed: {allowed})")
+        for key in required:
+            if key not in value:
+                self.fail(path, f"missing key '{key}'")
+        return value
+
+    def sequence(self, value: Any, path: Path_, min_len: int = 0) -> list[Any]:
+        if not isinstance(value, list):
+            self.fail(path, f"expected a list, found {_kind(value)}")
+        if len(value) < min_len:
+            self.fail(path, f"expected at least {min_len} item(s), found {len(value)}")
+        return value
+
+    def number(
+        self, value: Any, path: Path_, *, minimum: float | None = None, positive: bool = False,
+        allow_inf: bool = False,
+    ) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(path, f"expected a number, found {_kind(value)}")
+        x = float(value)
+        if math.isnan(x) or (math.isinf(x) and not (allow_inf and x > 0)):
+            self.fail(path, f"expected a finite number, found {value}")
+        if positive and x <= 0:
+            self.fail(path, f"expected a positive number, found {value}")
+        if minimum is not None and x < minimum:
+            self.fail(path, f"expected a number >= {minimum:g}, found {value}")
+        return x
+
+    def ident(self, value: Any, path: Path_) -> str:
+        if not isinstance(value, str) or not value:
+            self.fail(path, f"expected a non-empty string id, found {_kind(value)}")
+        if any(c.isspace() for c in value) or "." in value:
+            self.fail(path, f"id '{value}' must not contain spaces or dots")
+        return value
+
+    def text(self, value: Any, path: Path_) -> str:
+        if not isinstance(value, str):
+            self.fail(path, f"expected a string, found {_kind(value)}")
+        return value
+
+    def interval(self, value: Any, path: Path_, *, allow_inf: bool = False) -> tuple[float, float]:
+        """``[lb, ub]`` with ``0 <= lb <= ub``; ``ub`` may be ``.inf`` when `allow_inf`."""
+        seq = self.sequence(value, path)
+        if len(seq) != 2:
+            self.fail(path, f"expected [lb, ub], found a list of {len(seq)}")
+        lb = self.number(seq[0], path + (0,), minimum=0)
+        ub = self.number(seq[1], path + (1,), minimum=0, allow_inf=allow_inf)
+        if lb > ub:
+            self.fail(path, f"lb {lb:g} > ub {ub:g}")
+        return lb, ub
+
+    def unique(self, ids: list[str], path: Path_, what: str, key: str = "id") -> None:
+        seen: set[str] = set()
+        for i, ident in enumerate(ids):
+            if ident in seen:
+                self.fail(path + (i, key), f"duplicate {what} id '{ident}'")
+            seen.add(ident)
+
+
+def _kind(value: Any) -> str:
+    if value is None:
+        return "nothing"
+    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean"}.get(
+        type(value), type(value).__name__
+    )
+
+
+def read_yaml(path: str | os.PathLike[str], error_cls: type[InputError]) -> Doc:
+    """Parse `path` into a `Doc`; unreadable files and YAML syntax errors raise `error_cls`."""
+    file = os.fspath(path)
+    try:
+        with open(file, encoding="utf-8") as fh:
+            text = fh.read()
+    except FileNotFoundError as err:
+        raise error_cls(file, "", "file not found") from err
+    except (OSError, UnicodeDecodeError) as err:
+        raise error_cls(file, "", f"cannot read: {err}") from err
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as err:
+        mark = err.problem_mark
+        line = mark.line + 1 if mark is not None else None
+        problem = " ".join(str(err.problem or err).split())
+        raise error_cls(file, "", f"YAML syntax: {problem}", line) from err
+    except yaml.YAMLError as err:
+        raise error_cls(file, "", f"YAML syntax: {' '.join(str(err).split())}") from err
+    doc = Doc(file=file, value=None, error_cls=error_cls)
+    doc.value = _construct(doc, node, ()) if node is not None else None
+    return doc
+
+
+_SCALAR = yaml.SafeLoader(" ")
+
+
+def _construct(doc: Doc, node: yaml.Node, path: Path_) -> Any:
+    doc.lines[path] = node.start_mark.line + 1
+    if isinstance(node, yaml.ScalarNode):
+        try:
+            return _SCALAR.construct_object(node, deep=True)
+        except yaml.YAMLError as err:
+            doc.fail(path, f"bad value: {' '.join(str(err).split())}")
+    if isinstance(node, yaml.SequenceNode):
+        return [_construct(doc, item, path + (i,)) for i, item in enumerate(node.value)]
+    if isinstance(node, yaml.MappingNode):
+        out: dict[Any, Any] = {}
+        for key_node, value_node in node.value:
+            if not isinstance(key_node, yaml.ScalarNode):
+                doc.fail(path, "mapping keys must be plain strings")
+            key = key_node.value
+            if key in out:
+                doc.lines[path + (key,)] = key_node.start_mark.line + 1
+                doc.fail(path + (key,), "duplicate key")
+            out[key] = _construct(doc, value_node, path + (key,))
+            doc.lines[path + (key,)] = key_node.start_mark.line + 1
+        return out
+    doc.fail(path, "unsupported YAML node")

@@ -1,0 +1,135 @@
+"""Plan generation (Strassmair & Taylor 2014, section V.A): every allocation, then every valid sequence.
+
+A plan is an allocation of actions to agents plus one sequence of actions per agent. It is *valid* when
+its phase graph is acyclic: each action's phases in order, each agent's actions one after the other
+(an action is done whole before the agent's next one starts, non-preemptive), and the task graph's
+precedence edges. Plans are streamed in a deterministic order (allocations in lexicographic order of
+the task's agent order, then sequences in lexicographic order of the task's action order); plan ids come
+from the plan itself (`Plan.id`), not from that order.
+
+Cost: ``prod(|agents(a)|)`` allocations; per allocation, the linear extensions of each agent's actions
+under the "must precede" relation, filtered by a joint acyclicity check (O(phases + edges) each).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import networkx as nx
+
+from hrc.model import PhaseRef, Plan, Task
+
+__all__ = ["Leg", "agent_legs", "allocations", "count_plans", "generate_plans", "must_precede", "phase_graph"]
+
+
+def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
+    """Every allocation ``((action, agent), ...)`` in task order, each action to one agent that may do it."""
+    choices = [[ag for ag in task.agent_ids if ag in action.agents] for action in task.actions]
+    for combo in itertools.product(*choices):
+        yield tuple(zip(task.action_ids, combo, strict=True))
+
+
+def _task_phase_graph(task: Task) -> nx.DiGraph:
+    g: nx.DiGraph = nx.DiGraph()
+    for a in task.actions:
+        g.add_nodes_from(str(PhaseRef(a.id, p.id)) for p in a.phases)
+        for p, q in itertools.pairwise(a.phases):
+            g.add_edge(str(PhaseRef(a.id, p.id)), str(PhaseRef(a.id, q.id)))
+    for pr in task.precedence:
+        g.add_edge(str(pr.before), str(pr.after))
+    return g
+
+
+def must_precede(task: Task) -> frozenset[tuple[str, str]]:
+    """Action pairs ``(a, b)``: some phase of `a` reaches some phase of `b` in the task graph.
+
+    If one agent does both, it must do `a` before `b` (doing `b` first would close a cycle).
+    """
+    g = _task_phase_graph(task)
+    owner = {str(PhaseRef(a.id, p.id)): a.id for a in task.actions for p in a.phases}
+    pairs = set()
+    for node in g.nodes:
+        for reached in nx.descendants(g, node):
+            if owner[node] != owner[reached]:
+                pairs.add((owner[node], owner[reached]))
+    return frozenset(pairs)
+
+
+def _linear_extensions(items: tuple[str, ...], before: frozenset[tuple[str, str]]) -> Iterator[tuple[str, ...]]:
+    """Orders of `items` respecting `before`, in lexicographic order of positions in `items`."""
+    if not items:
+        yield ()
+        return
+    for i, head in enumerate(items):
+        if any((other, head) in before for other in items if other != head):
+            continue
+        for tail in _linear_extensions(items[:i] + items[i + 1:], before):
+            yield (head, *tail)
+
+
+def phase_graph(task: Task, plan: Plan) -> nx.DiGraph:
+    """The plan's phase graph (nodes ``ACTION.PHASE``); edges: phase order, agent sequence, task graph."""
+    g = _task_phase_graph(task)
+    for _, seq in plan.sequences:
+        for a, b in itertools.pairwise(seq):
+            g.add_edge(str(PhaseRef(a, task.action(a).phases[-1].id)),
+                       str(PhaseRef(b, task.action(b).phases[0].id)))
+    return g
+
+
+def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
+               before: frozenset[tuple[str, str]]) -> Iterator[tuple[tuple[str, tuple[str, ...]], ...]]:
+    per_agent = []
+    for agent in task.agent_ids:
+        mine = tuple(a for a, ag in allocation if ag == agent)
+        per_agent.append([(agent, seq) for seq in _linear_extensions(mine, before)])
+    base = _task_phase_graph(task)
+    last = {a.id: str(PhaseRef(a.id, a.phases[-1].id)) for a in task.actions}
+    first = {a.id: str(PhaseRef(a.id, a.phases[0].id)) for a in task.actions}
+    for combo in itertools.product(*per_agent):
+        if len(combo) > 1:  # cross-agent cycles are possible only with two or more busy agents
+            g = base.copy()
+            for _, seq in combo:
+                g.add_edges_from((last[a], first[b]) for a, b in itertools.pairwise(seq))
+            if not nx.is_directed_acyclic_graph(g):
+                continue
+        yield tuple(combo)
+
+
+def generate_plans(task: Task) -> Iterator[Plan]:
+    """Stream every valid plan of `task` (allocation x sequences), in a deterministic order."""
+    before = must_precede(task)
+    for allocation in allocations(task):
+        for sequences in _sequences(task, allocation, before):
+            yield Plan(allocation=allocation, sequences=sequences)
+
+
+def count_plans(task: Task) -> int:
+    """The number of plans `generate_plans` yields (without building Plan objects)."""
+    before = must_precede(task)
+    return sum(1 for allocation in allocations(task) for _ in _sequences(task, allocation, before))
+
+
+@dataclass(frozen=True, slots=True)
+class Leg:
+    """One phase of an agent's itinerary: travel from `origin` to `location`, then do `action.phase`."""
+
+    agent: str
+    index: int
+    origin: str
+    location: str
+    action: str
+    phase: str
+
+
+def agent_legs(task: Task, plan: Plan, agent_id: str) -> tuple[Leg, ...]:
+    """The agent's legs in order, starting at its start location (a leg may have origin == location)."""
+    here = task.agent(agent_id).start
+    legs = []
+    for action_id in plan.sequence(agent_id):
+        for phase in task.action(action_id).phases:
+            legs.append(Leg(agent_id, len(legs), here, phase.location, action_id, phase.id))
+            here = phase.location
+    return tuple(legs)
