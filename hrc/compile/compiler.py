@@ -1,0 +1,117 @@
+"""The compiler (Strassmair & Taylor 2014, section V.A, Fig. 4): task in, ranked set of HRC schedules out.
+
+Plan generation -> motion acquisition -> temporal net creator -> classification -> ranking. Free-space
+paths are planned once, in this process (OMPL); the per-plan work (interference, STNU, DC check) is
+pure data in and out and runs in an executor: in-process (``jobs=1``), a local process pool (default),
+or a Dask distributed scheduler (``executor="dask://HOST:PORT"``). The result does not depend on the
+executor, the number of jobs or the order in which plans finish: plans are ranked by a total order.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
+
+from hrc.compile.classify import Classification, PlanClass, classify
+from hrc.compile.executors import make_executor
+from hrc.compile.temporal_net_creator import create_stnu
+from hrc.io.map_file import workspace_to_dict
+from hrc.io.task_file import task_to_dict
+from hrc.model import Plan, Task
+from hrc.motion import Motion, PathLibrary, plan_motions, plan_paths
+from hrc.plans import count_plans, generate_plans
+from hrc.temporal import write_graphml
+
+__all__ = ["CompiledPlan", "CompiledPlanSet", "compile_plan", "compile_task", "rank_key", "task_digest"]
+
+Progress = Callable[[str, int, int], None]  # (stage, done, total)
+
+
+@dataclass(frozen=True, slots=True)
+class CompiledPlan:
+    """One plan with its motions, its STNU (as CSTNU Tool GraphML), its class and its rank (1 = best)."""
+
+    plan: Plan
+    motions: tuple[Motion, ...]
+    classification: Classification
+    stnu_size: tuple[int, int, int]  # timepoints, requirement links, contingent links
+    graphml: str
+    rank: int = 0
+
+    @property
+    def plan_class(self) -> PlanClass:
+        return self.classification.plan_class
+
+
+@dataclass(frozen=True, slots=True)
+class CompiledPlanSet:
+    """The compiler's output: every plan of `task`, ranked best first."""
+
+    task: Task
+    seed: int
+    digest: str
+    paths: PathLibrary
+    plans: tuple[CompiledPlan, ...]
+
+    def counts(self) -> dict[str, int]:
+        out = {c.value: 0 for c in PlanClass}
+        for p in self.plans:
+            out[p.plan_class.value] += 1
+        return out
+
+
+def task_digest(task: Task) -> str:
+    """SHA-256 of the task and its map as loaded (not of the files' bytes: comments do not count)."""
+    payload = {"task": task_to_dict(task, map_path="-"), "map": workspace_to_dict(task.workspace)}
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def compile_plan(task: Task, plan: Plan, paths: PathLibrary) -> CompiledPlan:
+    """Motion acquisition, temporal net creator and classification for one plan (rank left at 0)."""
+    motions = plan_motions(task, plan, paths)
+    net = create_stnu(task, plan, motions)
+    stnu = net.stnu
+    size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
+    return CompiledPlan(plan=plan, motions=motions, classification=classify(task, net), stnu_size=size,
+                        graphml=write_graphml(stnu))
+
+
+def compile_chunk(task: Task, paths: PathLibrary, plans: list[Plan]) -> list[CompiledPlan]:
+    """The unit of work sent to an executor (a module-level function, so it pickles by name)."""
+    return [compile_plan(task, plan, paths) for plan in plans]
+
+
+def rank_key(cp: CompiledPlan) -> tuple:
+    """DC < consistent < inconsistent; then earliest makespan, total idle time, plan id."""
+    c = cp.classification
+    makespan = c.makespan[0] if c.makespan is not None else float("inf")
+    idle = sum(s for _, s in c.idle) if c.idle else float("inf")
+    return (c.plan_class.order, makespan, round(idle, 6), cp.plan.id)
+
+
+def _chunks(items: Iterable[Plan], size: int) -> Iterator[list[Plan]]:
+    it = iter(items)
+    while chunk := list(itertools.islice(it, size)):
+        yield chunk
+
+
+def compile_task(task: Task, seed: int = 0, jobs: int | None = None, executor: str | None = None,
+                 progress: Progress | None = None) -> CompiledPlanSet:
+    """Compile every plan of `task`; see the module docstring. Raises `hrc.errors.HrcError` subclasses."""
+    paths = plan_paths(task, seed=seed,
+                       progress=(lambda d, t: progress("motion", d, t)) if progress else None)
+    total = count_plans(task)
+    chunk_size = max(1, min(64, total // (4 * max(1, jobs or 2)) or 1))
+    compiled: list[CompiledPlan] = []
+    with make_executor(executor, jobs) as ex:
+        for batch in ex.map_chunks(compile_chunk, task, paths, _chunks(generate_plans(task), chunk_size)):
+            compiled.extend(batch)
+            if progress:
+                progress("plans", len(compiled), total)
+    compiled.sort(key=rank_key)
+    ranked = tuple(replace(cp, rank=i + 1) for i, cp in enumerate(compiled))
+    return CompiledPlanSet(task=task, seed=seed, digest=task_digest(task), paths=paths, plans=ranked)

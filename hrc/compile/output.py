@@ -1,0 +1,88 @@
+"""The compiler's files: ``compiled.json`` (schema below, versioned) and ``stnu/PLAN_ID.graphml``.
+
+Schema version 1 (times in seconds, rounded to the millisecond; plans in rank order)::
+
+    {"schema_version": 1, "generator": "hrc X.Y.Z", "seed": N,
+     "task": {"name", "digest", "deadline", "agents": {ID: KIND}},
+     "counts": {"DC": n, "consistent": n, "inconsistent": n},
+     "plans": [{"id", "rank" (1 = best), "class": "DC" | "consistent" | "inconsistent",
+                "allocation": {ACTION: AGENT}, "sequences": {AGENT: [ACTION, ...]},
+                "makespan": [earliest, worst case] | null, "idle": {AGENT: s},
+                "stnu": "stnu/ID.graphml", "stnu_size": {"timepoints", "requirement_links", "contingent_links"},
+                "explanation": str | null,
+                "motions": [{"agent", "leg", "from", "to", "action", "phase", "free_time", "max_time",
+                             "interference": [{"agent", "leg", "from", "to", "extra_time", "kind", "point"}]}]}]}
+
+The file is deterministic for a given task and seed: no timestamps, no host names, sorted keys where
+order carries no meaning.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from hrc import __version__
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+from hrc.plans import agent_legs
+
+__all__ = ["SCHEMA_VERSION", "compiled_to_dict", "write_compiled"]
+
+SCHEMA_VERSION = 1
+
+
+def _s(x: float) -> float:
+    return round(float(x), 3)
+
+
+def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
+    task, plan, c = cps.task, cp.plan, cp.classification
+    legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
+    motions = []
+    for m in cp.motions:
+        leg = legs[(m.agent, m.leg)]
+        motions.append({
+            "agent": m.agent, "leg": m.leg, "from": m.origin, "to": m.target,
+            "action": leg.action, "phase": leg.phase,
+            "free_time": _s(m.free_time), "max_time": _s(m.max_time),
+            "interference": [{"agent": i.other_agent, "leg": i.other_leg, "from": i.other_origin,
+                              "to": i.other_target, "extra_time": _s(i.extra_time), "kind": i.kind,
+                              "point": [round(i.point[0], 3), round(i.point[1], 3)]}
+                             for i in m.interference],
+        })
+    return {
+        "id": plan.id,
+        "rank": cp.rank,
+        "class": c.plan_class.value,
+        "allocation": dict(plan.allocation),
+        "sequences": {agent: list(seq) for agent, seq in plan.sequences},
+        "makespan": None if c.makespan is None else [_s(c.makespan[0]), _s(c.makespan[1])],
+        "idle": {agent: _s(t) for agent, t in c.idle},
+        "stnu": f"stnu/{plan.id}.graphml",
+        "stnu_size": dict(zip(("timepoints", "requirement_links", "contingent_links"), cp.stnu_size, strict=True)),
+        "explanation": c.explanation or None,
+        "motions": motions,
+    }
+
+
+def compiled_to_dict(cps: CompiledPlanSet) -> dict[str, Any]:
+    task = cps.task
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "generator": f"hrc {__version__}",
+        "seed": cps.seed,
+        "task": {"name": task.name, "digest": cps.digest, "deadline": task.deadline,
+                 "agents": {a.id: a.kind.value for a in task.agents}},
+        "counts": cps.counts(),
+        "plans": [_plan_dict(cps, cp) for cp in cps.plans],
+    }
+
+
+def write_compiled(cps: CompiledPlanSet, out_dir: Path) -> None:
+    """Write ``compiled.json`` and the STNUs into `out_dir` (a staging folder: see `atomic_dir`)."""
+    (out_dir / "stnu").mkdir(parents=True, exist_ok=True)
+    for cp in cps.plans:
+        (out_dir / "stnu" / f"{cp.plan.id}.graphml").write_text(cp.graphml, encoding="utf-8")
+    text = json.dumps(compiled_to_dict(cps), indent=1, sort_keys=False) + "\n"
+    (out_dir / "compiled.json").write_text(text, encoding="utf-8")
