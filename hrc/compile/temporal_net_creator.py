@@ -105,7 +105,8 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
             else:
                 why = ""
                 if motion.interference:
-                    causes = ", ".join(f"{i.other_agent} {i.other_origin}->{i.other_target}" for i in motion.interference)
+                    causes = ", ".join(f"{i.other_agent} {i.other_origin}->{i.other_target}"
+                                       for i in motion.interference)
                     why = f", incl. {motion.max_time - motion.free_time:.1f} s yielding to {causes}"
                 req(dep, arr, seconds_to_ticks(motion.max_time), None, f"{route} (>= {motion.max_time:.1f} s{why})")
             req(arr, st, 0, None, f"{agent.id} waits at {leg.location} before {leg.action}.{leg.phase}")
