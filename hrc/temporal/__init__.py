@@ -1,0 +1,43 @@
+"""Temporal core: STN / STNU values, consistency, dynamic controllability, file formats.
+
+Pure functions over the immutable `STNU` type (`hrc.temporal.network`); exact integer ticks throughout
+(`hrc.temporal.ticks` converts seconds and decimal text). Modules: `network` (value types), `graph`
+(distance graphs), `stn` (consistency, APSP, minimal dispatchable network, propagation), `dc` (Morris
+2014 DC check), `oracle` (an independent exhaustive DC check for tests), `graphml` / `stnu_text` /
+`heatlab` (file formats; `read_network` detects the format by content).
+"""
+
+from hrc.temporal.dc import DCResult, Verdict, check_dc
+from hrc.temporal.graph import Edge, EdgeKind
+from hrc.temporal.network import INF, STNU, ContingentLink, NetworkError, RequirementLink
+from hrc.temporal.stn import (
+    ConsistencyResult,
+    DispatchableSTN,
+    Window,
+    all_pairs_shortest_paths,
+    check_consistency,
+    minimal_dispatchable_network,
+    propagate_execution,
+    time_windows,
+)
+
+__all__ = [
+    "INF",
+    "STNU",
+    "ConsistencyResult",
+    "ContingentLink",
+    "DCResult",
+    "DispatchableSTN",
+    "Edge",
+    "EdgeKind",
+    "NetworkError",
+    "RequirementLink",
+    "Verdict",
+    "Window",
+    "all_pairs_shortest_paths",
+    "check_consistency",
+    "check_dc",
+    "minimal_dispatchable_network",
+    "propagate_execution",
+    "time_windows",
+]

@@ -1,0 +1,143 @@
+"""The temporal network value type: timepoints, requirement links and contingent links.
+
+An STNU (Morris, Muscettola & Vidal 2001) is a set of timepoints with two kinds of links:
+
+* a **requirement link** ``(A, B, lb, ub)`` demands ``lb <= T(B) - T(A) <= ub``; ``None`` for a bound
+  means "no bound" (this is the module's `INF` convention: ``INF is None``);
+* a **contingent link** ``(A, C, lb, ub)`` says that once ``A`` is executed, nature executes ``C`` at
+  some ``T(C) - T(A)`` in ``[lb, ub]`` that the agent only observes when it happens.
+
+An STN is an STNU without contingent links. All numbers are exact integers (ticks); conversion from
+seconds or decimal text happens at the edges (`hrc.temporal.ticks`). There is no implicit origin: a
+file format that has one (the CSTNU Tool's ``Z``) adds its edges when it is read.
+
+Contingent links need ``0 <= lb <= ub < INF``: ``lb == ub`` (HEATlab has such links) and ``lb == 0``
+are accepted, which is what the formats allow; the algorithms handle both. A timepoint may be the
+target of at most one contingent link (it is *that link's* contingent timepoint), and a contingent
+link's target must not be its own activation timepoint.
+
+>>> n = STNU(("A", "C"), (), (ContingentLink("A", "C", 1, 3),))
+>>> n.contingent_timepoints
+frozenset({'C'})
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hrc.errors import HrcError
+
+__all__ = ["INF", "ContingentLink", "NetworkError", "RequirementLink", "STNU"]
+
+INF = None
+"""Marks a missing bound of a requirement link (``lb=INF`` is -infinity, ``ub=INF`` is +infinity)."""
+
+
+class NetworkError(HrcError):
+    """An STNU was built from inconsistent parts (unknown timepoint, ``lb > ub``, two contingent
+    links onto one timepoint, ...). This is misuse of the API, not an expected verdict."""
+
+
+def _check_int(value: object, what: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise NetworkError(f"{what} must be an integer number of ticks, got {value!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class RequirementLink:
+    """``lb <= T(target) - T(source) <= ub``; ``None`` (= `INF`) leaves that side unbounded."""
+
+    source: str
+    target: str
+    lb: int | None
+    ub: int | None
+
+    def __post_init__(self) -> None:
+        if self.lb is not None:
+            _check_int(self.lb, f"lower bound of {self.source}->{self.target}")
+        if self.ub is not None:
+            _check_int(self.ub, f"upper bound of {self.source}->{self.target}")
+        if self.lb is not None and self.ub is not None and self.lb > self.ub:
+            raise NetworkError(f"requirement {self.source}->{self.target}: lb {self.lb} > ub {self.ub}")
+
+    def __str__(self) -> str:
+        lb = "-inf" if self.lb is None else str(self.lb)
+        ub = "+inf" if self.ub is None else str(self.ub)
+        return f"{self.target} - {self.source} in [{lb}, {ub}]"
+
+
+@dataclass(frozen=True, slots=True)
+class ContingentLink:
+    """Nature picks ``T(target) - T(source)`` in ``[lb, ub]`` (``0 <= lb <= ub``) after ``source``."""
+
+    source: str
+    target: str
+    lb: int
+    ub: int
+
+    def __post_init__(self) -> None:
+        _check_int(self.lb, f"lower bound of contingent {self.source}->{self.target}")
+        _check_int(self.ub, f"upper bound of contingent {self.source}->{self.target}")
+        if not 0 <= self.lb <= self.ub:
+            raise NetworkError(
+                f"contingent {self.source}->{self.target}: need 0 <= lb <= ub, got [{self.lb}, {self.ub}]"
+            )
+        if self.source == self.target:
+            raise NetworkError(f"contingent link {self.source}->{self.target} is a loop")
+
+    def __str__(self) -> str:
+        return f"{self.target} - {self.source} in [{self.lb}, {self.ub}] (contingent)"
+
+
+@dataclass(frozen=True, slots=True)
+class STNU:
+    """An immutable STNU; validated on construction (raises `NetworkError`).
+
+    ``timepoints`` fixes the order used by every algorithm (and so every output); names are unique.
+    """
+
+    timepoints: tuple[str, ...]
+    requirements: tuple[RequirementLink, ...] = ()
+    contingents: tuple[ContingentLink, ...] = ()
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        for field_name in ("timepoints", "requirements", "contingents"):
+            if not isinstance(getattr(self, field_name), tuple):
+                object.__setattr__(self, field_name, tuple(getattr(self, field_name)))
+        known = set(self.timepoints)
+        if len(known) != len(self.timepoints):
+            seen: set[str] = set()
+            dup = next(t for t in self.timepoints if t in seen or seen.add(t))  # type: ignore[func-returns-value]
+            raise NetworkError(f"timepoint {dup!r} is listed twice")
+        for link in (*self.requirements, *self.contingents):
+            if not isinstance(link, RequirementLink | ContingentLink):
+                raise NetworkError(f"not a link: {link!r}")
+            for end in (link.source, link.target):
+                if end not in known:
+                    raise NetworkError(f"link {link} names unknown timepoint {end!r}")
+        targets: set[str] = set()
+        for link in self.contingents:
+            if not isinstance(link, ContingentLink):
+                raise NetworkError(f"contingents must hold ContingentLink, got {link!r}")
+            if link.target in targets:
+                raise NetworkError(f"timepoint {link.target!r} is the target of two contingent links")
+            targets.add(link.target)
+        for link in self.requirements:
+            if not isinstance(link, RequirementLink):
+                raise NetworkError(f"requirements must hold RequirementLink, got {link!r}")
+
+    @property
+    def contingent_timepoints(self) -> frozenset[str]:
+        """The timepoints nature executes (targets of contingent links)."""
+        return frozenset(c.target for c in self.contingents)
+
+    @property
+    def n_edges(self) -> int:
+        """Number of finite bounds, i.e. edges of the distance graph from requirement links."""
+        return sum((r.lb is not None) + (r.ub is not None) for r in self.requirements)
+
+    def as_stn(self) -> STNU:
+        """The STN obtained by treating every contingent link as a requirement link."""
+        extra = tuple(RequirementLink(c.source, c.target, c.lb, c.ub) for c in self.contingents)
+        return STNU(self.timepoints, self.requirements + extra, (), self.name)

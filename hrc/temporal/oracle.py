@@ -1,0 +1,123 @@
+"""An independent DC check for tests: solve the execution game exhaustively (tiny networks only).
+
+This shares no theory with `hrc.temporal.dc`: it does not use distance graphs or reductions, it plays
+the game that defines dynamic controllability (Morris, Muscettola & Vidal 2001; Hunsberger 2009) in
+integer time. At each tick ``t`` nature first ends any subset of the running contingent links that may
+end now (it must end those at their upper bound); the agent, who sees this, then executes timepoints at
+``t`` one at a time, and then time advances. The agent wins if every timepoint gets a time and every
+link holds. The agent may react at the tick of an observation (instantaneous reaction), the semantics
+the reduction-based algorithms decide. Integer play suffices for integer networks.
+
+WLOG the first execution is at tick 0 (no origin), and play stops at a horizon ``H`` = 1 + the sum of the
+absolute values of all finite bounds: a DC network has a strategy in which every timepoint waits for at
+most a chain of distinct bounds, so nothing needs to happen later.
+
+Contingent links must have ``lb >= 1`` (then nothing a contingent link starts can end in the tick
+it starts, and nature moving first in each tick is exact).
+
+Cost: exponential (memoised AND-OR search). Keep networks to ~6 timepoints and small bounds.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+from hrc.temporal.network import STNU
+
+__all__ = ["oracle_is_dc"]
+
+
+def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
+    """True iff the agent has a winning dynamic strategy (see the module docstring).
+
+    Raises `RuntimeError` if the search visits more than ``max_states`` states (network too big).
+    """
+    names = stnu.timepoints
+    n = len(names)
+    if any(c.lb == 0 for c in stnu.contingents):
+        raise ValueError("oracle: contingent links need lb >= 1 (nature moves before the agent each tick)")
+    if n == 0:
+        return True
+    idx = {v: i for i, v in enumerate(names)}
+    # constraints as (i, j, w): T(j) - T(i) <= w, contingent links included as requirements
+    cons: list[tuple[int, int, int]] = []
+    for r in stnu.requirements:
+        if r.ub is not None:
+            cons.append((idx[r.source], idx[r.target], r.ub))
+        if r.lb is not None:
+            cons.append((idx[r.target], idx[r.source], -r.lb))
+    activation: dict[int, tuple[int, int, int]] = {}  # contingent tp -> (activation tp, lb, ub)
+    for c in stnu.contingents:
+        activation[idx[c.target]] = (idx[c.source], c.lb, c.ub)
+    horizon = 1 + sum(abs(w) for _, _, w in cons) + sum(c.ub for c in stnu.contingents)
+    executables = [i for i in range(n) if i not in activation]
+    cons_of: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
+    for c in cons:
+        cons_of[c[0]].append(c)
+        cons_of[c[1]].append(c)
+    visited = 0
+
+    def ok_with(times: tuple[int | None, ...], v: int) -> bool:
+        for i, j, w in cons_of[v]:
+            ti, tj = times[i], times[j]
+            if ti is not None and tj is not None and tj - ti > w:
+                return False
+        return True
+
+    def can_wait(times: tuple[int | None, ...], t: int) -> bool:
+        """Moving to tick t+1 leaves no unassigned timepoint past a deadline set by an assigned one."""
+        for i, j, w in cons:
+            ti = times[i]
+            if ti is not None and times[j] is None and ti + w < t + 1:
+                return False
+        return True
+
+    @cache
+    def nature(t: int, times: tuple[int | None, ...]) -> bool:
+        nonlocal visited
+        visited += 1
+        if visited > max_states:
+            raise RuntimeError("oracle: state space too large")
+        if t > horizon:
+            return False
+        may, must = [], []
+        for c, (a, lb, ub) in activation.items():
+            ta = times[a]
+            if ta is not None and times[c] is None:
+                if ta + ub == t:
+                    must.append(c)
+                elif ta + lb <= t < ta + ub:
+                    may.append(c)
+        # every subset of `may`, plus all of `must`
+        for mask in range(1 << len(may)):
+            new = list(times)
+            for c in must:
+                new[c] = t
+            for k, c in enumerate(may):
+                if mask >> k & 1:
+                    new[c] = t
+            tup = tuple(new)
+            if any(not ok_with(tup, c) for c in must) or any(
+                mask >> k & 1 and not ok_with(tup, c) for k, c in enumerate(may)
+            ):
+                return False
+            if not agent(t, tup, 0):
+                return False
+        return True
+
+    @cache
+    def agent(t: int, times: tuple[int | None, ...], first: int) -> bool:
+        # executions at tick t form a set: try them in increasing index order (`first`)
+        if all(x is not None for x in times):
+            return True
+        for v in executables:
+            if v < first or times[v] is not None:
+                continue
+            new = times[:v] + (t,) + times[v + 1 :]
+            if ok_with(new, v) and agent(t, new, v + 1):
+                return True
+        if all(x is None for x in times):
+            return False  # the first execution is at tick 0 WLOG
+        return can_wait(times, t) and nature(t + 1, times)
+
+    return agent(0, (None,) * n, 0)
