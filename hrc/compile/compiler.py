@@ -102,12 +102,12 @@ def _chunks(items: Iterable[Plan], size: int) -> Iterator[list[Plan]]:
 def compile_task(task: Task, seed: int = 0, jobs: int | None = None, executor: str | None = None,
                  progress: Progress | None = None) -> CompiledPlanSet:
     """Compile every plan of `task`; see the module docstring. Raises `hrc.errors.HrcError` subclasses."""
-    paths = plan_paths(task, seed=seed,
-                       progress=(lambda d, t: progress("motion", d, t)) if progress else None)
     total = count_plans(task)
     chunk_size = max(1, min(64, total // (4 * max(1, jobs or 2)) or 1))
     compiled: list[CompiledPlan] = []
-    with make_executor(executor, jobs) as ex:
+    with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
+        paths = plan_paths(task, seed=seed,
+                           progress=(lambda d, t: progress("motion", d, t)) if progress else None)
         for batch in ex.map_chunks(compile_chunk, task, paths, _chunks(generate_plans(task), chunk_size)):
             compiled.extend(batch)
             if progress:
