@@ -16,6 +16,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/hrc show tasks/cube_stacking.yaml
+	$(BIN)/hrc compile tasks/cube_stacking.yaml --out $(OUT)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
