@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import os
+import re
 from typing import Any
 
 import shapely
@@ -22,7 +23,9 @@ from hrc.io.atomic import write_text_atomic
 from hrc.io.yamldoc import Doc, read_yaml
 from hrc.model import Location, Obstacle, Workspace
 
-__all__ = ["dump_workspace", "load_workspace", "workspace_to_dict"]
+__all__ = ["clearance", "dump_workspace", "load_workspace", "workspace_to_dict"]
+
+_DXF_ID = re.compile(r"dxf[0-9]+")
 
 
 def load_workspace(path: str | os.PathLike[str]) -> Workspace:
@@ -38,9 +41,14 @@ def load_workspace(path: str | os.PathLike[str]) -> Workspace:
     floorplan = None
     if "floorplan" in top:
         floorplan = doc.text(top["floorplan"], ("floorplan",))
+        for i, o in enumerate(obstacles):
+            if _DXF_ID.fullmatch(o.id):
+                doc.fail(("obstacles", i, "id"), f"ids dxf1, dxf2, ... are reserved for the floor plan's "
+                                                 f"obstacles, found '{o.id}'")
         dxf = os.path.join(os.path.dirname(doc.file), floorplan)
-        obstacles += _dxf_obstacles(doc, dxf, {o.id for o in obstacles})
-    raw_locs = doc.mapping(top["locations"], ("locations",), optional=tuple(top["locations"] or ()))
+        obstacles += _dxf_obstacles(doc, dxf)
+    raw = top["locations"]
+    raw_locs = doc.mapping(raw, ("locations",), optional=tuple(raw) if isinstance(raw, dict) else ())
     if not raw_locs:
         doc.fail(("locations",), "expected at least one location")
     locations = [_location(doc, key, value) for key, value in raw_locs.items()]
@@ -96,30 +104,46 @@ def _location(doc: Doc, key: Any, value: Any) -> Location:
     return Location(id=lid, x=x, y=y)
 
 
-def _dxf_obstacles(doc: Doc, dxf: str, taken: set[str]) -> list[Obstacle]:
-    """Closed polylines of a DXF floor plan, as obstacles ``dxf1``, ``dxf2``, ... (trimesh reads DXF)."""
+def _dxf_obstacles(doc: Doc, dxf: str) -> list[Obstacle]:
+    """Closed polylines of a DXF floor plan, as obstacles ``dxf1``, ``dxf2``, ... (trimesh reads DXF).
+
+    Errors name the map file and its ``floorplan`` key (where the user can act), and the DXF file.
+    """
     import trimesh  # heavy; only when a map has a floor plan
 
     if not os.path.isfile(dxf):
         doc.fail(("floorplan",), f"DXF floor plan '{dxf}' does not exist")
     try:
-        path2d = trimesh.load_path(dxf)
+        # open it ourselves: trimesh.load_path(name) leaves the file open (a ResourceWarning)
+        with open(dxf, "rb") as fh:
+            path2d = trimesh.load_path(fh, file_type="dxf")
         polys = list(path2d.polygons_closed)
-    except Exception as err:  # trimesh raises many kinds on a bad DXF
-        raise MapFileError(dxf, "", f"cannot read DXF floor plan: {err}") from err
+    except Exception as err:  # trimesh raises many kinds on a bad DXF, and IndexError on an empty one
+        if _looks_like_dxf_without_polylines(dxf):
+            raise MapFileError(doc.file, "floorplan", f"DXF floor plan '{dxf}' has no closed polylines",
+                               doc.line(("floorplan",))) from err
+        reason = " ".join(str(err).split()) or type(err).__name__
+        raise MapFileError(doc.file, "floorplan", f"cannot read DXF floor plan '{dxf}': {reason}",
+                           doc.line(("floorplan",))) from err
     out = []
     for poly in polys:
         if poly is None or poly.area <= 0:
             continue
         coords = tuple((round(float(x), 9), round(float(y), 9)) for x, y in poly.exterior.coords[:-1])
-        n = len(out) + 1
-        while f"dxf{n}" in taken:
-            n += 1
-        out.append(Obstacle(id=f"dxf{n}", polygon=coords))
-        taken.add(f"dxf{n}")
+        out.append(Obstacle(id=f"dxf{len(out) + 1}", polygon=coords))
     if not out:
-        raise MapFileError(dxf, "", "DXF floor plan has no closed polylines")
+        doc.fail(("floorplan",), f"DXF floor plan '{dxf}' has no closed polylines")
     return out
+
+
+def _looks_like_dxf_without_polylines(dxf: str) -> bool:
+    """A text DXF (ends with the EOF group) with no (LW)POLYLINE entity at all."""
+    try:
+        with open(dxf, encoding="utf-8", errors="replace") as fh:
+            lines = [line.strip() for line in fh]
+    except OSError:
+        return False
+    return bool(lines) and lines[-1] == "EOF" and not any(line.endswith("POLYLINE") for line in lines)
 
 
 def _check_geometry(doc: Doc, ws: Workspace) -> None:
@@ -148,19 +172,26 @@ def clearance(ws: Workspace, x: float, y: float) -> tuple[float, str]:
     return best, what
 
 
-def workspace_to_dict(ws: Workspace) -> dict[str, Any]:
-    """The YAML-ready form of `ws`; floor-plan obstacles are written back as the floor plan reference."""
+def workspace_to_dict(ws: Workspace, floorplan: str | None = None) -> dict[str, Any]:
+    """The YAML-ready form of `ws`; floor-plan obstacles are written back as the floor plan reference.
+
+    `floorplan` overrides the reference as written (`dump_workspace` makes it relative to the new file).
+    """
     out: dict[str, Any] = {"name": ws.name, "bounds": list(ws.bounds)}
     if ws.floorplan is not None:
-        out["floorplan"] = ws.floorplan
+        out["floorplan"] = floorplan or ws.floorplan
     out["obstacles"] = [{"id": o.id, "polygon": [list(p) for p in o.polygon]}
-                        for o in ws.obstacles if not (ws.floorplan and o.id.startswith("dxf"))]
+                        for o in ws.obstacles if not (ws.floorplan and _DXF_ID.fullmatch(o.id))]
     out["locations"] = {loc.id: [loc.x, loc.y] for loc in ws.locations}
     return out
 
 
 def dump_workspace(ws: Workspace, path: str | os.PathLike[str]) -> None:
-    """Write `ws` as a map YAML file, atomically."""
+    """Write `ws` as a map YAML file, atomically, its `floorplan` made relative to the new file's folder."""
     import yaml
 
-    write_text_atomic(path, yaml.safe_dump(workspace_to_dict(ws), sort_keys=False))
+    floorplan = ws.floorplan
+    if floorplan is not None and ws.source:
+        dxf = os.path.join(os.path.dirname(os.path.abspath(ws.source)), floorplan)
+        floorplan = os.path.relpath(dxf, os.path.dirname(os.path.abspath(os.fspath(path))))
+    write_text_atomic(path, yaml.safe_dump(workspace_to_dict(ws, floorplan), sort_keys=False))

@@ -119,7 +119,7 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
     if not who:
         doc.fail(path + ("agents",), f"no agent can do action '{aid}'")
     for j, ag in enumerate(who):
-        if ag not in known:
+        if doc.ident(ag, path + ("agents", j)) not in known:
             doc.fail(path + ("agents", j), f"unknown agent '{ag}' (known: {', '.join(known)})")
     doc.unique(list(who), path + ("agents",), "agent", key="")
     phases = []
@@ -128,6 +128,11 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
         pm = doc.mapping(raw_phase, ppath, required=("id", "location", "duration"))
         pid = doc.ident(pm["id"], ppath + ("id",))
         loc = doc.ident(pm["location"], ppath + ("location",))
+        if isinstance(pm["duration"], dict):
+            for ag in pm["duration"]:
+                if ag not in who:
+                    doc.fail(ppath + ("duration", ag), f"agent '{ag}' may not do action '{aid}' "
+                                                       f"(its agents: {', '.join(who)})")
         dm = doc.mapping(pm["duration"], ppath + ("duration",), required=who)
         durations = []
         for ag in who:
@@ -143,8 +148,10 @@ def _phase_ref(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action], firs
     """``ACTION.PHASE``, or ``ACTION`` alone (its first phase after, its last phase before)."""
     text = doc.text(raw, path)
     parts = text.split(".")
-    if parts[0] not in actions or len(parts) > 2:
-        doc.fail(path, f"unknown action '{parts[0]}' (expected ACTION or ACTION.PHASE)")
+    if len(parts) > 2:
+        doc.fail(path, f"expected ACTION or ACTION.PHASE, found '{text}'")
+    if parts[0] not in actions:
+        doc.fail(path, f"unknown action '{parts[0]}' (known: {', '.join(actions)})")
     action = actions[parts[0]]
     if len(parts) == 1:
         return PhaseRef(action.id, action.phases[0 if first else -1].id)

@@ -67,8 +67,8 @@ class Doc:
                 allowed = ", ".join(sorted(required + optional))
                 self.fail(path + (key,), f"unknown key (allowed: {allowed})")
         for key in required:
-            if key not in value:
-                self.fail(path, f"missing key '{key}'")
+            if key not in value:  # named by its would-be path, at the line of the mapping
+                self.fail(path + (key,), "missing (required key)")
         return value
 
     def sequence(self, value: Any, path: Path_, min_len: int = 0) -> list[Any]:
@@ -84,7 +84,10 @@ class Doc:
     ) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.fail(path, f"expected a number, found {_kind(value)}")
-        x = float(value)
+        try:
+            x = float(value)
+        except OverflowError:  # an integer too large for a float
+            self.fail(path, f"expected a finite number, found an integer of {len(str(abs(value)))} digits")
         if math.isnan(x) or (math.isinf(x) and not (allow_inf and x > 0)):
             self.fail(path, f"expected a finite number, found {value}")
         if positive and x <= 0:
@@ -120,7 +123,7 @@ class Doc:
         seen: set[str] = set()
         for i, ident in enumerate(ids):
             if ident in seen:
-                self.fail(path + (i, key), f"duplicate {what} id '{ident}'")
+                self.fail(path + ((i, key) if key else (i,)), f"duplicate {what} id '{ident}'")
             seen.add(ident)
 
 
@@ -164,8 +167,9 @@ def _construct(doc: Doc, node: yaml.Node, path: Path_) -> Any:
     if isinstance(node, yaml.ScalarNode):
         try:
             return _SCALAR.construct_object(node, deep=True)
-        except yaml.YAMLError as err:
-            doc.fail(path, f"bad value: {' '.join(str(err).split())}")
+        except yaml.YAMLError as err:  # e.g. an unsafe tag such as !!python/name
+            problem = getattr(err, "problem", None) or str(err)
+            doc.fail(path, f"bad value: {' '.join(problem.split())}")
     if isinstance(node, yaml.SequenceNode):
         return [_construct(doc, item, path + (i,)) for i, item in enumerate(node.value)]
     if isinstance(node, yaml.MappingNode):

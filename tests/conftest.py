@@ -1,0 +1,69 @@
+"""Shared fixtures: the repository's paths and a minimal valid task + map that tests mutate."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+WORKSHOP_TASK = ROOT / "tasks" / "cube_stacking.yaml"
+WORKSHOP_MAP = ROOT / "maps" / "workshop.yaml"
+
+# A 10 m x 8 m floor with one box in the middle; every optional key present so that tests can break it.
+MIN_MAP: dict[str, Any] = {
+    "name": "mini",
+    "bounds": [0, 0, 10, 8],
+    "obstacles": [{"id": "box", "rect": [4, 3, 6, 5]}],
+    "locations": {"H": [1, 1], "R": [9, 1], "A": [2, 7], "B": [8, 7]},
+}
+MIN_TASK: dict[str, Any] = {
+    "name": "mini",
+    "map": "map.yaml",
+    "safety_margin": 0.1,
+    "deadline": 100,
+    "agents": [
+        {"id": "human", "kind": "human", "radius": 0.3, "speed": 1.2, "start": "H"},
+        {"id": "robot", "kind": "robot", "radius": 0.35, "speed": 0.6, "start": "R"},
+    ],
+    "actions": [
+        {"id": "a1", "name": "fetch at A, put at B", "agents": ["human", "robot"], "phases": [
+            {"id": "fetch", "location": "A", "duration": {"human": [2, 4], "robot": [5, 6]}},
+            {"id": "put", "location": "B", "duration": {"human": [2, 4], "robot": [4, 5]}},
+        ]},
+        {"id": "a2", "agents": ["human", "robot"], "phases": [
+            {"id": "go", "location": "B", "duration": {"human": [1, 2], "robot": [2, 3]}},
+        ]},
+    ],
+    "precedence": [["a1.put", "a2.go"]],
+    "constraints": [{"from": "a1.put.end", "to": "a2.go.end", "bounds": [0, 30]}],
+    "preferences": [{"from": "a1.put.end", "to": "a2.go.start", "domain": [0, 10], "kind": "linear",
+                     "coefficients": [1, -0.1]}],
+}
+
+
+def dump(value: Any) -> str:
+    """Block-style YAML, one key per line (so that error lines point at distinct keys)."""
+    return yaml.safe_dump(value, sort_keys=False, default_flow_style=False)
+
+
+@pytest.fixture
+def mini() -> tuple[dict[str, Any], dict[str, Any]]:
+    """Fresh deep copies of the minimal valid task and map, to mutate."""
+    return copy.deepcopy(MIN_TASK), copy.deepcopy(MIN_MAP)
+
+
+@pytest.fixture
+def write_mini(tmp_path: Path):
+    """``write_mini(task, map) -> task path``: writes task.yaml and map.yaml into tmp_path."""
+
+    def write(task: dict[str, Any], map_: dict[str, Any]) -> Path:
+        (tmp_path / "map.yaml").write_text(dump(map_), encoding="utf-8")
+        path = tmp_path / "task.yaml"
+        path.write_text(dump(task), encoding="utf-8")
+        return path
+
+    return write
