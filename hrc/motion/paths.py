@@ -1,0 +1,156 @@
+"""Travel paths and durations for every location pair an agent may travel (motion acquisition, part 1).
+
+Strassmair & Taylor 2014, section V.A ("Motion Acquisition"): the durations of the co-workers' motions
+are approximated with motion planners on the workspace instead of being guessed. `plan_paths` plans,
+once per compile, every ordered ``(agent, origin, target)`` an agent may travel in any plan: origins are
+the agent's start and the locations of the phases of actions it may do, targets the latter.
+
+- Agents with the same clearance (radius + the task's safety margin) share one OMPL PRM* roadmap
+  (`hrc.motion.planner.Roadmap`); each unordered location pair is planned once per clearance and the
+  path reversed for the other direction (a shortest path reversed is a shortest path). A pair the
+  roadmap cannot join falls back to a single BIT* query.
+- **Duration model**: constant speed. An agent travels at its nominal ``speed`` along the polyline,
+  turning on the spot, with no acceleration phase: ``duration = length / speed``. (Acceleration limits
+  would add ``v / a`` per stop; the task format has no acceleration, so none is modelled.)
+- Seeds: each roadmap / fallback query gets its own OMPL seed derived from ``(seed, clearance,
+  locations)`` by SHA-256, so results do not depend on planning order; same seed, same library.
+
+Raises `hrc.errors.UnreachableLocationError` when a location pair has no collision-free path.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from hrc.errors import UnreachableLocationError
+from hrc.model import Task
+from hrc.motion.planner import Roadmap, plan_points
+from hrc.motion.world import World
+
+__all__ = ["Path", "PathLibrary", "agent_pairs", "plan_paths"]
+
+Point = tuple[float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Path:
+    """A planned free-space route of `agent` from location `origin` to `target`.
+
+    `points` is a polyline (m) from the origin's to the target's coordinates; `length` its length (m);
+    `duration` the free-space travel time ``length / speed`` (s). ``origin == target`` gives one point.
+    """
+
+    agent: str
+    origin: str
+    target: str
+    points: tuple[Point, ...]
+    length: float
+    duration: float
+
+    def reversed(self) -> Path:
+        return Path(self.agent, self.target, self.origin, self.points[::-1], self.length, self.duration)
+
+
+@dataclass(slots=True)
+class PathLibrary:
+    """Every planned path of a task, by ``(agent, origin, target)``; plain picklable data.
+
+    `get` serves zero-length paths for ``origin == target`` and counts its calls (`gets`) for the
+    cache-hit statistics; `stats` holds planning counts and wall time (not part of equality).
+    """
+
+    seed: int
+    paths: dict[tuple[str, str, str], Path]
+    locations: dict[str, Point]
+    stats: dict[str, float] = field(default_factory=dict, compare=False)
+    gets: int = field(default=0, compare=False)
+    samples: dict = field(default_factory=dict, compare=False, repr=False)  # plan_motions' cache
+
+    def get(self, agent: str, origin: str, target: str) -> Path:
+        """The path of `agent` from `origin` to `target`; raises KeyError for a pair never planned."""
+        self.gets += 1
+        if origin == target:
+            xy = self.locations[origin]
+            return Path(agent, origin, target, (xy,), 0.0, 0.0)
+        return self.paths[(agent, origin, target)]
+
+    def __iter__(self):
+        return iter(self.paths.values())
+
+
+def agent_pairs(task: Task, agent_id: str) -> list[tuple[str, str]]:
+    """Ordered ``(origin, target)`` pairs (origin != target) `agent_id` may travel in some plan."""
+    targets: list[str] = []
+    for action in task.actions:
+        if agent_id in action.agents:
+            for phase in action.phases:
+                if phase.location not in targets:
+                    targets.append(phase.location)
+    start = task.agent(agent_id).start
+    origins = [start] + [t for t in targets if t != start]
+    return [(o, t) for o in origins for t in targets if o != t]
+
+
+def _seed(*parts: object) -> int:
+    """A positive 31-bit seed from `parts` (OMPL ignores a seed of 0)."""
+    digest = hashlib.sha256(repr(parts).encode()).digest()
+    return 1 + int.from_bytes(digest[:4], "big") % (2**31 - 2)
+
+
+def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] | None = None) -> PathLibrary:
+    """Plan every path of `task` (see the module docstring); `progress(done, total)` per planned pair.
+
+    Cost: one roadmap per distinct clearance plus one roadmap query (and shortening) per unordered
+    location pair and clearance. Raises `UnreachableLocationError` naming agent and locations.
+    """
+    t0 = time.perf_counter()
+    world = World(task.workspace)
+    locs = {loc.id: loc.xy for loc in task.workspace.locations}
+    wanted: dict[float, list[tuple[str, str]]] = {}  # clearance -> unordered pairs (sorted ids)
+    requested = 0
+    for agent in task.agents:
+        c = agent.radius + task.safety_margin
+        for o, t in agent_pairs(task, agent.id):
+            requested += 1
+            key = (min(o, t), max(o, t))
+            if key not in wanted.setdefault(c, []):
+                wanted[c].append(key)
+    total = sum(len(v) for v in wanted.values())
+    planned: dict[tuple[float, str, str], tuple[Point, ...] | None] = {}
+    roadmaps = fallbacks = 0
+    milestones = 0
+    done = 0
+    for c in sorted(wanted):
+        roadmap = Roadmap.build(world, c, _seed(seed, c))
+        roadmaps += 1
+        milestones += len(roadmap.points)
+        for a, b in wanted[c]:
+            pts = roadmap.query(world, locs[a], locs[b])
+            if pts is None:
+                fallbacks += 1
+                pts = plan_points(world, locs[a], locs[b], c, _seed(seed, c, a, b))
+            planned[(c, a, b)] = None if pts is None else tuple(pts)
+            done += 1
+            if progress is not None:
+                progress(done, total)
+    paths: dict[tuple[str, str, str], Path] = {}
+    for agent in task.agents:
+        c = agent.radius + task.safety_margin
+        for o, t in agent_pairs(task, agent.id):
+            a, b = min(o, t), max(o, t)
+            pts = planned[(c, a, b)]
+            if pts is None:
+                raise UnreachableLocationError(
+                    f"{agent.id} cannot reach {t} from {o}: no path keeping {c:g} m (radius {agent.radius:g} "
+                    f"+ safety margin {task.safety_margin:g}) from obstacles and walls")
+            if (o, t) != (a, b):
+                pts = pts[::-1]
+            length = sum(math.dist(p, q) for p, q in zip(pts, pts[1:], strict=False))
+            paths[(agent.id, o, t)] = Path(agent.id, o, t, pts, length, length / agent.speed)
+    stats = {"requested": requested, "planned": total, "roadmaps": roadmaps, "milestones": milestones,
+             "fallbacks": fallbacks, "seconds": time.perf_counter() - t0}
+    return PathLibrary(seed=seed, paths=paths, locations=locs, stats=stats)
