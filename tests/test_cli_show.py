@@ -1,0 +1,72 @@
+"""`hrc show`: the workshop summary with its 32 plans, as text and as strict JSON."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from conftest import ROOT, WORKSHOP_TASK
+
+from hrc.cli import main
+
+
+def _strict_json(text: str):
+    def no_constant(name: str):
+        raise AssertionError(f"not JSON: {name}")
+
+    return json.loads(text, parse_constant=no_constant)
+
+
+def test_show_text(capsys):
+    assert main(["show", str(WORKSHOP_TASK)]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    out = captured.out
+    assert out.startswith("task cube_stacking")
+    assert out.rstrip().splitlines()[-1].startswith("plans: 32 ")
+    for word in ("human", "robot", "cube1", "triangle", "cube4.put -> triangle.put", "map workshop", "9 obstacles"):
+        assert word in out
+
+
+def test_show_json(capsys):
+    assert main(["show", str(WORKSHOP_TASK), "--json"]) == 0
+    data = _strict_json(capsys.readouterr().out)
+    assert data["plan_count"] == 32
+    assert [a["id"] for a in data["agents"]] == ["human", "robot"]
+    assert [a["id"] for a in data["actions"]] == ["cube1", "cube2", "cube3", "cube4", "triangle"]
+    assert data["actions"][0]["phases"][0] == {"id": "fetch", "location": "S1",
+                                               "duration": {"human": [2, 4], "robot": [5, 6]}}
+    assert data["map"]["name"] == "workshop" and data["map"]["obstacles"] == 9
+    assert data["deadline"] == 80
+
+
+def test_show_json_with_an_unbounded_constraint_is_strict_json(mini, write_mini, capsys):
+    task, map_ = mini
+    task["constraints"][0]["bounds"] = [0, float("inf")]
+    assert main(["show", str(write_mini(task, map_)), "--json"]) == 0
+    data = _strict_json(capsys.readouterr().out)
+    assert data["constraints"][0]["bounds"] == [0, "inf"]
+
+
+def test_readme_demo_command():
+    """What `make demo` runs: the console script on the bundled task, from the repository root."""
+    script = shutil.which("hrc", path=str(Path(sys.executable).parent))
+    command = [script] if script else [sys.executable, "-m", "hrc"]
+    proc = subprocess.run([*command, "show", "tasks/cube_stacking.yaml"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert "plans: 32" in proc.stdout
+    proc = subprocess.run([sys.executable, "-m", "hrc", "show", "tasks/cube_stacking.yaml", "--json"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and _strict_json(proc.stdout)["plan_count"] == 32
+
+
+def test_show_floorplan_demo(capsys):
+    assert main(["show", str(ROOT / "tasks" / "floorplan_demo.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "3 obstacles (floor plan floorplan.dxf)" in out
+    assert "plans: 4 " in out
