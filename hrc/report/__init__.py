@@ -1,0 +1,64 @@
+"""Reports of a compiled plan set: ``report.md``, ``report.html`` and ``figures/*.png``.
+
+The last stage of the flow (../shared/DESIGN.md): the only place that plots. `write_report` collects
+what to say once (`summary.build_report_data`), draws the figures of the featured plans only (the three
+best and the best of each class: a report of thousands of plans still has a handful of figures), and
+renders each format in `FORMATS` from the same data. Output is deterministic: the same compiled set
+gives the same bytes (no timestamps; PNGs without software/date metadata).
+
+Figures: ``counts.png`` (plans per class), ``gantt_ID.png`` (earliest schedule per agent),
+``map_ID.png`` (workspace, both agents' routes, interference points).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from hrc.report.html import render_html
+from hrc.report.markdown import render_markdown
+from hrc.report.summary import ReportData, build_report_data, featured_plans
+
+if TYPE_CHECKING:
+    from hrc.compile.compiler import CompiledPlanSet
+
+__all__ = ["FORMATS", "write_figures", "write_report"]
+
+FORMATS: dict[str, Callable[[ReportData, dict[str, str]], str]] = {
+    "report.md": render_markdown,
+    "report.html": render_html,
+}
+"""Report file name -> renderer ``(data, figures) -> text``; `write_report` writes each of them."""
+
+
+def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
+    """Draw the figures into ``out_dir/figures``; returns figure key -> path relative to `out_dir`."""
+    from hrc.report.figures import counts_figure, save_png
+    from hrc.report.gantt import gantt_figure
+    from hrc.report.maps import map_figure
+
+    fig_dir = out_dir / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    written: dict[str, str] = {}
+
+    def save(key: str, fig) -> None:  # noqa: ANN001 (a matplotlib Figure)
+        save_png(fig, fig_dir / f"{key}.png")
+        written[key] = f"figures/{key}.png"
+
+    save("counts", counts_figure(cps.counts()))
+    for cp in featured_plans(cps):
+        pid = cp.plan.id
+        if cp.classification.schedule:
+            save(f"gantt_{pid}", gantt_figure(cps.task, cp))
+        save(f"map_{pid}", map_figure(cps, cp))
+    return written
+
+
+def write_report(cps: CompiledPlanSet, out_dir: Path) -> None:
+    """Write ``report.md``, ``report.html`` and ``figures/`` into `out_dir` (the caller's staging folder)."""
+    out_dir = Path(out_dir)
+    data = build_report_data(cps)
+    figures = write_figures(cps, out_dir)
+    for name, render in FORMATS.items():
+        (out_dir / name).write_text(render(data, figures), encoding="utf-8")

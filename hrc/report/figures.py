@@ -1,0 +1,61 @@
+"""Figure plumbing shared by the report's charts: colours, an Agg canvas, byte-stable PNG output.
+
+Figures are `matplotlib.figure.Figure` objects on their own `FigureCanvasAgg`, never pyplot, so no
+global backend or figure registry is touched. PNGs are written with fixed size and DPI and without the
+"Software" text chunk (matplotlib writes no date into PNGs), so the same input gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping
+from pathlib import Path
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+__all__ = ["AGENT_COLORS", "CLASS_COLORS", "DPI", "agent_color", "counts_figure", "new_figure", "save_png"]
+
+DPI = 100
+
+CLASS_COLORS: dict[str, str] = {"DC": "#2e7d32", "consistent": "#e0a000", "inconsistent": "#c62828"}
+"""Badge and bar colours per plan class (green, amber, red), shared with the HTML report."""
+
+AGENT_COLORS: tuple[str, ...] = ("#1f5fa8", "#8e44ad", "#00897b", "#6d4c41")
+"""Agent colours in task order (human first in the workshop): blue, purple, then teal, brown."""
+
+def agent_color(index: int) -> str:
+    return AGENT_COLORS[index % len(AGENT_COLORS)]
+
+
+def new_figure(width: float, height: float) -> Figure:
+    """A figure of `width` x `height` inches attached to its own Agg canvas."""
+    fig = Figure(figsize=(width, height), dpi=DPI)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save_png(fig: Figure, path: Path) -> None:
+    """Render `fig` to `path` as a PNG whose bytes depend only on the figure, then free it."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
+    fig.clear()
+    path.write_bytes(buf.getvalue())
+
+
+def counts_figure(counts: Mapping[str, int]) -> Figure:
+    """Bar chart: plans per class, best class first, each bar in its class colour with its count."""
+    fig = new_figure(4.2, 2.4)
+    ax = fig.add_axes((0.14, 0.16, 0.82, 0.72))
+    names = list(counts)
+    values = [counts[n] for n in names]
+    bars = ax.bar(names, values, color=[CLASS_COLORS.get(n, "#777777") for n in names], width=0.6)
+    top = max(values, default=0)
+    for bar, v in zip(bars, values, strict=True):
+        ax.text(bar.get_x() + bar.get_width() / 2, v + max(top, 1) * 0.02, str(v), ha="center", va="bottom",
+                fontsize=9)
+    ax.set_ylim(0, max(top, 1) * 1.18)
+    ax.set_ylabel("plans")
+    ax.set_title("Plans per class")
+    ax.spines[["top", "right"]].set_visible(False)
+    return fig

@@ -1,0 +1,103 @@
+"""Gantt chart of one plan's earliest schedule: a row per agent, travel and manipulation bars per phase.
+
+Times come from `Classification.schedule` (the earliest time of every STNU timepoint, in seconds);
+a leg's bars span ``depart -> arrive`` (travel: lighter, hatched) and ``start -> end`` (manipulation,
+labelled ``cube2 fetch``). Gaps are waiting. A dashed red line marks the makespan deadline and a dotted
+one the worst-case makespan. O(legs) artists.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from matplotlib.artist import Artist
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from hrc.plans import agent_legs
+from hrc.report.figures import agent_color, new_figure
+
+if TYPE_CHECKING:
+    from hrc.compile.compiler import CompiledPlan
+    from hrc.model import Task
+
+__all__ = ["gantt_bars", "gantt_figure"]
+
+# Timepoint names, as the temporal net creator writes them: AGENT.PHASE.ACTION.(depart|arrive|start|end)
+
+
+def _tp(agent: str, phase: str, action: str, what: str) -> str:
+    return f"{agent}.{phase}.{action}.{what}"
+
+
+def gantt_bars(task: Task, cp: CompiledPlan) -> dict[str, list[tuple[str, float, float, str]]]:
+    """Per agent, ``(kind, start, end, label)`` with kind ``travel`` or ``work``, in leg order.
+
+    Zero-length travel (already at the location) is left out; legs missing from the schedule too.
+    """
+    times = dict(cp.classification.schedule)
+    bars: dict[str, list[tuple[str, float, float, str]]] = {}
+    for agent in task.agent_ids:
+        rows: list[tuple[str, float, float, str]] = []
+        for leg in agent_legs(task, cp.plan, agent):
+            label = f"{leg.action} {leg.phase}"
+            dep, arr, st, en = (times.get(_tp(agent, leg.phase, leg.action, w))
+                                for w in ("depart", "arrive", "start", "end"))
+            if dep is not None and arr is not None and arr > dep:
+                rows.append(("travel", dep, arr, f"to {leg.location}"))
+            if st is not None and en is not None:
+                rows.append(("work", st, en, label))
+        bars[agent] = rows
+    return bars
+
+
+def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
+    """The Gantt chart of `cp` (see the module docstring); x axis in seconds."""
+    bars = gantt_bars(task, cp)
+    agents = task.agent_ids
+    ms = cp.classification.makespan
+    horizon = max([e for rows in bars.values() for _, _, e, _ in rows]
+                  + [ms[1] if ms else 0.0, task.deadline or 0.0, 1.0])
+    bottom, top, per_row = 0.55, 0.4, 1.0  # inches: x axis and its label, legend, one agent row
+    fig_h = bottom + top + per_row * len(agents)
+    fig = new_figure(10.0, fig_h)
+    ax = fig.add_axes((0.075, bottom / fig_h, 0.905, per_row * len(agents) / fig_h))
+    height = 0.34
+    for row, agent in enumerate(agents):
+        y = len(agents) - 1 - row
+        color = agent_color(row)
+        work_index = 0
+        for kind, start, end, label in bars[agent]:
+            if kind == "travel":
+                ax.barh(y, end - start, left=start, height=height * 0.6, color=color, alpha=0.28,
+                        hatch="///", edgecolor=color, linewidth=0.0)
+                continue
+            ax.barh(y, max(end - start, 0.15), left=start, height=height, color=color, edgecolor="white",
+                    linewidth=0.6)
+            # alternate labels above and below the bar, so that short neighbouring phases stay readable
+            above = work_index % 2 == 0
+            ax.text((start + end) / 2, y + (height / 2 + 0.04) * (1 if above else -1), label, ha="center",
+                    va="bottom" if above else "top", fontsize=7.5, color="#222222")
+            work_index += 1
+    if task.deadline is not None:
+        ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2)
+        ax.text(task.deadline, len(agents) - 0.42, f" deadline {task.deadline:g} s", color="#c62828",
+                fontsize=8, va="center", ha="left" if task.deadline < horizon * 0.85 else "right")
+    if ms is not None and ms[1] > ms[0]:
+        ax.axvline(ms[1], color="#555555", linestyle=":", linewidth=1.0)
+    ax.set_yticks(range(len(agents)), labels=list(reversed(agents)))
+    ax.set_ylim(-0.62, len(agents) - 0.38)
+    ax.set_xlim(0, horizon * 1.03)
+    ax.set_xlabel("time (s), earliest schedule")
+    ax.grid(axis="x", color="#dddddd", linewidth=0.6)
+    ax.set_axisbelow(True)
+    ax.spines[["top", "right"]].set_visible(False)
+    handles: list[Artist] = [Patch(facecolor="#888888", label="manipulation"),
+               Patch(facecolor="#888888", alpha=0.28, hatch="///", edgecolor="#888888", linewidth=0.0,
+                     label="travel")]
+    if ms is not None and ms[1] > ms[0]:
+        handles.append(Line2D([], [], color="#555555", linestyle=":", label=f"worst-case makespan {ms[1]:.1f} s"))
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
+              frameon=False, borderaxespad=0.3)
+    return fig

@@ -1,0 +1,118 @@
+"""Map of one plan: the workspace, its labelled locations, each agent's route and the interference points.
+
+Routes are the free-space paths of motion acquisition (`PathLibrary.get(agent, origin, target)`), one
+per travelling leg, drawn in the agent's colour with an arrow at the middle of each leg; the agents'
+routes are offset a few centimetres apart so that shared corridors show both. Each interference point
+is an X labelled with the delayed agent and the seconds it costs. O(path points) artists.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Polygon, Rectangle
+
+from hrc.report.figures import agent_color, new_figure
+
+if TYPE_CHECKING:
+    from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+    from hrc.model import Workspace
+
+__all__ = ["draw_workspace", "map_figure", "route_points"]
+
+_OFFSET = 0.06  # m, how far apart the agents' routes are drawn
+
+
+def draw_workspace(ax, workspace: Workspace) -> None:  # noqa: ANN001 (a matplotlib Axes)
+    """Bounds, obstacles (grey, with their ids) and locations (dots with their ids), equal aspect."""
+    xmin, ymin, xmax, ymax = workspace.bounds
+    ax.add_patch(Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="#333333", linewidth=1.2))
+    for ob in workspace.obstacles:
+        ax.add_patch(Polygon(ob.polygon, closed=True, facecolor="#c8c8c8", edgecolor="#8a8a8a", linewidth=0.6))
+    for loc in workspace.locations:
+        ax.plot([loc.x], [loc.y], marker="o", markersize=5, color="#222222", zorder=5)
+        ax.annotate(loc.id, (loc.x, loc.y), xytext=(5, 4), textcoords="offset points", fontsize=9,
+                    fontweight="bold", color="#222222", zorder=6)
+    pad = 0.2
+    ax.set_xlim(xmin - pad, xmax + pad)
+    ax.set_ylim(ymin - pad, ymax + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+
+
+def route_points(cps: CompiledPlanSet, cp: CompiledPlan, agent: str) -> list[list[tuple[float, float]]]:
+    """The agent's travelled paths in leg order (legs without travel left out)."""
+    out = []
+    for m in sorted((m for m in cp.motions if m.agent == agent), key=lambda m: m.leg):
+        if m.origin == m.target:
+            continue
+        path = cps.paths.get(agent, m.origin, m.target)
+        out.append([(float(x), float(y)) for x, y in path.points])
+    return out
+
+
+def _midpoint_arrow(ax, pts: list[tuple[float, float]], color: str) -> None:  # noqa: ANN001
+    lengths = [math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False)]
+    total = sum(lengths)
+    if total <= 0:
+        return
+    half = total / 2
+    for (a, b), seg in zip(zip(pts, pts[1:], strict=False), lengths, strict=True):
+        if seg > 0 and half <= seg:
+            t = half / seg
+            mid = (a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t)
+            d = ((b[0] - a[0]) / seg * 0.01, (b[1] - a[1]) / seg * 0.01)
+            ax.annotate("", xy=(mid[0] + d[0], mid[1] + d[1]), xytext=mid,
+                        arrowprops={"arrowstyle": "-|>,head_length=0.7,head_width=0.35", "color": color,
+                                    "linewidth": 0, "shrinkA": 0, "shrinkB": 0}, zorder=4)
+            return
+        half -= seg
+
+
+def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
+    """The map of `cp` (see the module docstring)."""
+    task = cps.task
+    ws = task.workspace
+    xmin, ymin, xmax, ymax = ws.bounds
+    width = 6.4
+    height = min(9.0, max(3.0, (width - 0.9) * (ymax - ymin + 0.4) / (xmax - xmin + 0.4) + 1.0))
+    fig = new_figure(width, height)
+    ax = fig.add_axes((0.1, 0.7 / height, 0.86, 1.0 - 1.0 / height))
+    draw_workspace(ax, ws)
+    handles = []
+    n = len(task.agents)
+    for i, agent in enumerate(task.agents):
+        color = agent_color(i)
+        shift = (i - (n - 1) / 2) * _OFFSET * 2
+        for pts in route_points(cps, cp, agent.id):
+            moved = [(x + shift, y - shift) for x, y in pts]
+            xs, ys = zip(*moved, strict=True)
+            ax.plot(xs, ys, color=color, linewidth=1.6, alpha=0.85, solid_capstyle="round", zorder=3)
+            _midpoint_arrow(ax, moved, color)
+        start = ws.location(agent.start)
+        ax.plot([start.x], [start.y], marker="s", markersize=9, markerfacecolor="none", markeredgecolor=color,
+                markeredgewidth=1.6, zorder=5)
+        handles.append(Line2D([], [], color=color, linewidth=1.6, marker="s", markerfacecolor="none",
+                              label=f"{agent.id} route (\u25a1 start)"))
+    # one X per distinct point; a point several interferences share gets one line per interference
+    at: dict[tuple[float, float], list[str]] = {}
+    for m in sorted(cp.motions, key=lambda m: (task.agent_ids.index(m.agent), m.leg)):
+        for inter in m.interference:
+            key = (round(float(inter.point[0]), 2), round(float(inter.point[1]), 2))
+            at.setdefault(key, []).append(f"{m.agent} +{inter.extra_time:.1f} s {inter.kind}")
+    for (x, y), lines in at.items():
+        ax.plot([x], [y], marker="X", markersize=11, color="#c62828", markeredgecolor="white", zorder=7)
+        ax.annotate("\n".join(lines), (x, y), xytext=(8, -6), textcoords="offset points", fontsize=7.5,
+                    color="#c62828", va="top", zorder=7,
+                    bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.85})
+    marked = bool(at)
+    if marked:
+        handles.append(Line2D([], [], color="#c62828", marker="X", linestyle="none", markersize=9,
+                              label="interference"))
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
+              frameon=False, borderaxespad=0.2)
+    return fig

@@ -1,0 +1,86 @@
+"""``report.md``: the report as GitHub-flavoured Markdown (tables, relative image and network links)."""
+
+from __future__ import annotations
+
+from hrc.report.summary import (
+    ReportData,
+    allocation_legend,
+    fmt_cause,
+    fmt_idle,
+    fmt_makespan,
+    fmt_motion,
+    fmt_sequence,
+    fmt_stnu,
+)
+
+__all__ = ["render_markdown"]
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|")
+
+
+def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
+    """The Markdown text; `figures` maps a figure key (``counts``, ``gantt_ID``, ``map_ID``) to its path."""
+    out: list[str] = [f"# {data.title}", ""]
+    total = sum(n for _, n in data.counts)
+    out += [
+        f"- **Task:** `{data.task_name}`, digest `{data.digest}`",
+        f"- **Seed:** {data.seed}",
+        f"- **Deadline:** {'none' if data.deadline is None else f'{data.deadline:g} s'}",
+        f"- **Plans:** {total} \u2014 " + ", ".join(f"{c} {n}" for c, n in data.counts),
+        "",
+    ]
+    if "counts" in figures:
+        out += [f"![Plans per class]({figures['counts']})", ""]
+    for _, reason in data.empty_reasons:
+        out += [f"> {reason[0].upper()}{reason[1:]}", ""]
+
+    agents = data.agents
+    out += ["## Ranked plans", "",
+            f"Allocation: {allocation_legend(data)}. Makespan: earliest \u2013 worst case. "
+            f"Idle: {' / '.join(agents)}, in the earliest schedule. "
+            "STNU: timepoints / requirement links / contingent links.", ""]
+    header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
+              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "STNU", "Network"])
+    out += ["| " + " | ".join(header) + " |", "|" + "|".join("---:" if h == "Rank" else "---" for h in header) + "|"]
+    for r in data.rows:
+        plan = f"[`{r.plan_id}`](#plan-{r.plan_id})" if r.featured else f"`{r.plan_id}`"
+        seqs = dict(r.sequences)
+        cells = ([str(r.rank), plan, r.plan_class, f"`{r.allocation}`"]
+                 + [fmt_sequence(seqs.get(a, ())) for a in agents]
+                 + [fmt_makespan(r.makespan), fmt_idle(r.idle), fmt_stnu(r.stnu_size),
+                    f"[graphml]({r.stnu_link})"])
+        out.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    out.append("")
+
+    rows = {r.plan_id: r for r in data.rows}
+    notes = dict(data.notes)
+    explanations = dict(data.explanations)
+    out += ["## Featured plans", "", "The three best plans and the best plan of each class.", ""]
+    for pid in data.featured:
+        r = rows[pid]
+        seqs = dict(r.sequences)
+        out += [f'<a id="plan-{pid}"></a>', "", f"### Rank {r.rank}: plan `{pid}` \u2014 {r.plan_class}", ""]
+        idle = ", ".join(f"{a} {s:.1f} s" for a, s in r.idle) or "\u2014"
+        out += [f"- **Allocation:** `{r.allocation}`"]
+        out += [f"- **{a}:** {fmt_sequence(seqs.get(a, ()))}" for a in agents]
+        out += [f"- **Makespan:** {fmt_makespan(r.makespan)} s; **idle:** {idle}",
+                f"- **STNU:** [{r.stnu_link}]({r.stnu_link}) ({fmt_stnu(r.stnu_size)})", ""]
+        if explanations.get(pid):
+            out += [f"**Why {r.plan_class}:** {explanations[pid]}", ""]
+        if f"gantt_{pid}" in figures:
+            out += [f"![Gantt chart of plan {pid}]({figures[f'gantt_{pid}']})", ""]
+        else:
+            out += ["*No schedule: not even the lower bounds of the durations fit together.*", ""]
+        if f"map_{pid}" in figures:
+            out += [f"![Routes of plan {pid}]({figures[f'map_{pid}']})", ""]
+        if notes.get(pid):
+            out += ["**Interference** (the co-worker's motion that delays a motion, and by how much):", ""]
+            for note in notes[pid]:
+                out.append(f"- {fmt_motion(note)}")
+                out += [f"  - {fmt_cause(c)}" for c in note.causes]
+            out.append("")
+        else:
+            out += ["No interference: motion acquisition found no motion that the co-worker delays.", ""]
+    return "\n".join(out).rstrip("\n") + "\n"

@@ -1,0 +1,310 @@
+"""The report writer on a synthetic compiled set of the workshop task (no motion planning, no DC check).
+
+The set is real `CompiledPlanSet` / `CompiledPlan` / `Classification` values; only the motions and the
+path library are stand-ins (straight lines, a made-up interference), and each plan's schedule is a
+simple ASAP pass over its phase graph. Then: the files exist, the HTML parses and every image it names
+exists, the ranked table lists every plan in rank order, the counts agree, and two runs give the same
+bytes.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import dataclass, replace
+from html.parser import HTMLParser
+from pathlib import Path
+
+import networkx as nx
+import pytest
+
+from hrc.compile.classify import Classification, PlanClass
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, rank_key
+from hrc.io.task_file import load_task
+from hrc.model import Plan, Task
+from hrc.plans import agent_legs, generate_plans, phase_graph
+from hrc.report import FORMATS, write_report
+from hrc.report.summary import agent_letters, empty_class_reason, featured_plans
+
+WORKSHOP_TASK = Path(__file__).resolve().parents[1] / "tasks" / "cube_stacking.yaml"
+
+
+@dataclass(frozen=True, slots=True)
+class FakePath:
+    agent: str
+    origin: str
+    target: str
+    points: tuple[tuple[float, float], ...]
+    length: float
+    duration: float
+
+
+@dataclass(frozen=True, slots=True)
+class FakeInterference:
+    other_agent: str
+    other_leg: int
+    other_origin: str
+    other_target: str
+    extra_time: float
+    kind: str
+    point: tuple[float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class FakeMotion:
+    agent: str
+    leg: int
+    origin: str
+    target: str
+    free_time: float
+    max_time: float
+    interference: tuple[FakeInterference, ...]
+
+
+class FakePaths:
+    """Straight lines between locations, as `PathLibrary.get` would return planned paths."""
+
+    def __init__(self, task: Task) -> None:
+        self.task = task
+
+    def get(self, agent: str, origin: str, target: str) -> FakePath:
+        ws = self.task.workspace
+        a, b = ws.location(origin).xy, ws.location(target).xy
+        length = math.dist(a, b)
+        return FakePath(agent, origin, target, (a, ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2 + 0.3), b), length,
+                        length / self.task.agent(agent).speed)
+
+
+def _motions(task: Task, plan: Plan, paths: FakePaths) -> tuple[FakeMotion, ...]:
+    out = []
+    human_legs = agent_legs(task, plan, "human")
+    for agent in task.agent_ids:
+        for leg in agent_legs(task, plan, agent):
+            t = 0.0 if leg.origin == leg.location else paths.get(agent, leg.origin, leg.location).duration
+            inter: tuple[FakeInterference, ...] = ()
+            # a made-up conflict: the robot going up through the passage while the human's first leg is
+            if agent == "robot" and leg.location in ("S1", "S2", "S3") and human_legs:
+                h = human_legs[0]
+                inter = (FakeInterference("human", 0, h.origin, h.location, 2.5, "wait", (4.95, 5.4)),)
+            out.append(FakeMotion(agent, leg.index, leg.origin, leg.location, t,
+                                  t + sum(i.extra_time for i in inter), inter))
+    return tuple(out)
+
+
+def _schedule(task: Task, plan: Plan, motions: tuple[FakeMotion, ...], slow: bool) -> dict[str, float]:
+    """ASAP over the phase graph: travel then manipulation per leg (lower or upper duration bounds)."""
+    legs = {f"{leg.action}.{leg.phase}": leg for a in task.agent_ids for leg in agent_legs(task, plan, a)}
+    travel = {(m.agent, m.leg): (m.max_time if m.agent == "robot" or slow else m.free_time) for m in motions}
+    times: dict[str, float] = {"start": 0.0}
+    g = phase_graph(task, plan)
+    for node in nx.topological_sort(g):
+        leg = legs[node]
+        prefix = f"{leg.agent}.{leg.phase}.{leg.action}"
+        prev = [times[f"{legs[p].agent}.{legs[p].phase}.{legs[p].action}.end"] for p in g.predecessors(node)
+                if legs[p].agent == leg.agent]
+        dep = max(prev, default=0.0)
+        arr = dep + travel[(leg.agent, leg.index)]
+        ready = [times[f"{legs[p].agent}.{legs[p].phase}.{legs[p].action}.end"] for p in g.predecessors(node)]
+        st = max([arr, *ready])
+        bounds = task.action(leg.action).phase(leg.phase).duration(leg.agent)
+        times.update({f"{prefix}.depart": dep, f"{prefix}.arrive": arr, f"{prefix}.start": st,
+                      f"{prefix}.end": st + (bounds.ub if slow else bounds.lb)})
+    return times
+
+
+def synthetic_set(deadline_dc: float = 55.0, deadline: float = 80.0) -> CompiledPlanSet:
+    """The workshop's 32 plans; class by earliest makespan: <= deadline_dc DC, <= deadline consistent."""
+    task = load_task(WORKSHOP_TASK)
+    paths = FakePaths(task)
+    compiled = []
+    for plan in generate_plans(task):
+        motions = _motions(task, plan, paths)
+        early = _schedule(task, plan, motions, slow=False)
+        late = _schedule(task, plan, motions, slow=True)
+        ends = [v for k, v in early.items() if k.endswith(".end")]
+        makespan = (max(ends), max(v for k, v in late.items() if k.endswith(".end")))
+        if makespan[0] <= deadline_dc:
+            cls, why = PlanClass.DC, ""
+        elif makespan[0] <= deadline:
+            cls, why = PlanClass.CONSISTENT, "not controllable by the robot alone: human's put of cube2 (2-4 s)"
+        else:
+            cls, why = PlanClass.INCONSISTENT, f"no schedule meets every constraint: makespan deadline {deadline:g} s"
+        idle = []
+        for agent in task.agent_ids:
+            busy = sum(early[k] - early[k.rsplit(".", 1)[0] + ".depart"] for k in early
+                       if k.startswith(agent + ".") and k.endswith(".arrive"))
+            busy += sum(early[k] - early[k.rsplit(".", 1)[0] + ".start"] for k in early
+                        if k.startswith(agent + ".") and k.endswith(".end"))
+            idle.append((agent, makespan[0] - busy))
+        c = Classification(cls, why, makespan, tuple(idle), tuple(early.items()))
+        compiled.append(CompiledPlan(plan=plan, motions=motions, classification=c, stnu_size=(len(early), 50, 8),
+                                     graphml="<graphml/>"))
+    compiled.sort(key=rank_key)
+    ranked = tuple(replace(cp, rank=i + 1) for i, cp in enumerate(compiled))
+    return CompiledPlanSet(task=task, seed=7, digest="0" * 64, paths=paths, plans=ranked)  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def cps() -> CompiledPlanSet:
+    return synthetic_set()
+
+
+@pytest.fixture(scope="module")
+def report_dir(cps: CompiledPlanSet, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("report")
+    write_report(cps, out)
+    return out
+
+
+class _Html(HTMLParser):
+    """Collects <img src>, hrefs, ids and table rows; fails on unbalanced tags."""
+
+    VOID = {"meta", "img", "br", "hr", "link", "input"}
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.stack: list[str] = []
+        self.images: list[str] = []
+        self.hrefs: list[str] = []
+        self.ids: set[str] = set()
+        self.rows: list[list[str]] = []
+        self._cell: list[str] | None = None
+        self.errors: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = dict(attrs)
+        if tag == "img":
+            self.images.append(a["src"] or "")
+        if tag == "a" and a.get("href"):
+            self.hrefs.append(a["href"] or "")
+        if a.get("id"):
+            self.ids.add(a["id"] or "")
+        if tag == "tr" and "tbody" in self.stack:
+            self.rows.append([])
+        if tag == "td" and "tbody" in self.stack:
+            self._cell = []
+        if tag not in self.VOID:
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag: str) -> None:
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes {self.stack[-1:] or 'nothing'}")
+            return
+        self.stack.pop()
+        if tag == "td" and self._cell is not None:
+            self.rows[-1].append("".join(self._cell).strip())
+            self._cell = None
+
+    def handle_data(self, data: str) -> None:
+        if self._cell is not None:
+            self._cell.append(data)
+
+
+def _parse(path: Path) -> _Html:
+    parser = _Html()
+    parser.feed(path.read_text(encoding="utf-8"))
+    parser.close()
+    return parser
+
+
+def test_files_exist(cps: CompiledPlanSet, report_dir: Path) -> None:
+    for name in FORMATS:
+        assert (report_dir / name).stat().st_size > 0
+    assert (report_dir / "figures" / "counts.png").exists()
+    featured = featured_plans(cps)
+    assert 3 <= len(featured) <= 3 + 3
+    for cp in featured:
+        for kind in ("gantt", "map"):
+            assert (report_dir / "figures" / f"{kind}_{cp.plan.id}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    pngs = sorted(p.name for p in (report_dir / "figures").iterdir())
+    assert len(pngs) == 1 + 2 * len(featured)  # not one figure per plan
+
+
+def test_featured_are_best_three_and_best_of_each_class(cps: CompiledPlanSet) -> None:
+    ids = [cp.plan.id for cp in featured_plans(cps)]
+    assert ids[:3] == [cp.plan.id for cp in cps.plans[:3]]
+    for cls in PlanClass:
+        best = next((cp for cp in cps.plans if cp.plan_class is cls), None)
+        assert best is None or best.plan.id in ids
+    assert ids == sorted(ids, key=[cp.plan.id for cp in cps.plans].index)
+
+
+def test_html_well_formed_and_images_exist(report_dir: Path) -> None:
+    html = _parse(report_dir / "report.html")
+    assert not html.errors
+    assert html.stack == []
+    assert html.images
+    for src in html.images:
+        assert src.startswith("figures/") and (report_dir / src).is_file(), src
+    for href in html.hrefs:  # in-page anchors resolve; no external resources
+        assert not re.match(r"[a-z]+://", href)
+        if href.startswith("#"):
+            assert href[1:] in html.ids
+    text = (report_dir / "report.html").read_text(encoding="utf-8")
+    assert "<script" not in text and "<link" not in text
+
+
+def test_html_table_lists_every_plan_in_rank_order(cps: CompiledPlanSet, report_dir: Path) -> None:
+    rows = _parse(report_dir / "report.html").rows
+    assert [int(r[0]) for r in rows] == list(range(1, len(cps.plans) + 1))
+    assert [r[1] for r in rows] == [cp.plan.id for cp in cps.plans]
+    assert [r[2] for r in rows] == [cp.plan_class.value for cp in cps.plans]
+    letters = agent_letters(cps.task.agent_ids)
+    assert [r[3] for r in rows] == [" ".join(letters[a] for _, a in cp.plan.allocation) for cp in cps.plans]
+
+
+def test_markdown_table_lists_every_plan_in_rank_order(cps: CompiledPlanSet, report_dir: Path) -> None:
+    md = (report_dir / "report.md").read_text(encoding="utf-8")
+    rows = re.findall(r"^\| (\d+) \| \[?`([0-9a-f]{10})`", md, flags=re.M)
+    assert [(int(r), p) for r, p in rows] == [(cp.rank, cp.plan.id) for cp in cps.plans]
+    for src in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md):
+        assert (report_dir / src).is_file(), src
+
+
+def test_counts_match(cps: CompiledPlanSet, report_dir: Path) -> None:
+    counts = cps.counts()
+    assert sum(counts.values()) == len(cps.plans) == 32
+    assert all(n > 0 for n in counts.values()), "the synthetic set should fill every class"
+    md = (report_dir / "report.md").read_text(encoding="utf-8")
+    assert "- **Plans:** 32 \u2014 " + ", ".join(f"{c} {n}" for c, n in counts.items()) in md
+    html = (report_dir / "report.html").read_text(encoding="utf-8")
+    for cls, n in counts.items():
+        assert f'<div class="card"><b>{n}</b><span class="badge"' in html and f">{cls}</span></div>" in html
+
+
+def test_interference_and_explanations_reported(cps: CompiledPlanSet, report_dir: Path) -> None:
+    md = (report_dir / "report.md").read_text(encoding="utf-8")
+    html = (report_dir / "report.html").read_text(encoding="utf-8")
+    assert "wait +2.5 s at (5.0, 5.4)" in md and "wait +2.5 s at (5.0, 5.4)" in html
+    worst = next(cp for cp in cps.plans if cp.plan_class is PlanClass.INCONSISTENT)
+    assert worst.classification.explanation in md
+    assert "makespan deadline 80 s" in html
+
+
+def test_empty_class_gets_a_reason(tmp_path: Path) -> None:
+    cps = synthetic_set(deadline_dc=55.0, deadline=1000.0)
+    assert cps.counts()["inconsistent"] == 0
+    reason = empty_class_reason("inconsistent", cps)
+    assert reason.startswith("no plan is inconsistent: even the slowest allocation")
+    assert "80 s deadline" in reason
+    write_report(cps, tmp_path)
+    assert "No plan is inconsistent: even the slowest allocation" in (tmp_path / "report.md").read_text("utf-8")
+    assert "No plan is inconsistent" in (tmp_path / "report.html").read_text("utf-8")
+    assert not _parse(tmp_path / "report.html").errors
+
+
+def test_deterministic_bytes(cps: CompiledPlanSet, report_dir: Path, tmp_path: Path) -> None:
+    write_report(cps, tmp_path)
+    first = {p.relative_to(report_dir): p.read_bytes() for p in sorted(report_dir.rglob("*")) if p.is_file()}
+    second = {p.relative_to(tmp_path): p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
+    assert first.keys() == second.keys()
+    for name, data in first.items():
+        assert second[name] == data, name
+
+
+def test_fast_enough(cps: CompiledPlanSet, tmp_path: Path) -> None:
+    write_report(cps, tmp_path)  # warm: imports and font cache
+    t0 = time.perf_counter()
+    write_report(cps, tmp_path / "again")
+    assert time.perf_counter() - t0 < 1.5
