@@ -127,7 +127,7 @@ class Leg:
 def agent_legs(task: Task, plan: Plan, agent_id: str) -> tuple[Leg, ...]:
     """The agent's legs in order, starting at its start location (a leg may have origin == location)."""
     here = task.agent(agent_id).start
-    legs = []
+    legs: list[Leg] = []
     for action_id in plan.sequence(agent_id):
         for phase in task.action(action_id).phases:
             legs.append(Leg(agent_id, len(legs), here, phase.location, action_id, phase.id))

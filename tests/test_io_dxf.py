@@ -104,3 +104,14 @@ def test_closed_polyline_in_a_generated_dxf(tmp_path):
     ws = load_workspace(_map_with_plan(tmp_path, _dxf_text(closed=True)))
     assert [o.id for o in ws.obstacles] == ["dxf1"]
     assert _ring(ws.obstacles[0].polygon) == {(1, 1), (2, 1), (2, 2), (1, 2)}
+
+
+def test_lines_that_close_a_loop_are_an_obstacle(tmp_path):
+    """trimesh joins curves whose ends meet: three lines forming a triangle are one closed outline."""
+    doc = ezdxf.new("R2010")
+    for a, b in [((1, 1), (2, 1)), ((2, 1), (2, 2)), ((2, 2), (1, 1))]:
+        doc.modelspace().add_line(a, b)
+    buf = io.StringIO()
+    doc.write(buf)
+    ws = load_workspace(_map_with_plan(tmp_path, buf.getvalue()))
+    assert [_ring(o.polygon) for o in ws.obstacles] == [{(1, 1), (2, 1), (2, 2)}]

@@ -252,6 +252,8 @@ CASES = [
          edit=lambda t, m: put(m, "obstacles.0", {"id": "box", "polygon": [[4, 3], [5, 3], [6, 3]]})),
     Case("obstacle-two-points", "map", "obstacles[0].polygon", "at least 3", "polygon:",
          edit=lambda t, m: put(m, "obstacles.0", {"id": "box", "polygon": [[4, 3], [5, 3]]})),
+    Case("obstacle-closed-two-corners", "map", "obstacles[0].polygon", "at least 3 corners", "polygon:",
+         edit=lambda t, m: put(m, "obstacles.0", {"id": "box", "polygon": [[4, 3], [5, 3], [4, 3]]})),
     Case("obstacle-point-shape", "map", "obstacles[0].polygon[1]", "expected [x, y]", "- - 5",
          edit=lambda t, m: put(m, "obstacles.0", {"id": "box", "polygon": [[4, 3], [5, 3, 1], [5, 4]]})),
     Case("obstacle-rect-and-polygon", "map", "obstacles[0]", "exactly one of 'polygon' or 'rect'", "id: box",

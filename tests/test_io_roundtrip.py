@@ -200,3 +200,12 @@ def test_random_task_round_trip(raw):
         assert again == task
         assert isinstance(again, Task) and isinstance(again.workspace, Workspace)
         assert yaml.safe_load((folder / "again.yaml").read_text()) == written
+
+
+def test_polygon_closing_point_is_optional(mini, write_mini):
+    task, map_ = mini
+    open_ring = load_task(write_mini(task, map_)).workspace
+    map_["obstacles"][0] = {"id": "box", "polygon": [[4, 3], [6, 3], [6, 5], [4, 5], [4, 3]]}
+    closed_ring = load_task(write_mini(task, map_)).workspace
+    assert closed_ring == open_ring
+    assert closed_ring.obstacles[0].polygon == ((4, 3), (6, 3), (6, 5), (4, 5))

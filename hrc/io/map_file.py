@@ -87,10 +87,14 @@ def _obstacle(doc: Doc, raw: Any, path: tuple) -> Obstacle:
         x0, y0, x1, y1 = (doc.number(v, path + ("rect", i)) for i, v in enumerate(seq))
         if x0 >= x1 or y0 >= y1:
             doc.fail(path + ("rect",), "empty rectangle: need xmin < xmax and ymin < ymax")
-        pts = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
+        pts: tuple[tuple[float, float], ...] = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
     else:
         seq = doc.sequence(m["polygon"], path + ("polygon",), min_len=3)
         pts = tuple(_point(doc, p, path + ("polygon", i)) for i, p in enumerate(seq))
+        if pts[0] == pts[-1]:  # a closing point repeating the first is allowed, and dropped
+            pts = pts[:-1]
+        if len(pts) < 3:
+            doc.fail(path + ("polygon",), f"expected at least 3 corners, found {len(pts)}")
     poly = Polygon(pts)
     if not poly.is_valid or poly.area <= 0:
         doc.fail(path, f"obstacle '{oid}' is not a simple polygon with positive area")
@@ -125,7 +129,7 @@ def _dxf_obstacles(doc: Doc, dxf: str) -> list[Obstacle]:
         reason = " ".join(str(err).split()) or type(err).__name__
         raise MapFileError(doc.file, "floorplan", f"cannot read DXF floor plan '{dxf}': {reason}",
                            doc.line(("floorplan",))) from err
-    out = []
+    out: list[Obstacle] = []
     for poly in polys:
         if poly is None or poly.area <= 0:
             continue
