@@ -82,8 +82,10 @@ def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
             work_index += 1
     if task.deadline is not None:
         ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2)
-        ax.text(task.deadline, len(agents) - 0.42, f" deadline {task.deadline:g} s", color="#c62828",
-                fontsize=8, va="center", ha="left" if task.deadline < horizon * 0.85 else "right")
+        right = task.deadline < horizon * 0.85  # label to the right of the line, unless near the edge
+        label = f" deadline {task.deadline:g} s" if right else f"deadline {task.deadline:g} s "
+        ax.text(task.deadline, len(agents) - 0.42, label, color="#c62828", fontsize=8, va="center",
+                ha="left" if right else "right")
     if ms is not None and ms[1] > ms[0]:
         ax.axvline(ms[1], color="#555555", linestyle=":", linewidth=1.0)
     ax.set_yticks(range(len(agents)), labels=list(reversed(agents)))

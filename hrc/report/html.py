@@ -25,7 +25,7 @@ __all__ = ["render_html"]
 _CSS = """
 body{margin:0;background:#f6f7f9;color:#1d2330;font:15px/1.5 -apple-system,"Segoe UI",Roboto,"Helvetica Neue",
 Arial,sans-serif}
-main{max-width:1180px;margin:0 auto;padding:28px 32px 60px}
+main{max-width:1240px;margin:0 auto;padding:28px 32px 60px}
 h1{font-size:26px;margin:0 0 4px}h2{font-size:20px;margin:36px 0 10px;border-bottom:1px solid #dde1e7;
 padding-bottom:4px}h3{font-size:17px;margin:0 0 8px}
 code{font:13px/1.4 "SFMono-Regular",Menlo,Consolas,monospace;background:#eef0f4;padding:1px 4px;border-radius:3px}
@@ -41,8 +41,9 @@ white-space:nowrap}
 .small{color:#5b6372;font-size:13px}
 .table-wrap{overflow-x:auto;background:#fff;border:1px solid #dde1e7;border-radius:8px}
 table{border-collapse:collapse;width:100%;font-size:13px}
-th,td{padding:5px 9px;text-align:left;white-space:nowrap;border-bottom:1px solid #edf0f3}
+th,td{padding:5px 8px;text-align:left;white-space:nowrap;border-bottom:1px solid #edf0f3}
 th{background:#eef0f4;position:sticky;top:0;font-weight:600}
+td.seq{white-space:normal;min-width:150px}
 td.num{text-align:right;font-variant-numeric:tabular-nums}tr.featured td{background:#f3f8ff}
 tbody tr:hover td{background:#fafbfc}
 section.plan{background:#fff;border:1px solid #dde1e7;border-radius:8px;padding:18px 22px;margin:18px 0}
@@ -104,7 +105,7 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
         plan = f'<a href="#plan-{pid}"><code>{pid}</code></a>' if r.featured else f"<code>{pid}</code>"
         cells = ([f'<td class="num">{r.rank}</td>', f"<td>{plan}</td>", f"<td>{_badge(r.plan_class)}</td>",
                   f"<td><code>{e(r.allocation)}</code></td>"]
-                 + [f"<td>{e(fmt_sequence(seqs.get(a, ())))}</td>" for a in agents]
+                 + [f'<td class="seq">{e(fmt_sequence(seqs.get(a, ())))}</td>' for a in agents]
                  + [f'<td class="num">{e(fmt_makespan(r.makespan))}</td>',
                     f'<td class="num">{e(fmt_idle(r.idle))}</td>',
                     f'<td class="num">{e(fmt_stnu(r.stnu_size))}</td>',

@@ -214,9 +214,14 @@ def fmt_stnu(size: tuple[int, int, int]) -> str:
 
 
 def fmt_cause(cause: Cause) -> str:
-    """``human H → S1 (cube1 fetch): wait +3.2 s at (5.0, 5.4)``."""
-    return (f"{cause.agent} {cause.origin} \u2192 {cause.target} ({cause.step}): {cause.kind} "
-            f"+{cause.extra_time:.1f} s at ({cause.point[0]:.1f}, {cause.point[1]:.1f})")
+    """``waits 2.5 s for human H → S1 (cube1 fetch) at (5.0, 5.4)``: what the delayed agent does, why."""
+    who = f"{cause.agent} {cause.origin} \u2192 {cause.target} ({cause.step})"
+    where = f"at ({cause.point[0]:.1f}, {cause.point[1]:.1f})"
+    if cause.kind == "wait":
+        return f"waits {cause.extra_time:.1f} s for {who} {where}"
+    if cause.kind == "detour":
+        return f"detours around {who} {where}: +{cause.extra_time:.1f} s"
+    return f"{cause.kind} because of {who} {where}: +{cause.extra_time:.1f} s"
 
 
 def fmt_motion(note: MotionNote) -> str:
