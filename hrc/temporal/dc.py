@@ -31,7 +31,9 @@ from __future__ import annotations
 import enum
 import heapq
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 from hrc.temporal.graph import Edge, EdgeKind, labelled_edges
 from hrc.temporal.network import STNU
@@ -39,7 +41,7 @@ from hrc.temporal.stn import check_consistency
 
 __all__ = ["DCResult", "Verdict", "check_dc"]
 
-_INF = float("inf")
+_BIG = float("inf")
 _EXPAND_LIMIT = 100_000  # derived edges are expanded into original edges up to this many edges
 
 
@@ -52,26 +54,39 @@ class Verdict(enum.Enum):
 @dataclass(frozen=True)
 class DCResult:
     """``verdict``; ``consistent`` (of the STN with contingent links as requirements); ``cycle``: the
-    negative cycle that explains a ``NOT_DC`` / ``INCONSISTENT`` verdict, ``()`` when DC; ``added``: the
-    non-negative ordinary edges Morris's algorithm derived (the dispatchable extension, for DC)."""
+    negative cycle that explains a ``NOT_DC`` / ``INCONSISTENT`` verdict, in path order, ``()`` when DC.
+
+    ``added`` (DC only): the non-negative ordinary edges Morris's algorithm derived, i.e. the waits that
+    with the original links form the dispatchable extension of the network (Morris 2014, section 5);
+    built on first access, as there can be O(n^2) of them.
+    """
 
     verdict: Verdict
     consistent: bool
     cycle: tuple[Edge, ...] = ()
-    added: tuple[Edge, ...] = field(default=(), repr=False)
+    _added: Callable[[], tuple[Edge, ...]] | None = field(default=None, repr=False, compare=False)
 
     @property
     def is_dc(self) -> bool:
         return self.verdict is Verdict.DC
 
+    @cached_property
+    def added(self) -> tuple[Edge, ...]:
+        return self._added() if self._added is not None else ()
+
 
 class _NotDC(Exception):
-    def __init__(self, cycle: list[Edge]) -> None:
+    def __init__(self, cycle: list[int]) -> None:
         self.cycle = cycle
 
 
 class _Morris2014:
-    """State of one run: adjacency by target, negative nodes, per-node status, derived-edge provenance."""
+    """State of one run: in-edges by target, negative nodes, per-node status, derived-edge provenance.
+
+    Edges are ids into ``self.table``: an original `Edge`, or for a derived edge the tuple
+    ``(u, src, w, pred, start)`` from which its path u ~> src is rebuilt lazily (``pred`` is the
+    predecessor list of the Dijkstra run that derived it; entries of settled nodes never change).
+    """
 
     UNSEEN, ACTIVE, DONE = 0, 1, 2
 
@@ -79,31 +94,35 @@ class _Morris2014:
         self.names = stnu.timepoints
         n = len(self.names)
         self.index = index = {v: i for i, v in enumerate(self.names)}
-        # non-negative in-edges (ordinary, derived, lower-case), keyed by target: (source, w, edge)
-        best: dict[tuple[int, int], Edge] = {}
-        self.neg_in: list[list[tuple[int, int, Edge]]] = [[] for _ in range(n)]  # negative ordinary
-        self.uc_in: list[list[tuple[int, int, Edge]]] = [[] for _ in range(n)]  # upper-case
-        self.lc_in: list[list[tuple[int, int, Edge]]] = [[] for _ in range(n)]  # lower-case
+        self.table: list[Edge | tuple[int, int, int, list[int], int]] = []
+        best: dict[tuple[int, int], int] = {}
+        self.neg_in: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]  # negative ordinary
+        self.uc_in: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]  # upper-case (+label)
+        # non-negative in-edges: (source, weight, edge id, lower-case label index or -1)
+        self.pos_in: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]
         for e in labelled_edges(stnu):
             s, t = index[e.source], index[e.target]
+            eid = len(self.table)
+            self.table.append(e)
             if e.kind is EdgeKind.UPPER:
-                self.uc_in[t].append((s, e.value, e))
+                self.uc_in[t].append((s, e.value, eid, index[e.label]))
             elif e.kind is EdgeKind.LOWER:
-                self.lc_in[t].append((s, e.value, e))
-            elif s != t and ((s, t) not in best or e.value < best[(s, t)].value):
-                best[(s, t)] = e
-        self.pos_in: list[dict[int, tuple[int, Edge]]] = [{} for _ in range(n)]
-        for (s, t), e in best.items():
-            if e.value >= 0:
-                self.pos_in[t][s] = (e.value, e)
+                self.pos_in[t].append((s, e.value, eid, index[e.label]))
+            elif s != t and ((s, t) not in best or e.value < self.table[best[(s, t)]].value):  # type: ignore[union-attr]
+                best[(s, t)] = eid
+        self.best_in: list[dict[int, int]] = [{} for _ in range(n)]  # shortest ordinary u->t, w >= 0
+        for (s, t), eid in best.items():
+            w = self.table[eid].value  # type: ignore[union-attr]
+            if w >= 0:
+                self.best_in[t][s] = w
+                self.pos_in[t].append((s, w, eid, -1))
             else:
-                self.neg_in[t].append((s, e.value, e))
+                self.neg_in[t].append((s, w, eid))
         self.negative = [bool(self.neg_in[i] or self.uc_in[i]) for i in range(n)]
         self.status = [self.UNSEEN] * n
-        self.derived_from: dict[Edge, list[Edge]] = {}
-        self.added: dict[tuple[int, int], Edge] = {}
-        # (caller's predecessor map, node reached) for each active recursive call, to rebuild cycles
-        self.frames: list[tuple[int, dict[int, Edge], int]] = []
+        self.added: list[int] = []
+        # (caller, caller's predecessor list, node reached) for each active recursive call
+        self.frames: list[tuple[int, list[int], int]] = []
 
     def run(self) -> None:
         for v in range(len(self.names)):
@@ -112,82 +131,79 @@ class _Morris2014:
 
     def backprop(self, src: int) -> None:
         self.status[src] = self.ACTIVE
-        new_edges: dict[int, tuple[int, list[Edge]]] = {}
-        starts: list[tuple[list[tuple[int, int, Edge]], str]] = []
+        new_edges: dict[int, tuple[int, list[int]]] = {}
         if self.neg_in[src]:
-            starts.append((self.neg_in[src], ""))
-        for s, w, e in self.uc_in[src]:
-            starts.append(([(s, w, e)], e.label))
-        for initial, banned_label in starts:
-            self._dijkstra(src, initial, banned_label, new_edges)
-        for u, (w, path) in new_edges.items():
-            e = Edge(self.names[u], self.names[src], w, EdgeKind.DERIVED)
-            self.derived_from[e] = path
-            old = self.pos_in[src].get(u)
-            if old is None or w < old[0]:
-                self.pos_in[src][u] = (w, e)
-                self.added[(u, src)] = e
+            self._dijkstra(src, [(s, w, eid) for s, w, eid in self.neg_in[src]], -2, new_edges)
+        for s, w, eid, label in self.uc_in[src]:
+            self._dijkstra(src, [(s, w, eid)], label, new_edges)
+        for u, (w, pred) in new_edges.items():
+            eid = len(self.table)
+            self.table.append((u, src, w, pred, u))
+            self.pos_in[src].append((u, w, eid, -1))
+            self.best_in[src][u] = w
+            self.added.append(eid)
         self.status[src] = self.DONE
 
     def _dijkstra(
-        self,
-        src: int,
-        initial: list[tuple[int, int, Edge]],
-        banned_label: str,
-        new_edges: dict[int, tuple[int, list[Edge]]],
+        self, src: int, initial: list[tuple[int, int, int]], banned: int, new_edges: dict[int, tuple[int, list[int]]]
     ) -> None:
-        dist: dict[int, int] = {}
-        pred: dict[int, Edge] = {}  # node -> first edge of its shortest path towards src
+        n = len(self.names)
+        dist = [_BIG] * n
+        pred = [-1] * n  # node -> id of the first edge of its shortest path towards src
         heap: list[tuple[int, int]] = []
-        for s, w, e in initial:
-            if w < dist.get(s, _INF):
+        push, pop = heapq.heappush, heapq.heappop
+        negative, status, pos_in = self.negative, self.status, self.pos_in
+        for s, w, eid in initial:
+            if w < dist[s]:
                 dist[s] = w
-                pred[s] = e
-                heapq.heappush(heap, (w, s))
-        done: set[int] = set()
+                pred[s] = eid
+                push(heap, (w, s))
+        moat: list[int] = []  # nodes reached with a non-negative distance: never expanded, never queued
         while heap:
-            d, u = heapq.heappop(heap)
-            if u in done or d > dist[u]:
+            d, u = pop(heap)
+            if d > dist[u]:
                 continue
-            done.add(u)
-            if d >= 0:  # the moat: bypass the negative path with a non-negative ordinary edge
-                if u != src:
-                    old = new_edges.get(u)
-                    if old is None or d < old[0]:
-                        new_edges[u] = (d, self._path(pred, u, src))
-                continue
-            if self.negative[u]:
-                if self.status[u] == self.ACTIVE:
+            if negative[u]:
+                if status[u] == self.ACTIVE:
                     raise _NotDC(self._cycle(pred, u, src))
-                if self.status[u] == self.UNSEEN:
+                if status[u] == self.UNSEEN:
                     self.frames.append((src, pred, u))
                     self.backprop(u)
                     self.frames.pop()
-            for s, (w, e) in self.pos_in[u].items():
+            for s, w, eid, label in pos_in[u]:
                 nd = d + w
-                if nd < dist.get(s, _INF):
+                if nd < dist[s] and label != banned:
+                    if nd < 0:
+                        push(heap, (nd, s))
+                    elif dist[s] == _BIG:
+                        moat.append(s)
                     dist[s] = nd
-                    pred[s] = e
-                    heapq.heappush(heap, (nd, s))
-            for s, w, e in self.lc_in[u]:
-                if e.label == banned_label:
-                    continue
-                nd = d + w
-                if nd < dist.get(s, _INF):
-                    dist[s] = nd
-                    pred[s] = e
-                    heapq.heappush(heap, (nd, s))
+                    pred[s] = eid
+        # the moat: bypass each negative path ending there with a non-negative ordinary edge, unless
+        # an ordinary edge at least as short is already there
+        best = self.best_in[src]
+        for u in moat:
+            d = dist[u]
+            if d >= 0 and u != src and d < best.get(u, _BIG):
+                old = new_edges.get(u)
+                if old is None or d < old[0]:
+                    new_edges[u] = (d, pred)
 
-    def _path(self, pred: dict[int, Edge], u: int, src: int) -> list[Edge]:
-        index = self.index
+    def _endpoints(self, eid: int) -> tuple[int, int]:
+        e = self.table[eid]
+        if isinstance(e, Edge):
+            return self.index[e.source], self.index[e.target]
+        return e[0], e[1]
+
+    def _path(self, pred: list[int], u: int, src: int) -> list[int]:
         path, v = [], u
         while v != src or not path:
-            e = pred[v]
-            path.append(e)
-            v = index[e.target]
+            eid = pred[v]
+            path.append(eid)
+            v = self._endpoints(eid)[1]
         return path
 
-    def _cycle(self, pred: dict[int, Edge], u: int, src: int) -> list[Edge]:
+    def _cycle(self, pred: list[int], u: int, src: int) -> list[int]:
         """``u`` is active: its call is on the stack below ``src``'s. Chain the negative paths
         u ~> src ~> caller(src) ~> ... ~> u recorded in the call frames."""
         cycle = self._path(pred, u, src)
@@ -199,15 +215,25 @@ class _Morris2014:
                 break
         return cycle
 
-    def expand(self, edges: list[Edge]) -> list[Edge]:
+    def edge(self, eid: int) -> Edge:
+        e = self.table[eid]
+        if isinstance(e, Edge):
+            return e
+        u, src, w, _pred, _start = e
+        return Edge(self.names[u], self.names[src], w, EdgeKind.DERIVED)
+
+    def expand(self, eids: list[int]) -> list[Edge]:
+        """Replace derived edges by the paths they stand for (up to `_EXPAND_LIMIT` edges)."""
         out: list[Edge] = []
-        stack = list(reversed(edges))
+        stack = list(reversed(eids))
         while stack:
-            e = stack.pop()
-            if e.kind is EdgeKind.DERIVED and len(out) + len(stack) < _EXPAND_LIMIT:
-                stack.extend(reversed(self.derived_from[e]))
+            eid = stack.pop()
+            e = self.table[eid]
+            if not isinstance(e, Edge) and len(out) + len(stack) < _EXPAND_LIMIT:
+                u, src, _w, pred, start = e
+                stack.extend(reversed(self._path(pred, start, src)))
             else:
-                out.append(e)
+                out.append(self.edge(eid))
         return out
 
 
@@ -230,4 +256,13 @@ def check_dc(stnu: STNU) -> DCResult:
         return DCResult(Verdict.NOT_DC, True, tuple(algo.expand(found.cycle)))
     finally:
         sys.setrecursionlimit(limit)
-    return DCResult(Verdict.DC, True, (), tuple(algo.added[k] for k in sorted(algo.added)))
+
+    def added() -> tuple[Edge, ...]:
+        best: dict[tuple[str, str], Edge] = {}
+        for eid in algo.added:
+            e = algo.edge(eid)
+            if (e.source, e.target) not in best or e.value < best[(e.source, e.target)].value:
+                best[(e.source, e.target)] = e
+        return tuple(best[k] for k in sorted(best))
+
+    return DCResult(Verdict.DC, True, (), added)

@@ -1,0 +1,164 @@
+"""The plain-text ``.stnu`` format of Hunsberger's group (also written by the CSTNU Tool's converters).
+
+Example (the CSTNU Tool's converter documentation gives this one)::
+
+    # KIND OF NETWORK
+    STNU
+    # Num Time-Points
+    5
+    # Num Ordinary Edges
+    4
+    # Num Contingent Links
+    2
+    # Time-Point Names
+    A0 C0 A1 C1 X
+    # Ordinary Edges
+    X 12 C0
+    C1 11 C0
+    C0 -7 X
+    C0 -1 C1
+    # Contingent Links
+    A0 1 3 C0
+    A1 1 10 C1
+
+An ordinary edge ``X w Y`` means ``T(Y) - T(X) <= w``; a contingent link ``A l u C`` means C - A in [l, u].
+Section headers are matched ignoring case, spaces and hyphens (Hunsberger's Lisp reader matches them
+case-insensitively); names may be wrapped in single quotes (``'A'``), which are dropped. ``KIND`` is
+``STNU`` or ``STN``. There is no implicit origin. The declared counts must match the lines found.
+"""
+
+from __future__ import annotations
+
+from hrc.errors import NetworkFileError
+from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
+
+__all__ = ["read_stnu_text", "write_stnu_text"]
+
+_HEADERS = {
+    "kindofnetwork": "kind",
+    "numtimepoints": "n",
+    "numordinaryedges": "m",
+    "numcontingentlinks": "k",
+    "timepointnames": "names",
+    "ordinaryedges": "edges",
+    "contingentlinks": "links",
+}
+
+
+def _norm(header: str) -> str:
+    return "".join(ch for ch in header.lower() if ch.isalnum())
+
+
+def _name(tok: str) -> str:
+    return tok[1:-1] if len(tok) >= 2 and tok[0] == tok[-1] == "'" else tok
+
+
+def read_stnu_text(text: str, file: str = "<stnu>") -> STNU:
+    """Parse the ``.stnu`` text format. Raises `NetworkFileError` with the offending line."""
+    sections: dict[str, list[tuple[int, list[str]]]] = {}
+    current: str | None = None
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            key = _HEADERS.get(_norm(line[1:]))
+            if key is None:
+                raise NetworkFileError(file, "", f"unknown section header {line!r}", lineno)
+            if key in sections:
+                raise NetworkFileError(file, "", f"section {line!r} appears twice", lineno)
+            sections[key] = []
+            current = key
+            continue
+        if current is None:
+            raise NetworkFileError(file, "", f"expected '# KIND OF NETWORK', found {line!r}", lineno)
+        sections[current].append((lineno, line.split()))
+
+    def single(key: str, label: str) -> tuple[int, str]:
+        rows = sections.get(key)
+        if rows is None or len(rows) != 1 or len(rows[0][1]) != 1:
+            raise NetworkFileError(file, label, "expected one value on the line after the header",
+                                   rows[0][0] if rows else None)
+        return rows[0][0], rows[0][1][0]
+
+    def count(key: str, label: str) -> int:
+        lineno, tok = single(key, label)
+        if not tok.isdigit():
+            raise NetworkFileError(file, label, f"expected a count, found {tok!r}", lineno)
+        return int(tok)
+
+    def integer(tok: str, label: str, lineno: int) -> int:
+        try:
+            return int(tok)
+        except ValueError as err:
+            raise NetworkFileError(file, label, f"expected an integer, found {tok!r}", lineno) from err
+
+    _, kind = single("kind", "KIND OF NETWORK")
+    if kind.upper() not in {"STNU", "STN"}:
+        raise NetworkFileError(file, "KIND OF NETWORK", f"expected STNU or STN, found {kind!r}",
+                               sections["kind"][0][0])
+    n, m = count("n", "Num Time-Points"), count("m", "Num Ordinary Edges")
+    k = count("k", "Num Contingent Links") if "k" in sections else 0
+    names = [_name(tok) for _, toks in sections.get("names", []) for tok in toks]
+    if len(names) != n:
+        raise NetworkFileError(file, "Time-Point Names", f"declared {n} names, found {len(names)}",
+                               sections["names"][0][0] if sections.get("names") else None)
+    known = set(names)
+
+    def check_names(label: str, lineno: int, *tps: str) -> None:
+        for tp in tps:
+            if tp not in known:
+                raise NetworkFileError(file, label, f"unknown time-point {tp!r}", lineno)
+
+    reqs: list[RequirementLink] = []
+    for lineno, toks in sections.get("edges", []):
+        if len(toks) != 3:
+            raise NetworkFileError(file, "Ordinary Edges", f"expected 'X w Y', found {' '.join(toks)!r}", lineno)
+        x, y = _name(toks[0]), _name(toks[2])
+        check_names("Ordinary Edges", lineno, x, y)
+        reqs.append(RequirementLink(x, y, None, integer(toks[1], "Ordinary Edges", lineno)))
+    if len(reqs) != m:
+        raise NetworkFileError(file, "Num Ordinary Edges", f"declared {m} edges, found {len(reqs)}")
+    links: list[ContingentLink] = []
+    for lineno, toks in sections.get("links", []):
+        if len(toks) != 4:
+            raise NetworkFileError(file, "Contingent Links", f"expected 'A l u C', found {' '.join(toks)!r}",
+                                   lineno)
+        a, c = _name(toks[0]), _name(toks[3])
+        check_names("Contingent Links", lineno, a, c)
+        lb, ub = integer(toks[1], "Contingent Links", lineno), integer(toks[2], "Contingent Links", lineno)
+        try:
+            links.append(ContingentLink(a, c, lb, ub))
+        except NetworkError as err:
+            raise NetworkFileError(file, "Contingent Links", str(err), lineno) from err
+    if len(links) != k:
+        raise NetworkFileError(file, "Num Contingent Links", f"declared {k} links, found {len(links)}")
+    if kind.upper() == "STN" and links:
+        raise NetworkFileError(file, "KIND OF NETWORK", "an STN with contingent links")
+    try:
+        return STNU(tuple(names), tuple(reqs), tuple(links))
+    except NetworkError as err:
+        raise NetworkFileError(file, "", str(err)) from err
+
+
+def write_stnu_text(stnu: STNU) -> str:
+    """The network in the ``.stnu`` text format (deterministic; names must not contain spaces)."""
+    for v in stnu.timepoints:
+        if not v or any(ch.isspace() for ch in v) or v.startswith("#"):
+            raise NetworkError(f"time-point name {v!r} cannot be written in the .stnu text format")
+    edges = []
+    for r in stnu.requirements:
+        if r.ub is not None:
+            edges.append(f"{r.source} {r.ub} {r.target}")
+        if r.lb is not None:
+            edges.append(f"{r.target} {-r.lb} {r.source}")
+    lines = [
+        "# KIND OF NETWORK", "STNU" if stnu.contingents else "STN",
+        "# Num Time-Points", str(len(stnu.timepoints)),
+        "# Num Ordinary Edges", str(len(edges)),
+        "# Num Contingent Links", str(len(stnu.contingents)),
+        "# Time-Point Names", " ".join(stnu.timepoints),
+        "# Ordinary Edges", *edges,
+        "# Contingent Links", *(f"{c.source} {c.lb} {c.ub} {c.target}" for c in stnu.contingents),
+    ]
+    return "\n".join(lines) + "\n"
