@@ -251,7 +251,8 @@ def _resample(pts: list[Point], step: float) -> list[Point]:
     out = [pts[0]]
     for a, b in zip(pts, pts[1:], strict=False):
         n = max(1, math.ceil(math.dist(a, b) / step))
-        out += [(a[0] + (b[0] - a[0]) * k / n, a[1] + (b[1] - a[1]) * k / n) for k in range(1, n + 1)]
+        out += [(a[0] + (b[0] - a[0]) * k / n, a[1] + (b[1] - a[1]) * k / n) for k in range(1, n)]
+        out.append(b)  # exactly: the endpoints are the locations
     return out
 
 
