@@ -13,6 +13,7 @@ import io
 import re
 import subprocess
 import sys
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +22,8 @@ from typing import Any
 import ezdxf
 import pytest
 from conftest import MIN_MAP, MIN_TASK, ROOT, dump
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hrc.cli import main
 
@@ -89,6 +92,13 @@ CASES = [
          text=lambda t, m: (t.replace("deadline: 100\n", "deadline: 100\ndeadline: 5\n"), m)),
     Case("python-tag", "task", "deadline", "bad value", "deadline",
          text=lambda t, m: (t.replace("deadline: 100", "deadline: !!python/name:os.system ''"), m)),
+    Case("recursive-alias", "task", "deadline[0]", "recursive structure", "deadline: &x [*x]",
+         text=lambda t, m: (t.replace("deadline: 100", "deadline: &x [*x]"), m)),
+    Case("alias-bomb", "task", "", "too many values", None,
+         text=lambda t, m: (t + "x0: &x0 [1, 1]\n" + "".join(f"x{k}: &x{k} [*x{k - 1}, *x{k - 1}]\n"
+                                                             for k in range(1, 24)), m)),
+    Case("nesting-too-deep", "task", "", "YAML nesting too deep", None,
+         text=lambda t, m: (t.replace("deadline: 100", "deadline: " + "[" * 1000 + "]" * 1000), m)),
     Case("missing-top-key", "task", "agents", "missing", None, edit=lambda t, m: drop(t, "agents")),
     Case("unknown-top-key", "task", "colour", "unknown key", "colour: red",
          edit=lambda t, m: put(t, "colour", "red")),
@@ -292,8 +302,8 @@ CASES = [
 ]
 
 # run these in a real `python -m hrc` subprocess too
-SUBPROCESS = {"yaml-syntax", "missing-top-key", "start-overlaps-obstacle", "precedence-cycle",
-              "location-inside-obstacle", "dxf-garbage", "agent-speed-nan"}
+SUBPROCESS = {"yaml-syntax", "start-overlaps-obstacle", "precedence-cycle", "location-inside-obstacle",
+              "dxf-garbage"}
 
 
 def _write(case: Case, tmp_path: Path) -> tuple[Path, Path]:
@@ -354,6 +364,30 @@ def test_bad_input_subprocess(case, tmp_path):
     _check(case, task_path, map_path, proc.returncode, proc.stdout, proc.stderr)
 
 
+ALIAS_TASK = """\
+name: aliases
+map: map.yaml
+agents:
+  - {id: human, kind: human, radius: 0.3, speed: 1.2, start: H}
+  - {id: robot, kind: robot, radius: 0.35, speed: 0.6, start: R}
+actions:
+  - id: a1
+    agents: &both [human, robot]
+    phases:
+      - {id: fetch, location: A, duration: &d {human: [2, 4], robot: [5, 6]}}
+      - {id: put, location: B, duration: *d}
+  - {id: a2, agents: *both, phases: [{id: go, location: B, duration: *d}]}
+"""
+
+
+def test_aliases_are_allowed(tmp_path, capsys):
+    """Anchors and aliases are ordinary YAML: reusing one duration mapping is fine."""
+    (tmp_path / "map.yaml").write_text(dump(MIN_MAP), encoding="utf-8")
+    (tmp_path / "task.yaml").write_text(ALIAS_TASK, encoding="utf-8")
+    assert main(["show", str(tmp_path / "task.yaml")]) == 0
+    assert "put      at B    human [2, 4] s, robot [5, 6] s" in capsys.readouterr().out
+
+
 def test_case_ids_are_unique():
     assert len({c.id for c in CASES}) == len(CASES)
     assert SUBPROCESS <= {c.id for c in CASES}
@@ -378,3 +412,52 @@ def test_usage_error_is_one_line(capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1
+
+
+# --- fuzz: any one value replaced by anything is either valid or one clean error ----------------------
+
+def _paths(value: Any, prefix: tuple = ()) -> list[tuple]:
+    out = [prefix] if prefix else []
+    if isinstance(value, dict):
+        for k, v in value.items():
+            out += _paths(v, (*prefix, k))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            out += _paths(v, (*prefix, i))
+    return out
+
+
+_scalars = (st.none() | st.booleans() | st.integers(-10**30, 10**30) | st.floats()
+            | st.text(max_size=8) | st.sampled_from(["human", "robot", "A", "B", "H", "a1", "a1.put", "a2.go.end"]))
+_values = st.recursive(_scalars, lambda inner: st.lists(inner, max_size=4) | st.dictionaries(
+    st.text(max_size=6) | st.sampled_from(["id", "human", "robot", "rect"]), inner, max_size=3), max_leaves=8)
+
+
+@settings(max_examples=80, deadline=None)
+@given(data=st.data(), which=st.sampled_from(["task", "map"]))
+def test_fuzz_one_value_gives_success_or_one_clean_error(data, which):
+    from hypothesis import note
+
+    from hrc.errors import HrcError
+    from hrc.io.task_file import load_task
+
+    task, map_ = copy.deepcopy(MIN_TASK), copy.deepcopy(MIN_MAP)
+    target = task if which == "task" else map_
+    path = data.draw(st.sampled_from(_paths(target)))
+    parent = target
+    for p in path[:-1]:
+        parent = parent[p]
+    if data.draw(st.booleans()):
+        parent[path[-1]] = data.draw(_values)
+    else:
+        del parent[path[-1]]
+    note(f"{which} {path}")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        (folder / "map.yaml").write_text(dump(map_), encoding="utf-8")
+        (folder / "task.yaml").write_text(dump(task), encoding="utf-8")
+        try:
+            load_task(folder / "task.yaml")
+        except HrcError as err:
+            text = str(err)
+            assert "\n" not in text and text.startswith(str(folder)), text

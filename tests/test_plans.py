@@ -102,7 +102,7 @@ def small_tasks(draw) -> Task:
                 preferences=(), map_path="none.yaml", workspace=WS)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(small_tasks())
 def test_generate_plans_matches_the_oracle(task):
     expected = oracle_plans(task)

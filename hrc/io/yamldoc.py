@@ -147,6 +147,8 @@ def read_yaml(path: str | os.PathLike[str], error_cls: type[InputError]) -> Doc:
         raise error_cls(file, "", f"cannot read: {err}") from err
     try:
         node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except RecursionError as err:  # PyYAML composes nested collections recursively
+        raise error_cls(file, "", "YAML nesting too deep") from err
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark
         line = mark.line + 1 if mark is not None else None
@@ -155,33 +157,56 @@ def read_yaml(path: str | os.PathLike[str], error_cls: type[InputError]) -> Doc:
     except yaml.YAMLError as err:
         raise error_cls(file, "", f"YAML syntax: {' '.join(str(err).split())}") from err
     doc = Doc(file=file, value=None, error_cls=error_cls)
-    doc.value = _construct(doc, node, ()) if node is not None else None
+    try:
+        doc.value = _construct(doc, node, (), _Budget()) if node is not None else None
+    except RecursionError as err:
+        raise error_cls(file, "", "YAML nesting too deep") from err
     return doc
 
 
 _SCALAR = yaml.SafeLoader(" ")
 
 
-def _construct(doc: Doc, node: yaml.Node, path: Path_) -> Any:
+MAX_VALUES = 100_000  # far beyond any task or map; stops alias "billion laughs" expansions
+
+
+@dataclass
+class _Budget:
+    """Guards against aliases: values built so far, and the collection nodes being built (for cycles)."""
+
+    values: int = 0
+    open_nodes: set[int] = field(default_factory=set)
+
+
+def _construct(doc: Doc, node: yaml.Node, path: Path_, budget: _Budget) -> Any:
     doc.lines[path] = node.start_mark.line + 1
+    budget.values += 1
+    if budget.values > MAX_VALUES:
+        doc.fail(path[:1], f"too many values (over {MAX_VALUES}, aliases included)")
     if isinstance(node, yaml.ScalarNode):
         try:
             return _SCALAR.construct_object(node, deep=True)
         except yaml.YAMLError as err:  # e.g. an unsafe tag such as !!python/name
             problem = getattr(err, "problem", None) or str(err)
             doc.fail(path, f"bad value: {' '.join(problem.split())}")
-    if isinstance(node, yaml.SequenceNode):
-        return [_construct(doc, item, path + (i,)) for i, item in enumerate(node.value)]
-    if isinstance(node, yaml.MappingNode):
-        out: dict[Any, Any] = {}
-        for key_node, value_node in node.value:
-            if not isinstance(key_node, yaml.ScalarNode):
-                doc.fail(path, "mapping keys must be plain strings")
-            key = key_node.value
-            if key in out:
+    if id(node) in budget.open_nodes:
+        doc.fail(path, "an alias refers to a value that contains it (a recursive structure)")
+    budget.open_nodes.add(id(node))
+    try:
+        if isinstance(node, yaml.SequenceNode):
+            return [_construct(doc, item, path + (i,), budget) for i, item in enumerate(node.value)]
+        if isinstance(node, yaml.MappingNode):
+            out: dict[Any, Any] = {}
+            for key_node, value_node in node.value:
+                if not isinstance(key_node, yaml.ScalarNode):
+                    doc.fail(path, "mapping keys must be plain strings")
+                key = key_node.value
+                if key in out:
+                    doc.lines[path + (key,)] = key_node.start_mark.line + 1
+                    doc.fail(path + (key,), "duplicate key")
+                out[key] = _construct(doc, value_node, path + (key,), budget)
                 doc.lines[path + (key,)] = key_node.start_mark.line + 1
-                doc.fail(path + (key,), "duplicate key")
-            out[key] = _construct(doc, value_node, path + (key,))
-            doc.lines[path + (key,)] = key_node.start_mark.line + 1
-        return out
+            return out
+    finally:
+        budget.open_nodes.discard(id(node))
     doc.fail(path, "unsupported YAML node")
