@@ -18,7 +18,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse.csgraph import floyd_warshall
+from scipy.sparse.csgraph import csgraph_from_dense, floyd_warshall
 
 from hrc.temporal.graph import Edge, distance_edges
 from hrc.temporal.network import STNU, NetworkError
@@ -142,9 +142,8 @@ def all_pairs_shortest_paths(stnu: STNU) -> np.ndarray:
         mat = np.full((n, n), np.inf)
         for (i, j), w in best.items():
             mat[i, j] = w
-        np.fill_diagonal(mat, 0.0)
-        # pass a dense matrix with explicit inf: scipy treats inf as "no edge" and keeps 0 weights
-        return floyd_warshall(mat, directed=True)
+        # a dense 0 would mean "no edge" to scipy: convert with inf as the null value to keep 0 weights
+        return floyd_warshall(csgraph_from_dense(mat, null_value=np.inf), directed=True)
     d = [[math.inf] * n for _ in range(n)]
     for i in range(n):
         d[i][i] = 0
@@ -197,8 +196,8 @@ class DispatchableSTN:
 
 def minimal_dispatchable_network(stnu: STNU) -> DispatchableSTN:
     """Muscettola, Morris & Tsamardinos (1998), section 4: compute the APSP graph, collapse rigid
-    components (pairs with ``D[a,b] + D[b,a] == 0``) into a chain through a leader, and keep only the
-    edges between leaders that are not dominated:
+    components (pairs with ``D[a,b] + D[b,a] == 0``) into a chain in time order led by the earliest member,
+    and keep only the edges between leaders that are not dominated:
 
     * a non-negative edge A->B is upper-dominated by a non-negative C->B if D[A,C] + D[C,B] == D[A,B];
     * a negative edge A->B is lower-dominated by a negative A->C if D[A,C] + D[C,B] == D[A,B].
@@ -223,13 +222,16 @@ def minimal_dispatchable_network(stnu: STNU) -> DispatchableSTN:
     members: dict[int, list[int]] = {}
     for j in range(n):
         members.setdefault(leader[j], []).append(j)
-    for lead, group in members.items():
-        chain = sorted(group, key=lambda j: (d[lead, j], j))  # by time offset from the leader
+    leaders = []
+    for first, group in members.items():
+        # the component is represented by its earliest member, then chained in time order
+        chain = sorted(group, key=lambda j: (d[first, j], j))
+        leaders.append(chain[0])
         for a, b in zip(chain, chain[1:], strict=False):
             w = int(d[a, b])
             edges.append(Edge(names[a], names[b], w))
             edges.append(Edge(names[b], names[a], -w))
-    leaders = [i for i in range(n) if leader[i] == i]
+    leaders.sort()
     sub = d[np.ix_(leaders, leaders)]
     k = len(leaders)
     finite = np.isfinite(sub.astype(float))

@@ -1,0 +1,227 @@
+"""Property tests of the temporal core on random small STNUs (hypothesis).
+
+* the Morris 2014 DC check agrees with the exhaustive game oracle;
+* consistency agrees with LP feasibility (scipy.optimize.linprog);
+* explanations are negative closed walks of the labelled graph;
+* the minimal dispatchable network keeps the shortest paths and dispatches without dead ends;
+* a DC network dispatched online under random contingent durations never violates a constraint.
+
+Default runs use a few hundred examples per property; ``pytest -m slow`` runs thousands.
+"""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.optimize import linprog
+
+from hrc.temporal import (
+    STNU,
+    ContingentLink,
+    EdgeKind,
+    RequirementLink,
+    Verdict,
+    Window,
+    all_pairs_shortest_paths,
+    check_consistency,
+    check_dc,
+    minimal_dispatchable_network,
+    propagate_execution,
+)
+from hrc.temporal.graph import distance_edges, labelled_edges
+from hrc.temporal.oracle import oracle_is_dc
+
+FAST = settings(max_examples=300, deadline=None, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+SLOW = settings(max_examples=5000, deadline=None, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+
+@st.composite
+def stnus(draw, max_nodes: int = 5, max_contingent: int = 2, max_requirements: int = 6) -> STNU:
+    n = draw(st.integers(2, max_nodes))
+    names = tuple(f"T{i}" for i in range(n))
+    order = draw(st.permutations(names))
+    k = draw(st.integers(0, min(max_contingent, n // 2)))
+    conts = []
+    for i in range(k):
+        lb = draw(st.integers(1, 4))
+        conts.append(ContingentLink(order[2 * i], order[2 * i + 1], lb, lb + draw(st.integers(0, 4))))
+    reqs = []
+    for _ in range(draw(st.integers(0, max_requirements))):
+        a, b = draw(st.sampled_from(names)), draw(st.sampled_from(names))
+        if a == b:
+            continue
+        lb = draw(st.one_of(st.none(), st.integers(-5, 6)))
+        ub = draw(st.one_of(st.none(), st.integers(-5, 8)))
+        if lb is not None and ub is not None and lb > ub:
+            lb, ub = ub, lb
+        reqs.append(RequirementLink(a, b, lb, ub))
+    return STNU(names, tuple(reqs), tuple(conts))
+
+
+def _dc_agrees_with_oracle(stnu: STNU) -> None:
+    result = check_dc(stnu)
+    assert (result.verdict is Verdict.DC) is oracle_is_dc(stnu), stnu
+
+
+@FAST
+@given(stnus())
+def test_dc_agrees_with_game_oracle(stnu: STNU) -> None:
+    _dc_agrees_with_oracle(stnu)
+
+
+@pytest.mark.slow
+@SLOW
+@given(stnus(max_nodes=6, max_contingent=3, max_requirements=8))
+def test_dc_agrees_with_game_oracle_many(stnu: STNU) -> None:
+    try:
+        _dc_agrees_with_oracle(stnu)
+    except RuntimeError:  # the oracle's state space is too large for this one
+        pass
+
+
+def _lp_feasible(stnu: STNU) -> bool:
+    idx = {v: i for i, v in enumerate(stnu.timepoints)}
+    rows, rhs = [], []
+    for e in distance_edges(stnu):
+        row = np.zeros(len(idx))
+        row[idx[e.target]] += 1
+        row[idx[e.source]] -= 1
+        rows.append(row)
+        rhs.append(e.value)
+    if not rows:
+        return True
+    res = linprog(np.zeros(len(idx)), A_ub=np.array(rows), b_ub=np.array(rhs, dtype=float),
+                  bounds=[(None, None)] * len(idx), method="highs")
+    assert res.status in (0, 2)
+    return res.status == 0
+
+
+@FAST
+@given(stnus(max_nodes=7, max_requirements=10))
+def test_consistency_agrees_with_lp(stnu: STNU) -> None:
+    res = check_consistency(stnu)
+    assert res.consistent is _lp_feasible(stnu)
+    if res.consistent:
+        assert res.solution is not None
+        for e in distance_edges(stnu):
+            assert res.solution[e.target] - res.solution[e.source] <= e.value
+        assert check_dc(stnu).verdict is not Verdict.INCONSISTENT
+    else:
+        assert sum(e.value for e in res.cycle) < 0
+        assert check_dc(stnu).verdict is Verdict.INCONSISTENT
+
+
+@FAST
+@given(stnus(max_nodes=6, max_contingent=3, max_requirements=8))
+def test_explanations_are_negative_cycles_of_the_network(stnu: STNU) -> None:
+    result = check_dc(stnu)
+    if result.verdict is Verdict.DC:
+        assert result.cycle == ()
+        assert all(e.value >= 0 for e in result.added)
+        return
+    cycle, graph = result.cycle, set(labelled_edges(stnu))
+    assert cycle and sum(e.value for e in cycle) < 0
+    for a, b in zip(cycle, cycle[1:] + cycle[:1], strict=True):
+        assert a.target == b.source
+    assert all(e in graph and e.kind is not EdgeKind.DERIVED for e in cycle)
+
+
+@FAST
+@given(stnus(max_nodes=6, max_contingent=0, max_requirements=10), st.randoms(use_true_random=False))
+def test_minimal_dispatchable_network_keeps_paths_and_dispatches(stnu: STNU, rng: random.Random) -> None:
+    if not check_consistency(stnu).consistent:
+        return
+    net = minimal_dispatchable_network(stnu)
+    rebuilt = STNU(stnu.timepoints, tuple(RequirementLink(e.source, e.target, None, e.value) for e in net.edges))
+    assert np.array_equal(all_pairs_shortest_paths(rebuilt), all_pairs_shortest_paths(stnu))
+    # MMT 1998 dispatching: local propagation only, random choices, time never goes back
+    windows = {v: Window(None, None) for v in stnu.timepoints}
+    pending, now, times = set(stnu.timepoints), 0, {}
+    while pending:
+        enabled = [x for x in sorted(pending) if all(
+            e.target not in pending for e in net.edges if e.source == x and e.value < 0 and e.target != x)]
+        deadline = min((windows[y].hi for y in pending if windows[y].hi is not None), default=None)
+        options = []
+        for x in enabled:
+            lo = max(now, windows[x].lo if windows[x].lo is not None else now)
+            hi = min(h for h in (windows[x].hi, deadline, lo + 5) if h is not None)
+            if lo <= hi:
+                options.append((x, lo, hi))
+        assert options, f"dispatch dead end at {now} with {sorted(pending)} left"
+        x, lo, hi = rng.choice(options)
+        now = rng.randint(lo, hi)
+        times[x] = now
+        pending.discard(x)
+        windows = propagate_execution(windows, net.edges, x, now)
+    for e in distance_edges(stnu):
+        assert times[e.target] - times[e.source] <= e.value
+
+
+def _residual(
+    stnu: STNU, seen: int, earliest: int, times: dict[str, int], origin: str, fix: tuple[str, int] | None
+) -> STNU:
+    """The rest of the game as an STNU: what happened is fixed, running contingent links that have not
+    ended by tick ``seen`` end after it, unexecuted executables come at ``earliest`` or later."""
+    reqs = list(stnu.requirements)
+    conts = []
+    for x, tx in times.items():
+        reqs.append(RequirementLink(origin, x, tx, tx))
+    for c in stnu.contingents:
+        if c.target in times:
+            continue
+        if c.source in times:
+            conts.append(ContingentLink(c.source, c.target, max(c.lb, seen - times[c.source] + 1), c.ub))
+        else:
+            conts.append(c)
+    contingent = stnu.contingent_timepoints
+    for x in stnu.timepoints:
+        if x not in times and x not in contingent:
+            if fix is not None and fix[0] == x:
+                reqs.append(RequirementLink(origin, x, fix[1], fix[1]))
+            else:
+                reqs.append(RequirementLink(origin, x, earliest, None))
+    return STNU((origin, *stnu.timepoints), tuple(reqs), tuple(conts))
+
+
+def _dispatch(stnu: STNU, rng: random.Random) -> dict[str, int]:
+    """Execute a DC network online: nature draws integer durations; the agent executes a timepoint
+    at tick t as soon as the rest of the game stays DC (checked with `check_dc` on the residual game)."""
+    origin = "__origin__"
+    horizon = 2 + sum(abs(b) for r in stnu.requirements for b in (r.lb, r.ub) if b is not None) + sum(
+        c.ub for c in stnu.contingents)
+    duration = {c.target: rng.randint(c.lb, c.ub) for c in stnu.contingents}
+    activation = {c.target: c.source for c in stnu.contingents}
+    times: dict[str, int] = {}
+    for t in range(horizon + 1):
+        for c, a in activation.items():  # nature first
+            if a in times and c not in times and times[a] + duration[c] == t:
+                times[c] = t
+        progress = True
+        while progress:
+            progress = False
+            for x in stnu.timepoints:
+                if x in times or x in activation:
+                    continue
+                if check_dc(_residual(stnu, t, t, times, origin, (x, t))).verdict is Verdict.DC:
+                    times[x] = t
+                    progress = True
+        if len(times) == len(stnu.timepoints):
+            return times
+        assert check_dc(_residual(stnu, t, t + 1, times, origin, None)).verdict is Verdict.DC
+    raise AssertionError("dispatch did not finish before the horizon")
+
+
+@FAST
+@given(stnus(max_nodes=5, max_contingent=2, max_requirements=6), st.randoms(use_true_random=False))
+def test_dc_networks_dispatch_without_violations(stnu: STNU, rng: random.Random) -> None:
+    if check_dc(stnu).verdict is not Verdict.DC:
+        return
+    times = _dispatch(stnu, rng)
+    for e in distance_edges(stnu):
+        assert times[e.target] - times[e.source] <= e.value, (e, times)
