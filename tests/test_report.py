@@ -25,7 +25,7 @@ from hrc.io.task_file import load_task
 from hrc.model import Plan, Task
 from hrc.plans import agent_legs, generate_plans, phase_graph
 from hrc.report import FORMATS, write_report
-from hrc.report.summary import agent_letters, empty_class_reason, featured_plans
+from hrc.report.summary import agent_letters, empty_class_reason, featured_plans, split_explanation
 
 WORKSHOP_TASK = Path(__file__).resolve().parents[1] / "tasks" / "cube_stacking.yaml"
 
@@ -279,8 +279,22 @@ def test_interference_and_explanations_reported(cps: CompiledPlanSet, report_dir
     expected = "waits 2.5 s for human H \u2192 S"
     assert expected in md and expected in html and "at (5.0, 5.4)" in md
     worst = next(cp for cp in cps.plans if cp.plan_class is PlanClass.INCONSISTENT)
-    assert worst.classification.explanation in md
-    assert "makespan deadline 80 s" in html
+    verdict, key, links = split_explanation(worst.classification.explanation)
+    assert (verdict, key, links) == ("no schedule meets every constraint", ("makespan deadline 80 s",),
+                                     ("makespan deadline 80 s",))
+    assert f"**Why inconsistent:** {verdict} \u2014 makespan deadline 80 s." in md
+    assert "<b>Why inconsistent:</b> no schedule meets every constraint \u2014 makespan deadline 80 s." in html
+    consistent = next(cp for cp in cps.plans if cp.plan_class is PlanClass.CONSISTENT)
+    if consistent.plan.id in {cp.plan.id for cp in featured_plans(cps)}:
+        assert "<li>human&#x27;s put of cube2 (2-4 s)</li>" in html
+
+
+def test_split_explanation() -> None:
+    assert split_explanation("odd text") == ("odd text", (), ())
+    verdict, key, links = split_explanation("not DC: a; constraint x; b; task graph: c after d")
+    assert verdict == "not DC"
+    assert key == ("constraint x", "task graph: c after d")
+    assert links == ("a", "constraint x", "b", "task graph: c after d")
 
 
 def test_empty_class_gets_a_reason(tmp_path: Path) -> None:

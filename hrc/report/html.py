@@ -18,6 +18,7 @@ from hrc.report.summary import (
     fmt_motion,
     fmt_sequence,
     fmt_stnu,
+    split_explanation,
 )
 
 __all__ = ["render_html"]
@@ -51,6 +52,7 @@ section.plan{background:#fff;border:1px solid #dde1e7;border-radius:8px;padding:
 .facts dt{color:#5b6372}.facts dd{margin:0}
 .why{background:#fdecea;border-left:4px solid #c62828;padding:8px 12px;margin:8px 0 12px;border-radius:0 4px 4px 0}
 .why.consistent{background:#fff8e1;border-color:#e0a000}
+.why details{margin-top:4px;font-size:13px}.why summary{cursor:pointer;color:#5b6372}.why ol{margin:4px 0 0}
 img{max-width:100%;height:auto;display:block}
 .figs{display:grid;grid-template-columns:minmax(0,640px) minmax(0,1fr);gap:18px;align-items:start;margin-top:12px}
 ul.motions{margin:4px 0 0;padding-left:18px;font-size:14px}ul.motions ul{padding-left:18px;color:#7a1f1f}
@@ -60,6 +62,17 @@ ul.motions{margin:4px 0 0;padding-left:18px;font-size:14px}ul.motions ul{padding
 def _badge(cls: str) -> str:
     color = CLASS_COLORS.get(cls, "#777777")
     return f'<span class="badge" style="background:{color}">{escape(cls)}</span>'
+
+
+def _explanation(plan_class: str, text: str) -> str:
+    verdict, key, links = split_explanation(text)
+    e = escape
+    html = f'<div class="why {e(plan_class)}"><b>Why {e(plan_class)}:</b> {e(verdict)}'
+    html += f" \u2014 {e('; '.join(key))}." if key else "."
+    if links:
+        items = "".join(f"<li>{e(link)}</li>" for link in links)
+        html += f"<details><summary>The {len(links)} links of the cycle</summary><ol>{items}</ol></details>"
+    return html + "</div>"
 
 
 def render_html(data: ReportData, figures: dict[str, str]) -> str:
@@ -132,8 +145,7 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
                 f'<dt>STNU</dt><dd><a href="{e(r.stnu_link)}">{e(r.stnu_link)}</a> ({e(fmt_stnu(r.stnu_size))})</dd>',
                 "</dl>"]
         if explanations.get(plan_id):
-            out.append(f'<p class="why {e(r.plan_class)}"><b>Why {e(r.plan_class)}:</b> '
-                       f"{e(explanations[plan_id])}</p>")
+            out.append(_explanation(r.plan_class, explanations[plan_id]))
         gantt = figures.get(f"gantt_{plan_id}")
         if gantt:
             out.append(f'<img src="{e(gantt)}" alt="Gantt chart of plan {pid}">')

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon, Rectangle
+from matplotlib.ticker import MaxNLocator
 
 from hrc.report.figures import agent_color, new_figure
 
@@ -40,6 +41,9 @@ def draw_workspace(ax, workspace: Workspace) -> None:  # noqa: ANN001 (a matplot
     ax.set_xlim(xmin - pad, xmax + pad)
     ax.set_ylim(ymin - pad, ymax + pad)
     ax.set_aspect("equal")
+    # few ticks: creating tick artists is most of the cost of drawing an axis
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=6, steps=[1, 2, 5, 10]))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=6, steps=[1, 2, 5, 10]))
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
 
@@ -108,7 +112,7 @@ def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
         ax.plot([x], [y], marker="X", markersize=11, color="#c62828", markeredgecolor="white", zorder=7)
         ax.annotate("\n".join(lines), (x, y), xytext=(8, -6), textcoords="offset points", fontsize=7.5,
                     color="#c62828", va="top", zorder=7,
-                    bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.85})
+                    bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.6})
     marked = bool(at)
     if marked:
         handles.append(Line2D([], [], color="#c62828", marker="X", linestyle="none", markersize=9,

@@ -11,6 +11,7 @@ from hrc.report.summary import (
     fmt_motion,
     fmt_sequence,
     fmt_stnu,
+    split_explanation,
 )
 
 __all__ = ["render_markdown"]
@@ -18,6 +19,16 @@ __all__ = ["render_markdown"]
 
 def _cell(text: str) -> str:
     return text.replace("|", "\\|")
+
+
+def _explanation(plan_class: str, text: str) -> list[str]:
+    verdict, key, links = split_explanation(text)
+    out = [f"**Why {plan_class}:** {verdict}" + (f" \u2014 {'; '.join(key)}." if key else "."), ""]
+    if links:
+        out += ["<details><summary>The " + str(len(links)) + " links of the cycle</summary>", ""]
+        out += [f"{i}. {_cell(link)}" for i, link in enumerate(links, 1)]
+        out += ["", "</details>", ""]
+    return out
 
 
 def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
@@ -68,7 +79,7 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
         out += [f"- **Makespan:** {fmt_makespan(r.makespan)} s; **idle:** {idle}",
                 f"- **STNU:** [{r.stnu_link}]({r.stnu_link}) ({fmt_stnu(r.stnu_size)})", ""]
         if explanations.get(pid):
-            out += [f"**Why {r.plan_class}:** {explanations[pid]}", ""]
+            out += _explanation(r.plan_class, explanations[pid])
         if f"gantt_{pid}" in figures:
             out += [f"![Gantt chart of plan {pid}]({figures[f'gantt_{pid}']})", ""]
         else:

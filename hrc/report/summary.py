@@ -233,3 +233,19 @@ def fmt_motion(note: MotionNote) -> str:
 def allocation_legend(data: ReportData) -> str:
     letters = ", ".join(f"{letter} = {agent}" for agent, letter in data.letters)
     return f"one letter per action in task order ({' '.join(data.actions)}): {letters}"
+
+
+def split_explanation(text: str) -> tuple[str, tuple[str, ...], tuple[str, ...]]:
+    """``(verdict, constraints, links)`` of a classification's explanation.
+
+    The compiler writes ``"VERDICT: link; link; ..."``, the links of the cycle that breaks the plan in
+    words. The few that are task constraints rather than steps of the plan (the makespan deadline, a
+    temporal constraint, a task-graph edge) are the ones a reader wants first; all links go into a
+    collapsed list. Text without that shape is returned whole as the verdict.
+    """
+    head, sep, rest = text.partition(": ")
+    if not sep:
+        return text, (), ()
+    links = tuple(part.strip() for part in rest.split("; ") if part.strip())
+    key = tuple(part for part in links if "deadline" in part or part.startswith(("constraint", "task graph")))
+    return head, key, links
