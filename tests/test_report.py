@@ -323,3 +323,55 @@ def test_fast_enough(cps: CompiledPlanSet, tmp_path: Path) -> None:
     t0 = time.perf_counter()
     write_report(cps, tmp_path / "again")
     assert time.perf_counter() - t0 < 3.0  # the target is < 1.5 s; slack for a busy shared machine
+
+
+@pytest.fixture(scope="module")
+def workshop_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[CompiledPlanSet, Path]:
+    from hrc.compile.compiler import compile_task
+
+    cps = compile_task(load_task(WORKSHOP_TASK), seed=0, jobs=1)
+    out = tmp_path_factory.mktemp("workshop")
+    write_report(cps, out)
+    return cps, out
+
+
+def test_workshop_report(workshop_dir: tuple[CompiledPlanSet, Path], tmp_path: Path) -> None:
+    """The real compiled workshop: every plan listed in rank order, figures of the featured plans only,
+    a Gantt bar per manipulation, the same bytes twice."""
+    cps, out = workshop_dir
+    html = _parse(out / "report.html")
+    assert not html.errors and html.stack == []
+    assert [r[1] for r in html.rows] == [cp.plan.id for cp in cps.plans]
+    assert all((out / src).is_file() for src in html.images)
+    featured = featured_plans(cps)
+    assert len(list((out / "figures").iterdir())) == 1 + 2 * len(featured)
+    from hrc.report.gantt import gantt_bars
+
+    for cp in featured:
+        bars = gantt_bars(cps.task, cp)
+        n_phases = sum(len(cps.task.action(a).phases) for a in cps.task.action_ids)
+        assert sum(1 for rows in bars.values() for kind, *_ in rows if kind == "work") == n_phases
+        assert all(end >= start >= 0 for rows in bars.values() for _, start, end, _ in rows)
+    write_report(cps, tmp_path)
+    for p in sorted(out.rglob("*")):
+        if p.is_file():
+            assert (tmp_path / p.relative_to(out)).read_bytes() == p.read_bytes(), p.name
+
+
+def test_plan_without_schedule(cps: CompiledPlanSet, tmp_path: Path) -> None:
+    """A featured plan with no schedule at all (makespan None): dashes in its row, no Gantt chart."""
+    idx, target = next((i, cp) for i, cp in enumerate(cps.plans) if cp.plan_class is PlanClass.INCONSISTENT)
+    empty = Classification(PlanClass.INCONSISTENT, "no schedule meets every constraint: x", None, (), ())
+    plans = list(cps.plans)
+    plans[idx] = replace(target, classification=empty)
+    broken = replace(cps, plans=tuple(plans))
+    assert target.plan.id in {cp.plan.id for cp in featured_plans(broken)}
+    write_report(broken, tmp_path)
+    md = (tmp_path / "report.md").read_text("utf-8")
+    row = next(line for line in md.splitlines() if line.startswith(f"| {target.rank} |"))
+    assert "| \u2014 | \u2014 |" in row
+    assert not (tmp_path / "figures" / f"gantt_{target.plan.id}.png").exists()
+    assert (tmp_path / "figures" / f"map_{target.plan.id}.png").exists()
+    assert "No schedule" in md
+    html = _parse(tmp_path / "report.html")
+    assert not html.errors and all((tmp_path / src).is_file() for src in html.images)
