@@ -128,8 +128,10 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
         roadmap = Roadmap.build(world, c, _seed(seed, c))
         roadmaps += 1
         milestones += len(roadmap.points)
+        ends = sorted({x for pair in wanted[c] for x in pair})
+        routes = roadmap.routes(world, [locs[e] for e in ends])
         for a, b in wanted[c]:
-            pts = roadmap.query(world, locs[a], locs[b])
+            pts = routes[(ends.index(a), ends.index(b))]
             if pts is None:
                 fallbacks += 1
                 pts = plan_points(world, locs[a], locs[b], c, _seed(seed, c, a, b))
