@@ -99,7 +99,8 @@ class _Morris2014:
         self.neg_in: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]  # negative ordinary
         self.uc_in: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]  # upper-case (+label)
         # non-negative in-edges: (source, weight, edge id, lower-case label index or -1)
-        self.pos_in: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]
+        self.pos_in: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]  # ordinary and derived
+        self.lc_in: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]  # lower-case (+label)
         for e in labelled_edges(stnu):
             s, t = index[e.source], index[e.target]
             eid = len(self.table)
@@ -107,7 +108,7 @@ class _Morris2014:
             if e.kind is EdgeKind.UPPER:
                 self.uc_in[t].append((s, e.value, eid, index[e.label]))
             elif e.kind is EdgeKind.LOWER:
-                self.pos_in[t].append((s, e.value, eid, index[e.label]))
+                self.lc_in[t].append((s, e.value, eid, index[e.label]))
             elif s != t and ((s, t) not in best or e.value < self.table[best[(s, t)]].value):  # type: ignore[union-attr]
                 best[(s, t)] = eid
         self.best_in: list[dict[int, int]] = [{} for _ in range(n)]  # shortest ordinary u->t, w >= 0
@@ -115,7 +116,7 @@ class _Morris2014:
             w = self.table[eid].value  # type: ignore[union-attr]
             if w >= 0:
                 self.best_in[t][s] = w
-                self.pos_in[t].append((s, w, eid, -1))
+                self.pos_in[t].append((s, w, eid))
             else:
                 self.neg_in[t].append((s, w, eid))
         self.negative = [bool(self.neg_in[i] or self.uc_in[i]) for i in range(n)]
@@ -139,7 +140,7 @@ class _Morris2014:
         for u, (w, pred) in new_edges.items():
             eid = len(self.table)
             self.table.append((u, src, w, pred, u))
-            self.pos_in[src].append((u, w, eid, -1))
+            self.pos_in[src].append((u, w, eid))
             self.best_in[src][u] = w
             self.added.append(eid)
         self.status[src] = self.DONE
@@ -152,7 +153,7 @@ class _Morris2014:
         pred = [-1] * n  # node -> id of the first edge of its shortest path towards src
         heap: list[tuple[int, int]] = []
         push, pop = heapq.heappush, heapq.heappop
-        negative, status, pos_in = self.negative, self.status, self.pos_in
+        negative, status, pos_in, lc_in = self.negative, self.status, self.pos_in, self.lc_in
         for s, w, eid in initial:
             if w < dist[s]:
                 dist[s] = w
@@ -170,7 +171,16 @@ class _Morris2014:
                     self.frames.append((src, pred, u))
                     self.backprop(u)
                     self.frames.pop()
-            for s, w, eid, label in pos_in[u]:
+            for s, w, eid in pos_in[u]:
+                nd = d + w
+                if nd < dist[s]:
+                    if nd < 0:
+                        push(heap, (nd, s))
+                    elif dist[s] == _BIG:
+                        moat.append(s)
+                    dist[s] = nd
+                    pred[s] = eid
+            for s, w, eid, label in lc_in[u]:
                 nd = d + w
                 if nd < dist[s] and label != banned:
                     if nd < 0:
