@@ -73,15 +73,24 @@ def _earliest(stnu: STNU) -> dict[str, int] | None:
     return {t: int(w.lo or 0) for t, w in windows.items()}
 
 
-def explain(net: PlanNetwork, cycle: tuple) -> str:
-    """Say in words which links a negative cycle runs through: contingent durations and deadlines."""
+def explain(net: PlanNetwork, cycle: tuple, inconsistent: bool) -> str:
+    """Say in words what a negative cycle (from the DC or consistency check) runs through.
+
+    Not DC: which human durations, at their worst, break which deadline or
+    constraint. `inconsistent`: which limits cannot be met even with every duration at its shortest.
+    """
     meaning = dict(net.meaning)
-    parts: list[str] = []
+    found: dict[str, list[str]] = {"human": [], "robot": [], "limit": [], "order": []}
     for edge in cycle:
-        text = meaning.get((edge.source, edge.target)) or meaning.get((edge.target, edge.source))
-        if text and text not in parts:
-            parts.append(text)
-    return "; ".join(parts) if parts else "a negative cycle through " + ", ".join(str(e) for e in cycle)
+        kind, text = meaning.get((edge.source, edge.target)) or meaning.get((edge.target, edge.source)) or ("", "")
+        if kind and text not in found[kind]:
+            found[kind].append(text)
+    limits = "; ".join(found["limit"]) or "the plan's ordering"
+    if not inconsistent:
+        durations = "; ".join(found["human"]) or "the human's durations"
+        return f"{limits} cannot be guaranteed by the robot alone if the human takes long on: {durations}"
+    durations = "; ".join(found["human"] + found["robot"]) or "the plan's durations"
+    return f"{limits} cannot be met even at the shortest: {durations}"
 
 
 def classify(task: Task, net: PlanNetwork) -> Classification:
@@ -91,10 +100,10 @@ def classify(task: Task, net: PlanNetwork) -> Classification:
         plan_class, explanation = PlanClass.DC, ""
     elif result.verdict is Verdict.NOT_DC:
         plan_class = PlanClass.CONSISTENT
-        explanation = "not controllable by the robot alone: " + explain(net, result.cycle)
+        explanation = explain(net, result.cycle, inconsistent=False)
     else:
         plan_class = PlanClass.INCONSISTENT
-        explanation = "no schedule meets every constraint: " + explain(net, result.cycle)
+        explanation = explain(net, result.cycle, inconsistent=True)
 
     early = _earliest(_without_deadline(net.stnu, fix_contingents=False))
     if early is None:

@@ -23,7 +23,7 @@ from hrc.io.task_file import task_to_dict
 from hrc.model import Plan, Task
 from hrc.motion import Motion, PathLibrary, plan_motions, plan_paths
 from hrc.plans import count_plans, generate_plans
-from hrc.temporal import write_graphml
+from hrc.temporal.graphml import write_graphml
 
 __all__ = ["CompiledPlan", "CompiledPlanSet", "compile_plan", "compile_task", "rank_key", "task_digest"]
 

@@ -41,27 +41,7 @@ class SerialExecutor:
             yield fn(task, paths, chunk)
 
 
-class _Windowed:
-    """Submit through `submit`, keep at most `window` futures in flight, yield as they complete."""
-
-    window = 4
-
-    def _run(self, submit: Callable[[Any], Any], wait_first: Callable[[set], tuple[set, set]],
-             chunks: Iterable[Any]) -> Iterator[Any]:
-        pending: set = set()
-        for chunk in chunks:
-            pending.add(submit(chunk))
-            if len(pending) >= self.window:
-                done, pending = wait_first(pending)
-                for fut in done:
-                    yield fut.result()
-        while pending:
-            done, pending = wait_first(pending)
-            for fut in done:
-                yield fut.result()
-
-
-class PoolExecutor(_Windowed):
+class PoolExecutor:
     """A local process pool of `jobs` workers."""
 
     def __init__(self, jobs: int) -> None:
@@ -81,20 +61,23 @@ class PoolExecutor(_Windowed):
         pool = self._pool
         if pool is None:
             raise ExecutorError("PoolExecutor.map_chunks called outside its 'with' block")
+        pending: set[cf.Future] = set()
+        for chunk in chunks:  # at most `window` chunks in flight: plan generation stays a stream
+            pending.add(pool.submit(fn, task, paths, chunk))
+            if len(pending) >= self.window:
+                done, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                yield from (f.result() for f in done)
+        for future in cf.as_completed(pending):
+            yield future.result()
 
-        def wait_first(pending: set) -> tuple[set, set]:
-            done, rest = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
-            return set(done), set(rest)
 
-        return self._run(lambda chunk: pool.submit(fn, task, paths, chunk), wait_first, chunks)
-
-
-class DaskExecutor(_Windowed):
+class DaskExecutor:
     """A Dask distributed scheduler at ``dask://HOST:PORT`` (or ``tcp://HOST:PORT``)."""
 
     def __init__(self, address: str, timeout: float = 10.0) -> None:
         self.address = address
         self.timeout = timeout
+        self.window = 4
         self._client: Any = None
 
     def __enter__(self) -> DaskExecutor:
@@ -115,16 +98,25 @@ class DaskExecutor(_Windowed):
             self._client.close()
 
     def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
-        from distributed import wait
+        from distributed import as_completed
 
         client = self._client
-        task_f, paths_f = client.scatter([task, paths], broadcast=True, hash=False)
-
-        def wait_first(pending: set) -> tuple[set, set]:
-            done, rest = wait(list(pending), return_when="FIRST_COMPLETED")
-            return set(done), set(rest)
-
-        return self._run(lambda chunk: client.submit(fn, task_f, paths_f, chunk, pure=False), wait_first, chunks)
+        with client.as_current():  # as_completed looks for a current client; ours, not a global default
+            task_f, paths_f = client.scatter([task, paths], broadcast=True, hash=False)
+            done: Any = None
+            in_flight = 0
+            for chunk in chunks:
+                future = client.submit(fn, task_f, paths_f, chunk, pure=False)
+                if done is None:
+                    done = as_completed([future])
+                else:
+                    done.add(future)
+                in_flight += 1
+                if in_flight >= self.window:
+                    yield next(done).result()
+                    in_flight -= 1
+            for future in done or ():
+                yield future.result()
 
 
 EXECUTORS: dict[str, Callable[[str], Any]] = {

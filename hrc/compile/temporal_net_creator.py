@@ -68,7 +68,7 @@ class PlanNetwork:
     """A plan's STNU and, per link ``(source, target)``, what it means in words (for explanations)."""
 
     stnu: STNU
-    meaning: tuple[tuple[tuple[str, str], str], ...]
+    meaning: tuple[tuple[tuple[str, str], tuple[str, str]], ...]  # (source, target) -> (kind, text)
     last_ends: tuple[str, ...]
 
 
@@ -77,28 +77,30 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
     timepoints: list[str] = [ORIGIN]
     reqs: list[RequirementLink] = []
     conts: list[ContingentLink] = []
-    meaning: dict[tuple[str, str], str] = {}
+    meaning: dict[tuple[str, str], tuple[str, str]] = {}
     motion_of = {(m.agent, m.leg): m for m in motions}
     last_ends = []
 
-    def req(a: str, b: str, lb: int | None, ub: int | None, text: str) -> None:
+    # kinds: "human" (a contingent duration), "robot" (a robot duration), "limit" (deadline or
+    # temporal constraint), "order" (sequencing, waiting, task graph)
+    def req(a: str, b: str, lb: int | None, ub: int | None, kind: str, text: str) -> None:
         reqs.append(RequirementLink(a, b, lb, ub))
-        meaning.setdefault((a, b), text)
+        meaning.setdefault((a, b), (kind, text))
 
     def cont(a: str, b: str, lb: float, ub: float, text: str) -> None:
         conts.append(ContingentLink(a, b, _floor_ticks(lb), _ceil_ticks(ub)))
-        meaning[(a, b)] = text
+        meaning[(a, b)] = ("human", text)
 
     for agent in task.agents:
         prev_end = ORIGIN
         for leg in agent_legs(task, plan, agent.id):
             dep, arr, st, en = (leg_timepoint(leg, w) for w in ("depart", "arrive", "start", "end"))
             timepoints += [dep, arr, st, en]
-            req(prev_end, dep, 0, None, f"{agent.id} leaves for {leg.action}.{leg.phase} after its previous step")
+            req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {leg.action}.{leg.phase} after its previous step")
             motion = motion_of[(agent.id, leg.index)]
             route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
             if motion.max_time <= 0:
-                req(dep, arr, 0, 0, f"{agent.id} is already at {leg.location}")
+                req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}")
             elif agent.is_human:
                 ub = motion.max_time * HUMAN_PACE_SLACK
                 cont(dep, arr, motion.free_time, ub, f"{route} ({motion.free_time:.1f}-{ub:.1f} s)")
@@ -108,14 +110,14 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
                     causes = ", ".join(f"{i.other_agent} {i.other_origin}->{i.other_target}"
                                        for i in motion.interference)
                     why = f", incl. {motion.max_time - motion.free_time:.1f} s yielding to {causes}"
-                req(dep, arr, seconds_to_ticks(motion.max_time), None, f"{route} (>= {motion.max_time:.1f} s{why})")
-            req(arr, st, 0, None, f"{agent.id} waits at {leg.location} before {leg.action}.{leg.phase}")
+                req(dep, arr, seconds_to_ticks(motion.max_time), None, "robot", f"{route} (>= {motion.max_time:.1f} s{why})")
+            req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {leg.action}.{leg.phase}")
             bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
             what = f"{agent.id}'s {leg.phase} of {leg.action} ({bounds.lb:g}-{bounds.ub:g} s)"
             if agent.is_human:
                 cont(st, en, bounds.lb, bounds.ub, what)
             else:
-                req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), what)
+                req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), "robot", what)
             prev_end = en
         if prev_end != ORIGIN:
             last_ends.append(prev_end)
@@ -123,15 +125,15 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
     for pr in task.precedence:
         a = event_timepoint(plan, Event(pr.before.action, pr.before.phase, "end"))
         b = event_timepoint(plan, Event(pr.after.action, pr.after.phase, "start"))
-        req(a, b, 0, None, f"task graph: {pr.after} after {pr.before}")
+        req(a, b, 0, None, "order", f"task graph: {pr.after} after {pr.before}")
     for c in task.constraints:
         a, b = event_timepoint(plan, c.source), event_timepoint(plan, c.target)
         ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
-        req(a, b, seconds_to_ticks(c.bounds.lb), ub,
+        req(a, b, seconds_to_ticks(c.bounds.lb), ub, "limit",
             f"constraint {c.target} - {c.source} in [{c.bounds.lb:g}, {c.bounds.ub:g}] s")
     if task.deadline is not None:
         for end in last_ends:
-            req(ORIGIN, end, 0, seconds_to_ticks(task.deadline), f"makespan deadline {task.deadline:g} s")
+            req(ORIGIN, end, 0, seconds_to_ticks(task.deadline), "limit", f"makespan deadline {task.deadline:g} s")
 
     stnu = STNU(tuple(timepoints), tuple(reqs), tuple(conts), name=f"{task.name}:{plan.id}")
     return PlanNetwork(stnu=stnu, meaning=tuple(sorted(meaning.items())), last_ends=tuple(last_ends))

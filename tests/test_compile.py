@@ -1,0 +1,158 @@
+"""The compiler end to end on the workshop, with independent re-checks of what it claims."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from hrc.cli import main
+from hrc.compile.classify import PlanClass
+from hrc.compile.compiler import compile_task, rank_key
+from hrc.compile.output import compiled_to_dict
+from hrc.compile.temporal_net_creator import ORIGIN, create_stnu
+from hrc.io.task_file import load_task
+from hrc.motion import plan_motions
+from hrc.plans import agent_legs, generate_plans
+from hrc.temporal import STNU, check_dc
+from hrc.temporal.graphml import read_network
+
+ROOT = Path(__file__).resolve().parents[1]
+WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
+
+
+@pytest.fixture(scope="module")
+def task():
+    return load_task(WORKSHOP)
+
+
+@pytest.fixture(scope="module")
+def compiled(task):
+    return compile_task(task, seed=0, jobs=1)
+
+
+def _lp_consistent(stnu: STNU) -> bool:
+    """Independent oracle: is there a schedule meeting every link (contingents as requirements)? (LP)"""
+    index = {t: i for i, t in enumerate(stnu.timepoints)}
+    rows, rhs = [], []
+    links = [(r.source, r.target, r.lb, r.ub) for r in stnu.requirements]
+    links += [(c.source, c.target, c.lb, c.ub) for c in stnu.contingents]
+    for a, b, lb, ub in links:
+        row = np.zeros(len(index))
+        row[index[b]], row[index[a]] = 1.0, -1.0
+        if ub is not None:
+            rows.append(row)
+            rhs.append(ub)
+        if lb is not None:
+            rows.append(-row)
+            rhs.append(-lb)
+    bounds = [(0, 0) if t == ORIGIN else (0, None) for t in stnu.timepoints]
+    res = linprog(np.zeros(len(index)), A_ub=np.array(rows), b_ub=np.array(rhs), bounds=bounds, method="highs")
+    return res.status == 0
+
+
+def test_workshop_has_32_plans_in_all_three_classes(compiled):
+    assert len(compiled.plans) == 32
+    classes = {cp.plan_class for cp in compiled.plans}
+    assert classes == set(PlanClass), f"the workshop should show every class, found {classes}"
+
+
+def test_ranks_follow_class_then_makespan(compiled):
+    assert [cp.rank for cp in compiled.plans] == list(range(1, 33))
+    keys = [rank_key(cp) for cp in compiled.plans]
+    assert keys == sorted(keys)
+    orders = [cp.plan_class.order for cp in compiled.plans]
+    assert orders == sorted(orders)
+
+
+def test_classes_agree_with_independent_checks(task, compiled):
+    """Inconsistent exactly when the LP finds no schedule; DC re-checked from the written GraphML."""
+    for cp in compiled.plans:
+        stnu = create_stnu(task, cp.plan, cp.motions).stnu
+        assert _lp_consistent(stnu) == (cp.plan_class is not PlanClass.INCONSISTENT), cp.plan.id
+        assert check_dc(stnu).verdict.value == {"DC": "DC", "consistent": "not DC",
+                                                 "inconsistent": "inconsistent"}[cp.plan_class.value]
+
+
+def test_stnu_encodes_human_as_contingent_and_robot_as_requirement(task):
+    plan = next(p for p in generate_plans(task) if len(p.sequence("human")) == 2)
+    from hrc.motion import plan_paths
+
+    motions = plan_motions(task, plan, plan_paths(task, seed=0))
+    stnu = create_stnu(task, plan, motions).stnu
+    human_legs = agent_legs(task, plan, "human")
+    robot_legs = agent_legs(task, plan, "robot")
+    assert len(stnu.timepoints) == 1 + 4 * (len(human_legs) + len(robot_legs))
+    travelling = sum(1 for leg in human_legs if leg.origin != leg.location)
+    assert len(stnu.contingents) == len(human_legs) + travelling
+    assert all(c.source.startswith("human.") for c in stnu.contingents)
+    for leg in robot_legs:
+        start, end = f"robot.{leg.phase}.{leg.action}.start", f"robot.{leg.phase}.{leg.action}.end"
+        bounds = task.action(leg.action).phase(leg.phase).duration("robot")
+        link = next(r for r in stnu.requirements if (r.source, r.target) == (start, end))
+        assert (link.lb, link.ub) == (round(bounds.lb * 1000), round(bounds.ub * 1000))
+    # deadline on every agent's last end
+    deadlines = [r for r in stnu.requirements if r.source == ORIGIN and r.ub is not None]
+    assert {r.ub for r in deadlines} == {round(task.deadline * 1000)} and len(deadlines) == 2
+
+
+def test_makespan_bounds_are_ordered_and_deadline_separates_classes(task, compiled):
+    for cp in compiled.plans:
+        lo, hi = cp.classification.makespan
+        assert 0 < lo <= hi
+        if cp.plan_class is PlanClass.INCONSISTENT:
+            continue
+        # a DC or consistent plan can finish by the deadline at least when the human is fast
+        assert lo <= task.deadline + 1e-9, cp.plan.id
+        if cp.plan_class is PlanClass.DC:
+            assert not cp.classification.explanation
+        else:
+            assert cp.classification.explanation
+
+
+def test_cli_compile_writes_checkable_stnus(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["compile", str(WORKSHOP), "--out", str(out), "--jobs", "1", "--no-report", "-q"]) == 0
+    data = json.loads((out / "compiled.json").read_text())
+    assert data["schema_version"] == 1 and data["seed"] == 0 and len(data["plans"]) == 32
+    for plan in data["plans"]:
+        stnu = read_network(out / plan["stnu"])
+        verdict = check_dc(stnu).verdict.value
+        assert {"DC": "DC", "not DC": "consistent", "inconsistent": "inconsistent"}[verdict] == plan["class"]
+        for m in plan["motions"]:
+            assert m["max_time"] >= m["free_time"] >= 0
+            assert set(m) >= {"agent", "from", "to", "free_time", "max_time", "interference"}
+        assert math.isclose(sum(1 for _ in plan["allocation"]), 5)
+
+
+def test_same_seed_same_bytes_whatever_the_jobs(tmp_path):
+    outs = []
+    for i, jobs in enumerate(("1", "2", "1")):
+        out = tmp_path / f"o{i}"
+        assert main(["compile", str(WORKSHOP), "--out", str(out), "--jobs", jobs, "--no-report", "-q"]) == 0
+        outs.append(out)
+    texts = [(o / "compiled.json").read_bytes() for o in outs]
+    assert texts[0] == texts[1] == texts[2]
+    names = sorted(p.name for p in (outs[0] / "stnu").iterdir())
+    for name in names:
+        assert (outs[0] / "stnu" / name).read_bytes() == (outs[1] / "stnu" / name).read_bytes()
+
+
+def test_dask_cluster_gives_the_same_output(task, compiled):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        address = cluster.scheduler_address.replace("tcp://", "dask://")
+        on_dask = compile_task(task, seed=0, executor=address)
+    assert json.dumps(compiled_to_dict(on_dask)) == json.dumps(compiled_to_dict(compiled))
+
+
+def test_bad_executor_is_one_error_line(tmp_path, capsys):
+    code = main(["compile", str(WORKSHOP), "--out", str(tmp_path / "o"), "--executor", "ftp://x", "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and err.startswith("error: ")
+    assert not (tmp_path / "o").exists()
