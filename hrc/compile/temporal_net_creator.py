@@ -96,7 +96,8 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
         for leg in agent_legs(task, plan, agent.id):
             dep, arr, st, en = (leg_timepoint(leg, w) for w in ("depart", "arrive", "start", "end"))
             timepoints += [dep, arr, st, en]
-            req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {leg.action}.{leg.phase} after its previous step")
+            step = f"{leg.action}.{leg.phase}"
+            req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step")
             motion = motion_of[(agent.id, leg.index)]
             route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
             if motion.max_time <= 0:
@@ -110,7 +111,8 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
                     causes = ", ".join(f"{i.other_agent} {i.other_origin}->{i.other_target}"
                                        for i in motion.interference)
                     why = f", incl. {motion.max_time - motion.free_time:.1f} s yielding to {causes}"
-                req(dep, arr, seconds_to_ticks(motion.max_time), None, "robot", f"{route} (>= {motion.max_time:.1f} s{why})")
+                req(dep, arr, seconds_to_ticks(motion.max_time), None, "robot",
+                    f"{route} (>= {motion.max_time:.1f} s{why})")
             req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {leg.action}.{leg.phase}")
             bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
             what = f"{agent.id}'s {leg.phase} of {leg.action} ({bounds.lb:g}-{bounds.ub:g} s)"
