@@ -375,3 +375,12 @@ def test_plan_without_schedule(cps: CompiledPlanSet, tmp_path: Path) -> None:
     assert "No schedule" in md
     html = _parse(tmp_path / "report.html")
     assert not html.errors and all((tmp_path / src).is_file() for src in html.images)
+
+
+def test_gantt_label_lanes_do_not_overlap() -> None:
+    from hrc.report.gantt import _label_lanes
+
+    work = [(0.0, 1.0, "a fetch"), (1.2, 2.0, "b fetch"), (2.1, 3.0, "c fetch"), (50.0, 51.0, "far away")]
+    lanes = _label_lanes(work, seconds_per_char=0.5)
+    assert lanes[0] != lanes[1] and lanes[1] != lanes[2] and lanes[0] != lanes[2]
+    assert lanes[3] == (1, 0)  # room again in the first lane

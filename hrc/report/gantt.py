@@ -8,6 +8,7 @@ one the worst-case makespan. O(legs) artists.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 from matplotlib.artist import Artist
@@ -18,7 +19,7 @@ from matplotlib.ticker import MaxNLocator
 
 from hrc.compile.temporal_net_creator import leg_timepoint
 from hrc.plans import agent_legs
-from hrc.report.figures import agent_color, new_figure
+from hrc.report.figures import DPI, agent_color, new_figure
 
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan
@@ -46,6 +47,30 @@ def gantt_bars(task: Task, cp: CompiledPlan) -> dict[str, list[tuple[str, float,
     return bars
 
 
+_LABEL_PT = 7.5  # label font size (pt)
+_CHAR_EM = 0.62  # average DejaVu Sans character width (em), to estimate label widths without drawing
+_LANE = 0.13  # label lane height (y units; one agent row is 1)
+_LANES = ((1, 0), (-1, 0), (1, 1), (-1, 1))  # (above = 1 / below = -1, distance from the bar)
+
+
+def _label_lanes(work: list[tuple[float, float, str]], seconds_per_char: float) -> list[tuple[int, int]]:
+    """A lane per bar label so that labels in one lane do not overlap (greedy, in start order).
+
+    A label takes the first lane whose last label ends before it begins; when all four are taken it
+    goes to the one that frees up first. Label widths are estimated from their length, not measured.
+    """
+    last = [-math.inf] * len(_LANES)
+    out = []
+    for start, end, label in work:
+        half = (len(label) + 1) * seconds_per_char / 2
+        centre = (start + end) / 2
+        free = [i for i, t in enumerate(last) if t <= centre - half]
+        i = free[0] if free else min(range(len(_LANES)), key=last.__getitem__)
+        last[i] = centre + half
+        out.append(_LANES[i])
+    return out
+
+
 def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
     """The Gantt chart of `cp` (see the module docstring); x axis in seconds."""
     bars = gantt_bars(task, cp)
@@ -58,6 +83,8 @@ def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
     fig = new_figure(10.0, fig_h)
     ax = fig.add_axes((0.075, bottom / fig_h, 0.905, per_row * len(agents) / fig_h))
     height = 0.34
+    axes_px = 0.905 * 10.0 * DPI
+    seconds_per_char = horizon * 1.03 / axes_px * _CHAR_EM * _LABEL_PT * DPI / 72
     for row, agent in enumerate(agents):
         y = len(agents) - 1 - row
         color = agent_color(row)
@@ -68,11 +95,9 @@ def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
                        edgecolor=color, linewidth=0.0)
         ax.broken_barh([(start, max(end - start, 0.15)) for start, end, _ in work], (y - height / 2, height),
                        facecolor=color, edgecolor="white", linewidth=0.6)
-        for i, (start, end, label) in enumerate(work):
-            # alternate labels above and below the bars, so that short neighbouring phases stay readable
-            above = i % 2 == 0
-            ax.text((start + end) / 2, y + (height / 2 + 0.04) * (1 if above else -1), label, ha="center",
-                    va="bottom" if above else "top", fontsize=7.5, color="#222222")
+        for (start, end, label), (side, lane) in zip(work, _label_lanes(work, seconds_per_char), strict=True):
+            ax.text((start + end) / 2, y + side * (height / 2 + 0.04 + lane * _LANE), label, ha="center",
+                    va="bottom" if side > 0 else "top", fontsize=_LABEL_PT, color="#222222")
     if task.deadline is not None:
         ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2)
         right = task.deadline < horizon * 0.85  # label to the right of the line, unless near the edge
