@@ -384,3 +384,13 @@ def test_gantt_label_lanes_do_not_overlap() -> None:
     lanes = _label_lanes(work, seconds_per_char=0.5)
     assert lanes[0] != lanes[1] and lanes[1] != lanes[2] and lanes[0] != lanes[2]
     assert lanes[3] == (1, 0)  # room again in the first lane
+
+
+def test_empty_dc_and_consistent_reasons() -> None:
+    none_dc = synthetic_set(deadline_dc=0.0, deadline=80.0)
+    assert none_dc.counts()["DC"] == 0
+    reason = empty_class_reason("DC", none_dc)
+    assert reason.startswith("no plan is DC: in every plan the robot depends on the human's timing")
+    assert none_dc.plans[0].plan.id in reason
+    all_dc = synthetic_set(deadline_dc=1000.0, deadline=1000.0)
+    assert empty_class_reason("consistent", all_dc).startswith("no plan is merely consistent: every plan is DC")
