@@ -67,11 +67,12 @@ def _badge(cls: str) -> str:
 def _explanation(plan_class: str, text: str) -> str:
     verdict, key, links = split_explanation(text)
     e = escape
-    html = f'<div class="why {e(plan_class)}"><b>Why {e(plan_class)}:</b> {e(verdict)}'
-    html += f" \u2014 {e('; '.join(key))}." if key else "."
+    tail = f" \u2014 {e('; '.join(key))}." if key else (":" if links else ".")
+    html = f'<div class="why {e(plan_class)}"><b>Why {e(plan_class)}:</b> {e(verdict)}{tail}'
     if links:
+        what = f"The {len(links)} links of the cycle" if key else f"these {len(links)} links"
         items = "".join(f"<li>{e(link)}</li>" for link in links)
-        html += f"<details><summary>The {len(links)} links of the cycle</summary><ol>{items}</ol></details>"
+        html += f"<details><summary>{what}</summary><ol>{items}</ol></details>"
     return html + "</div>"
 
 

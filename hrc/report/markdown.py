@@ -23,9 +23,11 @@ def _cell(text: str) -> str:
 
 def _explanation(plan_class: str, text: str) -> list[str]:
     verdict, key, links = split_explanation(text)
-    out = [f"**Why {plan_class}:** {verdict}" + (f" \u2014 {'; '.join(key)}." if key else "."), ""]
+    tail = f" \u2014 {'; '.join(key)}." if key else (":" if links else ".")
+    out = [f"**Why {plan_class}:** {verdict}{tail}", ""]
     if links:
-        out += ["<details><summary>The " + str(len(links)) + " links of the cycle</summary>", ""]
+        what = f"The {len(links)} links of the cycle" if key else f"these {len(links)} links"
+        out += [f"<details><summary>{what}</summary>", ""]
         out += [f"{i}. {_cell(link)}" for i, link in enumerate(links, 1)]
         out += ["", "</details>", ""]
     return out
