@@ -173,28 +173,36 @@ def _yield(paths: PathLibrary, nl: NominalLeg, other_pos: np.ndarray, other_labe
     pad = np.full((m + _CHUNK, 2), np.nan)
     other = np.vstack([other_pos, pad])
     lab = np.concatenate([other_label, np.full(m + _CHUNK, -1)])
-    causes: dict[int, tuple[int, tuple[float, float]]] = {}
-    cleared: set[int] = set()
     reach2 = reach * reach
+    first = other[d0:d0 + m] - traj
+    if not ((first[:, 0] ** 2 + first[:, 1] ** 2) < reach2).any():
+        return 0, {}  # the common case: nothing in the way at the nominal departure
+    causes: dict[int, tuple[int, tuple[float, float]]] = {}  # leg -> (delay that clears it, contact)
+    open_: set[int] = set()  # seen, not cleared yet
     for k0 in range(0, horizon - d0 + 1, _CHUNK):
         ks = np.arange(k0, k0 + _CHUNK)
-        idx = d0 + ks[:, None] + np.arange(m)[None, :]  # (shifts, samples) time indices
+        idx = d0 + ks[:, None] + np.arange(m)[None, :]  # (delays, samples) time indices
         diff = other[idx] - traj[None, :, :]
         hit = (diff[..., 0] ** 2 + diff[..., 1] ** 2) < reach2
         labels = lab[idx]
-        for row, k in enumerate(ks):
-            row_hits = hit[row]
-            hit_labels = set(labels[row][row_hits].tolist())
-            for h in list(causes):
-                if h not in cleared and h not in hit_labels:
-                    cleared.add(h)
-                    causes[h] = (int(k), causes[h][1])
-            for h in hit_labels:
-                if h not in causes:
-                    first = int(np.flatnonzero(row_hits & (labels[row] == h))[0])
-                    causes[h] = (-1, (float(traj[first, 0]), float(traj[first, 1])))
-            if not row_hits.any():
-                return int(k), causes
+        busy = hit.any(axis=1)
+        free_rows = np.flatnonzero(~busy)
+        stop = int(free_rows[0]) if len(free_rows) else _CHUNK  # rows beyond are not needed
+        for h in sorted(set(labels[:stop][hit[:stop]].tolist()) | open_):
+            rows = (hit & (labels == h)).any(axis=1)
+            if h not in causes:
+                r0 = int(np.flatnonzero(rows)[0])
+                i0 = int(np.flatnonzero(hit[r0] & (labels[r0] == h))[0])
+                causes[h] = (-1, (float(traj[i0, 0]), float(traj[i0, 1])))
+                open_.add(h)
+            else:
+                r0 = 0
+            gone = np.flatnonzero(~rows[r0:])
+            if len(gone) and r0 + int(gone[0]) <= stop:
+                causes[h] = (int(ks[r0 + int(gone[0])]), causes[h][1])
+                open_.discard(h)
+        if len(free_rows):
+            return int(ks[stop]), causes
     return horizon - d0, causes  # unreachable in practice: the other agent is gone by then
 
 
