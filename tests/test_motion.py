@@ -221,3 +221,10 @@ def test_cli_text_png_and_plan(tmp_path: FsPath, capsys: pytest.CaptureFixture[s
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["paths", str(TASK), "--plan", "nope"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
+
+
+def test_world_has_agent_bodies_that_queries_ignore(task: Task) -> None:
+    w = World.from_task(task)
+    assert set(w.bodies) == {"human", "robot"}
+    assert w.bodies["robot"].position == task.workspace.location("R").xy
+    assert w.point_clear(9.0, 1.0, 0.45) and w.segment_clear((9.0, 1.0), (7.0, 1.0), 0.45)

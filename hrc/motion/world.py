@@ -27,7 +27,7 @@ import pymunk
 import pymunk.autogeometry
 from shapely.geometry import Polygon
 
-from hrc.model import Agent, Workspace
+from hrc.model import Agent, Task, Workspace
 
 __all__ = ["World"]
 
@@ -122,8 +122,20 @@ class World:
         self._manager.setup()
         self._discs: dict[float, fcl.CollisionObject] = {}
 
+    @classmethod
+    def from_task(cls, task: Task) -> World:
+        """The task's workspace with each agent's circle body at its start location."""
+        world = cls(task.workspace)
+        for agent in task.agents:
+            world.add_agent(agent, *task.workspace.location(agent.start).xy)
+        return world
+
+    def _static_within(self, p: tuple[float, float], distance: float) -> bool:
+        """True when a static shape (obstacle or wall, never an agent) is within `distance` of `p`."""
+        return any(shape.point_query(p).distance <= distance for shape, _ in self._static)
+
     def add_agent(self, agent: Agent, x: float, y: float) -> pymunk.Body:
-        """Add `agent` as a kinematic circle body at ``(x, y)`` (for simulation and plots)."""
+        """Add `agent` as a kinematic circle body at ``(x, y)`` (for simulation; queries ignore agents)."""
         body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
         body.position = (x, y)
         shape = pymunk.Circle(body, agent.radius)
@@ -133,7 +145,7 @@ class World:
 
     def clearance(self, x: float, y: float) -> float:
         """Distance (m) from ``(x, y)`` to the nearest obstacle or wall (FCL); 0 or less inside one."""
-        if self.space.point_query_nearest((x, y), 0.0, self._filter) is not None:
+        if self._static_within((x, y), 0.0):
             return 0.0  # inside (or on) an obstacle: FCL reports -1 or a mesh's surface distance
         self._point.setTranslation(np.array([x, y, 0.0]))
         best = math.inf
@@ -165,7 +177,7 @@ class World:
         if data.result.is_collision:
             return False
         # a point deep inside a concave obstacle's mesh touches no triangle: ask pymunk as well
-        return self.space.point_query_nearest((x, y), 0.0, self._filter) is None
+        return not self._static_within((x, y), 0.0)
 
     def segment_clear(self, a: tuple[float, float], b: tuple[float, float], clearance: float) -> bool:
         """True when a disc of radius `clearance` swept from `a` to `b` touches nothing (exact, pymunk).
@@ -176,7 +188,7 @@ class World:
         radius, and so misses a disc that grazes a shape the segment itself does not reach.
         """
         if a == b:
-            return self.space.point_query_nearest(a, clearance, self._filter) is None
+            return not self._static_within(a, clearance)
         left, right = min(a[0], b[0]) - clearance, max(a[0], b[0]) + clearance
         bottom, top = min(a[1], b[1]) - clearance, max(a[1], b[1]) + clearance
         for shape, (sl, sb, sr, st) in self._static:
