@@ -18,11 +18,13 @@ travelling nor manipulating (waiting for the co-worker, or done early).
 from __future__ import annotations
 
 import enum
+from collections import deque
 from dataclasses import dataclass
 
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwork
 from hrc.model import Task
-from hrc.temporal import STNU, RequirementLink, Verdict, check_consistency, check_dc
+from hrc.temporal import STNU, RequirementLink, Verdict, check_dc
+from hrc.temporal.graph import distance_edges
 
 __all__ = ["Classification", "PlanClass", "classify", "explain"]
 
@@ -60,17 +62,36 @@ def _without_deadline(stnu: STNU, fix_contingents: bool, lower_bounds_only: bool
 
 
 def _earliest(stnu: STNU) -> dict[str, int] | None:
-    """Earliest time of every timepoint after ORIGIN in the STN of `stnu`, or None if inconsistent."""
-    # the earliest solution is T(x) = -d(x, ORIGIN); add x -> ORIGIN edges of 0 so all come after it
-    anchored = STNU(stnu.timepoints, stnu.requirements + tuple(
-        RequirementLink(ORIGIN, t, 0, None) for t in stnu.timepoints if t != ORIGIN), stnu.contingents)
-    result = check_consistency(anchored)
-    if not result.consistent:
-        return None
-    from hrc.temporal import time_windows
+    """Earliest time of every timepoint, all at or after ORIGIN, in the STN of `stnu`; None if inconsistent.
 
-    windows = time_windows(anchored, ORIGIN)
-    return {t: int(w.lo or 0) for t, w in windows.items()}
+    Earliest(x) = -d(x, ORIGIN) in the distance graph with ``x -> ORIGIN`` edges of weight 0 added
+    (Dechter, Meiri & Pearl 1991): one single-target Bellman-Ford (queue-based), O(n m) worst case,
+    near-linear on these plan networks.
+    """
+    into: dict[str, list[tuple[str, int]]] = {t: [] for t in stnu.timepoints}  # target -> (source, w)
+    for e in distance_edges(stnu):
+        into[e.target].append((e.source, e.value))
+    for t in stnu.timepoints:
+        if t != ORIGIN:
+            into[ORIGIN].append((t, 0))
+    dist = {ORIGIN: 0}
+    relaxed = dict.fromkeys(stnu.timepoints, 0)
+    queue, queued = deque([ORIGIN]), {ORIGIN}
+    n = len(stnu.timepoints)
+    while queue:
+        v = queue.popleft()
+        queued.discard(v)
+        dv = dist[v]
+        for u, w in into[v]:  # edge u -> v of weight w: d(u, ORIGIN) <= w + d(v, ORIGIN)
+            if u not in dist or w + dv < dist[u]:
+                dist[u] = w + dv
+                relaxed[u] += 1
+                if relaxed[u] > n:
+                    return None  # a negative cycle
+                if u not in queued:
+                    queued.add(u)
+                    queue.append(u)
+    return {t: -dist[t] for t in stnu.timepoints}
 
 
 def explain(net: PlanNetwork, cycle: tuple, inconsistent: bool) -> str:
@@ -80,11 +101,15 @@ def explain(net: PlanNetwork, cycle: tuple, inconsistent: bool) -> str:
     constraint. `inconsistent`: which limits cannot be met even with every duration at its shortest.
     """
     meaning = dict(net.meaning)
-    found: dict[str, list[str]] = {"human": [], "robot": [], "limit": [], "order": []}
+    position = {t: i for i, t in enumerate(net.stnu.timepoints)}
+    seen: dict[str, set[tuple[int, str]]] = {"human": set(), "robot": set(), "limit": set(), "order": set()}
     for edge in cycle:
-        kind, text = meaning.get((edge.source, edge.target)) or meaning.get((edge.target, edge.source)) or ("", "")
-        if kind and text not in found[kind]:
-            found[kind].append(text)
+        key = (edge.source, edge.target) if (edge.source, edge.target) in meaning else (edge.target, edge.source)
+        if key in meaning:
+            kind, text = meaning[key]
+            seen[kind].add((min(position[key[0]], position[key[1]]), text))
+    # in timeline order (STNU order), whatever node the checker's cycle happened to start from
+    found = {kind: list(dict.fromkeys(text for _, text in sorted(items))) for kind, items in seen.items()}
     limits = "; ".join(found["limit"]) or "the plan's ordering"
     if not inconsistent:
         durations = "; ".join(found["human"]) or "the human's durations"
