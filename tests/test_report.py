@@ -394,3 +394,16 @@ def test_empty_dc_and_consistent_reasons() -> None:
     assert none_dc.plans[0].plan.id in reason
     all_dc = synthetic_set(deadline_dc=1000.0, deadline=1000.0)
     assert empty_class_reason("consistent", all_dc).startswith("no plan is merely consistent: every plan is DC")
+
+
+def test_reused_figures_match_fresh_ones(cps: CompiledPlanSet, report_dir: Path, tmp_path: Path) -> None:
+    """write_report draws every plan on one reused Gantt and one reused map figure: same bytes as alone."""
+    from hrc.report.figures import save_png
+    from hrc.report.gantt import gantt_figure
+    from hrc.report.maps import map_figure
+
+    for cp in featured_plans(cps)[1:]:  # later plans: drawn over removed artists of earlier ones
+        save_png(gantt_figure(cps.task, cp), tmp_path / "g.png")
+        save_png(map_figure(cps, cp), tmp_path / "m.png")
+        assert (tmp_path / "g.png").read_bytes() == (report_dir / "figures" / f"gantt_{cp.plan.id}.png").read_bytes()
+        assert (tmp_path / "m.png").read_bytes() == (report_dir / "figures" / f"map_{cp.plan.id}.png").read_bytes()

@@ -12,6 +12,7 @@ import math
 from typing import TYPE_CHECKING
 
 from matplotlib.artist import Artist
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan
     from hrc.model import Task
 
-__all__ = ["gantt_bars", "gantt_figure"]
+__all__ = ["draw_gantt", "gantt_bars", "gantt_base", "gantt_figure"]
 
 def gantt_bars(task: Task, cp: CompiledPlan) -> dict[str, list[tuple[str, float, float, str]]]:
     """Per agent, ``(kind, start, end, label)`` with kind ``travel`` or ``work``, in leg order.
@@ -47,6 +48,7 @@ def gantt_bars(task: Task, cp: CompiledPlan) -> dict[str, list[tuple[str, float,
     return bars
 
 
+_WIDTH, _LEFT, _AXES_W = 10.0, 0.075, 0.905  # figure width (in), axes left and width (figure fractions)
 _LABEL_PT = 7.5  # label font size (pt)
 _CHAR_EM = 0.62  # average DejaVu Sans character width (em), to estimate label widths without drawing
 _LANE = 0.13  # label lane height (y units; one agent row is 1)
@@ -71,54 +73,67 @@ def _label_lanes(work: list[tuple[float, float, str]], seconds_per_char: float) 
     return out
 
 
-def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
-    """The Gantt chart of `cp` (see the module docstring); x axis in seconds."""
+def gantt_base(task: Task) -> tuple[Figure, Axes]:
+    """The plan-independent part: figure, axes, agent rows, grid (reused for every plan's chart)."""
+    agents = task.agent_ids
+    bottom, top, per_row = 0.55, 0.4, 1.0  # inches: x axis and its label, legend, one agent row
+    fig_h = bottom + top + per_row * len(agents)
+    fig = new_figure(_WIDTH, fig_h)
+    ax = fig.add_axes((_LEFT, bottom / fig_h, _AXES_W, per_row * len(agents) / fig_h))
+    ax.set_yticks(range(len(agents)), labels=list(reversed(agents)))
+    ax.set_ylim(-0.62, len(agents) - 0.38)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=10, steps=[1, 2, 5, 10]))
+    ax.set_xlabel("time (s), earliest schedule")
+    ax.grid(axis="x", color="#dddddd", linewidth=0.6)
+    ax.set_axisbelow(True)
+    ax.spines[["top", "right"]].set_visible(False)
+    return fig, ax
+
+
+def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan) -> list[Artist]:
+    """Draw `cp`'s bars, labels, deadline and legend on a `gantt_base` axes; returns what it added."""
     bars = gantt_bars(task, cp)
     agents = task.agent_ids
     ms = cp.classification.makespan
     horizon = max([e for rows in bars.values() for _, _, e, _ in rows]
                   + [ms[1] if ms else 0.0, task.deadline or 0.0, 1.0])
-    bottom, top, per_row = 0.55, 0.4, 1.0  # inches: x axis and its label, legend, one agent row
-    fig_h = bottom + top + per_row * len(agents)
-    fig = new_figure(10.0, fig_h)
-    ax = fig.add_axes((0.075, bottom / fig_h, 0.905, per_row * len(agents) / fig_h))
+    ax.set_xlim(0, horizon * 1.03)
     height = 0.34
-    axes_px = 0.905 * 10.0 * DPI
-    seconds_per_char = horizon * 1.03 / axes_px * _CHAR_EM * _LABEL_PT * DPI / 72
+    seconds_per_char = horizon * 1.03 / (_AXES_W * _WIDTH * DPI) * _CHAR_EM * _LABEL_PT * DPI / 72
+    added: list[Artist] = []
     for row, agent in enumerate(agents):
         y = len(agents) - 1 - row
         color = agent_color(row)
         travel = [(start, end - start) for kind, start, end, _ in bars[agent] if kind == "travel"]
         work = [(start, end, label) for kind, start, end, label in bars[agent] if kind == "work"]
         # one collection per agent and kind (far cheaper to draw than a patch per bar)
-        ax.broken_barh(travel, (y - height * 0.3, height * 0.6), facecolor=color, alpha=0.28, hatch="///",
-                       edgecolor=color, linewidth=0.0)
-        ax.broken_barh([(start, max(end - start, 0.15)) for start, end, _ in work], (y - height / 2, height),
-                       facecolor=color, edgecolor="white", linewidth=0.6)
+        added.append(ax.broken_barh(travel, (y - height * 0.3, height * 0.6), facecolor=color, alpha=0.28,
+                                    hatch="///", edgecolor=color, linewidth=0.0))
+        added.append(ax.broken_barh([(start, max(end - start, 0.15)) for start, end, _ in work],
+                                    (y - height / 2, height), facecolor=color, edgecolor="white", linewidth=0.6))
         for (start, end, label), (side, lane) in zip(work, _label_lanes(work, seconds_per_char), strict=True):
-            ax.text((start + end) / 2, y + side * (height / 2 + 0.04 + lane * _LANE), label, ha="center",
-                    va="bottom" if side > 0 else "top", fontsize=_LABEL_PT, color="#222222")
+            added.append(ax.text((start + end) / 2, y + side * (height / 2 + 0.04 + lane * _LANE), label,
+                                 ha="center", va="bottom" if side > 0 else "top", fontsize=_LABEL_PT,
+                                 color="#222222"))
     if task.deadline is not None:
-        ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2)
+        added.append(ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2))
         right = task.deadline < horizon * 0.85  # label to the right of the line, unless near the edge
         label = f" deadline {task.deadline:g} s" if right else f"deadline {task.deadline:g} s "
-        ax.text(task.deadline, len(agents) - 0.42, label, color="#c62828", fontsize=8, va="center",
-                ha="left" if right else "right")
+        added.append(ax.text(task.deadline, len(agents) - 0.42, label, color="#c62828", fontsize=8, va="center",
+                             ha="left" if right else "right"))
+    handles: list[Artist] = [
+        Patch(facecolor="#888888", label="manipulation"),
+        Patch(facecolor="#888888", alpha=0.28, hatch="///", edgecolor="#888888", linewidth=0.0, label="travel")]
     if ms is not None and ms[1] > ms[0]:
-        ax.axvline(ms[1], color="#555555", linestyle=":", linewidth=1.0)
-    ax.set_yticks(range(len(agents)), labels=list(reversed(agents)))
-    ax.set_ylim(-0.62, len(agents) - 0.38)
-    ax.set_xlim(0, horizon * 1.03)
-    ax.xaxis.set_major_locator(MaxNLocator(nbins=10, steps=[1, 2, 5, 10]))
-    ax.set_xlabel("time (s), earliest schedule")
-    ax.grid(axis="x", color="#dddddd", linewidth=0.6)
-    ax.set_axisbelow(True)
-    ax.spines[["top", "right"]].set_visible(False)
-    handles: list[Artist] = [Patch(facecolor="#888888", label="manipulation"),
-               Patch(facecolor="#888888", alpha=0.28, hatch="///", edgecolor="#888888", linewidth=0.0,
-                     label="travel")]
-    if ms is not None and ms[1] > ms[0]:
+        added.append(ax.axvline(ms[1], color="#555555", linestyle=":", linewidth=1.0))
         handles.append(Line2D([], [], color="#555555", linestyle=":", label=f"worst-case makespan {ms[1]:.1f} s"))
-    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
-              frameon=False, borderaxespad=0.3)
+    added.append(ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles),
+                           fontsize=8, frameon=False, borderaxespad=0.3))
+    return added
+
+
+def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
+    """The Gantt chart of `cp` on a figure of its own (see the module docstring); x axis in seconds."""
+    fig, ax = gantt_base(task)
+    draw_gantt(ax, task, cp)
     return fig

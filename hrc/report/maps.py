@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from matplotlib.artist import Artist
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon, Rectangle
@@ -20,14 +22,14 @@ from hrc.report.figures import agent_color, new_figure
 
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
-    from hrc.model import Workspace
+    from hrc.model import Task, Workspace
 
-__all__ = ["draw_workspace", "map_figure", "route_points"]
+__all__ = ["draw_map", "draw_workspace", "map_base", "map_figure", "route_points"]
 
 _OFFSET = 0.06  # m, how far apart the agents' routes are drawn
 
 
-def draw_workspace(ax, workspace: Workspace) -> None:  # noqa: ANN001 (a matplotlib Axes)
+def draw_workspace(ax: Axes, workspace: Workspace) -> None:
     """Bounds, obstacles (grey, with their ids) and locations (dots with their ids), equal aspect."""
     xmin, ymin, xmax, ymax = workspace.bounds
     ax.add_patch(Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="#333333", linewidth=1.2))
@@ -59,27 +61,26 @@ def route_points(cps: CompiledPlanSet, cp: CompiledPlan, agent: str) -> list[lis
     return out
 
 
-def _midpoint_arrow(ax, pts: list[tuple[float, float]], color: str) -> None:  # noqa: ANN001
+def _midpoint_arrow(ax: Axes, pts: list[tuple[float, float]], color: str) -> list[Artist]:
     lengths = [math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False)]
     total = sum(lengths)
     if total <= 0:
-        return
+        return []
     half = total / 2
     for (a, b), seg in zip(zip(pts, pts[1:], strict=False), lengths, strict=True):
         if seg > 0 and half <= seg:
             t = half / seg
             mid = (a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t)
             d = ((b[0] - a[0]) / seg * 0.01, (b[1] - a[1]) / seg * 0.01)
-            ax.annotate("", xy=(mid[0] + d[0], mid[1] + d[1]), xytext=mid,
-                        arrowprops={"arrowstyle": "-|>,head_length=0.7,head_width=0.35", "color": color,
-                                    "linewidth": 0, "shrinkA": 0, "shrinkB": 0}, zorder=4)
-            return
+            return [ax.annotate("", xy=(mid[0] + d[0], mid[1] + d[1]), xytext=mid,
+                                arrowprops={"arrowstyle": "-|>,head_length=0.7,head_width=0.35", "color": color,
+                                            "linewidth": 0, "shrinkA": 0, "shrinkB": 0}, zorder=4)]
         half -= seg
+    return []
 
 
-def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
-    """The map of `cp` (see the module docstring)."""
-    task = cps.task
+def map_base(task: Task) -> tuple[Figure, Axes]:
+    """The plan-independent part: the workspace and the agents' start markers (reused for every plan)."""
     ws = task.workspace
     xmin, ymin, xmax, ymax = ws.bounds
     width = 6.4
@@ -87,7 +88,18 @@ def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
     fig = new_figure(width, height)
     ax = fig.add_axes((0.1, 0.7 / height, 0.86, 1.0 - 1.0 / height))
     draw_workspace(ax, ws)
-    handles = []
+    for i, agent in enumerate(task.agents):
+        start = ws.location(agent.start)
+        ax.plot([start.x], [start.y], marker="s", markersize=9, markerfacecolor="none",
+                markeredgecolor=agent_color(i), markeredgewidth=1.6, zorder=5)
+    return fig, ax
+
+
+def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
+    """Draw `cp`'s routes, interference points and legend on a `map_base` axes; returns what it added."""
+    task = cps.task
+    added: list[Artist] = []
+    handles: list[Artist] = []
     n = len(task.agents)
     for i, agent in enumerate(task.agents):
         color = agent_color(i)
@@ -95,11 +107,8 @@ def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
         for pts in route_points(cps, cp, agent.id):
             moved = [(x + shift, y - shift) for x, y in pts]
             xs, ys = zip(*moved, strict=True)
-            ax.plot(xs, ys, color=color, linewidth=1.6, alpha=0.85, solid_capstyle="round", zorder=3)
-            _midpoint_arrow(ax, moved, color)
-        start = ws.location(agent.start)
-        ax.plot([start.x], [start.y], marker="s", markersize=9, markerfacecolor="none", markeredgecolor=color,
-                markeredgewidth=1.6, zorder=5)
+            added += ax.plot(xs, ys, color=color, linewidth=1.6, alpha=0.85, solid_capstyle="round", zorder=3)
+            added += _midpoint_arrow(ax, moved, color)
         handles.append(Line2D([], [], color=color, linewidth=1.6, marker="s", markerfacecolor="none",
                               label=f"{agent.id} route (\u25a1 start)"))
     # one X per distinct point; a point several interferences share gets one line per interference
@@ -109,14 +118,21 @@ def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
             key = (round(float(inter.point[0]), 2), round(float(inter.point[1]), 2))
             at.setdefault(key, []).append(f"{m.agent} +{inter.extra_time:.1f} s {inter.kind}")
     for (x, y), lines in at.items():
-        ax.plot([x], [y], marker="X", markersize=11, color="#c62828", markeredgecolor="white", zorder=7)
-        ax.annotate("\n".join(lines), (x, y), xytext=(8, -6), textcoords="offset points", fontsize=7.5,
-                    color="#c62828", va="top", zorder=7,
-                    bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.6})
-    marked = bool(at)
-    if marked:
+        added += ax.plot([x], [y], marker="X", markersize=11, color="#c62828", markeredgecolor="white", zorder=7)
+        added.append(ax.annotate(
+            "\n".join(lines), (x, y), xytext=(8, -6), textcoords="offset points", fontsize=7.5, color="#c62828",
+            va="top", zorder=7,
+            bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.6}))
+    if at:
         handles.append(Line2D([], [], color="#c62828", marker="X", linestyle="none", markersize=9,
                               label="interference"))
-    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
-              frameon=False, borderaxespad=0.2)
+    added.append(ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles),
+                           fontsize=8, frameon=False, borderaxespad=0.2))
+    return added
+
+
+def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
+    """The map of `cp` on a figure of its own (see the module docstring)."""
+    fig, ax = map_base(cps.task)
+    draw_map(ax, cps, cp)
     return fig
