@@ -183,7 +183,7 @@ CASES = [
          "location: Q", edit=lambda t, m: put(t, "actions.0.phases.0.location", "Q")),
     Case("phase-location-overlaps", "task", "actions[1].phases[0].location", "robot at location 'C' overlaps",
          "location: C",
-         edit=lambda t, m: (put(m, "locations.C", [6.4, 4]), put(t, "actions.1.phases.0.location", "C"))),
+         edit=lambda t, m: (put(m, "locations.C", [6.45, 4]), put(t, "actions.1.phases.0.location", "C"))),
     Case("duration-lb-gt-ub", "task", "actions[0].phases[0].duration.human", "lb 5 > ub 3", "human:",
          edit=lambda t, m: put(t, "actions.0.phases.0.duration.human", [5, 3])),
     Case("duration-negative", "task", "actions[0].phases[1].duration.robot[0]", ">= 0", "- -1",
