@@ -18,6 +18,7 @@ import pytest
 
 from hrc.cli import main
 from hrc.temporal import Verdict, check_dc
+from hrc.temporal.dc import ALGORITHMS
 from hrc.temporal.graphml import read_graphml, read_network, write_graphml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,12 +46,13 @@ def _rows() -> list[dict[str, str]]:
 
 
 @needs_shared
-def test_every_instance_gets_its_recorded_verdict() -> None:
+@pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
+def test_every_instance_gets_its_recorded_verdict(algorithm: str) -> None:
     rows = _rows()
     assert len(rows) >= 500
     wrong = []
     for row in rows:
-        result = check_dc(read_network(BENCH / row["file"]))
+        result = check_dc(read_network(BENCH / row["file"]), algorithm)
         if result.verdict.value not in ACCEPT[row["expected"]]:
             wrong.append((row["file"], row["expected"], result.verdict.value))
     assert wrong == []

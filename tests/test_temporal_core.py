@@ -22,6 +22,7 @@ from hrc.temporal import (
     propagate_execution,
     time_windows,
 )
+from hrc.temporal.dc import ALGORITHMS
 from hrc.temporal.graph import labelled_edges
 from hrc.temporal.oracle import oracle_is_dc
 from hrc.temporal.ticks import scale_to_integers, to_ticks
@@ -58,20 +59,22 @@ CASES: dict[str, tuple[STNU, Verdict]] = {
 }
 
 
+@pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
 @pytest.mark.parametrize("name", sorted(CASES))
-def test_named_cases(name: str) -> None:
+def test_named_cases(name: str, algorithm: str) -> None:
     stnu, expected = CASES[name]
-    result = check_dc(stnu)
+    result = check_dc(stnu, algorithm)
     assert result.verdict is expected
     assert result.consistent is (expected is not Verdict.INCONSISTENT)
     assert (result.cycle == ()) is (expected is Verdict.DC)
     assert oracle_is_dc(stnu) is (expected is Verdict.DC)
 
 
+@pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
 @pytest.mark.parametrize("name", sorted(CASES))
-def test_cycles_explain_the_verdict(name: str) -> None:
+def test_cycles_explain_the_verdict(name: str, algorithm: str) -> None:
     stnu, expected = CASES[name]
-    result = check_dc(stnu)
+    result = check_dc(stnu, algorithm)
     if expected is Verdict.DC:
         return
     graph = set(labelled_edges(stnu))
@@ -170,11 +173,18 @@ def test_minimal_dispatchable_network_collapses_rigid_components() -> None:
     assert pairs[("A", "B")] == 3 and pairs[("B", "A")] == -3
 
 
-def test_dc_result_added_edges_are_non_negative() -> None:
+def test_dc_result_added_edges() -> None:
     stnu = STNU(("A", "C", "X", "Y"), (R("X", "Y", None, -1), R("C", "X", 0, 3)), (C("A", "C", 2, 6),))
-    result = check_dc(stnu)
+    result = check_dc(stnu, "morris2014")
     assert result.verdict is Verdict.DC
-    assert all(e.kind is EdgeKind.DERIVED and e.value >= 0 for e in result.added)
+    assert all(e.kind is EdgeKind.DERIVED and e.value >= 0 for e in result.added)  # Morris's waits
+    # X must follow C by at most 3 and precede Y: the bypass of A --c:2--> C gives A --(2 - 3)--> ...
+    assert check_dc(stnu, "bypass").verdict is Verdict.DC
+
+
+def test_unknown_algorithm() -> None:
+    with pytest.raises(KeyError):
+        check_dc(CASES["stn"][0], "nope")
 
 
 def test_ticks() -> None:

@@ -1,4 +1,9 @@
-"""Dynamic controllability of STNUs: Morris (2014), with the explaining negative cycle.
+"""Dynamic controllability of STNUs: `check_dc`, its algorithms, and the explaining negative cycle.
+
+Two algorithms are registered in `ALGORITHMS` (the tests run both against an exhaustive game oracle):
+``"bypass"`` (default; `hrc.temporal.bypass`, lower-case bypass closure with Dijkstra under a potential,
+a few searches per contingent link) and ``"morris2014"`` (this module, described below), slower on large
+networks because it runs one search per negative node.
 
 Source: P. Morris, "Dynamic controllability and dispatchability relationships", CPAIOR 2014,
 Algorithms 1-2 (``determineDC`` / ``DCbackprop``). An STNU is DC iff its labelled distance graph has no
@@ -18,8 +23,7 @@ upper-case edge into it, in which the lower-case edge of that same contingent li
 The verdict comes first from consistency (contingent links read as requirements, `check_consistency`):
 ``INCONSISTENT`` with a negative cycle of the distance graph; otherwise ``NOT_DC`` with a negative cycle
 of the labelled graph whose derived edges are expanded back to original edges, or ``DC`` with the
-ordinary edges the algorithm added (``added``), which with the original links form the network Morris
-shows dispatchable in his extended sense.
+edges the algorithm added (``added``): Morris's non-negative waits, or the bypass closure's edges.
 
 >>> from hrc.temporal.network import STNU, ContingentLink as CL, RequirementLink as RL
 >>> check_dc(STNU(("A", "C", "X"), (RL("X", "C", 1, 2),), (CL("A", "C", 1, 10),))).verdict
@@ -35,11 +39,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
+from hrc.temporal.bypass import bypass_closure
 from hrc.temporal.graph import Edge, EdgeKind, labelled_edges
 from hrc.temporal.network import STNU
 from hrc.temporal.stn import check_consistency
 
-__all__ = ["DCResult", "Verdict", "check_dc"]
+__all__ = ["ALGORITHMS", "DEFAULT_ALGORITHM", "DCResult", "Verdict", "check_dc"]
 
 _BIG = float("inf")
 _EXPAND_LIMIT = 100_000  # derived edges are expanded into original edges up to this many edges
@@ -247,32 +252,52 @@ class _Morris2014:
         return out
 
 
-def check_dc(stnu: STNU) -> DCResult:
-    """Decide whether ``stnu`` is dynamically controllable (Morris 2014; see the module docstring).
-
-    Returns a `DCResult`; never raises for a well-formed network. O(n^3) worst case.
-    """
-    cons = check_consistency(stnu)
-    if not cons.consistent:
-        return DCResult(Verdict.INCONSISTENT, False, cons.cycle)
-    if not stnu.contingents:
-        return DCResult(Verdict.DC, True)
+def _morris2014(stnu: STNU) -> tuple[list[Edge], list[Edge] | None]:
     algo = _Morris2014(stnu)
     limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(limit, 4 * len(stnu.timepoints) + 1000))
     try:
         algo.run()
     except _NotDC as found:
-        return DCResult(Verdict.NOT_DC, True, tuple(algo.expand(found.cycle)))
+        return algo.expand(found.cycle), None
     finally:
         sys.setrecursionlimit(limit)
+    return [], [algo.edge(eid) for eid in algo.added]
 
-    def added() -> tuple[Edge, ...]:
-        best: dict[tuple[str, str], Edge] = {}
-        for eid in algo.added:
-            e = algo.edge(eid)
-            if (e.source, e.target) not in best or e.value < best[(e.source, e.target)].value:
-                best[(e.source, e.target)] = e
+
+ALGORITHMS: dict[str, Callable[[STNU], tuple[list[Edge], list[Edge] | None]]] = {
+    "bypass": bypass_closure,  # hrc.temporal.bypass: lower-case bypass closure, a few Dijkstras per round
+    "morris2014": _morris2014,  # this module: Morris 2014 DCbackprop from every negative node
+}
+"""The DC algorithms, by name: each maps a *consistent* STNU to ``(cycle, None)`` (not DC, with a
+semi-reducible negative cycle) or ``([], added)`` (DC, with the edges it derived)."""
+
+DEFAULT_ALGORITHM = "bypass"
+
+
+def check_dc(stnu: STNU, algorithm: str = DEFAULT_ALGORITHM) -> DCResult:
+    """Decide whether ``stnu`` is dynamically controllable.
+
+    First the STN (contingent links as requirements) must be consistent (`check_consistency`), else
+    ``INCONSISTENT``; then the named algorithm of `ALGORITHMS` decides DC / not DC. Returns a `DCResult`;
+    raises `KeyError` for an unknown algorithm name only. O(n^3) worst case.
+    """
+    run = ALGORITHMS[algorithm]
+    cons = check_consistency(stnu)
+    if not cons.consistent:
+        return DCResult(Verdict.INCONSISTENT, False, cons.cycle)
+    if not stnu.contingents:
+        return DCResult(Verdict.DC, True)
+    cycle, added = run(stnu)
+    if added is None:
+        return DCResult(Verdict.NOT_DC, True, tuple(cycle))
+
+    def dedup() -> tuple[Edge, ...]:
+        best: dict[tuple[str, str, str], Edge] = {}
+        for e in added:
+            key = (e.source, e.target, e.label)
+            if key not in best or e.value < best[key].value:
+                best[key] = e
         return tuple(best[k] for k in sorted(best))
 
-    return DCResult(Verdict.DC, True, (), added)
+    return DCResult(Verdict.DC, True, (), dedup)
