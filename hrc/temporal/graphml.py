@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from xml.sax.saxutils import escape, quoteattr
 
 from hrc.errors import NetworkFileError
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
@@ -39,6 +38,15 @@ __all__ = ["ORIGIN", "read_graphml", "read_network", "write_graphml"]
 ORIGIN = "Z"
 _ORDINARY_TYPES = {"requirement", "normal", "constraint", "derived", "internal"}
 _LABELLED = re.compile(r"^\s*(LC|UC)\((.+)\)\s*:\s*([-+]?\d+)\s*$")
+
+
+def escape(text: str) -> str:
+    """XML character data escaping (xml.sax.saxutils would pull in urllib at import time)."""
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def quoteattr(text: str) -> str:
+    return '"' + escape(text).replace('"', "&quot;").replace("\n", "&#10;").replace("\t", "&#9;") + '"'
 
 
 def _int(text: str, file: str, key: str, line: int) -> int:

@@ -16,12 +16,13 @@ import math
 from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-
-import numpy as np
-from scipy.sparse.csgraph import csgraph_from_dense, floyd_warshall
+from typing import TYPE_CHECKING
 
 from hrc.temporal.graph import Edge, distance_edges
 from hrc.temporal.network import STNU, NetworkError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = [
     "ConsistencyResult",
@@ -128,6 +129,9 @@ def all_pairs_shortest_paths(stnu: STNU) -> np.ndarray:
     Raises `NetworkError` on an inconsistent network. Values are integers held in float64; networks
     whose absolute weights sum to 2**52 or more fall back to an exact pure-Python Floyd-Warshall.
     """
+    import numpy as np  # here, not at module level: `hrc check` needs neither numpy nor scipy
+    from scipy.sparse.csgraph import csgraph_from_dense, floyd_warshall
+
     n = len(stnu.timepoints)
     index = {v: i for i, v in enumerate(stnu.timepoints)}
     edges = distance_edges(stnu)
@@ -205,6 +209,8 @@ def minimal_dispatchable_network(stnu: STNU) -> DispatchableSTN:
     Without rigid components no two edges dominate each other, so removing every dominated edge at
     once is sound. O(n^3) with numpy. Raises `NetworkError` if the network is inconsistent.
     """
+    import numpy as np
+
     names = stnu.timepoints
     n = len(names)
     d = all_pairs_shortest_paths(stnu)
