@@ -77,10 +77,10 @@ def main(argv: list[str] | None = None) -> int:
     print("| nodes     | instances | median ms |   max ms |")
     print("|-----------|----------:|----------:|---------:|")
     for lo, hi in CLASSES:
-        ms = [r[5] for r in rows if lo <= r[1] <= hi]
-        if ms:
+        in_class = [r[5] for r in rows if lo <= r[1] <= hi]
+        if in_class:
             label = f"{lo}-{hi}" if hi < 10**9 else f">{lo - 1}"
-            print(f"| {label:<9} | {len(ms):9d} | {statistics.median(ms):9.2f} | {max(ms):8.2f} |")
+            print(f"| {label:<9} | {len(in_class):9d} | {statistics.median(in_class):9.2f} | {max(in_class):8.2f} |")
     print()
     print(f"{len(rows)} instances, algorithm {args.algorithm}, DC check only (file reading not timed), "
           f"median of {args.repeat} runs each")

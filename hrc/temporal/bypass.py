@@ -126,7 +126,7 @@ class _Closure:
         n = len(self.names)
         p = self.potential
         pc = p[c]
-        dist = [_BIG] * n  # reduced distance from C
+        dist: list[float] = [_BIG] * n  # reduced distance from C (integers; inf = unreached)
         pred = [-1] * n
         dist[c] = 0
         heap = [(0, c)]
@@ -160,7 +160,7 @@ class _Closure:
                     push(heap, (nd, v))
         result = []
         for v in found:
-            result.append((v, x + dist[v] - pc + p[v], -1, pred, self._ends(pred[v])[0], pred[v]))
+            result.append((v, x + int(dist[v]) - pc + p[v], -1, pred, self._ends(pred[v])[0], pred[v]))
         for (v, label), (t, eid, u) in uc_best.items():
             weight = x + t
             final = -1 if weight >= -self.min_lb[label] else label  # label removal

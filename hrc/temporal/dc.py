@@ -154,7 +154,7 @@ class _Morris2014:
         self, src: int, initial: list[tuple[int, int, int]], banned: int, new_edges: dict[int, tuple[int, list[int]]]
     ) -> None:
         n = len(self.names)
-        dist = [_BIG] * n
+        dist: list[float] = [_BIG] * n
         pred = [-1] * n  # node -> id of the first edge of its shortest path towards src
         heap: list[tuple[int, int]] = []
         push, pop = heapq.heappush, heapq.heappop
@@ -198,11 +198,11 @@ class _Morris2014:
         # an ordinary edge at least as short is already there
         best = self.best_in[src]
         for u in moat:
-            d = dist[u]
-            if d >= 0 and u != src and d < best.get(u, _BIG):
+            du = int(dist[u])
+            if du >= 0 and u != src and du < best.get(u, _BIG):
                 old = new_edges.get(u)
-                if old is None or d < old[0]:
-                    new_edges[u] = (d, pred)
+                if old is None or du < old[0]:
+                    new_edges[u] = (du, pred)
 
     def _endpoints(self, eid: int) -> tuple[int, int]:
         e = self.table[eid]
@@ -211,7 +211,8 @@ class _Morris2014:
         return e[0], e[1]
 
     def _path(self, pred: list[int], u: int, src: int) -> list[int]:
-        path, v = [], u
+        path: list[int] = []
+        v = u
         while v != src or not path:
             eid = pred[v]
             path.append(eid)

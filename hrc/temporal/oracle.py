@@ -52,9 +52,9 @@ def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
     horizon = 1 + sum(abs(w) for _, _, w in cons) + sum(c.ub for c in stnu.contingents)
     executables = [i for i in range(n) if i not in activation]
     cons_of: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
-    for c in cons:
-        cons_of[c[0]].append(c)
-        cons_of[c[1]].append(c)
+    for con in cons:
+        cons_of[con[0]].append(con)
+        cons_of[con[1]].append(con)
     visited = 0
 
     def ok_with(times: tuple[int | None, ...], v: int) -> bool:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from decimal import Decimal
 from fractions import Fraction
 
 __all__ = ["from_ticks", "scale_to_integers", "to_ticks"]
@@ -33,7 +34,7 @@ def from_ticks(ticks: int, ticks_per_second: int = 1000) -> float:
     return ticks / ticks_per_second
 
 
-def scale_to_integers(texts: Iterable[str | int | Fraction]) -> tuple[list[int], int]:
+def scale_to_integers(texts: Iterable[str | int | Fraction | Decimal]) -> tuple[list[int], int]:
     """Exact values of ``texts`` times their least common denominator, and that denominator."""
     values = [Fraction(t) for t in texts]
     den = math.lcm(*(v.denominator for v in values)) if values else 1
