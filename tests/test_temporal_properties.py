@@ -229,3 +229,31 @@ def test_dc_networks_dispatch_without_violations(stnu: STNU, rng: random.Random)
     times = _dispatch(stnu, rng)
     for e in distance_edges(stnu):
         assert times[e.target] - times[e.source] <= e.value, (e, times)
+
+
+@st.composite
+def medium_stnus(draw) -> STNU:
+    """10-40 timepoints, up to a third of them contingent: too big for the oracle."""
+    n = draw(st.integers(10, 40))
+    names = tuple(f"T{i}" for i in range(n))
+    order = draw(st.permutations(names))
+    conts = []
+    for i in range(draw(st.integers(1, n // 3))):
+        lb = draw(st.integers(0, 10))
+        conts.append(ContingentLink(order[2 * i], order[2 * i + 1], lb, lb + draw(st.integers(0, 15))))
+    reqs = []
+    for _ in range(draw(st.integers(n // 2, 2 * n))):
+        a, b = draw(st.sampled_from(names)), draw(st.sampled_from(names))
+        lb = draw(st.one_of(st.none(), st.integers(-5, 10)))
+        ub = draw(st.one_of(st.none(), st.integers(5, 80)))
+        if a != b:
+            reqs.append(RequirementLink(a, b, None if lb is not None and ub is not None and lb > ub else lb, ub))
+    return STNU(names, tuple(reqs), tuple(conts))
+
+
+@settings(max_examples=200, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(medium_stnus())
+def test_dc_algorithms_agree_on_medium_networks(stnu: STNU) -> None:
+    verdicts = {name: check_dc(stnu, name).verdict for name in ALGORITHMS}
+    assert len(set(verdicts.values())) == 1, verdicts
