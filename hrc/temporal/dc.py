@@ -61,9 +61,11 @@ class DCResult:
     """``verdict``; ``consistent`` (of the STN with contingent links as requirements); ``cycle``: the
     negative cycle that explains a ``NOT_DC`` / ``INCONSISTENT`` verdict, in path order, ``()`` when DC.
 
-    ``added`` (DC only): the non-negative ordinary edges Morris's algorithm derived, i.e. the waits that
-    with the original links form the dispatchable extension of the network (Morris 2014, section 5);
-    built on first access, as there can be O(n^2) of them.
+    ``added`` (DC only): the edges the algorithm derived, which the original links imply for every dynamic
+    execution: waits a dispatcher must respect. ``morris2014`` gives non-negative ordinary edges (its
+    dispatchable extension, Morris 2014, section 5); ``bypass`` gives ordinary edges (``DERIVED``) and
+    conditional waits (``UPPER``, labelled with the contingent timepoint whose occurrence releases them).
+    Built on first access, as there can be O(n^2) of them.
     """
 
     verdict: Verdict
