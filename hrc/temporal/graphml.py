@@ -16,8 +16,10 @@ Reading semantics, applied here so that the algorithms stay format-agnostic:
    (the tool adds an edge X->Z of weight 0 on loading).
 2. A contingent link also bounds ``T(C) - T(A)`` to [l, u] as ordinary edges; the core's distance graph
    always includes that pair (`hrc.temporal.graph.distance_edges`), so nothing is added here.
-3. ``derived`` edges are constraints the tool inferred earlier; they are read as requirements (sound:
-   they hold in every execution the original constraints allow), unless ``derived=False``.
+3. ``derived`` edges are constraints a checker inferred earlier, possibly by DC reductions (a DC-derived
+   negative self-loop occurs in the benchmark set): they are ignored by default, which keeps the DC
+   verdict (they are implied) and keeps consistency about the written constraints only; ``derived=True``
+   reads them as requirements.
 
 Writing: `write_graphml` emits the labelled contingent form, one edge per finite bound, in a fixed
 order, so equal networks give byte-identical text. A network with a node ``Z`` gets the origin
