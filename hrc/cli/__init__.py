@@ -16,12 +16,13 @@ from collections.abc import Sequence
 from hrc import __version__
 from hrc.errors import HrcError
 
-# name -> module (imported lazily so that `hrc show` does not pay for OMPL or Dask)
-COMMANDS: dict[str, str] = {
-    "show": "hrc.cli.show",
-    "paths": "hrc.cli.paths",
-    "check": "hrc.cli.check",
-    "compile": "hrc.cli.compile",
+# name -> (module, one-line help). Only the chosen command's module is imported, so `hrc check` does not
+# pay for OMPL, networkx or Dask at start-up.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "show": ("hrc.cli.show", "print a task, its map and its plan count"),
+    "paths": ("hrc.cli.paths", "plan every travel on the map with OMPL; table, JSON or picture"),
+    "check": ("hrc.cli.check", "check an STNU file: DC, not DC or inconsistent"),
+    "compile": ("hrc.cli.compile", "compile a task into its ranked set of HRC schedules (STNUs)"),
 }
 
 
@@ -30,25 +31,25 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {self.prog}: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="hrc", description=__doc__.splitlines()[0] if __doc__ else None)
+def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The parser; only the command named in `argv` (if any) gets its full set of arguments."""
+    parser = _Parser(prog="hrc", description="Compile, check and explain schedules for a person and a mobile "
+                                             "robot sharing a shop floor (see README.md).")
     parser.add_argument("--version", action="version", version=f"hrc {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for module in COMMANDS.values():
-        try:
-            mod = importlib.import_module(module)
-        except ModuleNotFoundError as err:  # a command whose module is not there yet
-            if err.name != module:
-                raise
-            continue
-        mod.add_parser(sub)
+    chosen = next((a for a in argv if a in COMMANDS), None)
+    for name, (module, help_text) in COMMANDS.items():
+        if name == chosen:
+            importlib.import_module(module).add_parser(sub)
+        else:
+            sub.add_parser(name, help=help_text)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
     try:
         return int(args.run(args))
     except HrcError as err:
