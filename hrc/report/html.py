@@ -59,6 +59,11 @@ ul.motions{margin:4px 0 0;padding-left:18px;font-size:14px}ul.motions ul{padding
 """.strip()
 
 
+def _featured_ranks(data: ReportData) -> list[tuple[str, int, str]]:
+    rows = {r.plan_id: r for r in data.rows}
+    return [(pid, rows[pid].rank, rows[pid].plan_class) for pid in data.featured]
+
+
 def _badge(cls: str) -> str:
     color = CLASS_COLORS.get(cls, "#777777")
     return f'<span class="badge" style="background:{color}">{escape(cls)}</span>'
@@ -104,7 +109,10 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
     for _, reason in data.empty_reasons:
         out.append(f'<p class="note">{e(reason[0].upper() + reason[1:])}</p>')
 
-    out += ["<h2>Ranked plans</h2>",
+    jumps = " \u00b7 ".join(f'<a href="#plan-{e(pid)}">rank {rank} ({e(cls)})</a>'
+                             for pid, rank, cls in _featured_ranks(data))
+    out.append(f'<p class="small">Contents: <a href="#ranked">ranked plans</a> \u00b7 featured plans: {jumps}</p>')
+    out += ['<h2 id="ranked">Ranked plans</h2>',
             f'<p class="small">Allocation: {e(allocation_legend(data))}. Makespan: earliest \u2013 worst case. '
             f"Idle: {e(' / '.join(agents))}, in the earliest schedule. "
             "STNU: timepoints / requirement links / contingent links. Highlighted rows have a section below.</p>",
@@ -130,7 +138,8 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
     rows = {r.plan_id: r for r in data.rows}
     notes = dict(data.notes)
     explanations = dict(data.explanations)
-    out += ["<h2>Featured plans</h2>", '<p class="small">The three best plans and the best plan of each class.</p>']
+    out += ['<h2 id="featured">Featured plans</h2>',
+            '<p class="small">The three best plans and the best plan of each class.</p>']
     for plan_id in data.featured:
         r = rows[plan_id]
         pid = e(plan_id)

@@ -50,6 +50,10 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
         out += [f"> {reason[0].upper()}{reason[1:]}", ""]
 
     agents = data.agents
+    by_id = {r.plan_id: r for r in data.rows}
+    out += ["Contents: [ranked plans](#ranked-plans) \u00b7 featured plans: "
+            + " \u00b7 ".join(f"[rank {by_id[pid].rank} ({by_id[pid].plan_class})](#plan-{pid})"
+                               for pid in data.featured), ""]
     out += ["## Ranked plans", "",
             f"Allocation: {allocation_legend(data)}. Makespan: earliest \u2013 worst case. "
             f"Idle: {' / '.join(agents)}, in the earliest schedule. "
