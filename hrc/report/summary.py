@@ -113,11 +113,10 @@ def empty_class_reason(cls: str, cps: CompiledPlanSet) -> str:
         return f"no plan is {cls}: the task has no valid plan."
     if cls == "DC":
         best = plans[0]
-        _, key, links = split_explanation(best.classification.explanation)
-        n = len(links)
-        through = "; ".join(key) if key else f"{n} link{'s' if n != 1 else ''} of the plan" if n else "its links"
-        return (f"no plan is DC: in every plan the robot depends on the human's timing; in the best one "
-                f"({best.plan.id}) a negative cycle runs through {through}.")
+        verdict, key, _ = split_explanation(best.classification.explanation)
+        detail = verdict + (f" \u2014 {'; '.join(key)}" if key else "")
+        return (f"no plan is DC: in every plan the robot depends on the human's timing (the best plan, "
+                f"{best.plan.id}: {detail}).")
     if cls == "consistent":
         n_dc = sum(1 for p in plans if p.plan_class.value == "DC")
         if n_dc == len(plans):
