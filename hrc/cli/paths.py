@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     motions = plan_motions(task, plan, paths) if plan is not None else ()
     summary = paths_summary(task, paths, plan, motions)
     if args.out:
-        from hrc.motion.figure import paths_png
+        from hrc.report.paths_figure import paths_png
 
         write_bytes_atomic(args.out, paths_png(task, paths, plan, motions))
     print(json.dumps(summary) if args.json else _text(summary))

@@ -1,6 +1,6 @@
 """Pictures of planned paths (matplotlib, Agg backend): the map, obstacles, locations and routes.
 
-Kept apart from the algorithms (which never plot); `hrc paths --out` and later the report layer use it.
+Plotting lives only in the report layer; `hrc paths --out` uses it.
 Returns PNG bytes so the caller writes them atomically.
 """
 
@@ -21,10 +21,7 @@ _COLOURS = {"human": "tab:blue", "robot": "tab:orange"}
 def paths_png(task: Task, paths: PathLibrary, plan: Plan | None = None,
               motions: Sequence[Motion] = (), dpi: int = 110) -> bytes:
     """PNG of every planned path, or (with `plan`) that plan's two routes and interference points."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # a Figure on its own canvas: no pyplot, no global backend
     from matplotlib.patches import Circle, Polygon, Rectangle
 
     ws = task.workspace
