@@ -41,8 +41,22 @@ class SerialExecutor:
             yield fn(task, paths, chunk)
 
 
+# Per worker process: the shared arguments (task, path library) arrive once, through the pool's
+# initializer, and stay for every chunk, with the caches the path library fills as plans use it.
+_WORKER_SHARED: dict[str, Any] = {}
+
+
+def _init_worker(task: Any, paths: Any) -> None:
+    _WORKER_SHARED["args"] = (task, paths)
+
+
+def _run_in_worker(fn: Callable[..., Any], chunk: Any) -> Any:
+    task, paths = _WORKER_SHARED["args"]
+    return fn(task, paths, chunk)
+
+
 class PoolExecutor:
-    """A local process pool of `jobs` workers."""
+    """A local process pool of `jobs` workers; started at the first `map_chunks`."""
 
     def __init__(self, jobs: int) -> None:
         self.jobs = jobs
@@ -50,20 +64,21 @@ class PoolExecutor:
         self._pool: cf.ProcessPoolExecutor | None = None
 
     def __enter__(self) -> PoolExecutor:
-        self._pool = cf.ProcessPoolExecutor(max_workers=self.jobs)
         return self
 
     def __exit__(self, *exc: object) -> None:
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
+            self._pool = None
 
     def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
-        pool = self._pool
-        if pool is None:
-            raise ExecutorError("PoolExecutor.map_chunks called outside its 'with' block")
+        if self._pool is not None:
+            self._pool.shutdown()
+        pool = self._pool = cf.ProcessPoolExecutor(max_workers=self.jobs, initializer=_init_worker,
+                                                   initargs=(task, paths))
         pending: set[cf.Future] = set()
         for chunk in chunks:  # at most `window` chunks in flight: plan generation stays a stream
-            pending.add(pool.submit(fn, task, paths, chunk))
+            pending.add(pool.submit(_run_in_worker, fn, chunk))
             if len(pending) >= self.window:
                 done, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
                 yield from (f.result() for f in done)

