@@ -19,10 +19,13 @@ demo: $(STAMP)
 	$(BIN)/hrc compile tasks/cube_stacking.yaml --out $(OUT)
 
 test: $(STAMP)
+	$(BIN)/ruff check hrc tests scripts
+	$(BIN)/mypy hrc
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
 	$(BIN)/ruff check hrc tests scripts
+	$(BIN)/mypy hrc
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

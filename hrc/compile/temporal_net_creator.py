@@ -130,8 +130,8 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
         req(a, b, 0, None, "order", f"task graph: {pr.after} after {pr.before}")
     for c in task.constraints:
         a, b = event_timepoint(plan, c.source), event_timepoint(plan, c.target)
-        ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
-        req(a, b, seconds_to_ticks(c.bounds.lb), ub, "limit",
+        c_ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
+        req(a, b, seconds_to_ticks(c.bounds.lb), c_ub, "limit",
             f"constraint {c.target} - {c.source} in [{c.bounds.lb:g}, {c.bounds.ub:g}] s")
     if task.deadline is not None:
         for end in last_ends:

@@ -235,11 +235,11 @@ def plan_motions(task: Task, plan: Plan, paths: PathLibrary) -> tuple[Motion, ..
                         pos[round(h.start / DT):round(h.end / DT) + 1] = np.nan
                 delay, causes = _yield(paths, nl, pos, h_label, reach)
                 items = []
-                for h, (k, point) in sorted(causes.items()):
-                    if h < 0 or k <= 0:
+                for h_leg, (k, point) in sorted(causes.items()):
+                    if h_leg < 0 or k <= 0:
                         continue
-                    hl = h_legs[h]
-                    items.append(Interference(human.id, h, hl.origin, hl.location, k * DT, "wait", point))
+                    hl = h_legs[h_leg]
+                    items.append(Interference(human.id, h_leg, hl.origin, hl.location, k * DT, "wait", point))
                 inter = tuple(items)
                 if not inter:
                     delay = 0

@@ -21,6 +21,7 @@ Raises `hrc.errors.UnreachableLocationError` when a location pair has no collisi
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 import time
 from collections.abc import Callable
@@ -144,15 +145,14 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
         c = agent.radius + task.safety_margin
         for o, t in agent_pairs(task, agent.id):
             a, b = min(o, t), max(o, t)
-            pts = planned[(c, a, b)]
-            if pts is None:
+            found = planned[(c, a, b)]
+            if found is None:
                 raise UnreachableLocationError(
                     f"{agent.id} cannot reach {t} from {o}: no path keeping {c:g} m (radius {agent.radius:g} "
                     f"+ safety margin {task.safety_margin:g}) from obstacles and walls")
-            if (o, t) != (a, b):
-                pts = pts[::-1]
-            length = sum(math.dist(p, q) for p, q in zip(pts, pts[1:], strict=False))
-            paths[(agent.id, o, t)] = Path(agent.id, o, t, pts, length, length / agent.speed)
+            route = found if (o, t) == (a, b) else found[::-1]
+            length = sum(math.dist(p, q) for p, q in itertools.pairwise(route))
+            paths[(agent.id, o, t)] = Path(agent.id, o, t, route, length, length / agent.speed)
     stats = {"requested": requested, "planned": total, "roadmaps": roadmaps, "milestones": milestones,
              "fallbacks": fallbacks, "seconds": time.perf_counter() - t0}
     return PathLibrary(seed=seed, paths=paths, locations=locs, stats=stats)
