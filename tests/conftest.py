@@ -3,11 +3,19 @@
 from __future__ import annotations
 
 import copy
+import os
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
+from hypothesis import settings
+
+# CI replays the same examples every run (a red CI is then a reproducible bug, not a dice roll);
+# a developer's run explores new ones. Both print the blob that reproduces a failure.
+settings.register_profile("ci", derandomize=True, print_blob=True)
+settings.register_profile("dev", print_blob=True)
+settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 ROOT = Path(__file__).resolve().parents[1]
 WORKSHOP_TASK = ROOT / "tasks" / "cube_stacking.yaml"

@@ -196,6 +196,15 @@ class DispatchableSTN:
 
     timepoints: tuple[str, ...]
     edges: tuple[Edge, ...]
+    chained: tuple[tuple[str, str], ...] = ()  # (member, predecessor) along each rigid component's chain
+
+    def must_follow(self, x: str) -> frozenset[str]:
+        """Timepoints that must be executed before `x` is enabled: targets of `x`'s negative edges and,
+        for a non-leading member of a rigid component, its predecessor in the chain (even at offset 0,
+        where the chain edge is not negative; MMT 1998 execute such members with their leader)."""
+        out = {e.target for e in self.edges if e.source == x and e.value < 0 and e.target != x}
+        out.update(p for m, p in self.chained if m == x)
+        return frozenset(out)
 
 
 def minimal_dispatchable_network(stnu: STNU) -> DispatchableSTN:
@@ -225,6 +234,7 @@ def minimal_dispatchable_network(stnu: STNU) -> DispatchableSTN:
             if leader[j] == j and d[i, j] + d[j, i] == 0:
                 leader[j] = i
     edges: list[Edge] = []
+    chained: list[tuple[str, str]] = []
     members: dict[int, list[int]] = {}
     for j in range(n):
         members.setdefault(leader[j], []).append(j)
@@ -237,6 +247,7 @@ def minimal_dispatchable_network(stnu: STNU) -> DispatchableSTN:
             w = int(d[a, b])
             edges.append(Edge(names[a], names[b], w))
             edges.append(Edge(names[b], names[a], -w))
+            chained.append((names[b], names[a]))
     leaders.sort()
     sub = d[np.ix_(leaders, leaders)]
     k = len(leaders)
@@ -253,7 +264,7 @@ def minimal_dispatchable_network(stnu: STNU) -> DispatchableSTN:
         keep &= ~(upper | lower)
     for a, b in zip(*np.nonzero(keep), strict=True):
         edges.append(Edge(names[leaders[a]], names[leaders[b]], int(sub[a, b])))
-    return DispatchableSTN(names, tuple(edges))
+    return DispatchableSTN(names, tuple(edges), tuple(chained))
 
 
 def propagate_execution(
