@@ -148,8 +148,8 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
             found = planned[(c, a, b)]
             if found is None:
                 raise UnreachableLocationError(
-                    f"{agent.id} cannot reach {t} from {o}: no path keeping {c:g} m (radius {agent.radius:g} "
-                    f"+ safety margin {task.safety_margin:g}) from obstacles and walls")
+                    f"{task.workspace.source}: {agent.id} cannot reach {t} from {o}: no path keeping {c:g} m "
+                    f"(radius {agent.radius:g} + safety margin {task.safety_margin:g}) from obstacles and walls")
             route = found if (o, t) == (a, b) else found[::-1]
             length = sum(math.dist(p, q) for p, q in itertools.pairwise(route))
             paths[(agent.id, o, t)] = Path(agent.id, o, t, route, length, length / agent.speed)
