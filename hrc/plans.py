@@ -13,6 +13,7 @@ under the "must precede" relation, filtered by a joint acyclicity check (O(phase
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -107,9 +108,52 @@ def generate_plans(task: Task) -> Iterator[Plan]:
 
 
 def count_plans(task: Task) -> int:
-    """The number of plans `generate_plans` yields (without building Plan objects)."""
-    before = must_precede(task)
-    return sum(1 for allocation in allocations(task) for _ in _sequences(task, allocation, before))
+    """The number of plans `generate_plans` yields, counted without enumerating them.
+
+    A plan is valid iff its phase graph is acyclic, iff this greedy execution never gets stuck: an agent
+    that is between actions first reveals its next action (or that it is done); otherwise the first
+    agent (task order) whose next phase has all its task-graph predecessors done completes it. If every
+    busy agent's next phase waits for a phase still ahead of another agent, those waits close a cycle.
+    The greedy run is a function of the plan, and the choices it reveals are the plan, so valid plans and
+    complete runs correspond one to one; a memoized count over run states ``(phases done, each agent's
+    action and phase)`` counts them. The states are the task's order ideals times the agents' positions,
+    far fewer than the plans when actions are independent (2,880 plans of tasks/kitting.yaml: 2,086
+    states, 4 ms instead of 0.2 s).
+    """
+    actions = task.actions
+    index = {(a.id, p.id): (i, k) for i, a in enumerate(actions) for k, p in enumerate(a.phases)}
+    bit = {}
+    for i, a in enumerate(actions):
+        for k in range(len(a.phases)):
+            bit[(i, k)] = 1 << len(bit)
+    needs = {ik: 0 for ik in bit}  # bitmask of the task-graph predecessors of each phase
+    for pr in task.precedence:
+        needs[index[(pr.after.action, pr.after.phase)]] |= bit[index[(pr.before.action, pr.before.phase)]]
+    first_bit = [bit[(i, 0)] for i in range(len(actions))]
+    all_done = (1 << len(bit)) - 1
+    allowed = [[i for i, a in enumerate(actions) if ag.id in a.agents] for ag in task.agents]
+    choosing, finished = -1, -2  # agent states besides (action, phase index)
+
+    @functools.cache
+    def count(done: int, states: tuple) -> int:
+        if done == all_done:
+            return 1  # every agent is between actions: its only choice left is "done"
+        busy = {st[0] for st in states if isinstance(st, tuple)}
+        for n, st in enumerate(states):
+            if st == choosing:  # reveal this agent's next action, or that its sequence ends here
+                total = count(done, states[:n] + (finished,) + states[n + 1:])
+                for i in allowed[n]:
+                    if not done & first_bit[i] and i not in busy:
+                        total += count(done, states[:n] + ((i, 0),) + states[n + 1:])
+                return total
+        for n, st in enumerate(states):
+            if isinstance(st, tuple) and needs[st] & ~done == 0:
+                i, k = st
+                after = (i, k + 1) if k + 1 < len(actions[i].phases) else choosing
+                return count(done | bit[st], states[:n] + (after,) + states[n + 1:])
+        return 0  # stuck: the plan's phase graph has a cycle, or actions are left that nobody will do
+
+    return count(0, (choosing,) * len(task.agents))
 
 
 @dataclass(frozen=True, slots=True)
