@@ -122,7 +122,7 @@ def count_plans(task: Task) -> int:
     """
     actions = task.actions
     index = {(a.id, p.id): (i, k) for i, a in enumerate(actions) for k, p in enumerate(a.phases)}
-    bit = {}
+    bit: dict[tuple[int, int], int] = {}
     for i, a in enumerate(actions):
         for k in range(len(a.phases)):
             bit[(i, k)] = 1 << len(bit)
