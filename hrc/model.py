@@ -16,6 +16,7 @@ import hashlib
 from dataclasses import dataclass, field
 
 __all__ = [
+    "DEFAULT_TRAVEL_SLACK",
     "Action",
     "Agent",
     "AgentKind",
@@ -33,6 +34,10 @@ __all__ = [
     "TemporalConstraint",
     "Workspace",
 ]
+
+
+DEFAULT_TRAVEL_SLACK = 1.25
+"""A person may take up to 25 % longer than at top speed on a route (see `Agent`)."""
 
 
 class AgentKind(enum.Enum):
@@ -106,13 +111,19 @@ class Workspace:
 
 @dataclass(frozen=True, slots=True)
 class Agent:
-    """A co-worker: a disc of `radius` (m) moving at up to `speed` (m/s), starting at location `start`."""
+    """A co-worker: a disc of `radius` (m) moving at up to `speed` (m/s), starting at location `start`.
+
+    `travel_slack` (>= 1) bounds how much longer than at top speed a human's travel may take: a
+    person's pace varies, so their travel is a contingent duration ``[t, t * travel_slack]``. A robot
+    drives as commanded; its slack is kept but not used.
+    """
 
     id: str
     kind: AgentKind
     radius: float
     speed: float
     start: str
+    travel_slack: float = DEFAULT_TRAVEL_SLACK
 
     @property
     def is_human(self) -> bool:

@@ -156,3 +156,29 @@ def test_bad_executor_is_one_error_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and err.startswith("error: ")
     assert not (tmp_path / "o").exists()
+
+
+def test_travel_slack_widens_only_the_human_travel(task):
+    """A person's travel is contingent on [t, t * travel_slack]; the robot's stays a requirement."""
+    from dataclasses import replace
+
+    from hrc.motion import plan_paths
+
+    plan = next(p for p in generate_plans(task) if p.sequence("human") and p.sequence("robot"))
+    motions = plan_motions(task, plan, plan_paths(task, seed=0))
+    slower = replace(task, agents=tuple(replace(a, travel_slack=2.0) for a in task.agents))
+    base, wide = create_stnu(task, plan, motions).stnu, create_stnu(slower, plan, motions).stnu
+    moving = {(m.agent, m.leg): m for m in motions if m.max_time > 0}
+    checked = 0
+    for leg in agent_legs(task, plan, "human"):
+        m = moving.get(("human", leg.index))
+        if m is None:
+            continue
+        dep, arr = f"human.{leg.phase}.{leg.action}.depart", f"human.{leg.phase}.{leg.action}.arrive"
+        b = next(c for c in base.contingents if (c.source, c.target) == (dep, arr))
+        w = next(c for c in wide.contingents if (c.source, c.target) == (dep, arr))
+        assert b.lb == w.lb == math.floor(m.free_time * 1000 + 1e-9)
+        assert b.ub == math.ceil(m.max_time * 1.25 * 1000 - 1e-9) and w.ub == math.ceil(m.max_time * 2000 - 1e-9)
+        checked += 1
+    assert checked
+    assert base.requirements == wide.requirements

@@ -188,6 +188,8 @@ CASES = [
          edit=lambda t, m: put(t, "actions.0.phases.0.duration.human", [5, 3])),
     Case("duration-negative", "task", "actions[0].phases[1].duration.robot[0]", ">= 0", "- -1",
          edit=lambda t, m: put(t, "actions.0.phases.1.duration.robot", [-1, 3])),
+    Case("travel-slack-below-one", "task", "agents[0].travel_slack", ">= 1", "travel_slack",
+         edit=lambda t, m: put(t, "agents.0.travel_slack", 0.5)),
     Case("duration-inf", "task", "actions[1].phases[0].duration.robot[1]", "finite", "- .inf",
          edit=lambda t, m: put(t, "actions.1.phases.0.duration.robot", [1, float("inf")])),
     Case("duration-three-items", "task", "actions[0].phases[0].duration.human", "expected [lb, ub]", "human:",

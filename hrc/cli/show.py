@@ -33,8 +33,8 @@ def task_summary(task: Task) -> dict[str, Any]:
         "file": task.source,
         "deadline": task.deadline,
         "safety_margin": task.safety_margin,
-        "agents": [{"id": a.id, "kind": a.kind.value, "radius": a.radius, "speed": a.speed, "start": a.start}
-                   for a in task.agents],
+        "agents": [{"id": a.id, "kind": a.kind.value, "radius": a.radius, "speed": a.speed, "start": a.start,
+                    "travel_slack": a.travel_slack} for a in task.agents],
         "actions": [{"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
             {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
             for p in a.phases]} for a in task.actions],
@@ -56,7 +56,8 @@ def _text(s: dict[str, Any]) -> str:
     lines.append(f"  makespan deadline: {deadline}; safety margin: {s['safety_margin']:g} m")
     lines.append("agents:")
     for a in s["agents"]:
-        lines.append(f"  {a['id']:<8} {a['kind']:<6} radius {a['radius']:g} m, speed {a['speed']:g} m/s, "
+        pace = f", travel up to x{a['travel_slack']:g}" if a["kind"] == "human" else ""
+        lines.append(f"  {a['id']:<8} {a['kind']:<6} radius {a['radius']:g} m, speed {a['speed']:g} m/s{pace}, "
                      f"starts at {a['start']}")
     lines.append("actions:")
     for a in s["actions"]:

@@ -4,8 +4,9 @@ For every leg of every agent (travel to a phase's location, then the phase's man
 has four timepoints, named for what they are: ``AGENT.PHASE.ACTION.depart``, ``.arrive``, ``.start``,
 ``.end``, plus the origin ``start`` (the task's start, T = 0). Links, in milliseconds:
 
-- travel ``depart -> arrive``: the human's is a **contingent** link ``[free, max * HUMAN_PACE_SLACK]``
-  (a person walks at most at their speed, sometimes slower; the co-worker may be in the way); the
+- travel ``depart -> arrive``: the human's is a **contingent** link ``[free, max * travel_slack]``
+  (a person walks at most at their speed, sometimes slower, `Agent.travel_slack`; the co-worker may
+  be in the way); the
   robot's is a **requirement** link ``[max, +inf)``: the robot yields to the human, so it must plan for
   the worst-case time the co-worker costs it (``max`` from motion acquisition), and may drive slower;
 - manipulation ``start -> end``: contingent ``[lb, ub]`` for the human, requirement ``[lb, ub]`` for the
@@ -30,13 +31,10 @@ from hrc.motion import Motion
 from hrc.plans import Leg, agent_legs
 from hrc.temporal import STNU, ContingentLink, RequirementLink
 
-__all__ = ["HUMAN_PACE_SLACK", "ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint"]
+__all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint"]
 
 TICKS_PER_SECOND = 1000
 """The temporal core's exact unit: milliseconds."""
-
-HUMAN_PACE_SLACK = 1.25
-"""A person walks at up to their `speed`; they may take up to 25 % longer than that on a route."""
 
 ORIGIN = "start"
 
@@ -103,7 +101,7 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
             if motion.max_time <= 0:
                 req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}")
             elif agent.is_human:
-                ub = motion.max_time * HUMAN_PACE_SLACK
+                ub = motion.max_time * agent.travel_slack
                 cont(dep, arr, motion.free_time, ub, f"{route} ({motion.free_time:.1f}-{ub:.1f} s)")
             else:
                 why = ""

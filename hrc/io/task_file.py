@@ -20,6 +20,7 @@ from hrc.io.atomic import write_text_atomic
 from hrc.io.map_file import clearance, load_workspace
 from hrc.io.yamldoc import Doc, read_yaml
 from hrc.model import (
+    DEFAULT_TRAVEL_SLACK,
     Action,
     Agent,
     AgentKind,
@@ -81,7 +82,8 @@ def _agents(doc: Doc, raw: Any, ws: Workspace, margin: float) -> list[Agent]:
     agents = []
     for i, item in enumerate(items):
         path = ("agents", i)
-        m = doc.mapping(item, path, required=("id", "kind", "radius", "speed", "start"))
+        m = doc.mapping(item, path, required=("id", "kind", "radius", "speed", "start"),
+                        optional=("travel_slack",))
         aid = doc.ident(m["id"], path + ("id",))
         kinds = [k.value for k in AgentKind]
         if m["kind"] not in kinds:
@@ -89,7 +91,9 @@ def _agents(doc: Doc, raw: Any, ws: Workspace, margin: float) -> list[Agent]:
         radius = doc.number(m["radius"], path + ("radius",), positive=True)
         speed = doc.number(m["speed"], path + ("speed",), positive=True)
         start = doc.ident(m["start"], path + ("start",))
-        agent = Agent(id=aid, kind=AgentKind(m["kind"]), radius=radius, speed=speed, start=start)
+        slack = doc.number(m.get("travel_slack", DEFAULT_TRAVEL_SLACK), path + ("travel_slack",), minimum=1)
+        agent = Agent(id=aid, kind=AgentKind(m["kind"]), radius=radius, speed=speed, start=start,
+                      travel_slack=slack)
         _check_location(doc, path + ("start",), start, agent, ws, margin)
         agents.append(agent)
     doc.unique([a.id for a in agents], ("agents",), "agent")
@@ -248,8 +252,9 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
                            "safety_margin": task.safety_margin}
     if task.deadline is not None:
         out["deadline"] = task.deadline
-    out["agents"] = [{"id": a.id, "kind": a.kind.value, "radius": a.radius, "speed": a.speed,
-                      "start": a.start} for a in task.agents]
+    out["agents"] = [{"id": a.id, "kind": a.kind.value, "radius": a.radius, "speed": a.speed, "start": a.start}
+                     | ({} if a.travel_slack == DEFAULT_TRAVEL_SLACK else {"travel_slack": a.travel_slack})
+                     for a in task.agents]
     out["actions"] = [{"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
         {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
         for p in a.phases]} for a in task.actions]
