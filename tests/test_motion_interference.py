@@ -105,6 +105,7 @@ def test_deterministic_and_picklable(task: Task, plans: list[Plan], library: Pat
     assert DT > 0
 
 
+@pytest.mark.slow  # a timing check: opt-in, the figures themselves come from scripts/bench_motion.py
 def test_fast_enough_for_the_compiler(task: Task, plans: list[Plan]) -> None:
     lib = plan_paths(task, seed=0)
     t0 = time.perf_counter()

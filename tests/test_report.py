@@ -318,6 +318,7 @@ def test_deterministic_bytes(cps: CompiledPlanSet, report_dir: Path, tmp_path: P
         assert second[name] == data, name
 
 
+@pytest.mark.slow  # a timing check: opt-in, speed is reported by benchmarks, not asserted by default
 def test_fast_enough(cps: CompiledPlanSet, tmp_path: Path) -> None:
     write_report(cps, tmp_path)  # warm up: imports and the font cache
     t0 = time.perf_counter()
