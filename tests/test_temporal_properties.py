@@ -29,8 +29,10 @@ from hrc.temporal import (
     all_pairs_shortest_paths,
     check_consistency,
     check_dc,
+    earliest_times,
     minimal_dispatchable_network,
     propagate_execution,
+    time_windows,
 )
 from hrc.temporal.dc import ALGORITHMS
 from hrc.temporal.graph import distance_edges, labelled_edges
@@ -261,3 +263,18 @@ def medium_stnus(draw) -> STNU:
 def test_dc_algorithms_agree_on_medium_networks(stnu: STNU) -> None:
     verdicts = {name: check_dc(stnu, name).verdict for name in ALGORITHMS}
     assert len(set(verdicts.values())) == 1, verdicts
+
+
+@FAST
+@given(stnus(max_nodes=6, max_contingent=0, max_requirements=10))
+def test_earliest_times_agree_with_all_pairs_windows(stnu: STNU) -> None:
+    """The single-target earliest times equal -D[x, origin] of APSP, with every x after the origin."""
+    origin = stnu.timepoints[0]
+    anchored = STNU(stnu.timepoints, stnu.requirements + tuple(
+        RequirementLink(origin, t, 0, None) for t in stnu.timepoints[1:]))
+    got = earliest_times(stnu, origin)
+    if not check_consistency(anchored).consistent:
+        assert got is None
+        return
+    windows = time_windows(anchored, origin)
+    assert got == {t: windows[t].lo for t in stnu.timepoints}

@@ -18,13 +18,12 @@ travelling nor manipulating (waiting for the co-worker, or done early).
 from __future__ import annotations
 
 import enum
-from collections import deque
 from dataclasses import dataclass
 
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwork
 from hrc.model import Task
 from hrc.temporal import STNU, RequirementLink, Verdict, check_dc
-from hrc.temporal.graph import distance_edges
+from hrc.temporal.stn import earliest_times
 
 __all__ = ["Classification", "PlanClass", "classify", "explain"]
 
@@ -59,39 +58,6 @@ def _without_deadline(stnu: STNU, fix_contingents: bool, lower_bounds_only: bool
         reqs += tuple(RequirementLink(c.source, c.target, c.ub, c.ub) for c in conts)
         conts = ()
     return STNU(stnu.timepoints, reqs, conts, stnu.name)
-
-
-def _earliest(stnu: STNU) -> dict[str, int] | None:
-    """Earliest time of every timepoint, all at or after ORIGIN, in the STN of `stnu`; None if inconsistent.
-
-    Earliest(x) = -d(x, ORIGIN) in the distance graph with ``x -> ORIGIN`` edges of weight 0 added
-    (Dechter, Meiri & Pearl 1991): one single-target Bellman-Ford (queue-based), O(n m) worst case,
-    near-linear on these plan networks.
-    """
-    into: dict[str, list[tuple[str, int]]] = {t: [] for t in stnu.timepoints}  # target -> (source, w)
-    for e in distance_edges(stnu):
-        into[e.target].append((e.source, e.value))
-    for t in stnu.timepoints:
-        if t != ORIGIN:
-            into[ORIGIN].append((t, 0))
-    dist = {ORIGIN: 0}
-    relaxed = dict.fromkeys(stnu.timepoints, 0)
-    queue, queued = deque([ORIGIN]), {ORIGIN}
-    n = len(stnu.timepoints)
-    while queue:
-        v = queue.popleft()
-        queued.discard(v)
-        dv = dist[v]
-        for u, w in into[v]:  # edge u -> v of weight w: d(u, ORIGIN) <= w + d(v, ORIGIN)
-            if u not in dist or w + dv < dist[u]:
-                dist[u] = w + dv
-                relaxed[u] += 1
-                if relaxed[u] > n:
-                    return None  # a negative cycle
-                if u not in queued:
-                    queued.add(u)
-                    queue.append(u)
-    return {t: -dist[t] for t in stnu.timepoints}
 
 
 def explain(net: PlanNetwork, cycle: tuple, inconsistent: bool) -> str:
@@ -130,12 +96,12 @@ def classify(task: Task, net: PlanNetwork) -> Classification:
         plan_class = PlanClass.INCONSISTENT
         explanation = explain(net, result.cycle, inconsistent=True)
 
-    early = _earliest(_without_deadline(net.stnu, fix_contingents=False))
+    early = earliest_times(_without_deadline(net.stnu, fix_contingents=False), ORIGIN)
     if early is None:
-        early = _earliest(_without_deadline(net.stnu, fix_contingents=False, lower_bounds_only=True))
-    late = _earliest(_without_deadline(net.stnu, fix_contingents=True))
+        early = earliest_times(_without_deadline(net.stnu, fix_contingents=False, lower_bounds_only=True), ORIGIN)
+    late = earliest_times(_without_deadline(net.stnu, fix_contingents=True), ORIGIN)
     if late is None:
-        late = _earliest(_without_deadline(net.stnu, fix_contingents=True, lower_bounds_only=True))
+        late = earliest_times(_without_deadline(net.stnu, fix_contingents=True, lower_bounds_only=True), ORIGIN)
     makespan = None
     idle: tuple[tuple[str, float], ...] = ()
     schedule: tuple[tuple[str, float], ...] = ()

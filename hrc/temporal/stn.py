@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     import numpy as np
 
 __all__ = [
+    "earliest_times",
     "ConsistencyResult",
     "DispatchableSTN",
     "Window",
@@ -172,6 +173,46 @@ class Window:
 
     lo: int | None
     hi: int | None
+
+
+def earliest_times(stnu: STNU, origin: str) -> dict[str, int] | None:
+    """Earliest time of every timepoint after `origin` (at 0) in the STN of `stnu`, every timepoint
+    taken to come at or after `origin`; None if that is inconsistent.
+
+    Earliest(x) = -d(x, origin) in the distance graph with ``x -> origin`` edges of weight 0 added
+    (Dechter, Meiri & Pearl 1991): one single-target Bellman-Ford (queue-based), O(n m) worst case and
+    near-linear on plan networks, where `time_windows` needs all pairs.
+
+    >>> from hrc.temporal.network import RequirementLink as R
+    >>> earliest_times(STNU(("Z", "A", "B"), (R("Z", "A", 2, 5), R("A", "B", 1, None))), "Z")
+    {'Z': 0, 'A': 2, 'B': 3}
+    """
+    into: dict[str, list[tuple[str, int]]] = {t: [] for t in stnu.timepoints}  # target -> (source, w)
+    for e in distance_edges(stnu):
+        into[e.target].append((e.source, e.value))
+    if origin not in into:
+        raise NetworkError(f"unknown origin {origin!r}")
+    for t in stnu.timepoints:
+        if t != origin:
+            into[origin].append((t, 0))
+    dist = {origin: 0}
+    hops = {origin: 0}  # edges on the current shortest path; n or more means a negative cycle
+    queue, queued = deque([origin]), {origin}
+    n = len(stnu.timepoints)
+    while queue:
+        v = queue.popleft()
+        queued.discard(v)
+        dv = dist[v]
+        for u, w in into[v]:  # edge u -> v of weight w: d(u, origin) <= w + d(v, origin)
+            if u not in dist or w + dv < dist[u]:
+                dist[u] = w + dv
+                hops[u] = hops[v] + 1
+                if hops[u] >= n:
+                    return None  # a negative cycle
+                if u not in queued:
+                    queued.add(u)
+                    queue.append(u)
+    return {t: -dist[t] for t in stnu.timepoints}
 
 
 def time_windows(stnu: STNU, origin: str) -> dict[str, Window]:
