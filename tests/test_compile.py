@@ -182,3 +182,17 @@ def test_travel_slack_widens_only_the_human_travel(task):
         checked += 1
     assert checked
     assert base.requirements == wide.requirements
+
+
+def test_out_folder_that_is_not_ours_is_left_alone(tmp_path, capsys):
+    """--out is replaced whole, so a non-empty folder without compiled.json (or a file) is refused."""
+    precious = tmp_path / "thesis"
+    precious.mkdir()
+    (precious / "chapter1.tex").write_text("keep me")
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("keep me too")
+    for target in (precious, a_file):
+        assert main(["compile", str(WORKSHOP), "--out", str(target), "-q"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: {target}: --out: ") and err.count("\n") == 1
+    assert (precious / "chapter1.tex").read_text() == "keep me" and a_file.read_text() == "keep me too"

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
+from hrc.errors import InputError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
@@ -49,12 +51,23 @@ class _Bar:
             bar.close()
 
 
+def _check_out(out: str) -> None:
+    """The output folder is replaced whole, so it must be new, empty, or an earlier compile's output."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise InputError(out, "--out", "exists and is not a folder")
+    if path.is_dir() and any(path.iterdir()) and not (path / "compiled.json").is_file():
+        raise InputError(out, "--out", "refusing to replace a folder that is not empty and holds no "
+                                       "compiled.json (not an earlier hrc compile output)")
+
+
 def run(args: argparse.Namespace) -> int:
     from hrc.compile.compiler import compile_task
     from hrc.compile.output import write_compiled
 
     task = load_task(args.task)
     out = args.out or f"out/{task.name}"
+    _check_out(out)
     bar = _Bar(enabled=sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
     try:
