@@ -196,3 +196,11 @@ def test_out_folder_that_is_not_ours_is_left_alone(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith(f"error: {target}: --out: ") and err.count("\n") == 1
     assert (precious / "chapter1.tex").read_text() == "keep me" and a_file.read_text() == "keep me too"
+
+
+def test_an_output_path_the_machine_refuses_is_one_error_line(tmp_path, capsys):
+    """OS errors on output (a folder where a file goes) end as one line and exit 2, not a traceback."""
+    assert main(["paths", str(WORKSHOP), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: {tmp_path}: is a folder; expected a file name\n"
+    assert list(tmp_path.iterdir()) == []

@@ -56,11 +56,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except HrcError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. `hrc paths ... | head`
+        return 0
+    except OSError as err:  # the machine's answer (a folder where a file goes, no space, no permission)
+        where = f"{err.filename}: " if err.filename else ""
+        print(f"error: {where}{err.strerror or err}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:
-        return 0
 
 
 if __name__ == "__main__":
