@@ -7,6 +7,7 @@ folder: it is built under a temporary name and renamed into place when complete.
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import os
 import shutil
@@ -32,6 +33,8 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> None:
     not the private ``0o600`` of the temporary file.
     """
     target = Path(path)
+    if target.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a folder; expected a file name", str(target))
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
