@@ -25,7 +25,8 @@ from hrc.motion import Motion, PathLibrary, plan_motions, plan_paths
 from hrc.plans import count_plans, generate_plans
 from hrc.temporal.graphml import write_graphml
 
-__all__ = ["CompiledPlan", "CompiledPlanSet", "compile_plan", "compile_task", "rank_key", "task_digest"]
+__all__ = ["CompiledPlan", "CompiledPlanSet", "compile_chunk", "compile_plan", "compile_task", "rank_key",
+           "task_digest"]
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
 

@@ -27,7 +27,7 @@ from hrc import __version__
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 from hrc.plans import agent_legs
 
-__all__ = ["SCHEMA_VERSION", "compiled_to_dict", "write_compiled"]
+__all__ = ["SCHEMA_VERSION", "compiled_json", "compiled_to_dict", "write_compiled"]
 
 SCHEMA_VERSION = 1
 

@@ -31,7 +31,8 @@ from hrc.motion import Motion
 from hrc.plans import Leg, agent_legs
 from hrc.temporal import STNU, ContingentLink, RequirementLink
 
-__all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint"]
+__all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint", "leg_timepoint",
+           "seconds_to_ticks"]
 
 TICKS_PER_SECOND = 1000
 """The temporal core's exact unit: milliseconds."""

@@ -14,8 +14,9 @@ from hrc.plans import agent_legs
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 
-__all__ = ["FEATURED_TOP", "Cause", "MotionNote", "ReportData", "Row", "agent_letters", "build_report_data",
-           "empty_class_reason", "featured_plans"]
+__all__ = ["FEATURED_TOP", "Cause", "MotionNote", "ReportData", "Row", "agent_letters", "allocation_legend",
+           "build_report_data", "empty_class_reason", "featured_plans", "fmt_cause", "fmt_idle", "fmt_makespan",
+           "fmt_motion", "fmt_sequence", "fmt_stnu", "motion_notes", "split_explanation"]
 
 FEATURED_TOP = 3
 """The best plans given a section of their own (plus the best of each class)."""

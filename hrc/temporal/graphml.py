@@ -42,13 +42,13 @@ _ORDINARY_TYPES = {"requirement", "normal", "constraint", "derived", "internal"}
 _LABELLED = re.compile(r"^\s*(LC|UC)\((.+)\)\s*:\s*([-+]?\d+)\s*$")
 
 
-def escape(text: str) -> str:
+def _escape(text: str) -> str:
     """XML character data escaping (xml.sax.saxutils would pull in urllib at import time)."""
     return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
-def quoteattr(text: str) -> str:
-    return '"' + escape(text).replace('"', "&quot;").replace("\n", "&#10;").replace("\t", "&#9;") + '"'
+def _quoteattr(text: str) -> str:
+    return '"' + _escape(text).replace('"', "&quot;").replace("\n", "&#10;").replace("\t", "&#9;") + '"'
 
 
 def _int(text: str, file: str, key: str, line: int) -> int:
@@ -205,7 +205,7 @@ def write_graphml(stnu: STNU) -> str:
     ]
     for kid, kfor, desc, default in keys:
         out.append(f'<key id="{kid}" for="{kfor}">')
-        out.append(f"<desc>{escape(desc)}</desc>")
+        out.append(f"<desc>{_escape(desc)}</desc>")
         out.append(f"<default>{default}</default>")
         out.append("</key>")
     out.append('<graph edgedefault="directed">')
@@ -213,16 +213,16 @@ def write_graphml(stnu: STNU) -> str:
     out.append(f'<data key="NetworkType">{"STNU" if stnu.contingents else "STN"}</data>')
     out.append(f'<data key="nEdges">{len(edges)}</data>')
     out.append(f'<data key="nVertices">{len(stnu.timepoints)}</data>')
-    out.append(f'<data key="Name">{escape(stnu.name)}</data>')
+    out.append(f'<data key="Name">{_escape(stnu.name)}</data>')
     for i, v in enumerate(stnu.timepoints):
-        out.append(f"<node id={quoteattr(v)}>")
+        out.append(f"<node id={_quoteattr(v)}>")
         out.append(f'<data key="x">{150.0 * (i % 10):.1f}</data>')
         out.append(f'<data key="y">{150.0 * (i // 10):.1f}</data>')
         out.append("</node>")
     for i, (s, t, etype, key, value) in enumerate(edges):
-        out.append(f'<edge id="e{i}" source={quoteattr(s)} target={quoteattr(t)}>')
+        out.append(f'<edge id="e{i}" source={_quoteattr(s)} target={_quoteattr(t)}>')
         out.append(f'<data key="Type">{etype}</data>')
-        out.append(f'<data key="{key}">{escape(value)}</data>')
+        out.append(f'<data key="{key}">{_escape(value)}</data>')
         out.append("</edge>")
     out.append("</graph>")
     out.append("</graphml>")
