@@ -6,9 +6,8 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
-from scipy.optimize import linprog
+from oracles import lp_consistent
 
 from hrc.cli import main
 from hrc.compile.classify import PlanClass
@@ -18,7 +17,7 @@ from hrc.compile.temporal_net_creator import ORIGIN, create_stnu
 from hrc.io.task_file import load_task
 from hrc.motion import plan_motions
 from hrc.plans import agent_legs, generate_plans
-from hrc.temporal import STNU, check_dc
+from hrc.temporal import check_dc
 from hrc.temporal.graphml import read_network
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,26 +32,6 @@ def task():
 @pytest.fixture(scope="module")
 def compiled(task):
     return compile_task(task, seed=0, jobs=1)
-
-
-def _lp_consistent(stnu: STNU) -> bool:
-    """Independent oracle: is there a schedule meeting every link (contingents as requirements)? (LP)"""
-    index = {t: i for i, t in enumerate(stnu.timepoints)}
-    rows, rhs = [], []
-    links = [(r.source, r.target, r.lb, r.ub) for r in stnu.requirements]
-    links += [(c.source, c.target, c.lb, c.ub) for c in stnu.contingents]
-    for a, b, lb, ub in links:
-        row = np.zeros(len(index))
-        row[index[b]], row[index[a]] = 1.0, -1.0
-        if ub is not None:
-            rows.append(row)
-            rhs.append(ub)
-        if lb is not None:
-            rows.append(-row)
-            rhs.append(-lb)
-    bounds = [(0, 0) if t == ORIGIN else (0, None) for t in stnu.timepoints]
-    res = linprog(np.zeros(len(index)), A_ub=np.array(rows), b_ub=np.array(rhs), bounds=bounds, method="highs")
-    return res.status == 0
 
 
 def test_workshop_has_32_plans_in_all_three_classes(compiled):
@@ -73,7 +52,7 @@ def test_classes_agree_with_independent_checks(task, compiled):
     """Inconsistent exactly when the LP finds no schedule; DC re-checked from the written GraphML."""
     for cp in compiled.plans:
         stnu = create_stnu(task, cp.plan, cp.motions).stnu
-        assert _lp_consistent(stnu) == (cp.plan_class is not PlanClass.INCONSISTENT), cp.plan.id
+        assert lp_consistent(stnu, ORIGIN) == (cp.plan_class is not PlanClass.INCONSISTENT), cp.plan.id
         assert check_dc(stnu).verdict.value == {"DC": "DC", "consistent": "not DC",
                                                  "inconsistent": "inconsistent"}[cp.plan_class.value]
 

@@ -11,11 +11,10 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from scipy.optimize import linprog
+from oracles import lp_consistent
 
 from hrc.compile.classify import PlanClass
 from hrc.compile.compiler import compile_plan, rank_key
@@ -24,7 +23,7 @@ from hrc.io.task_file import load_task
 from hrc.model import Event, Interval, Phase, TemporalConstraint
 from hrc.motion import plan_paths
 from hrc.plans import generate_plans
-from hrc.temporal import STNU, check_dc
+from hrc.temporal import check_dc
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -33,24 +32,6 @@ ROOT = Path(__file__).resolve().parents[1]
 def workshop():
     task = load_task(ROOT / "tasks" / "cube_stacking.yaml")
     return task, plan_paths(task, seed=0)
-
-
-def _lp_consistent(stnu: STNU) -> bool:
-    index = {t: i for i, t in enumerate(stnu.timepoints)}
-    rows, rhs = [], []
-    for a, b, lb, ub in [(r.source, r.target, r.lb, r.ub) for r in stnu.requirements] + [
-            (c.source, c.target, c.lb, c.ub) for c in stnu.contingents]:
-        row = np.zeros(len(index))
-        row[index[b]], row[index[a]] = 1.0, -1.0
-        if ub is not None:
-            rows.append(row)
-            rhs.append(ub)
-        if lb is not None:
-            rows.append(-row)
-            rhs.append(-lb)
-    bounds = [(0, 0) if t == ORIGIN else (0, None) for t in stnu.timepoints]
-    res = linprog(np.zeros(len(index)), A_ub=np.array(rows), b_ub=np.array(rhs), bounds=bounds, method="highs")
-    return res.status == 0
 
 
 @st.composite
@@ -82,7 +63,7 @@ def test_classes_makespans_and_ranks_hold_on_random_variants(workshop, data):
     compiled = sorted((compile_plan(task, plan, paths) for plan in generate_plans(task)), key=rank_key)
     for cp in compiled:
         stnu = create_stnu(task, cp.plan, cp.motions).stnu
-        consistent = _lp_consistent(stnu)
+        consistent = lp_consistent(stnu, ORIGIN)
         assert consistent == (cp.plan_class is not PlanClass.INCONSISTENT), cp.plan.id
         if consistent:  # the second, independent DC algorithm agrees
             other = check_dc(stnu, algorithm="morris2014").verdict.value
