@@ -30,6 +30,7 @@ from hrc.model import Event, Plan, Task
 from hrc.motion import Motion
 from hrc.plans import Leg, agent_legs
 from hrc.temporal import STNU, ContingentLink, RequirementLink
+from hrc.temporal.ticks import to_ticks
 
 __all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint", "leg_timepoint",
            "seconds_to_ticks"]
@@ -41,7 +42,8 @@ ORIGIN = "start"
 
 
 def seconds_to_ticks(s: float) -> int:
-    return round(s * TICKS_PER_SECOND)
+    """Model seconds to the core's ticks, rounded to the nearest (`hrc.temporal.ticks.to_ticks`)."""
+    return to_ticks(s, TICKS_PER_SECOND)
 
 
 def _floor_ticks(s: float) -> int:
