@@ -7,13 +7,15 @@ import math
 from pathlib import Path
 
 import pytest
+import yaml
 from oracles import lp_consistent
 
 from hrc.cli import main
 from hrc.compile.classify import PlanClass
-from hrc.compile.compiler import compile_task, rank_key
-from hrc.compile.output import compiled_to_dict
+from hrc.compile.compiler import compile_task, rank_key, task_digest
+from hrc.compile.output import compiled_to_dict, load_compiled_task
 from hrc.compile.temporal_net_creator import ORIGIN, create_stnu
+from hrc.errors import InputError
 from hrc.io.task_file import load_task
 from hrc.motion import plan_motions
 from hrc.plans import agent_legs, generate_plans
@@ -106,6 +108,24 @@ def test_cli_compile_writes_checkable_stnus(tmp_path, capsys):
             assert m["max_time"] >= m["free_time"] >= 0
             assert set(m) >= {"agent", "from", "to", "free_time", "max_time", "interference"}
         assert math.isclose(sum(1 for _ in plan["allocation"]), 5)
+
+
+@pytest.mark.parametrize("name", ["cube_stacking.yaml", "floorplan_demo.yaml"])
+def test_output_folder_carries_the_task_it_was_compiled_from(tmp_path, name):
+    """input/ holds the task and map (and DXF floor plan) as compiled; it loads back to the same task,
+    and an edited copy is refused by its digest."""
+    original = load_task(ROOT / "tasks" / name)
+    out = tmp_path / "out"
+    assert main(["compile", str(ROOT / "tasks" / name), "--out", str(out), "--jobs", "1", "--no-report",
+                 "-q"]) == 0
+    copy = load_compiled_task(out)
+    assert copy.workspace.obstacles == original.workspace.obstacles
+    assert task_digest(copy) == task_digest(original)
+    edited = yaml.safe_load((out / "input" / "task.yaml").read_text())
+    edited["safety_margin"] = 0.0
+    (out / "input" / "task.yaml").write_text(yaml.safe_dump(edited))
+    with pytest.raises(InputError, match="differs from the one compiled"):
+        load_compiled_task(out)
 
 
 def test_same_seed_same_bytes_whatever_the_jobs(tmp_path):

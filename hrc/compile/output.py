@@ -15,19 +15,32 @@ Schema version 1 (times in seconds, rounded to the millisecond; plans in rank or
 
 The file is deterministic for a given task and seed: no timestamps, no host names, sorted keys where
 order carries no meaning.
+
+Beside it, ``input/`` holds the task as compiled (``input/task.yaml``, ``input/map.yaml`` and the map's
+DXF floor plan if it has one), so that an output folder stands on its own: the dispatcher and the
+console load the task from there (`load_compiled_task`) and check it against ``task.digest``.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from hrc import __version__
-from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, task_digest
+from hrc.errors import InputError
+from hrc.io.map_file import workspace_to_dict
+from hrc.io.task_file import load_task, task_to_dict
+from hrc.model import Task
 from hrc.plans import agent_legs
 
-__all__ = ["SCHEMA_VERSION", "compiled_json", "compiled_to_dict", "write_compiled"]
+__all__ = ["SCHEMA_VERSION", "compiled_json", "compiled_to_dict", "load_compiled_task", "write_compiled",
+           "write_input"]
 
 SCHEMA_VERSION = 1
 
@@ -79,8 +92,42 @@ def compiled_to_dict(cps: CompiledPlanSet) -> dict[str, Any]:
     }
 
 
+def write_input(task: Task, out_dir: Path) -> None:
+    """Copy the task as compiled into ``out_dir/input/``: task.yaml, map.yaml and the DXF floor plan."""
+    folder = out_dir / "input"
+    folder.mkdir(parents=True, exist_ok=True)
+    ws = task.workspace
+    floorplan = None
+    if ws.floorplan is not None:
+        floorplan = os.path.basename(ws.floorplan)
+        shutil.copyfile(os.path.join(os.path.dirname(ws.source), ws.floorplan), folder / floorplan)
+    (folder / "map.yaml").write_text(yaml.safe_dump(workspace_to_dict(ws, floorplan), sort_keys=False),
+                                     encoding="utf-8")
+    (folder / "task.yaml").write_text(yaml.safe_dump(task_to_dict(task, "map.yaml"), sort_keys=False),
+                                      encoding="utf-8")
+
+
+def load_compiled_task(out_dir: str | os.PathLike[str]) -> Task:
+    """The task of an `hrc compile` output folder, checked against the digest in its ``compiled.json``.
+
+    Raises `InputError` (naming the file) when the folder is not such an output or the copy was edited.
+    """
+    folder = Path(out_dir)
+    compiled = folder / "compiled.json"
+    try:
+        digest = json.loads(compiled.read_text(encoding="utf-8"))["task"]["digest"]
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise InputError(str(compiled), "", f"not an hrc compile output ({type(err).__name__}: {err})") from err
+    task = load_task(folder / "input" / "task.yaml")
+    if task_digest(task) != digest:
+        raise InputError(str(folder / "input" / "task.yaml"), "",
+                         "the task differs from the one compiled (task.digest in compiled.json)")
+    return task
+
+
 def write_compiled(cps: CompiledPlanSet, out_dir: Path) -> None:
-    """Write ``compiled.json`` and the STNUs into `out_dir` (a staging folder: see `atomic_dir`)."""
+    """Write ``compiled.json``, the STNUs and ``input/`` into `out_dir` (a staging folder: `atomic_dir`)."""
+    write_input(cps.task, out_dir)
     (out_dir / "stnu").mkdir(parents=True, exist_ok=True)
     for cp in cps.plans:
         (out_dir / "stnu" / f"{cp.plan.id}.graphml").write_text(cp.graphml, encoding="utf-8")

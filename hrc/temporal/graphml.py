@@ -35,7 +35,7 @@ from hrc.errors import NetworkFileError
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
 from hrc.temporal.xmlread import XmlElement, parse_xml
 
-__all__ = ["ORIGIN", "read_graphml", "read_network", "write_graphml"]
+__all__ = ["ORIGIN", "read_graphml", "read_network", "tool_name", "write_graphml"]
 
 ORIGIN = "Z"
 _ORDINARY_TYPES = {"requirement", "normal", "constraint", "derived", "internal"}
@@ -172,6 +172,14 @@ def _contingent_link(edges: list[tuple[str, str, int, str, str, int]], file: str
     else:
         raise NetworkFileError(file, where, "expected LC(C) on A->C and UC(C) on C->A, or two plain values", line)
     return _make(ContingentLink, file, where, line, ac[0], c, lb, ub)
+
+
+def tool_name(name: str) -> str:
+    """The node id `write_graphml` gives timepoint `name` (the one place that decides it).
+
+    Code that looks a timepoint up in a written file goes through this function.
+    """
+    return name
 
 
 def write_graphml(stnu: STNU) -> str:
