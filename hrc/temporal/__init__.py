@@ -4,10 +4,20 @@ Pure functions over the immutable `STNU` type (`hrc.temporal.network`); exact in
 (`hrc.temporal.ticks` converts seconds and decimal text). Modules: `network` (value types), `graph`
 (distance graphs), `stn` (consistency, APSP, minimal dispatchable network, propagation), `dc` (Morris
 2014 DC check), `oracle` (an independent exhaustive DC check for tests), `graphml` / `stnu_text` /
-`heatlab` (file formats; `read_network` detects the format by content).
+`heatlab` (file formats; `read_network` detects the format by content), `execution` (real-time execution:
+the residual network of a partial execution and the RTE*-style window of each timepoint).
 """
 
 from hrc.temporal.dc import DCResult, Verdict, check_dc
+from hrc.temporal.execution import (
+    ExecutionMode,
+    ExecutionWindow,
+    MustWait,
+    RealTimeState,
+    real_time_state,
+    residual_network,
+    violated_links,
+)
 from hrc.temporal.graph import Edge, EdgeKind
 from hrc.temporal.network import INF, STNU, ContingentLink, NetworkError, RequirementLink
 from hrc.temporal.stn import (
@@ -31,7 +41,11 @@ __all__ = [
     "DispatchableSTN",
     "Edge",
     "EdgeKind",
+    "ExecutionMode",
+    "ExecutionWindow",
+    "MustWait",
     "NetworkError",
+    "RealTimeState",
     "RequirementLink",
     "Verdict",
     "Window",
@@ -41,5 +55,8 @@ __all__ = [
     "earliest_times",
     "minimal_dispatchable_network",
     "propagate_execution",
+    "real_time_state",
+    "residual_network",
     "time_windows",
+    "violated_links",
 ]
