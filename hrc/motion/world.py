@@ -49,6 +49,8 @@ def _convex_pieces(poly: Sequence[tuple[float, float]]) -> list[list[tuple[float
     shp = Polygon(pts)
     if shp.convex_hull.area - shp.area <= 1e-12 * max(shp.area, 1.0):
         return [pts]
+    if shp.exterior.is_ccw is False:  # Chipmunk's decomposition wants counter-clockwise winding
+        pts = pts[::-1]
     closed = pts + [pts[0]]
     pieces = pymunk.autogeometry.convex_decomposition(closed, 0.0)
     return [[(float(v.x), float(v.y)) for v in piece[:-1]] for piece in pieces]
