@@ -43,6 +43,8 @@ class Path:
 
     `points` is a polyline (m) from the origin's to the target's coordinates; `length` its length (m);
     `duration` the free-space travel time ``length / speed`` (s). ``origin == target`` gives one point.
+    `via` is empty for the shortest route and, for a detour (`hrc.motion.detours`), says what it goes
+    around.
     """
 
     agent: str
@@ -51,9 +53,10 @@ class Path:
     points: tuple[Point, ...]
     length: float
     duration: float
+    via: str = ""
 
     def reversed(self) -> Path:
-        return Path(self.agent, self.target, self.origin, self.points[::-1], self.length, self.duration)
+        return Path(self.agent, self.target, self.origin, self.points[::-1], self.length, self.duration, self.via)
 
 
 @dataclass(slots=True)
@@ -62,6 +65,8 @@ class PathLibrary:
 
     `get` serves zero-length paths for ``origin == target`` and counts its calls (`gets`) for the
     cache-hit statistics; `stats` holds planning counts and wall time (not part of equality).
+    `roadmaps` keeps each clearance's roadmap (plain data) for detours; `samples` is a per-process
+    cache of derived geometry (route samples, conflicts, detours), filled lazily, never compared.
     """
 
     seed: int
@@ -69,15 +74,28 @@ class PathLibrary:
     locations: dict[str, Point]
     stats: dict[str, float] = field(default_factory=dict, compare=False)
     gets: int = field(default=0, compare=False)
-    samples: dict = field(default_factory=dict, compare=False, repr=False)  # plan_motions' cache
+    samples: dict = field(default_factory=dict, compare=False, repr=False)
+    roadmaps: dict[float, Roadmap] = field(default_factory=dict, compare=False, repr=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the derived-geometry cache (rebuilt lazily where the library is used)."""
+        return {f: ({} if f == "samples" else getattr(self, f)) for f in self.__slots__}
+
+    def __setstate__(self, state: dict) -> None:
+        for f, v in state.items():
+            setattr(self, f, v)
 
     def get(self, agent: str, origin: str, target: str) -> Path:
-        """The path of `agent` from `origin` to `target`; raises KeyError for a pair never planned."""
+        """The path of `agent` from `origin` to `target` (or the reverse of the one planned the other way,
+        e.g. back to the agent's start to wait there); raises KeyError for a pair never planned."""
         self.gets += 1
         if origin == target:
             xy = self.locations[origin]
             return Path(agent, origin, target, (xy,), 0.0, 0.0)
-        return self.paths[(agent, origin, target)]
+        found = self.paths.get((agent, origin, target))
+        if found is None:
+            return self.paths[(agent, target, origin)].reversed()
+        return found
 
     def __iter__(self):
         return iter(self.paths.values())
@@ -125,8 +143,9 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
     roadmaps = fallbacks = 0
     milestones = 0
     done = 0
+    kept: dict[float, Roadmap] = {}
     for c in sorted(wanted):
-        roadmap = Roadmap.build(world, c, _seed(seed, c))
+        roadmap = kept[c] = Roadmap.build(world, c, _seed(seed, c))
         roadmaps += 1
         milestones += len(roadmap.points)
         ends = sorted({x for pair in wanted[c] for x in pair})
@@ -155,4 +174,4 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
             paths[(agent.id, o, t)] = Path(agent.id, o, t, route, length, length / agent.speed)
     stats = {"requested": requested, "planned": total, "roadmaps": roadmaps, "milestones": milestones,
              "fallbacks": fallbacks, "seconds": time.perf_counter() - t0}
-    return PathLibrary(seed=seed, paths=paths, locations=locs, stats=stats)
+    return PathLibrary(seed=seed, paths=paths, locations=locs, stats=stats, roadmaps=kept)

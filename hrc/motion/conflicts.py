@@ -1,0 +1,313 @@
+"""Where the two co-workers can meet in one plan, and the two ways of keeping them apart there.
+
+Strassmair & Taylor 2014, section V.A: "in a particular plan one worker might block the other's way".
+This module turns that into constraints the temporal net can carry, for every human timing at once
+(not one nominal schedule), in four steps:
+
+1. **Occupancies.** In a plan each agent is, one after the other, *staying* at a location (its start
+   until it first departs; each phase's location from its arrival until it departs again, waiting and
+   manipulating there; a waiting place on a leg that stops at one, `hrc.motion.motions.Route`) and
+   *travelling* a route between two of them. An occupancy is bounded by two of the agent's timepoints
+   (`TimeRef`): a stay by ``arrive`` (or the origin, or ``park``) and the next ``depart`` (or
+   ``unpark``, or the ``end`` of its last phase: an agent with nothing left to do steps out of the way);
+   a travel by its ``depart`` (or ``unpark``) and ``arrive`` (or ``park``).
+2. **Motion model.** The robot drives its route at its speed without stopping: it is at arc length `s`
+   exactly at ``T(depart) + s / v_r`` (it waits only where it stands, before departing or after
+   arriving). A person walks at most at their speed and may dawdle anywhere within the contingent travel
+   time, so the human is at arc length `u` some time within ``[T(depart) + u / v_h,
+   T(arrive) - (L - u) / v_h]`` and nothing more is assumed.
+3. **Conflict set.** Two discs overlap when their centres are closer than
+   ``reach = r_human + r_robot + safety_margin``. For a robot travel and a human travel the conflict set
+   is ``C = {(s, u): |P_r(s) - P_h(u)| < reach}``; for a travel and a stay, the arc lengths of the travel
+   within reach of the location; two stays conflict when their locations are within reach. Each connected
+   component of C is one `Conflict`, since the two can pass each other in a different order at each place
+   where their routes meet.
+4. **Two separations per conflict.** A schedule keeps the discs apart at a component iff one agent is
+   through it before the other gets there. With the motion model this is one difference constraint on
+   the agents' timepoints, `Separation` ``T(later) - T(earlier) >= gap``:
+
+   - *robot first*: for every ``(s, u)`` in the component, ``T_r(depart) + s / v_r <= T_h(depart) + u / v_h``,
+     so ``T_h(depart) - T_r(depart) >= max(s / v_r - u / v_h)``;
+   - *human first*: for every ``(s, u)``, ``T_r(depart) + s / v_r >= T_h(arrive) - (L - u) / v_h``, so
+     ``T_r(depart) - T_h(arrive) >= max(-(L - u) / v_h - s / v_r)``;
+
+   and for stays the same with the stay's bounding timepoints (robot first: the robot is through before
+   the human arrives, or has left before the human can reach the place; human first: the other way).
+   If either holds the discs never overlap (proof: an overlap at time t would put ``(s(t), u(t))`` in C
+   at a time both before and after itself). Which one a plan uses is the plan's choice
+   (`hrc.compile.motion_pattern`); the temporal net creator adds it as a requirement link.
+
+**Exactness.** Routes are sampled every `STEP` metres; a pair closer than `reach` has samples within
+``STEP / 2`` of each, so the sampled set uses ``reach + STEP`` and every gap is widened by the time
+``STEP / 2`` takes at each agent's speed: the separations are sufficient for the true (continuous)
+routes, at the price of a few centimetres. Cost per route pair: O(n log n) with a k-d tree over the
+samples plus the component labelling; results are cached per route pair in the `PathLibrary`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from hrc.model import Agent, Plan, Task
+from hrc.motion.motions import Route, Routes
+from hrc.motion.paths import Path, PathLibrary
+from hrc.plans import Leg, agent_legs
+
+__all__ = ["STEP", "Conflict", "Occupancy", "Separation", "TimeRef", "find_conflicts", "occupancies",
+           "route_samples"]
+
+STEP = 0.02  # m, arc-length spacing of route samples
+
+
+@dataclass(frozen=True, slots=True, order=True)
+class TimeRef:
+    """A timepoint of a plan's STNU by meaning: `agent`'s leg `leg`, event `what` (depart / arrive /
+    start / end, and park / unpark on a leg that stops at a waiting place); ``TimeRef.ORIGIN`` (agent "",
+    leg -1, "origin") is the task's start, T = 0."""
+
+    agent: str
+    leg: int
+    what: str
+
+    def __str__(self) -> str:
+        return "origin" if self.agent == "" else f"{self.agent}[{self.leg}].{self.what}"
+
+
+TimeRef.ORIGIN = TimeRef("", -1, "origin")  # type: ignore[attr-defined]
+ORIGIN_REF: TimeRef = TimeRef.ORIGIN  # type: ignore[attr-defined]
+
+
+@dataclass(frozen=True, slots=True)
+class Separation:
+    """``T(later) - T(earlier) >= gap`` (s): one way of keeping the discs apart at one conflict."""
+
+    earlier: TimeRef
+    later: TimeRef
+    gap: float
+
+
+@dataclass(frozen=True, slots=True)
+class Occupancy:
+    """Where an agent is between two of its timepoints: ``kind`` "travel" (leg `leg`'s route, or its
+    `part` 1 / 2 to and from a waiting place) or "stay" (at `location` after leg `leg`'s arrival,
+    ``leg == -1`` for the start location; `part` 1 for the waiting place of leg `leg`)."""
+
+    agent: str
+    kind: str
+    leg: int
+    location: str  # a stay's location; a travel's target
+    origin: str  # a travel's origin; a stay's location
+    begin: TimeRef
+    finish: TimeRef
+    part: int = 0
+
+    def describe(self) -> str:
+        if self.kind == "travel":
+            return f"{self.agent} {self.origin}->{self.location}"
+        return f"{self.agent} at {self.location}"
+
+
+@dataclass(frozen=True, slots=True)
+class Conflict:
+    """A place where `robot` and `human` occupancies would overlap, and the two ways to avoid it."""
+
+    robot: Occupancy
+    human: Occupancy
+    component: int  # index among the components of this occupancy pair
+    robot_first: Separation
+    human_first: Separation
+    point: tuple[float, float]  # where they would meet (the robot's position at the closest pair)
+    shape: tuple[tuple[float, float], ...]  # the human's positions involved: a polyline, or one point
+    route: str = ""  # the robot route's `Path.via` this conflict was computed for
+
+    @property
+    def key(self) -> tuple:
+        """Identifies the conflict within a plan (stable across runs)."""
+        return (self.robot.kind, self.robot.leg, self.robot.part, self.human.kind, self.human.leg, self.human.part,
+                self.component)
+
+
+def occupancies(task: Task, plan: Plan, agent: Agent, routes: Routes | None = None) -> tuple[Occupancy, ...]:
+    """The agent's stays and travels in time order (none for an agent without legs)."""
+    legs = agent_legs(task, plan, agent.id)
+    if not legs:
+        return ()
+    routes = routes or {}
+    out: list[Occupancy] = []
+    where = agent.start
+    begin, stay_leg, stay_part = ORIGIN_REF, -1, 0
+    for leg in legs:
+        def ref(what: str, i: int = leg.index) -> TimeRef:
+            return TimeRef(agent.id, i, what)
+
+        route = routes.get((agent.id, leg.index))
+        if route is not None and route.park:
+            p = route.park
+            out.append(Occupancy(agent.id, "stay", stay_leg, where, where, begin, ref("depart"), stay_part))
+            out.append(Occupancy(agent.id, "travel", leg.index, p, leg.origin, ref("depart"), ref("park"), 1))
+            out.append(Occupancy(agent.id, "stay", leg.index, p, p, ref("park"), ref("unpark"), 1))
+            out.append(Occupancy(agent.id, "travel", leg.index, leg.location, p, ref("unpark"), ref("arrive"), 2))
+            begin, stay_leg, stay_part = ref("arrive"), leg.index, 0
+        elif leg.origin != leg.location:
+            out.append(Occupancy(agent.id, "stay", stay_leg, where, where, begin, ref("depart"), stay_part))
+            out.append(Occupancy(agent.id, "travel", leg.index, leg.location, leg.origin, ref("depart"),
+                                 ref("arrive")))
+            begin, stay_leg, stay_part = ref("arrive"), leg.index, 0
+        where = leg.location
+    last: Leg = legs[-1]
+    out.append(Occupancy(agent.id, "stay", stay_leg, where, where, begin, TimeRef(agent.id, last.index, "end"),
+                         stay_part))
+    return tuple(out)
+
+
+def route_samples(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Points every `STEP` m along `path` (ends included) and their arc lengths."""
+    pts = np.asarray(path.points, dtype=float)
+    if len(pts) == 1 or path.length == 0:
+        return pts[:1].copy(), np.zeros(1)
+    seg = np.hypot(*(pts[1:] - pts[:-1]).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    n = max(1, math.ceil(path.length / STEP))
+    s = np.linspace(0.0, cum[-1], n + 1)
+    xy = np.column_stack([np.interp(s, cum, pts[:, 0]), np.interp(s, cum, pts[:, 1])])
+    return xy, s
+
+
+def _samples(paths: PathLibrary, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    key = ("conflict-samples", path.agent, path.origin, path.target, path.via)
+    got = paths.samples.get(key)
+    if got is None:
+        got = paths.samples[key] = route_samples(path)
+    return got
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs ``[i, j]`` of True in a 1-D mask."""
+    labels, n = ndimage.label(mask)
+    return [(int(idx[0]), int(idx[-1])) for idx in (np.flatnonzero(labels == k) for k in range(1, n + 1))]
+
+
+# Geometry, per route pair, in route coordinates. Each component: (value for robot first, value for
+# human first, meeting point, the human's positions), the values being the gaps of the docstring before
+# timepoints are named.
+_Component = tuple[float, float, tuple[float, float], tuple[tuple[float, float], ...]]
+
+
+def _travel_travel(paths: PathLibrary, rp: Path, hp: Path, reach: float, vr: float, vh: float) -> list[_Component]:
+    key = ("tt", rp.agent, rp.origin, rp.target, rp.via, hp.agent, hp.origin, hp.target, hp.via, reach)
+    cached = paths.samples.get(key)
+    if cached is not None:
+        return cached
+    rxy, rs = _samples(paths, rp)
+    hxy, hu = _samples(paths, hp)
+    out: list[_Component] = []
+    if _boxes_meet(rxy, hxy, reach + STEP):
+        pairs = cKDTree(rxy).sparse_distance_matrix(cKDTree(hxy), reach + STEP, output_type="ndarray")
+        close = pairs[pairs["v"] < reach + STEP]
+        if len(close):
+            grid = np.zeros((len(rs), len(hu)), dtype=bool)
+            grid[close["i"], close["j"]] = True
+            labels, n = ndimage.label(grid, structure=np.ones((3, 3), dtype=int))
+            lab = labels[close["i"], close["j"]]
+            pad = STEP / 2 / vr + STEP / 2 / vh
+            length = hu[-1]
+            for k in range(1, n + 1):
+                sel = close[lab == k]
+                s, u = rs[sel["i"]], hu[sel["j"]]
+                robot_first = float(np.max(s / vr - u / vh)) + pad
+                human_first = float(np.max(-(length - u) / vh - s / vr)) + pad
+                m = int(np.argmin(sel["v"]))
+                j0, j1 = int(sel["j"].min()), int(sel["j"].max())
+                idx = sorted({*range(j0, j1 + 1, 10), j1})
+                shape = tuple((float(hxy[j, 0]), float(hxy[j, 1])) for j in idx)
+                out.append((robot_first, human_first, (float(rxy[sel["i"][m], 0]), float(rxy[sel["i"][m], 1])),
+                            shape))
+    paths.samples[key] = out
+    return out
+
+
+def _travel_stay(paths: PathLibrary, tp: Path, xy: tuple[float, float], reach: float) -> list[tuple[float, float]]:
+    """Arc-length runs ``(s_min, s_max)`` of a travel within `reach` of a point (widened by STEP / 2)."""
+    key = ("ts", tp.agent, tp.origin, tp.target, tp.via, xy, reach)
+    cached = paths.samples.get(key)
+    if cached is not None:
+        return cached
+    pxy, ps = _samples(paths, tp)
+    d = np.hypot(pxy[:, 0] - xy[0], pxy[:, 1] - xy[1])
+    out = [(max(0.0, float(ps[i]) - STEP / 2), min(float(ps[-1]), float(ps[j]) + STEP / 2))
+           for i, j in _runs(d < reach + STEP / 2)]
+    paths.samples[key] = out
+    return out
+
+
+def _boxes_meet(a: np.ndarray, b: np.ndarray, reach: float) -> bool:
+    lo_a, hi_a = a.min(axis=0), a.max(axis=0)
+    lo_b, hi_b = b.min(axis=0), b.max(axis=0)
+    return bool(np.all(lo_a - reach < hi_b) and np.all(lo_b - reach < hi_a))
+
+
+def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | None = None) -> tuple[Conflict, ...]:
+    """Every conflict between the robot's and the human's occupancies in `plan` (see the docstring).
+
+    `routes` maps ``(agent, leg)`` to the `Route` taken there (default: the library's shortest route).
+    Deterministic; ordered by robot then human occupancy (time order) and component.
+    """
+    human = next(a for a in task.agents if a.is_human)
+    robot = next(a for a in task.agents if not a.is_human)
+    reach = human.radius + robot.radius + task.safety_margin
+    routes = routes or {}
+    locs = paths.locations
+
+    def route(occ: Occupancy) -> Path:
+        chosen: Route | None = routes.get((occ.agent, occ.leg))
+        if chosen is not None:
+            if occ.part == 2 and chosen.onward is not None:
+                return chosen.onward
+            return chosen.path
+        return paths.get(occ.agent, occ.origin, occ.location)
+
+    out: list[Conflict] = []
+    h_occ = occupancies(task, plan, human, routes)
+    for r in occupancies(task, plan, robot, routes):
+        for h in h_occ:
+            out.extend(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
+    return tuple(out)
+
+
+def _pair(r: Occupancy, h: Occupancy, route, locs, reach: float, vr: float, vh: float,  # noqa: ANN001
+          paths: PathLibrary) -> list[Conflict]:
+    out: list[Conflict] = []
+    if r.kind == "travel" and h.kind == "travel":
+        rp, hp = route(r), route(h)
+        for k, (rf, hf, point, shape) in enumerate(_travel_travel(paths, rp, hp, reach, vr, vh)):
+            out.append(Conflict(r, h, k, Separation(r.begin, h.begin, rf), Separation(h.finish, r.begin, hf),
+                                point, shape, rp.via))
+    elif r.kind == "travel":  # the human stays at h.location from h.begin to h.finish
+        rp = route(r)
+        for k, (s0, s1) in enumerate(_travel_stay(paths, rp, locs[h.location], reach)):
+            # robot first: through before the human arrives; human first: enters after the human left
+            out.append(Conflict(r, h, k, Separation(r.begin, h.begin, s1 / vr),
+                                Separation(h.finish, r.begin, -s0 / vr), _point_at(paths, rp, s0),
+                                (locs[h.location],), rp.via))
+    elif h.kind == "travel":  # the robot stays at r.location from r.begin to r.finish
+        hp = route(h)
+        length = hp.length
+        for k, (u0, u1) in enumerate(_travel_stay(paths, hp, locs[r.location], reach)):
+            out.append(Conflict(r, h, k, Separation(r.finish, h.begin, -u0 / vh),
+                                Separation(h.finish, r.begin, -(length - u1) / vh), locs[r.location],
+                                (_point_at(paths, hp, u0), _point_at(paths, hp, u1))))
+    elif math.dist(locs[r.location], locs[h.location]) < reach:
+        out.append(Conflict(r, h, 0, Separation(r.finish, h.begin, 0.0), Separation(h.finish, r.begin, 0.0),
+                            locs[r.location], (locs[h.location],)))
+    return out
+
+
+def _point_at(paths: PathLibrary, path: Path, s: float) -> tuple[float, float]:
+    xy, arc = _samples(paths, path)
+    i = min(int(np.searchsorted(arc, s)), len(arc) - 1)
+    return (float(xy[i, 0]), float(xy[i, 1]))

@@ -1,0 +1,83 @@
+"""A plan's motions: each agent's travel per leg, along the shortest route, a detour, or via a place to wait.
+
+Strassmair & Taylor 2014, section V.A: motion durations "vary from plan to plan as the co-workers
+influence each other". Here a motion's *duration* depends only on its route; what the co-worker costs is
+a *passing order* at each place their occupancies meet (`hrc.motion.conflicts`), which the temporal net
+carries as a constraint. A leg's `Route` is the shortest path, a detour round the co-worker
+(`hrc.motion.detours`), or a stop on the way at a *waiting place* (`park`: the agent's own start, its
+home), where it waits out of the way while the co-worker uses the places it would otherwise block.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hrc.model import Plan, Task
+from hrc.motion.paths import Path, PathLibrary
+from hrc.plans import agent_legs
+
+__all__ = ["Motion", "Route", "plan_motions"]
+
+Point = tuple[float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Route:
+    """How an agent travels one leg: along `path`, or along `path` to the waiting place `park`, then,
+    after waiting there as long as the plan needs, along `onward` to the leg's target."""
+
+    path: Path
+    park: str = ""
+    onward: Path | None = None
+
+    @property
+    def time(self) -> float:
+        return self.path.duration + (self.onward.duration if self.onward is not None else 0.0)
+
+    @property
+    def points(self) -> tuple[Point, ...]:
+        return self.path.points + (self.onward.points[1:] if self.onward is not None else ())
+
+
+@dataclass(frozen=True, slots=True)
+class Motion:
+    """One travel of one agent in a plan (s): the robot drives its route in exactly `time`; a person
+    walks it in ``[time, time * travel_slack]`` (`hrc.model.Agent.travel_slack`).
+
+    `free_time` is the time along the shortest route; `time` the moving time along the route taken
+    (`points`), longer for a detour, whose `via` says what it goes round (empty for the shortest route),
+    or for a stop at the waiting place `park`, reached after `park_time` of the moving time.
+    """
+
+    agent: str
+    leg: int
+    origin: str
+    target: str
+    free_time: float
+    time: float
+    via: str = ""
+    points: tuple[Point, ...] = ()
+    park: str = ""
+    park_time: float = 0.0
+
+    @property
+    def detour(self) -> bool:
+        return bool(self.via)
+
+
+Routes = dict[tuple[str, int], Route]
+"""Route choices by ``(agent, leg index)``; legs not in it take the shortest route."""
+
+
+def plan_motions(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | None = None) -> tuple[Motion, ...]:
+    """One `Motion` per leg of every agent (`agent_legs` order, agents in task order)."""
+    routes = routes or {}
+    out = []
+    for agent in task.agents:
+        for leg in agent_legs(task, plan, agent.id):
+            free = paths.get(agent.id, leg.origin, leg.location)
+            route = routes.get((agent.id, leg.index), Route(free))
+            out.append(Motion(agent.id, leg.index, leg.origin, leg.location, free.duration, route.time,
+                              route.path.via, route.points, route.park,
+                              route.path.duration if route.park else 0.0))
+    return tuple(out)
