@@ -23,6 +23,11 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core; 1 = serial)")
     p.add_argument("--executor", default=None, metavar="URL",
                    help="run plans on a Dask scheduler instead, e.g. dask://127.0.0.1:8786")
+    p.add_argument("--human-waits", choices=("yes", "no"), default="yes",
+                   help="yes (default, the paper's model): the robot's strategy decides when the human leaves "
+                        "for and starts each step; no: the human never waits for the robot's sake")
+    p.add_argument("--rank-by", choices=("worst", "earliest", "nominal"), default="worst",
+                   help="makespan that ranks plans within a class (default: worst case)")
     p.add_argument("--no-report", action="store_true", help="write compiled.json and STNUs only")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary")
     p.set_defaults(run=run)
@@ -62,7 +67,7 @@ def _check_out(out: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hrc.compile.compiler import compile_task
+    from hrc.compile.compiler import CompileOptions, compile_task
     from hrc.compile.output import write_compiled
 
     task = load_task(args.task)
@@ -71,7 +76,9 @@ def run(args: argparse.Namespace) -> int:
     bar = _Bar(enabled=sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
     try:
-        cps = compile_task(task, seed=args.seed, jobs=args.jobs, executor=args.executor, progress=bar)
+        options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
+        cps = compile_task(task, seed=args.seed, jobs=args.jobs, executor=args.executor, progress=bar,
+                           options=options)
     finally:
         bar.close()
     with atomic_dir(out) as stage:

@@ -2,23 +2,27 @@
 
 Text: a table of agent / from / to / length / duration. ``--json``: one object an outside checker can
 verify without the YAML (world, agents with their clearance, every path with its points); with
-``--plan`` it also carries that plan's motions and interference. ``--out``: a PNG of the paths (of the
-plan's two routes with the interference points, with ``--plan``), written atomically.
+``--plan`` it also carries that plan's motion pattern (routes, detours, passing orders: what
+`hrc compile` chooses for it). ``--out``: a PNG of the paths (of the plan's two routes with its detours
+and the places where one agent waits for the other, with ``--plan``), written atomically.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hrc.errors import InputError
 from hrc.io.atomic import write_bytes_atomic
 from hrc.io.task_file import load_task
 from hrc.model import Plan, Task
-from hrc.motion import Motion, PathLibrary, plan_motions, plan_paths
+from hrc.motion import PathLibrary, plan_paths
 from hrc.motion.paths import agent_pairs
 from hrc.plans import generate_plans
+
+if TYPE_CHECKING:
+    from hrc.compile.motion_pattern import PlanChoice
 
 __all__ = ["add_parser", "paths_summary", "run"]
 
@@ -29,7 +33,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.add_argument("--seed", type=int, default=0, help="planner seed (default 0)")
     p.add_argument("--out", metavar="FILE.png", help="draw the map and the paths to this PNG")
-    p.add_argument("--plan", metavar="PLAN_ID", help="also show this plan's motions and interference")
+    p.add_argument("--plan", metavar="PLAN_ID", help="also show this plan's routes, detours and passing orders")
     p.set_defaults(run=run)
 
 
@@ -41,16 +45,20 @@ def _find_plan(task: Task, plan_id: str) -> Plan:
                                             f"or hrc.plans.generate_plans)")
 
 
-def _motion_json(m: Motion) -> dict[str, Any]:
-    return {"agent": m.agent, "leg": m.leg, "from": m.origin, "to": m.target, "free_time": m.free_time,
-            "max_time": m.max_time, "interference": [
-                {"other_agent": i.other_agent, "other_leg": i.other_leg, "other_from": i.other_origin,
-                 "other_to": i.other_target, "extra_time": i.extra_time, "kind": i.kind, "point": list(i.point)}
-                for i in m.interference]}
+def _pattern_json(choice: PlanChoice) -> dict[str, Any]:
+    pattern = choice.pattern
+    return {
+        "class": choice.classification.plan_class.value,
+        "motions": [{"agent": m.agent, "leg": m.leg, "from": m.origin, "to": m.target, "free_time": m.free_time,
+                     "time": m.time, "detour": m.via or None, "points": [list(q) for q in m.points]}
+                    for m in pattern.motions],
+        "passing": [{"order": o.describe(), "first": o.first, "how": o.how, "point": list(o.conflict.point),
+                     "min_gap": o.separation.gap} for o in pattern.constrained],
+    }
 
 
 def paths_summary(task: Task, paths: PathLibrary, plan: Plan | None = None,
-                  motions: tuple[Motion, ...] = ()) -> dict[str, Any]:
+                  choice: PlanChoice | None = None) -> dict[str, Any]:
     """The JSON-ready object of ``hrc paths --json`` (paths in task agent order, then pair order)."""
     ws = task.workspace
     out: dict[str, Any] = {
@@ -67,9 +75,8 @@ def paths_summary(task: Task, paths: PathLibrary, plan: Plan | None = None,
             out["paths"].append({"agent": agent.id, "from": o, "to": t, "start": list(p.points[0]),
                                  "goal": list(p.points[-1]), "length": p.length, "duration": p.duration,
                                  "points": [list(q) for q in p.points]})
-    if plan is not None:
-        out["plan"] = {"id": plan.id, "sequences": {a: list(s) for a, s in plan.sequences},
-                       "motions": [_motion_json(m) for m in motions]}
+    if plan is not None and choice is not None:
+        out["plan"] = {"id": plan.id, "sequences": {a: list(s) for a, s in plan.sequences}} | _pattern_json(choice)
     return out
 
 
@@ -81,12 +88,14 @@ def _text(s: dict[str, Any]) -> str:
     if "plan" in s:
         lines.append(f"plan {s['plan']['id']}: " + "; ".join(f"{a}: {' '.join(q) or '(idle)'}"
                                                           for a, q in s["plan"]["sequences"].items()))
-        lines.append(f"{'agent':<8} {'leg':>3} {'from':<5} {'to':<5} {'free s':>8} {'max s':>8}  in the way")
+        lines.append(f"class {s['plan']['class']}")
+        lines.append(f"{'agent':<8} {'leg':>3} {'from':<5} {'to':<5} {'free s':>8} {'time s':>8}  route")
         for m in s["plan"]["motions"]:
-            why = "; ".join(f"{i['other_agent']} leg {i['other_leg']} {i['other_from']}->{i['other_to']} "
-                            f"(+{i['extra_time']:.2f} s {i['kind']})" for i in m["interference"])
+            route = f"detour round {m['detour']}" if m["detour"] else "shortest"
             lines.append(f"{m['agent']:<8} {m['leg']:>3} {m['from']:<5} {m['to']:<5} {m['free_time']:8.2f} "
-                         f"{m['max_time']:8.2f}  {why}")
+                         f"{m['time']:8.2f}  {route}")
+        for o in s["plan"]["passing"]:
+            lines.append(f"passing order ({o['how']}): {o['order']}")
     return "\n".join(lines)
 
 
@@ -94,11 +103,15 @@ def run(args: argparse.Namespace) -> int:
     task = load_task(args.task)
     paths = plan_paths(task, seed=args.seed)
     plan = _find_plan(task, args.plan) if args.plan else None
-    motions = plan_motions(task, plan, paths) if plan is not None else ()
-    summary = paths_summary(task, paths, plan, motions)
+    choice = None
+    if plan is not None:
+        from hrc.compile.motion_pattern import choose_pattern
+
+        choice = choose_pattern(task, plan, paths)
+    summary = paths_summary(task, paths, plan, choice)
     if args.out:
         from hrc.report.paths_figure import paths_png
 
-        write_bytes_atomic(args.out, paths_png(task, paths, plan, motions))
+        write_bytes_atomic(args.out, paths_png(task, paths, plan, choice))
     print(json.dumps(summary) if args.json else _text(summary))
     return 0

@@ -1,18 +1,26 @@
 """Classify and measure one plan's STNU: DC > consistent > inconsistent (Strassmair & Taylor, V.B).
 
-Besides the class, ranking needs the plan's makespan and idle times. Both come from the earliest
-(ASAP) schedule of the plan's STN with the makespan deadline left out (a plan that breaks the
-deadline still has a makespan; that is what ranks it among the inconsistent ones):
+What the classes promise (the report says it in the same words):
 
-- ``makespan[0]``, the earliest achievable makespan: the human at their fastest where it helps;
-- ``makespan[1]``, the worst case: every human duration (travel, manipulation) at its upper bound,
-  the robot as early as it can.
+- **DC**: the robot alone can meet every constraint (deadline, temporal constraints, passing orders)
+  whatever the human's durations within their bounds, deciding as it observes them;
+- **consistent**: some timing of the team meets every constraint, but the robot cannot guarantee it
+  alone: it depends on the human's durations (the explanation names the ones that matter);
+- **inconsistent**: no timing meets every constraint even with every duration at its best; the plan is
+  still the instruction for finishing the task (late), so it is kept and ranked last.
 
-Where the plan's other constraints conflict even so, the schedule falls back to the ASAP longest-path
-schedule over the lower bounds alone.
+Besides the class, ranking needs the plan's makespan and idle times, computed without the task's limits
+(deadline, temporal constraints: a plan that breaks them still has a makespan) but with every structural
+link and passing order, from the schedule in which every timepoint is as early as possible:
 
-Idle time of an agent, in the earliest schedule: the part of ``[0, makespan]`` in which it is neither
-travelling nor manipulating (waiting for the co-worker, or done early).
+- ``makespan[0]``, the earliest: every human duration as short as allowed;
+- ``makespan[1]``, the worst case: every human duration at its upper bound, the robot as early as it can;
+- ``nominal``: every human duration at the middle of its bounds.
+
+If the structural links alone conflict (the co-workers would block each other whatever they do) there
+is no schedule: makespans are None. Idle time of an agent, in the earliest schedule: the part of
+``[0, makespan]`` in which it is neither travelling nor manipulating (waiting for the co-worker or for a
+passing order, or done early).
 """
 
 from __future__ import annotations
@@ -25,7 +33,7 @@ from hrc.model import Task
 from hrc.temporal import STNU, RequirementLink, Verdict, check_dc
 from hrc.temporal.stn import earliest_times
 
-__all__ = ["Classification", "PlanClass", "classify", "explain"]
+__all__ = ["Classification", "PlanClass", "classify", "explain", "measure"]
 
 
 class PlanClass(enum.Enum):
@@ -44,31 +52,58 @@ class PlanClass(enum.Enum):
 class Classification:
     plan_class: PlanClass
     explanation: str  # "" for DC plans
-    makespan: tuple[float, float] | None  # s; None when even without the deadline no schedule exists
+    makespan: tuple[float, float] | None  # s, (earliest, worst case); None when there is no schedule
     idle: tuple[tuple[str, float], ...]  # (agent, s) in the earliest schedule
     schedule: tuple[tuple[str, float], ...]  # earliest time (s) of every timepoint, in STNU order
+    worst_schedule: tuple[tuple[str, float], ...] = ()  # the same with every human duration at its maximum
+    nominal: float | None = None  # makespan (s) with every human duration at its midpoint
 
 
-def _without_deadline(stnu: STNU, fix_contingents: bool, lower_bounds_only: bool = False) -> STNU:
-    reqs = tuple(r for r in stnu.requirements if not (r.source == ORIGIN and r.ub is not None))
-    if lower_bounds_only:  # an ASAP longest-path schedule, for plans whose other constraints conflict
-        reqs = tuple(RequirementLink(r.source, r.target, r.lb, None) for r in reqs if r.lb is not None)
-    conts = stnu.contingents
-    if fix_contingents:
-        reqs += tuple(RequirementLink(c.source, c.target, c.ub, c.ub) for c in conts)
-        conts = ()
-    return STNU(stnu.timepoints, reqs, conts, stnu.name)
+def _fixed(stnu: STNU, where: str) -> STNU:
+    """`stnu` (no limits) with every contingent duration fixed: at its upper bound or its midpoint."""
+    fix = tuple(RequirementLink(c.source, c.target, v, v) for c in stnu.contingents
+                for v in [c.ub if where == "ub" else (c.lb + c.ub) // 2])
+    return STNU(stnu.timepoints, stnu.requirements + fix, (), stnu.name)
+
+
+def _controlled(stnu: STNU, names: set[tuple[str, str]]) -> STNU:
+    """`stnu` with the contingent links in `names` turned into requirement links (the robot decides)."""
+    keep = tuple(c for c in stnu.contingents if (c.source, c.target) not in names)
+    extra = tuple(RequirementLink(c.source, c.target, c.lb, c.ub) for c in stnu.contingents
+                  if (c.source, c.target) in names)
+    return STNU(stnu.timepoints, stnu.requirements + extra, keep, stnu.name)
+
+
+def _links_that_matter(stnu: STNU, cycle: tuple) -> list[tuple[str, str]]:
+    """A minimal set of the cycle's contingent links whose control by the robot would make `stnu` DC.
+
+    Deletion filter over the contingent links the negative cycle runs through: a link stays only if the
+    network is not DC without it under control. Falls back to all of them if even all are not enough
+    (another cycle). O(k) DC checks for k such links.
+    """
+    on_cycle = {(e.source, e.target) for e in cycle} | {(e.target, e.source) for e in cycle}
+    names = [(c.source, c.target) for c in stnu.contingents if (c.source, c.target) in on_cycle]
+    if not names or not check_dc(_controlled(stnu, set(names))).is_dc:
+        return names
+    needed = list(names)
+    for link in names:
+        trial = [x for x in needed if x != link]
+        if check_dc(_controlled(stnu, set(trial))).is_dc:
+            needed = trial
+    return needed
 
 
 def explain(net: PlanNetwork, cycle: tuple, inconsistent: bool) -> str:
     """Say in words what a negative cycle (from the DC or consistency check) runs through.
 
-    Not DC: which human durations, at their worst, break which deadline or
-    constraint. `inconsistent`: which limits cannot be met even with every duration at its shortest.
+    Not DC: which limits cannot be guaranteed, and the few human durations that matter (those whose
+    control by the robot would make it DC). Inconsistent: which limits cannot be met even with every
+    duration at its shortest, and what the cycle runs through.
     """
     meaning = dict(net.meaning)
     position = {t: i for i, t in enumerate(net.stnu.timepoints)}
-    seen: dict[str, set[tuple[int, str]]] = {"human": set(), "robot": set(), "limit": set(), "order": set()}
+    seen: dict[str, set[tuple[int, str]]] = {"human": set(), "robot": set(), "limit": set(), "order": set(),
+                                             "space": set()}
     for edge in cycle:
         key = (edge.source, edge.target) if (edge.source, edge.target) in meaning else (edge.target, edge.source)
         if key in meaning:
@@ -78,40 +113,75 @@ def explain(net: PlanNetwork, cycle: tuple, inconsistent: bool) -> str:
     found = {kind: list(dict.fromkeys(text for _, text in sorted(items))) for kind, items in seen.items()}
     limits = "; ".join(found["limit"]) or "the plan's ordering"
     if not inconsistent:
-        durations = "; ".join(found["human"]) or "the human's durations"
+        matter = _links_that_matter(net.stnu, cycle)
+        texts = [meaning[k][1] for k in sorted(matter, key=lambda k: (position[k[0]], position[k[1]]))]
+        durations = "; ".join(texts) or "the human's durations"
         return f"{limits} cannot be guaranteed by the robot alone if the human takes long on: {durations}"
-    durations = "; ".join(found["human"] + found["robot"]) or "the plan's durations"
+    durations = "; ".join(found["human"] + found["robot"] + found["space"]) or "the plan's durations"
     return f"{limits} cannot be met even at the shortest: {durations}"
 
 
-def classify(task: Task, net: PlanNetwork) -> Classification:
-    """Class (DC check), explanation, makespan bounds, idle times and the earliest schedule."""
+def _seconds(times: dict[str, int], names: tuple[str, ...]) -> tuple[tuple[str, float], ...]:
+    return tuple((t, times[t] / TICKS_PER_SECOND) for t in names)
+
+
+def classify(task: Task, net: PlanNetwork, explained: bool = True, full: bool = True) -> Classification:
+    """Class (DC check), explanation, makespans, idle times and the earliest and worst-case schedules.
+
+    `explained=False` leaves the explanation empty (it costs a few more DC checks for a consistent plan);
+    `full=False` only the class and the makespans (`measure`): a search over candidate networks
+    explains and measures in full only the one it keeps.
+    """
     result = check_dc(net.stnu)
+    explanation = ""
     if result.verdict is Verdict.DC:
-        plan_class, explanation = PlanClass.DC, ""
+        plan_class = PlanClass.DC
     elif result.verdict is Verdict.NOT_DC:
         plan_class = PlanClass.CONSISTENT
-        explanation = explain(net, result.cycle, inconsistent=False)
+        if explained:
+            explanation = explain(net, result.cycle, inconsistent=False)
     else:
         plan_class = PlanClass.INCONSISTENT
-        explanation = explain(net, result.cycle, inconsistent=True)
+        if explained:
+            explanation = explain(net, result.cycle, inconsistent=True)
 
-    early = earliest_times(_without_deadline(net.stnu, fix_contingents=False), ORIGIN)
+    out = measure(task, net, plan_class, explanation, full)
+    if out.makespan is None and explained and not explanation.startswith("the plan's ordering"):
+        explanation = "the co-workers would block each other: no timing keeps them apart; " + explanation
+        out = Classification(plan_class, explanation, None, (), ())
+    return out
+
+
+def measure(task: Task, net: PlanNetwork, plan_class: PlanClass, explanation: str = "",
+            full: bool = True) -> Classification:
+    """The makespans, idle times and schedules of `net` (see the module docstring), with the class given.
+
+    `full=False`: the earliest and worst-case makespans only (no nominal one, idle times or schedules).
+    """
+    free = net.without_limits()
+    early = earliest_times(free, ORIGIN)
     if early is None:
-        early = earliest_times(_without_deadline(net.stnu, fix_contingents=False, lower_bounds_only=True), ORIGIN)
-    late = earliest_times(_without_deadline(net.stnu, fix_contingents=True), ORIGIN)
+        return Classification(plan_class, explanation, None, (), ())
+    # with the human's durations fixed the rest may not fit (a passing order that a slow person breaks):
+    # the worst case then falls back to the earliest schedule, and the explanation says so
+    late = earliest_times(_fixed(free, "ub"), ORIGIN)
     if late is None:
-        late = earliest_times(_without_deadline(net.stnu, fix_contingents=True, lower_bounds_only=True), ORIGIN)
-    makespan = None
-    idle: tuple[tuple[str, float], ...] = ()
-    schedule: tuple[tuple[str, float], ...] = ()
-    if early is not None:
-        end = max((early[t] for t in net.last_ends), default=0)
-        worst = max((late[t] for t in net.last_ends), default=0) if late is not None else end
-        makespan = (end / TICKS_PER_SECOND, worst / TICKS_PER_SECOND)
-        schedule = tuple((t, early[t] / TICKS_PER_SECOND) for t in net.stnu.timepoints)
-        idle = tuple((agent.id, _idle(early, agent.id, end) / TICKS_PER_SECOND) for agent in task.agents)
-    return Classification(plan_class, explanation, makespan, idle, schedule)
+        late = early
+        if explanation:
+            explanation += " (no schedule fits every human duration at its maximum)"
+
+    def span(times: dict[str, int]) -> int:
+        return max((times[t] for t in net.last_ends), default=0)
+
+    end = span(early)
+    makespan = (end / TICKS_PER_SECOND, span(late) / TICKS_PER_SECOND)
+    if not full:
+        return Classification(plan_class, explanation, makespan, (), ())
+    middle = earliest_times(_fixed(free, "mid"), ORIGIN) or early
+    idle = tuple((agent.id, _idle(early, agent.id, end) / TICKS_PER_SECOND) for agent in task.agents)
+    names = net.stnu.timepoints
+    return Classification(plan_class, explanation, makespan, idle, _seconds(early, names), _seconds(late, names),
+                          span(middle) / TICKS_PER_SECOND)
 
 
 def _idle(times: dict[str, int], agent: str, makespan: int) -> int:

@@ -1,42 +1,59 @@
 """The compiler (Strassmair & Taylor 2014, section V.A, Fig. 4): task in, ranked set of HRC schedules out.
 
 Plan generation -> motion acquisition -> temporal net creator -> classification -> ranking. Free-space
-paths are planned once, in this process (OMPL); the per-plan work (interference, STNU, DC check) is
-pure data in and out and runs in an executor: in-process (``jobs=1``), a local process pool (default),
+paths are planned once, in this process (OMPL); the per-plan work (conflicts, detours, the choice of the
+plan's motion pattern with its STNU and DC check: `hrc.compile.motion_pattern`) is pure data in and out
+and runs in an executor: in-process (``jobs=1``), a local process pool (default),
 or a Dask distributed scheduler (``executor="dask://HOST:PORT"``). The result does not depend on the
 executor, the number of jobs or the order in which plans finish: plans are ranked by a total order.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import json
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 
-from hrc.compile.classify import Classification, PlanClass, classify
+from hrc.compile.classify import Classification, PlanClass
 from hrc.compile.executors import make_executor
-from hrc.compile.temporal_net_creator import create_stnu
+from hrc.compile.motion_pattern import RANK_BY, MotionPattern, choose_pattern, pattern_key
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import task_to_dict
 from hrc.model import Plan, Task
-from hrc.motion import Motion, PathLibrary, plan_motions, plan_paths
+from hrc.motion import Motion, PathLibrary, plan_paths
 from hrc.plans import count_plans, generate_plans
 from hrc.temporal.graphml import write_graphml
 
-__all__ = ["CompiledPlan", "CompiledPlanSet", "compile_chunk", "compile_plan", "compile_task", "rank_key",
-           "task_digest"]
+__all__ = ["CompileOptions", "CompiledPlan", "CompiledPlanSet", "compile_chunk", "compile_plan", "compile_task",
+           "rank_key", "task_digest"]
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
 
 
 @dataclass(frozen=True, slots=True)
+class CompileOptions:
+    """How plans are read and ranked: `human_waits` (the paper's model, in which the robot's strategy
+    decides when the human leaves for and starts a step; False: the human never waits for the robot's
+    sake, `hrc.compile.temporal_net_creator`) and `rank_by` (the makespan that ranks plans within a class:
+    "worst" case by default, "earliest" or "nominal")."""
+
+    human_waits: bool = True
+    rank_by: str = "worst"
+
+    def __post_init__(self) -> None:
+        if self.rank_by not in RANK_BY:
+            raise ValueError(f"rank_by must be one of {', '.join(RANK_BY)}, got {self.rank_by!r}")
+
+
+@dataclass(frozen=True, slots=True)
 class CompiledPlan:
-    """One plan with its motions, its STNU (as CSTNU Tool GraphML), its class and its rank (1 = best)."""
+    """One plan with its motion pattern, its STNU (as CSTNU Tool GraphML), its class and its rank (1 = best)."""
 
     plan: Plan
-    motions: tuple[Motion, ...]
+    pattern: MotionPattern
     classification: Classification
     stnu_size: tuple[int, int, int]  # timepoints, requirement links, contingent links
     graphml: str
@@ -45,6 +62,10 @@ class CompiledPlan:
     @property
     def plan_class(self) -> PlanClass:
         return self.classification.plan_class
+
+    @property
+    def motions(self) -> tuple[Motion, ...]:
+        return self.pattern.motions
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,6 +77,7 @@ class CompiledPlanSet:
     digest: str
     paths: PathLibrary
     plans: tuple[CompiledPlan, ...]
+    options: CompileOptions = CompileOptions()
 
     def counts(self) -> dict[str, int]:
         out = {c.value: 0 for c in PlanClass}
@@ -71,27 +93,29 @@ def task_digest(task: Task) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def compile_plan(task: Task, plan: Plan, paths: PathLibrary) -> CompiledPlan:
-    """Motion acquisition, temporal net creator and classification for one plan (rank left at 0)."""
-    motions = plan_motions(task, plan, paths)
-    net = create_stnu(task, plan, motions)
-    stnu = net.stnu
+def compile_plan(task: Task, plan: Plan, paths: PathLibrary,
+                 options: CompileOptions = CompileOptions()) -> CompiledPlan:
+    """Motion acquisition (routes, conflicts, passing orders), temporal net creator and classification
+    for one plan (rank left at 0)."""
+    choice = choose_pattern(task, plan, paths, human_waits=options.human_waits, rank_by=options.rank_by)
+    stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
-    return CompiledPlan(plan=plan, motions=motions, classification=classify(task, net), stnu_size=size,
+    return CompiledPlan(plan=plan, pattern=choice.pattern, classification=choice.classification, stnu_size=size,
                         graphml=write_graphml(stnu))
 
 
-def compile_chunk(task: Task, paths: PathLibrary, plans: list[Plan]) -> list[CompiledPlan]:
+def compile_chunk(task: Task, paths: PathLibrary, plans: list[Plan],
+                  options: CompileOptions = CompileOptions()) -> list[CompiledPlan]:
     """The unit of work sent to an executor (a module-level function, so it pickles by name)."""
-    return [compile_plan(task, plan, paths) for plan in plans]
+    return [compile_plan(task, plan, paths, options) for plan in plans]
 
 
-def rank_key(cp: CompiledPlan) -> tuple:
-    """DC < consistent < inconsistent; then earliest makespan, total idle time, plan id."""
+def rank_key(cp: CompiledPlan, rank_by: str = "worst") -> tuple:
+    """DC < consistent < inconsistent; then the makespan `rank_by` names (worst case by default: a
+    production engineer plans around the deadline), the other makespans, total idle time, plan id."""
     c = cp.classification
-    makespan = c.makespan[0] if c.makespan is not None else float("inf")
     idle = sum(s for _, s in c.idle) if c.idle else float("inf")
-    return (c.plan_class.order, makespan, round(idle, 6), cp.plan.id)
+    return (*pattern_key(c, rank_by), round(idle, 6), cp.plan.id)
 
 
 def _chunks(items: Iterable[Plan], size: int) -> Iterator[list[Plan]]:
@@ -101,7 +125,7 @@ def _chunks(items: Iterable[Plan], size: int) -> Iterator[list[Plan]]:
 
 
 def compile_task(task: Task, seed: int = 0, jobs: int | None = None, executor: str | None = None,
-                 progress: Progress | None = None) -> CompiledPlanSet:
+                 progress: Progress | None = None, options: CompileOptions = CompileOptions()) -> CompiledPlanSet:
     """Compile every plan of `task`; see the module docstring. Raises `hrc.errors.HrcError` subclasses."""
     total = count_plans(task)
     chunk_size = max(1, min(64, total // (4 * max(1, jobs or 2)) or 1))
@@ -109,10 +133,16 @@ def compile_task(task: Task, seed: int = 0, jobs: int | None = None, executor: s
     with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
         paths = plan_paths(task, seed=seed,
                            progress=(lambda d, t: progress("motion", d, t)) if progress else None)
-        for batch in ex.map_chunks(compile_chunk, task, paths, _chunks(generate_plans(task), chunk_size)):
+        work = functools.partial(_chunk_with, options)
+        for batch in ex.map_chunks(work, task, paths, _chunks(generate_plans(task), chunk_size)):
             compiled.extend(batch)
             if progress:
                 progress("plans", len(compiled), total)
-    compiled.sort(key=rank_key)
+    compiled.sort(key=lambda cp: rank_key(cp, options.rank_by))
     ranked = tuple(replace(cp, rank=i + 1) for i, cp in enumerate(compiled))
-    return CompiledPlanSet(task=task, seed=seed, digest=task_digest(task), paths=paths, plans=ranked)
+    return CompiledPlanSet(task=task, seed=seed, digest=task_digest(task), paths=paths, plans=ranked,
+                           options=options)
+
+
+def _chunk_with(options: CompileOptions, task: Task, paths: PathLibrary, plans: list[Plan]) -> list[CompiledPlan]:
+    return compile_chunk(task, paths, plans, options)

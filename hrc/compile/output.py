@@ -1,17 +1,31 @@
 """The compiler's files: ``compiled.json`` (schema below, versioned) and ``stnu/PLAN_ID.graphml``.
 
-Schema version 1 (times in seconds, rounded to the millisecond; plans in rank order)::
+Schema version 2 (times in seconds, rounded to the millisecond; plans in rank order)::
 
-    {"schema_version": 1, "generator": "hrc X.Y.Z", "seed": N,
+    {"schema_version": 2, "generator": "hrc X.Y.Z", "seed": N,
+     "options": {"human_waits": bool, "rank_by": "worst" | "earliest" | "nominal"},
      "task": {"name", "digest", "deadline", "agents": {ID: KIND}},
      "counts": {"DC": n, "consistent": n, "inconsistent": n},
      "plans": [{"id", "rank" (1 = best), "class": "DC" | "consistent" | "inconsistent",
                 "allocation": {ACTION: AGENT}, "sequences": {AGENT: [ACTION, ...]},
-                "makespan": [earliest, worst case] | null, "idle": {AGENT: s},
+                "makespan": [earliest, worst case] | null, "nominal_makespan": s | null, "idle": {AGENT: s},
                 "stnu": "stnu/ID.graphml", "stnu_size": {"timepoints", "requirement_links", "contingent_links"},
                 "explanation": str | null,
-                "motions": [{"agent", "leg", "from", "to", "action", "phase", "free_time", "max_time",
-                             "interference": [{"agent", "leg", "from", "to", "extra_time", "kind", "point"}]}]}]}
+                "motions": [{"agent", "leg", "from", "to", "action", "phase", "free_time", "time",
+                             "detour": null | {"round": str, "points": [[x, y], ...]},
+                             "park": null | {"at": LOC, "time": s}}],
+                "passing": [{"robot": OCCUPANCY, "human": OCCUPANCY, "first": "robot" | "human",
+                             "how": "forced" | "chosen", "point": [x, y],
+                             "constraint": {"from": TIMEPOINT, "to": TIMEPOINT, "min": s}}],
+                "pattern": {"conflicts": n, "implied": n, "candidates": n, "exhaustive": bool}}]}
+
+An OCCUPANCY is ``{"kind": "travel", "leg": i, "from": LOC, "to": LOC}`` or ``{"kind": "stay", "leg": i,
+"at": LOC}`` (leg indices as in `hrc.plans.agent_legs`, -1 for the start location). ``passing`` lists
+the passing orders the plan's STNU carries (``T(to) - T(from) >= min``, timepoints named as in the STNU,
+`hrc.compile.temporal_net_creator`); orders the plan implies anyway are only counted (``implied``).
+A ``time`` above ``free_time`` is a detour's, or a stop at a waiting place (``park``: the agent goes
+to LOC, its start, in ``park.time`` of its moving time, waits there as the plan needs, then goes on; its
+STNU has the timepoints ``...park`` and ``...unpark``); the robot drives a route in exactly its time.
 
 The file is deterministic for a given task and seed: no timestamps, no host names, sorted keys where
 order carries no meaning.
@@ -33,20 +47,32 @@ import yaml
 
 from hrc import __version__
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, task_digest
+from hrc.compile.temporal_net_creator import ref_timepoint
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import load_task, task_to_dict
 from hrc.model import Task
+from hrc.motion import Occupancy
 from hrc.plans import agent_legs
 
 __all__ = ["SCHEMA_VERSION", "compiled_json", "compiled_to_dict", "load_compiled_task", "write_compiled",
            "write_input"]
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 
 def _s(x: float) -> float:
     return round(float(x), 3)
+
+
+def _occupancy(o: Occupancy) -> dict[str, Any]:
+    if o.kind == "travel":
+        return {"kind": "travel", "leg": o.leg, "from": o.origin, "to": o.location}
+    return {"kind": "stay", "leg": o.leg, "at": o.location}
+
+
+def _xy(p: tuple[float, float]) -> list[float]:
+    return [round(p[0], 3), round(p[1], 3)]
 
 
 def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
@@ -58,12 +84,20 @@ def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
         motions.append({
             "agent": m.agent, "leg": m.leg, "from": m.origin, "to": m.target,
             "action": leg.action, "phase": leg.phase,
-            "free_time": _s(m.free_time), "max_time": _s(m.max_time),
-            "interference": [{"agent": i.other_agent, "leg": i.other_leg, "from": i.other_origin,
-                              "to": i.other_target, "extra_time": _s(i.extra_time), "kind": i.kind,
-                              "point": [round(i.point[0], 3), round(i.point[1], 3)]}
-                             for i in m.interference],
+            "free_time": _s(m.free_time), "time": _s(m.time),
+            "detour": {"round": m.via, "points": [_xy(p) for p in m.points]} if m.via else None,
+            "park": {"at": m.park, "time": _s(m.park_time)} if m.park else None,
         })
+    passing = []
+    for o in cp.pattern.constrained:
+        sep = o.separation
+        passing.append({
+            "robot": _occupancy(o.conflict.robot), "human": _occupancy(o.conflict.human),
+            "first": o.first, "how": o.how, "point": _xy(o.conflict.point),
+            "constraint": {"from": ref_timepoint(task, plan, sep.earlier), "to": ref_timepoint(task, plan, sep.later),
+                           "min": _s(sep.gap)},
+        })
+    pattern = cp.pattern
     return {
         "id": plan.id,
         "rank": cp.rank,
@@ -71,11 +105,15 @@ def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
         "allocation": dict(plan.allocation),
         "sequences": {agent: list(seq) for agent, seq in plan.sequences},
         "makespan": None if c.makespan is None else [_s(c.makespan[0]), _s(c.makespan[1])],
+        "nominal_makespan": None if c.nominal is None else _s(c.nominal),
         "idle": {agent: _s(t) for agent, t in c.idle},
         "stnu": f"stnu/{plan.id}.graphml",
         "stnu_size": dict(zip(("timepoints", "requirement_links", "contingent_links"), cp.stnu_size, strict=True)),
         "explanation": c.explanation or None,
         "motions": motions,
+        "passing": passing,
+        "pattern": {"conflicts": len(pattern.orders), "implied": len(pattern.orders) - len(passing),
+                    "candidates": pattern.candidates, "exhaustive": pattern.exhaustive},
     }
 
 
@@ -85,6 +123,7 @@ def compiled_to_dict(cps: CompiledPlanSet) -> dict[str, Any]:
         "schema_version": SCHEMA_VERSION,
         "generator": f"hrc {__version__}",
         "seed": cps.seed,
+        "options": {"human_waits": cps.options.human_waits, "rank_by": cps.options.rank_by},
         "task": {"name": task.name, "digest": cps.digest, "deadline": task.deadline,
                  "agents": {a.id: a.kind.value for a in task.agents}},
         "counts": cps.counts(),

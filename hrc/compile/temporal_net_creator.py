@@ -2,43 +2,65 @@
 
 For every leg of every agent (travel to a phase's location, then the phase's manipulation) the STNU
 has four timepoints, named for what they are: ``AGENT.PHASE.ACTION.depart``, ``.arrive``, ``.start``,
-``.end``, plus the origin ``start`` (the task's start, T = 0). Links, in milliseconds:
+``.end``, plus the origin ``Z`` (the task's start, T = 0; the CSTNU Tool's name for it). Links, in
+milliseconds:
 
-- travel ``depart -> arrive``: the human's is a **contingent** link ``[free, max * travel_slack]``
-  (a person walks at most at their speed, sometimes slower, `Agent.travel_slack`; the co-worker may
-  be in the way); the
-  robot's is a **requirement** link ``[max, +inf)``: the robot yields to the human, so it must plan for
-  the worst-case time the co-worker costs it (``max`` from motion acquisition), and may drive slower;
+- travel ``depart -> arrive``: the human's is a **contingent** link ``[t, t * travel_slack]`` along the
+  shortest route (a person walks at most at their speed, sometimes slower, `Agent.travel_slack`); the
+  robot's is a **rigid requirement** ``[t, t]`` along its route (shortest or a detour): the robot drives
+  without stopping, so where it is at every moment of a trip is known, which the passing orders rely on;
 - manipulation ``start -> end``: contingent ``[lb, ub]`` for the human, requirement ``[lb, ub]`` for the
   robot (the phase's duration bounds for that agent);
-- waiting: ``start -> first depart``, ``arrive -> start`` and ``end -> next depart`` are ``[0, +inf)``;
+- waiting: ``Z -> first depart``, ``arrive -> start`` and ``end -> next depart`` are ``[0, +inf)``:
+  an agent waits where it stands (see "the human" below);
 - task graph: ``before.end -> after.start`` in ``[0, +inf)``;
+- **passing orders** (spatial constraints, `hrc.motion.conflicts`): at each place where the two agents'
+  occupancies would meet, the plan's chosen order as ``T(later) - T(earlier) >= gap``, rounded up;
 - temporal constraints: ``lb <= T(to) - T(from) <= ub`` between the named events;
-- makespan deadline: ``0 <= T(last end) - T(start) <= deadline`` for each agent's last phase.
+- makespan deadline: ``0 <= T(last end) - T(Z) <= deadline`` for each agent's last phase.
+
+The constraints the task *asks for* (temporal constraints and the deadline, kind "limit") come last in
+``stnu.requirements`` (`PlanNetwork.n_limits` of them), so that a schedule can be computed without them
+(a plan that breaks the deadline is still the instruction for finishing the task).
+
+**The human.** As in the paper, only the human's *durations* are contingent: the robot's strategy
+decides when the human leaves for a step and starts it (the human waits when asked). The stricter
+reading ``human_waits=False`` (`hrc compile --human-waits no`) takes that from the robot: the human
+leaves for each step the moment the previous one ends (``end -> next depart`` in ``[0, 0]``, the first
+departure at T = 0) and starts a manipulation on arrival (``arrive -> start`` in ``[0, 0]``) unless the
+task graph makes them wait for a phase of the robot's, in which case the start stays free after the
+arrival (the person waits for the task, which the robot cannot hurry beyond its own steps).
+
+**Waiting places.** A leg whose route stops at a waiting place (`hrc.motion.motions.Route`: the agent's
+own start, out of the co-worker's way) has two more timepoints, ``.park`` (there) and ``.unpark``
+(leaving it): ``depart -> park`` and ``unpark -> arrive`` are travel links as above, ``park -> unpark``
+is ``[0, +inf)``, the wait.
 
 A leg with no travel (already there) gets ``depart -> arrive`` in ``[0, 0]``. Seconds are converted to
-ticks here and only here: contingent bounds are widened outward (floor lb, ceil ub) so rounding never
-makes a plan look more controllable than it is; requirement bounds are rounded to the nearest tick.
+ticks here and only here: contingent bounds are widened outward (floor lb, ceil ub) and passing-order
+gaps rounded up, so rounding never makes a plan look more controllable than it is; other requirement
+bounds are rounded to the nearest tick.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from hrc.model import Event, Plan, Task
-from hrc.motion import Motion
+from hrc.model import Agent, Event, Plan, Task
+from hrc.motion import Motion, Separation, TimeRef
 from hrc.plans import Leg, agent_legs
 from hrc.temporal import STNU, ContingentLink, RequirementLink
 from hrc.temporal.ticks import to_ticks
 
 __all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint", "leg_timepoint",
-           "seconds_to_ticks"]
+           "ref_namer", "ref_timepoint", "seconds_to_ticks", "with_separations"]
 
 TICKS_PER_SECOND = 1000
 """The temporal core's exact unit: milliseconds."""
 
-ORIGIN = "start"
+ORIGIN = "Z"
 
 
 def seconds_to_ticks(s: float) -> int:
@@ -64,26 +86,59 @@ def event_timepoint(plan: Plan, event: Event) -> str:
     return f"{plan.agent_of(event.action)}.{event.phase}.{event.action}.{event.boundary}"
 
 
+def ref_timepoint(task: Task, plan: Plan, ref: TimeRef) -> str:
+    """The timepoint a `TimeRef` (agent, leg index, event) names in `plan`'s STNU."""
+    if ref.agent == "":
+        return ORIGIN
+    return leg_timepoint(agent_legs(task, plan, ref.agent)[ref.leg], ref.what)
+
+
+def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
+    """`ref_timepoint` for many references of one plan (the legs are looked up once)."""
+    legs = {a.id: agent_legs(task, plan, a.id) for a in task.agents}
+
+    def name(ref: TimeRef) -> str:
+        return ORIGIN if ref.agent == "" else leg_timepoint(legs[ref.agent][ref.leg], ref.what)
+
+    return name
+
+
 @dataclass(frozen=True, slots=True)
 class PlanNetwork:
-    """A plan's STNU and, per link ``(source, target)``, what it means in words (for explanations)."""
+    """A plan's STNU and, per link ``(source, target)``, what it means in words (for explanations).
+
+    The last `n_limits` requirement links are the task's limits (temporal constraints, deadline).
+    """
 
     stnu: STNU
     meaning: tuple[tuple[tuple[str, str], tuple[str, str]], ...]  # (source, target) -> (kind, text)
     last_ends: tuple[str, ...]
+    n_limits: int = 0
+
+    def without_limits(self) -> STNU:
+        """The STNU without the task's temporal constraints and deadline."""
+        s = self.stnu
+        keep = s.requirements[:len(s.requirements) - self.n_limits]
+        return STNU(s.timepoints, keep, s.contingents, s.name)
 
 
-def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetwork:
-    """Encode `plan` (with its motions' duration bounds) as an STNU; see the module docstring."""
+def create_stnu(task: Task, plan: Plan, motions: Sequence[Motion],
+                separations: Sequence[tuple[Separation, str]] = (), human_waits: bool = True) -> PlanNetwork:
+    """Encode `plan` as an STNU (see the module docstring).
+
+    `motions`: one per leg (`hrc.motion.plan_motions`); `separations`: the chosen passing orders, each
+    with its meaning in words; `human_waits`: the paper's reading (True) or the stricter one (False).
+    """
     timepoints: list[str] = [ORIGIN]
     reqs: list[RequirementLink] = []
     conts: list[ContingentLink] = []
     meaning: dict[tuple[str, str], tuple[str, str]] = {}
     motion_of = {(m.agent, m.leg): m for m in motions}
     last_ends = []
+    owner = dict(plan.allocation)
 
     # kinds: "human" (a contingent duration), "robot" (a robot duration), "limit" (deadline or
-    # temporal constraint), "order" (sequencing, waiting, task graph)
+    # temporal constraint), "order" (sequencing, waiting, task graph), "space" (a passing order)
     def req(a: str, b: str, lb: int | None, ub: int | None, kind: str, text: str) -> None:
         reqs.append(RequirementLink(a, b, lb, ub))
         meaning.setdefault((a, b), (kind, text))
@@ -92,29 +147,48 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
         conts.append(ContingentLink(a, b, _floor_ticks(lb), _ceil_ticks(ub)))
         meaning[(a, b)] = ("human", text)
 
+    def travel(agent: Agent, a: str, b: str, t: float, text: str) -> None:
+        if t <= 0:
+            req(a, b, 0, 0, "order", text)
+        elif agent.is_human:
+            ub = t * agent.travel_slack
+            cont(a, b, t, ub, f"{text} ({t:.1f}-{ub:.1f} s)")
+        else:
+            ticks = seconds_to_ticks(t)
+            req(a, b, ticks, ticks, "robot", f"{text} ({t:.1f} s)")
+
     for agent in task.agents:
         prev_end = ORIGIN
+        rigid = agent.is_human and not human_waits
         for leg in agent_legs(task, plan, agent.id):
             dep, arr, st, en = (leg_timepoint(leg, w) for w in ("depart", "arrive", "start", "end"))
-            timepoints += [dep, arr, st, en]
-            step = f"{leg.action}.{leg.phase}"
-            req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step")
             motion = motion_of[(agent.id, leg.index)]
-            route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
-            if motion.max_time <= 0:
-                req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}")
-            elif agent.is_human:
-                ub = motion.max_time * agent.travel_slack
-                cont(dep, arr, motion.free_time, ub, f"{route} ({motion.free_time:.1f}-{ub:.1f} s)")
+            step = f"{leg.action}.{leg.phase}"
+            if rigid:
+                req(prev_end, dep, 0, 0, "order", f"{agent.id} leaves for {step} as soon as the previous step ends")
             else:
-                why = ""
-                if motion.interference:
-                    causes = ", ".join(f"{i.other_agent} {i.other_origin}->{i.other_target}"
-                                       for i in motion.interference)
-                    why = f", incl. {motion.max_time - motion.free_time:.1f} s yielding to {causes}"
-                req(dep, arr, seconds_to_ticks(motion.max_time), None, "robot",
-                    f"{route} (>= {motion.max_time:.1f} s{why})")
-            req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {leg.action}.{leg.phase}")
+                req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step")
+            route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
+            if motion.park:
+                park, unpark = leg_timepoint(leg, "park"), leg_timepoint(leg, "unpark")
+                timepoints += [dep, park, unpark, arr, st, en]
+                travel(agent, dep, park, motion.park_time, f"{agent.id}'s travel {leg.origin} -> {motion.park} "
+                                                           f"to wait there for {step}")
+                req(park, unpark, 0, None, "order", f"{agent.id} waits at {motion.park} before {step}")
+                travel(agent, unpark, arr, motion.time - motion.park_time,
+                       f"{agent.id}'s travel {motion.park} -> {leg.location}")
+            else:
+                timepoints += [dep, arr, st, en]
+                if motion.time <= 0:
+                    req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}")
+                else:
+                    travel(agent, dep, arr, motion.time, route + (f" round {motion.via}" if motion.via else ""))
+            waits_for_robot = any(owner[p.before.action] != agent.id for p in task.precedence
+                                  if (p.after.action, p.after.phase) == (leg.action, leg.phase))
+            if rigid and not waits_for_robot:
+                req(arr, st, 0, 0, "order", f"{agent.id} starts {step} on arrival")
+            else:
+                req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {step}")
             bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
             what = f"{agent.id}'s {leg.phase} of {leg.action} ({bounds.lb:g}-{bounds.ub:g} s)"
             if agent.is_human:
@@ -129,6 +203,8 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
         a = event_timepoint(plan, Event(pr.before.action, pr.before.phase, "end"))
         b = event_timepoint(plan, Event(pr.after.action, pr.after.phase, "start"))
         req(a, b, 0, None, "order", f"task graph: {pr.after} after {pr.before}")
+
+    n_before = len(reqs)
     for c in task.constraints:
         a, b = event_timepoint(plan, c.source), event_timepoint(plan, c.target)
         c_ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
@@ -139,4 +215,27 @@ def create_stnu(task: Task, plan: Plan, motions: tuple[Motion, ...]) -> PlanNetw
             req(ORIGIN, end, 0, seconds_to_ticks(task.deadline), "limit", f"makespan deadline {task.deadline:g} s")
 
     stnu = STNU(tuple(timepoints), tuple(reqs), tuple(conts), name=f"{task.name}:{plan.id}")
-    return PlanNetwork(stnu=stnu, meaning=tuple(sorted(meaning.items())), last_ends=tuple(last_ends))
+    net = PlanNetwork(stnu=stnu, meaning=tuple(sorted(meaning.items())), last_ends=tuple(last_ends),
+                      n_limits=len(reqs) - n_before)
+    return with_separations(net, separations, ref_namer(task, plan)) if separations else net
+
+
+def with_separations(net: PlanNetwork, separations: Sequence[tuple[Separation, str]],
+                     name: Callable[[TimeRef], str]) -> PlanNetwork:
+    """`net` (built without passing orders) with these passing orders added before its limits.
+
+    `name` maps a `TimeRef` to its timepoint (`ref_namer`). Cheaper than building the plan's network
+    again, for a search that tries many sets of orders on one plan.
+    """
+    reqs = list(net.stnu.requirements)
+    cut = len(reqs) - net.n_limits
+    meaning = dict(net.meaning)
+    added = []
+    for sep, text in separations:
+        a, b = name(sep.earlier), name(sep.later)
+        added.append(RequirementLink(a, b, _ceil_ticks(sep.gap), None))
+        meaning.setdefault((a, b), ("space", text))
+    s = net.stnu
+    stnu = STNU(s.timepoints, tuple(reqs[:cut] + added + reqs[cut:]), s.contingents, s.name)
+    return PlanNetwork(stnu=stnu, meaning=tuple(sorted(meaning.items())), last_ends=net.last_ends,
+                       n_limits=net.n_limits)

@@ -1,0 +1,379 @@
+"""A plan's motion pattern: the robot's routes and, wherever the co-workers would meet, who goes first.
+
+Strassmair & Taylor 2014, section V.A: a plan "implies a motion pattern of the co-workers in the shared
+workspace", and what they cost each other (waits, detours, shared spots) belongs to *that* plan. Motion
+acquisition (`hrc.motion.conflicts`) finds every place where the robot's and the human's occupancies
+would overlap and, for each, the two difference constraints that keep them apart (robot first, human
+first). Which one holds is part of the plan: this module chooses, per plan, the routes (shortest, or a
+detour round the human, `hrc.motion.detours`) and a passing order at every conflict, so that the plan's
+STNU gets the best class and then the best makespan. The choice is made offline for every human timing at
+once, so the class is a guarantee about the chosen pattern:
+
+- a conflict whose order the plan already *implies* whatever anybody does (task graph, sequences, lower
+  bounds of durations: the "robust" network of `_robust`) needs no constraint;
+- otherwise, if only one order can still hold (the other closes a negative cycle with what is decided),
+  that order is *forced*; if both can, the search *chooses*, trying first the order the earliest schedule
+  suggests. The order is added to the STNU as a requirement link.
+
+Search: depth-first over the undecided conflicts in time order, with the all-pairs distance matrix of the
+network without the task's limits updated incrementally per added edge (O(n^2) each), so dead branches
+(co-workers blocking each other) are cut at once. Each complete pattern is built (`create_stnu`) and
+classified (`classify`); the best by (class, makespan as ranked, the other makespan, detours used) wins.
+Bounds stop the search early: adding constraints never improves a class or a makespan, so the network
+with no passing order at all bounds every pattern; a pattern that reaches that bound ends the search.
+At most `LEAF_CAP` complete patterns per route choice and `NODE_CAP` search nodes are visited (the
+result says whether the search was exhaustive). Other routes (`_route_trials`: detours, stops at a
+waiting place) are tried most promising first by their bound, each only while its bound can beat the
+best pattern so far, at most `TRIAL_CAP` of them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse.csgraph import NegativeCycleError, csgraph_from_dense, floyd_warshall
+
+from hrc.compile.classify import Classification, PlanClass, classify, measure
+from hrc.compile.temporal_net_creator import (
+    ORIGIN,
+    TICKS_PER_SECOND,
+    PlanNetwork,
+    create_stnu,
+    ref_namer,
+    with_separations,
+)
+from hrc.model import Plan, Task
+from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detour, find_conflicts, plan_motions
+from hrc.motion.motions import Route, Routes
+from hrc.plans import agent_legs
+from hrc.temporal import STNU, RequirementLink, check_consistency
+from hrc.temporal.graph import distance_edges
+
+__all__ = ["LEAF_CAP", "NODE_CAP", "RANK_BY", "TRIAL_CAP", "MotionPattern", "PassingOrder", "PlanChoice",
+           "choose_pattern", "pattern_key"]
+
+LEAF_CAP = 24
+NODE_CAP = 4000
+TRIAL_CAP = 6
+RANK_BY = ("worst", "earliest", "nominal")
+
+
+@dataclass(frozen=True, slots=True)
+class PassingOrder:
+    """At `conflict`, `first` ("robot" | "human") goes first; `how` it was decided: "implied" (the plan
+    orders them anyway), "forced" (the other order cannot hold) or "chosen" (by the search)."""
+
+    conflict: Conflict
+    first: str
+    how: str
+
+    @property
+    def separation(self) -> Separation:
+        return self.conflict.robot_first if self.first == "robot" else self.conflict.human_first
+
+    def describe(self) -> str:
+        c = self.conflict
+        a, b = (c.robot, c.human) if self.first == "robot" else (c.human, c.robot)
+        x, y = c.point
+        return f"{a.describe()} before {b.describe()} at ({x:.1f}, {y:.1f})"
+
+
+@dataclass(frozen=True, slots=True)
+class MotionPattern:
+    """The routes (`motions`), the passing order at every conflict, and how the search went."""
+
+    motions: tuple[Motion, ...]
+    orders: tuple[PassingOrder, ...]
+    candidates: int  # complete patterns classified
+    exhaustive: bool  # False when a cap stopped the search
+
+    @property
+    def detours(self) -> tuple[Motion, ...]:
+        return tuple(m for m in self.motions if m.via)
+
+    @property
+    def constrained(self) -> tuple[PassingOrder, ...]:
+        """The orders that are in the STNU (everything not implied)."""
+        return tuple(o for o in self.orders if o.how != "implied")
+
+
+@dataclass(frozen=True, slots=True)
+class PlanChoice:
+    pattern: MotionPattern
+    net: PlanNetwork
+    classification: Classification
+
+
+def pattern_key(c: Classification, rank_by: str = "worst") -> tuple:
+    """Class first, then the makespan `rank_by` names (worst / earliest / nominal), then the others."""
+    if c.makespan is None:
+        return (c.plan_class.order, math.inf, math.inf, math.inf)
+    early, worst = c.makespan
+    nominal = c.nominal if c.nominal is not None else early
+    first = {"worst": worst, "earliest": early, "nominal": nominal}[rank_by]
+    return (c.plan_class.order, round(first, 6), round(worst, 6), round(early, 6))
+
+
+def _apsp(stnu: STNU) -> np.ndarray | None:
+    """Dense shortest distances (ticks as float64, exact below 2**52); None if the STN is inconsistent."""
+    n = len(stnu.timepoints)
+    index = {v: i for i, v in enumerate(stnu.timepoints)}
+    mat = np.full((n, n), np.inf)
+    for e in distance_edges(stnu):
+        i, j = index[e.source], index[e.target]
+        if i != j:
+            mat[i, j] = min(mat[i, j], e.value)
+    # a dense 0 means "no edge" to scipy: go through csgraph_from_dense with inf as the null value
+    try:
+        return floyd_warshall(csgraph_from_dense(mat, null_value=np.inf), directed=True)
+    except NegativeCycleError:
+        return None
+
+
+def _robust(net: PlanNetwork) -> STNU:
+    """What holds in every execution, even one that breaks the plan's limits: the task graph, waiting and
+    sequencing links, the robot's own durations, and the human's lower bounds (a person cannot be faster)."""
+    free = net.without_limits()
+    lows = tuple(RequirementLink(c.source, c.target, c.lb, None) for c in free.contingents)
+    return STNU(free.timepoints, free.requirements + lows, (), free.name)
+
+
+def _text(order: PassingOrder) -> str:
+    return f"passing order: {order.describe()}"
+
+
+def _evaluate(task: Task, base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[PassingOrder],
+              rank_by: str) -> tuple[PlanNetwork, Classification]:
+    seps = [(o.separation, _text(o)) for o in orders if o.how != "implied"]
+    net = with_separations(base, seps, namer)
+    return net, classify(task, net, explained=False, full=rank_by == "nominal")
+
+
+def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_waits: bool,
+            rank_by: str, bound: tuple | None) -> tuple[list[tuple[tuple, PlanChoice]], bool]:
+    """Classified complete patterns for one choice of routes (best first), and whether it was exhaustive.
+
+    Depth-first with propagation: at every node the conflicts whose order the network already implies
+    are settled, those with one order left get it (and its edge), repeatedly, and a conflict with no
+    order left ends the branch; only then does the search branch, on the first open conflict.
+    """
+    motions = plan_motions(task, plan, paths, routes)
+    conflicts = find_conflicts(task, plan, paths, routes)
+    base = create_stnu(task, plan, motions, (), human_waits)
+    names = base.stnu.timepoints
+    index = {v: i for i, v in enumerate(names)}
+    robust = _apsp(_robust(base))
+    assert robust is not None  # lower bounds and the robot's own durations along an acyclic phase graph
+    z = index[ORIGIN]
+    namer = ref_namer(task, plan)
+    k = len(conflicts)
+    # per conflict and order (0: robot first, 1: human first): T(later) - T(earlier) >= gap, in ticks
+    earlier = np.zeros((k, 2), dtype=int)
+    later = np.zeros((k, 2), dtype=int)
+    gap = np.zeros((k, 2))
+    for j, c in enumerate(conflicts):
+        for o, sep in enumerate((c.robot_first, c.human_first)):
+            earlier[j, o], later[j, o] = index[namer(sep.earlier)], index[namer(sep.later)]
+            gap[j, o] = math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9)
+    implied = np.asarray(robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)  # holds in every execution
+    settled = [bool(row.any()) for row in implied]
+    first_of = [0 if row[0] else 1 for row in implied]
+    results: list[tuple[tuple, PlanChoice]] = []
+    state = {"nodes": 0, "leaves": 0, "stop": False, "exhaustive": True}
+
+    def add(mat: np.ndarray, j: int, o: int) -> np.ndarray:
+        e, lt = earlier[j, o], later[j, o]
+        return np.minimum(mat, mat[:, lt:lt + 1] - gap[j, o] + mat[e:e + 1, :])
+
+    def leaf(how: dict[int, tuple[int, str]]) -> None:
+        state["leaves"] += 1
+        orders = [PassingOrder(c, ("robot", "human")[first_of[j] if settled[j] else how[j][0]],
+                               "implied" if settled[j] else how[j][1]) for j, c in enumerate(conflicts)]
+        net, cls = _evaluate(task, base, namer, orders, rank_by)
+        key = pattern_key(cls, rank_by)
+        results.append((key, PlanChoice(MotionPattern(motions, tuple(orders), 0, True), net, cls)))
+        if bound is not None and key <= bound:
+            state["stop"] = True  # nothing can beat the network without passing orders
+
+    def dfs(mat: np.ndarray, how: dict[int, tuple[int, str]]) -> None:
+        if state["stop"]:
+            return
+        if state["nodes"] >= NODE_CAP or state["leaves"] >= LEAF_CAP:
+            state["exhaustive"] = False
+            return
+        state["nodes"] += 1
+        how = dict(how)
+        while True:
+            open_ = [j for j in range(k) if not settled[j] and j not in how]
+            if not open_:
+                leaf(how)
+                return
+            idx = np.array(open_)
+            holds = mat[later[idx], earlier[idx]] <= -gap[idx]  # (m, 2): already implied by what is decided
+            fits = mat[earlier[idx], later[idx]] - gap[idx] >= 0  # (m, 2): adding it closes no negative cycle
+            held, n_fit = holds.any(axis=1), fits.sum(axis=1)
+            if np.any(~held & (n_fit == 0)):
+                return  # they would block each other whatever is chosen: dead end
+            for pos in np.flatnonzero(held):
+                how[open_[pos]] = (0 if holds[pos, 0] else 1, "forced")
+            unit = [(open_[pos], int(np.argmax(fits[pos]))) for pos in np.flatnonzero(~held & (n_fit == 1))]
+            if unit:
+                j, o = unit[0]  # one at a time: each edge may settle or forbid others
+                mat = add(mat, j, o)
+                how[j] = (o, "forced")
+                continue
+            rest = [j for j in open_ if j not in how]
+            if rest:
+                break
+        j = rest[0]
+        early = -mat[:, z]
+        options = sorted((0, 1), key=lambda o: -(early[later[j, o]] - early[earlier[j, o]] - gap[j, o]))
+        for o in options:  # first the order the earliest schedule is closer to
+            dfs(add(mat, j, o), how | {j: (o, "chosen")})
+            if state["stop"]:
+                return
+
+    # first among the patterns that meet the task's limits (pruned by them: a consistent plan is never
+    # missed for a cap); only if there is none, among those that keep the two apart at all (inconsistent)
+    for start in (_apsp(base.stnu), _apsp(base.without_limits())):
+        if start is not None:
+            dfs(start, {})
+        if results or state["stop"] or not state["exhaustive"]:
+            break
+    results.sort(key=lambda r: r[0])
+    return results, bool(state["exhaustive"] or state["stop"])  # reaching the bound is as good as exhaustive
+
+
+def _bound(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_waits: bool,
+           rank_by: str, beat: tuple | None = None) -> tuple:
+    """The key of the plan with these routes and no passing order at all: no pattern does better.
+
+    With `beat`, the DC check is skipped when the makespans alone already show that the bound cannot
+    beat that key (the class part of the returned key is then the best possible, 0)."""
+    net = create_stnu(task, plan, plan_motions(task, plan, paths, routes), (), human_waits)
+    full = rank_by == "nominal"
+    if beat is not None:
+        best_class = PlanClass.DC if check_consistency(net.stnu).consistent else PlanClass.INCONSISTENT
+        cheap = pattern_key(measure(task, net, best_class, full=full), rank_by)
+        if cheap >= beat:
+            return cheap
+    return pattern_key(classify(task, net, explained=False, full=full), rank_by)
+
+
+def _separation_ticks(namer: Callable[[TimeRef], str], index: dict[str, int],
+                      sep: Separation) -> tuple[int, int, float]:
+    """``(earlier, later, gap)``: timepoint indices and the gap in ticks, rounded up."""
+    return index[namer(sep.earlier)], index[namer(sep.later)], float(math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9))
+
+
+def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool) -> list[Routes]:
+    """Route choices to try besides the shortest routes, from the conflicts the plan does not settle
+    anyway (those of the "robust" network):
+
+    - detours: for each robot travel that meets the human, the way round those places, and round the
+      places where the human stands only (a walking person passes, a standing one stays); then every
+      leg's first way round together;
+    - waiting places: where an agent would wait in the co-worker's way (a stay that meets the other), a
+      stop at its own start instead, on each leg that leaves that stay (the human's only when the robot
+      may time the human's steps, ``human_waits``); then every such leg of that agent together.
+    """
+    robot = next(a for a in task.agents if not a.is_human)
+    motions = plan_motions(task, plan, paths)
+    base = create_stnu(task, plan, motions, (), human_waits)
+    index = {v: i for i, v in enumerate(base.stnu.timepoints)}
+    robust = _apsp(_robust(base))
+    assert robust is not None
+    namer = ref_namer(task, plan)
+    open_conflicts = []
+    for c in find_conflicts(task, plan, paths):
+        implied = False
+        for sep in (c.robot_first, c.human_first):
+            e, lt, g = _separation_ticks(namer, index, sep)
+            implied = implied or bool(robust[lt, e] <= -g)
+        if not implied:
+            open_conflicts.append(c)
+    trials: list[Routes] = []
+    # detours
+    places: dict[int, list[Conflict]] = {}
+    for c in open_conflicts:
+        if c.robot.kind == "travel":
+            places.setdefault(c.robot.leg, []).append(c)
+    firsts: Routes = {}
+    for leg, found in sorted(places.items()):
+        m = next(m for m in motions if m.agent == robot.id and m.leg == leg)
+        seen: set[tuple] = set()
+        for group in (found, [c for c in found if c.human.kind == "stay"]):
+            shapes = tuple(dict.fromkeys(c.shape for c in group))
+            if not shapes or shapes in seen:
+                continue
+            seen.add(shapes)
+            label = ", ".join(dict.fromkeys(c.human.describe() for c in group))
+            path = detour(task, paths, robot.id, m.origin, m.target, shapes, label)
+            if path is not None:
+                trials.append({(robot.id, leg): Route(path)})
+                firsts.setdefault((robot.id, leg), Route(path))
+    if len(firsts) > 1:
+        trials.append(firsts)
+    # waiting places
+    every_park: Routes = {}
+    for agent in task.agents:
+        if agent.is_human and not human_waits:
+            continue
+        legs = agent_legs(task, plan, agent.id)
+        stays = {(o.leg, o.finish.leg) for c in open_conflicts for o in (c.robot, c.human)
+                 if o.agent == agent.id and o.kind == "stay" and o.finish.what == "depart"}
+        parked: Routes = {}
+        for stay_leg, depart_leg in sorted(stays):
+            for j in range(stay_leg + 1, depart_leg + 1):
+                lg = legs[j]
+                if lg.origin == agent.start or lg.location == agent.start:
+                    continue
+                route = Route(paths.get(agent.id, lg.origin, agent.start), agent.start,
+                              paths.get(agent.id, agent.start, lg.location))
+                trials.append({(agent.id, j): route})
+                parked[(agent.id, j)] = route
+        if len(parked) > 1:
+            trials.append(parked)
+        every_park.update(parked)
+    if len(every_park) > 1 and every_park not in trials:
+        trials.append(every_park)  # both make way at once
+    return trials
+
+
+def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool = True,
+                   rank_by: str = "worst") -> PlanChoice:
+    """The plan's best motion pattern, its STNU and its classification (see the module docstring)."""
+    if rank_by not in RANK_BY:
+        raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
+    bound = _bound(task, plan, paths, {}, human_waits, rank_by)
+    results, exhaustive = _search(task, plan, paths, {}, human_waits, rank_by, bound)
+    count = len(results)
+    best_key, best = results[0] if results else ((math.inf,), None)
+    if best_key > bound:  # a detour or a waiting place may do better than waiting in the way
+        bounded = [(_bound(task, plan, paths, routes, human_waits, rank_by, best_key), i, routes)
+                   for i, routes in enumerate(_route_trials(task, plan, paths, human_waits))]
+        bounded.sort(key=lambda b: (b[0], b[1]))  # the most promising first
+        for tried, (bound, _, routes) in enumerate(bounded):
+            if bound >= best_key:
+                break  # neither this nor any later one can beat what we have
+            if tried >= TRIAL_CAP:
+                exhaustive = False
+                break
+            more, full = _search(task, plan, paths, routes, human_waits, rank_by, bound)
+            count += len(more)
+            exhaustive = exhaustive and full
+            if more and more[0][0] < best_key:
+                best_key, best = more[0]
+    if best is None:
+        # the co-workers block each other whatever the order and route: no schedule keeps them apart
+        motions = plan_motions(task, plan, paths)
+        net = create_stnu(task, plan, motions, (), human_waits)
+        cls = Classification(PlanClass.INCONSISTENT, "the co-workers would block each other: no order of passing "
+                             "keeps them apart", None, (), ())
+        return PlanChoice(MotionPattern(motions, (), count, exhaustive), net, cls)
+    pattern = best.pattern
+    return PlanChoice(MotionPattern(pattern.motions, pattern.orders, count, exhaustive), best.net,
+                      classify(task, best.net))  # again, in full, with its explanation
