@@ -7,7 +7,8 @@ renders each format in `FORMATS` from the same data. Output is deterministic: th
 gives the same bytes (no timestamps; PNGs without software/date metadata).
 
 Figures: ``counts.png`` (plans per class), ``gantt_ID.png`` (earliest schedule per agent),
-``map_ID.png`` (workspace, both agents' routes, interference points).
+``gantt_worst_ID.png`` (the same with every human duration at its maximum), ``map_ID.png`` (workspace,
+both agents' routes with detours, the places where a passing order makes one wait).
 """
 
 from __future__ import annotations
@@ -55,20 +56,21 @@ def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
 
     save("counts", counts_figure(cps.counts()))
     featured = featured_plans(cps)
-    gantt_fig, gantt_ax = gantt_base(cps.task)
-    for cp in featured:
-        if cp.classification.schedule:
-            added = draw_gantt(gantt_ax, cps.task, cp)
-            save(f"gantt_{cp.plan.id}", gantt_fig, clear=False)
-            for artist in added:
-                artist.remove()
+    for which, prefix in (("earliest", "gantt_"), ("worst", "gantt_worst_")):
+        gantt_fig, gantt_ax = gantt_base(cps.task, which)
+        for cp in featured:
+            if cp.classification.schedule:
+                added = draw_gantt(gantt_ax, cps.task, cp, which)
+                save(f"{prefix}{cp.plan.id}", gantt_fig, clear=False)
+                for artist in added:
+                    artist.remove()
+        gantt_fig.clear()
     map_fig, map_ax = map_base(cps.task)
     for cp in featured:
         added = draw_map(map_ax, cps, cp)
         save(f"map_{cp.plan.id}", map_fig, clear=False)
         for artist in added:
             artist.remove()
-    gantt_fig.clear()
     map_fig.clear()
     return dict(sorted(written.items()))
 

@@ -1,9 +1,11 @@
-"""Gantt chart of one plan's earliest schedule: a row per agent, travel and manipulation bars per phase.
+"""Gantt chart of one plan's schedule: a row per agent, travel, manipulation and waiting bars per phase.
 
-Times come from `Classification.schedule` (the earliest time of every STNU timepoint, in seconds);
-a leg's bars span ``depart -> arrive`` (travel: lighter, hatched) and ``start -> end`` (manipulation,
-labelled ``cube2 fetch``). Gaps are waiting. A dashed red line marks the makespan deadline and a dotted
-one the worst-case makespan. O(legs) artists.
+Times come from `Classification.schedule` (the earliest time of every STNU timepoint, in seconds) or
+`Classification.worst_schedule` (the same with every human duration at its maximum): ``which`` picks.
+A leg's bars span ``depart -> arrive`` (travel: lighter, hatched) and ``start -> end`` (manipulation,
+labelled ``cube2 fetch``); the agent standing still in between (waiting for the co-worker, for a passing
+order or for the task graph) is a thin grey bar, so idle time shows. A dashed red line marks the
+makespan deadline and a dotted one the worst-case makespan. O(legs) artists.
 """
 
 from __future__ import annotations
@@ -28,22 +30,29 @@ if TYPE_CHECKING:
 
 __all__ = ["draw_gantt", "gantt_bars", "gantt_base", "gantt_figure"]
 
-def gantt_bars(task: Task, cp: CompiledPlan) -> dict[str, list[tuple[str, float, float, str]]]:
-    """Per agent, ``(kind, start, end, label)`` with kind ``travel`` or ``work``, in leg order.
+def gantt_bars(task: Task, cp: CompiledPlan, which: str = "earliest") -> dict[str, list[tuple[str, float, float, str]]]:
+    """Per agent, ``(kind, start, end, label)`` with kind ``travel``, ``work`` or ``wait``, in time order.
 
-    Zero-length travel (already at the location) is left out; legs missing from the schedule too.
+    `which`: "earliest" or "worst" schedule. Zero-length travel and waits are left out; legs missing
+    from the schedule too.
     """
-    times = dict(cp.classification.schedule)
+    times = dict(cp.classification.schedule if which == "earliest" else cp.classification.worst_schedule)
     bars: dict[str, list[tuple[str, float, float, str]]] = {}
     for agent in task.agent_ids:
         rows: list[tuple[str, float, float, str]] = []
+        free_since: float | None = 0.0  # when the agent last finished something
         for leg in agent_legs(task, cp.plan, agent):
             label = f"{leg.action} {leg.phase}"
             dep, arr, st, en = (times.get(leg_timepoint(leg, w)) for w in ("depart", "arrive", "start", "end"))
+            if free_since is not None and dep is not None and dep > free_since + 1e-6:
+                rows.append(("wait", free_since, dep, ""))
             if dep is not None and arr is not None and arr > dep:
                 rows.append(("travel", dep, arr, f"to {leg.location}"))
+            if arr is not None and st is not None and st > arr + 1e-6:
+                rows.append(("wait", arr, st, ""))
             if st is not None and en is not None:
                 rows.append(("work", st, en, label))
+            free_since = en
         bars[agent] = rows
     return bars
 
@@ -73,7 +82,7 @@ def _label_lanes(work: list[tuple[float, float, str]], seconds_per_char: float) 
     return out
 
 
-def gantt_base(task: Task) -> tuple[Figure, Axes]:
+def gantt_base(task: Task, which: str = "earliest") -> tuple[Figure, Axes]:
     """The plan-independent part: figure, axes, agent rows, grid (reused for every plan's chart)."""
     agents = task.agent_ids
     bottom, top, per_row = 0.55, 0.4, 1.0  # inches: x axis and its label, legend, one agent row
@@ -83,16 +92,17 @@ def gantt_base(task: Task) -> tuple[Figure, Axes]:
     ax.set_yticks(range(len(agents)), labels=list(reversed(agents)))
     ax.set_ylim(-0.62, len(agents) - 0.38)
     ax.xaxis.set_major_locator(MaxNLocator(nbins=10, steps=[1, 2, 5, 10]))
-    ax.set_xlabel("time (s), earliest schedule")
+    ax.set_xlabel("time (s), earliest schedule" if which == "earliest"
+                  else "time (s), worst case: every human duration at its maximum")
     ax.grid(axis="x", color="#dddddd", linewidth=0.6)
     ax.set_axisbelow(True)
     ax.spines[["top", "right"]].set_visible(False)
     return fig, ax
 
 
-def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan) -> list[Artist]:
+def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan, which: str = "earliest") -> list[Artist]:
     """Draw `cp`'s bars, labels, deadline and legend on a `gantt_base` axes; returns what it added."""
-    bars = gantt_bars(task, cp)
+    bars = gantt_bars(task, cp, which)
     agents = task.agent_ids
     ms = cp.classification.makespan
     horizon = max([e for rows in bars.values() for _, _, e, _ in rows]
@@ -105,7 +115,9 @@ def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan) -> list[Artist]:
         y = len(agents) - 1 - row
         color = agent_color(row)
         travel = [(start, end - start) for kind, start, end, _ in bars[agent] if kind == "travel"]
+        waits = [(start, end - start) for kind, start, end, _ in bars[agent] if kind == "wait"]
         work = [(start, end, label) for kind, start, end, label in bars[agent] if kind == "work"]
+        added.append(ax.broken_barh(waits, (y - height * 0.08, height * 0.16), facecolor="#9e9e9e", linewidth=0.0))
         # one collection per agent and kind (far cheaper to draw than a patch per bar)
         added.append(ax.broken_barh(travel, (y - height * 0.3, height * 0.6), facecolor=color, alpha=0.28,
                                     hatch="///", edgecolor=color, linewidth=0.0))
@@ -123,7 +135,8 @@ def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan) -> list[Artist]:
                              ha="left" if right else "right"))
     handles: list[Artist] = [
         Patch(facecolor="#888888", label="manipulation"),
-        Patch(facecolor="#888888", alpha=0.28, hatch="///", edgecolor="#888888", linewidth=0.0, label="travel")]
+        Patch(facecolor="#888888", alpha=0.28, hatch="///", edgecolor="#888888", linewidth=0.0, label="travel"),
+        Patch(facecolor="#9e9e9e", label="waiting")]
     if ms is not None and ms[1] > ms[0]:
         added.append(ax.axvline(ms[1], color="#555555", linestyle=":", linewidth=1.0))
         handles.append(Line2D([], [], color="#555555", linestyle=":", label=f"worst-case makespan {ms[1]:.1f} s"))
@@ -132,8 +145,8 @@ def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan) -> list[Artist]:
     return added
 
 
-def gantt_figure(task: Task, cp: CompiledPlan) -> Figure:
+def gantt_figure(task: Task, cp: CompiledPlan, which: str = "earliest") -> Figure:
     """The Gantt chart of `cp` on a figure of its own (see the module docstring); x axis in seconds."""
-    fig, ax = gantt_base(task)
-    draw_gantt(ax, task, cp)
+    fig, ax = gantt_base(task, which)
+    draw_gantt(ax, task, cp, which)
     return fig

@@ -10,12 +10,15 @@ from html import escape
 
 from hrc.report.figures import CLASS_COLORS
 from hrc.report.summary import (
+    CLASS_MEANING,
+    MODEL_ASSUMPTIONS,
     ReportData,
     allocation_legend,
-    fmt_cause,
+    fmt_detour,
     fmt_idle,
     fmt_makespan,
-    fmt_motion,
+    fmt_motion_marks,
+    fmt_passing,
     fmt_sequence,
     fmt_stnu,
     split_explanation,
@@ -97,7 +100,13 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
         f"<dt>Seed</dt><dd>{data.seed}</dd>",
         f"<dt>Deadline</dt><dd>{'none' if data.deadline is None else f'{data.deadline:g} s'}</dd>",
         f"<dt>Plans</dt><dd>{total}</dd>",
+    ]
+    out += [f"<dt>{e(k[0].upper() + k[1:])}</dt><dd>{e(v)}</dd>" for k, v in data.options]
+    out += [
         "</dl>",
+        '<p class="small"><b>What the classes mean.</b> '
+        + " ".join(f"{_badge(c)} {e(text)}" for c, text in CLASS_MEANING) + "</p>",
+        f'<p class="small">{e(MODEL_ASSUMPTIONS).replace("`", "")}</p>',
         '<div class="summary"><div class="cards">',
     ]
     for cls, n in data.counts:
@@ -114,11 +123,12 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
     out.append(f'<p class="small">Contents: <a href="#ranked">ranked plans</a> \u00b7 featured plans: {jumps}</p>')
     out += ['<h2 id="ranked">Ranked plans</h2>',
             f'<p class="small">Allocation: {e(allocation_legend(data))}. Makespan: earliest \u2013 worst case. '
-            f"Idle: {e(' / '.join(agents))}, in the earliest schedule. "
+            f"Idle: {e(' / '.join(agents))}, in the earliest schedule (waiting counts as idle). "
+            "Motion: \u21b7 robot travels on a detour, \u21c4 passing orders the STNU carries. "
             "STNU: timepoints / requirement links / contingent links. Highlighted rows have a section below.</p>",
             '<div class="table-wrap"><table>', "<thead><tr>"]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
-              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "STNU", "Network"])
+              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion", "STNU", "Network"])
     out.append("".join(f"<th>{e(h)}</th>" for h in header) + "</tr></thead>")
     out.append("<tbody>")
     for r in data.rows:
@@ -130,6 +140,7 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
                  + [f'<td class="seq">{e(fmt_sequence(seqs.get(a, ())))}</td>' for a in agents]
                  + [f'<td class="num">{e(fmt_makespan(r.makespan))}</td>',
                     f'<td class="num">{e(fmt_idle(r.idle))}</td>',
+                    f"<td>{e(fmt_motion_marks(r))}</td>",
                     f'<td class="num">{e(fmt_stnu(r.stnu_size))}</td>',
                     f'<td><a href="{e(r.stnu_link)}">graphml</a></td>'])
         out.append(('<tr class="featured">' if r.featured else "<tr>") + "".join(cells) + "</tr>")
@@ -158,24 +169,31 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
             out.append(_explanation(r.plan_class, explanations[plan_id]))
         gantt = figures.get(f"gantt_{plan_id}")
         if gantt:
-            out.append(f'<img src="{e(gantt)}" alt="Gantt chart of plan {pid}">')
+            out.append(f'<img src="{e(gantt)}" alt="Gantt chart of plan {pid}, earliest schedule">')
+            worst = figures.get(f"gantt_worst_{plan_id}")
+            if worst:
+                out.append(f'<img src="{e(worst)}" alt="Gantt chart of plan {pid}, worst case">')
         else:
-            out.append('<p class="small">No schedule: not even the lower bounds of the durations fit together.</p>')
+            out.append('<p class="small">No schedule: the co-workers would block each other, or the durations '
+                       "cannot fit together even at their shortest.</p>")
         out.append('<div class="figs">')
         themap = figures.get(f"map_{plan_id}")
         out.append(f'<img src="{e(themap)}" alt="Routes of plan {pid}">' if themap else "<div></div>")
         out.append("<div>")
-        if notes.get(plan_id):
-            out += ["<b>Interference</b>",
-                    '<p class="small">The co-worker\'s motion that delays a motion, and by how much.</p>',
-                    '<ul class="motions">']
-            for note in notes[plan_id]:
-                causes = "".join(f"<li>{e(fmt_cause(c))}</li>" for c in note.causes)
-                out.append(f"<li>{e(fmt_motion(note))}<ul>{causes}</ul></li>")
+        detours, passing = notes.get(plan_id, ((), ()))
+        if detours:
+            out += ["<b>Detours</b>", '<ul class="motions">']
+            out += [f"<li>{e(fmt_detour(d))}</li>" for d in detours]
             out.append("</ul>")
-        else:
-            out.append('<p class="small">No interference: motion acquisition found no motion that the co-worker '
-                       "delays.</p>")
+        if passing:
+            out += ["<b>Waiting for the co-worker</b>",
+                    '<p class="small">Passing orders that hold an agent back in the earliest schedule.</p>',
+                    '<ul class="motions">']
+            out += [f"<li>{e(fmt_passing(p))}</li>" for p in passing]
+            out.append("</ul>")
+        if not detours and not passing:
+            out.append('<p class="small">No interference: neither agent waits for the other to pass, and no '
+                       "detour is taken.</p>")
         out += ["</div>", "</div>", "</section>"]
     out += ["</main>", "</body>", "</html>"]
     return "\n".join(out) + "\n"

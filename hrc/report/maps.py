@@ -1,9 +1,10 @@
-"""Map of one plan: the workspace, its labelled locations, each agent's route and the interference points.
+"""Map of one plan: the workspace, its labelled locations, each agent's route and where one waits.
 
-Routes are the free-space paths of motion acquisition (`PathLibrary.get(agent, origin, target)`), one
-per travelling leg, drawn in the agent's colour with an arrow at the middle of each leg; the agents'
-routes are offset a few centimetres apart so that shared corridors show both. Each interference point
-is an X labelled with the delayed agent and the seconds it costs. O(path points) artists.
+Routes are the ones the plan's motion pattern takes (`Motion.points`: the shortest route, or a detour,
+drawn dashed), one per travelling leg, in the agent's colour with an arrow at the middle of each leg;
+the agents' routes are offset a few centimetres apart so that shared corridors show both. Each place
+where a passing order holds an agent back in the earliest schedule is an X labelled with who waits, for
+how long and for what (`summary.motion_notes`). O(path points) artists.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from matplotlib.patches import Polygon, Rectangle
 from matplotlib.ticker import MaxNLocator
 
 from hrc.report.figures import agent_color, new_figure
+from hrc.report.summary import motion_notes
 
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
@@ -50,14 +52,13 @@ def draw_workspace(ax: Axes, workspace: Workspace) -> None:
     ax.set_ylabel("y (m)")
 
 
-def route_points(cps: CompiledPlanSet, cp: CompiledPlan, agent: str) -> list[list[tuple[float, float]]]:
-    """The agent's travelled paths in leg order (legs without travel left out)."""
+def route_points(cps: CompiledPlanSet, cp: CompiledPlan, agent: str) -> list[tuple[list[tuple[float, float]], bool]]:
+    """The agent's travelled routes in leg order (legs without travel left out), each with "is a detour"."""
     out = []
     for m in sorted((m for m in cp.motions if m.agent == agent), key=lambda m: m.leg):
-        if m.origin == m.target:
+        if m.origin == m.target or len(m.points) < 2:
             continue
-        path = cps.paths.get(agent, m.origin, m.target)
-        out.append([(float(x), float(y)) for x, y in path.points])
+        out.append(([(float(x), float(y)) for x, y in m.points], bool(m.via)))
     return out
 
 
@@ -104,19 +105,24 @@ def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
     for i, agent in enumerate(task.agents):
         color = agent_color(i)
         shift = (i - (n - 1) / 2) * _OFFSET * 2
-        for pts in route_points(cps, cp, agent.id):
+        any_detour = False
+        for pts, is_detour in route_points(cps, cp, agent.id):
             moved = [(x + shift, y - shift) for x, y in pts]
             xs, ys = zip(*moved, strict=True)
-            added += ax.plot(xs, ys, color=color, linewidth=1.6, alpha=0.85, solid_capstyle="round", zorder=3)
+            added += ax.plot(xs, ys, color=color, linewidth=1.6, alpha=0.85, solid_capstyle="round", zorder=3,
+                             linestyle=(0, (4, 2)) if is_detour else "-")
             added += _midpoint_arrow(ax, moved, color)
+            any_detour = any_detour or is_detour
         handles.append(Line2D([], [], color=color, linewidth=1.6, marker="s", markerfacecolor="none",
                               label=f"{agent.id} route (\u25a1 start)"))
-    # one X per distinct point; a point several interferences share gets one line per interference
+        if any_detour:
+            handles.append(Line2D([], [], color=color, linewidth=1.6, linestyle=(0, (4, 2)),
+                                  label=f"{agent.id} detour"))
+    # one X per distinct point; a point several waits share gets one line per wait
     at: dict[tuple[float, float], list[str]] = {}
-    for m in sorted(cp.motions, key=lambda m: (task.agent_ids.index(m.agent), m.leg)):
-        for inter in m.interference:
-            key = (round(float(inter.point[0]), 2), round(float(inter.point[1]), 2))
-            at.setdefault(key, []).append(f"{m.agent} +{inter.extra_time:.1f} s {inter.kind}")
+    for note in motion_notes(cps, cp)[1]:
+        key = (round(float(note.point[0]), 2), round(float(note.point[1]), 2))
+        at.setdefault(key, []).append(f"{note.waiting} waits {note.wait:.1f} s")
     for (x, y), lines in at.items():
         added += ax.plot([x], [y], marker="X", markersize=11, color="#c62828", markeredgecolor="white", zorder=7)
         added.append(ax.annotate(
@@ -125,8 +131,8 @@ def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
             bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.6}))
     if at:
         handles.append(Line2D([], [], color="#c62828", marker="X", linestyle="none", markersize=9,
-                              label="interference"))
-    added.append(ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles),
+                              label="one waits for the other"))
+    added.append(ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=min(len(handles), 3),
                            fontsize=8, frameon=False, borderaxespad=0.2))
     return added
 

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from hrc.report.summary import (
+    CLASS_MEANING,
+    MODEL_ASSUMPTIONS,
     ReportData,
     allocation_legend,
-    fmt_cause,
+    fmt_detour,
     fmt_idle,
     fmt_makespan,
-    fmt_motion,
+    fmt_motion_marks,
+    fmt_passing,
     fmt_sequence,
     fmt_stnu,
     split_explanation,
@@ -42,8 +45,10 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
         f"- **Seed:** {data.seed}",
         f"- **Deadline:** {'none' if data.deadline is None else f'{data.deadline:g} s'}",
         f"- **Plans:** {total} \u2014 " + ", ".join(f"{c} {n}" for c, n in data.counts),
-        "",
     ]
+    out += [f"- **{k[0].upper()}{k[1:]}:** {v}" for k, v in data.options]
+    out += ["", "**What the classes mean.** " + " ".join(f"**{c}**: {text}" for c, text in CLASS_MEANING), "",
+            MODEL_ASSUMPTIONS, ""]
     if "counts" in figures:
         out += [f"![Plans per class]({figures['counts']})", ""]
     for _, reason in data.empty_reasons:
@@ -56,17 +61,18 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
                                for pid in data.featured), ""]
     out += ["## Ranked plans", "",
             f"Allocation: {allocation_legend(data)}. Makespan: earliest \u2013 worst case. "
-            f"Idle: {' / '.join(agents)}, in the earliest schedule. "
+            f"Idle: {' / '.join(agents)}, in the earliest schedule (waiting counts as idle). "
+            "Motion: \u21b7 robot travels on a detour, \u21c4 passing orders the STNU carries. "
             "STNU: timepoints / requirement links / contingent links.", ""]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
-              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "STNU", "Network"])
+              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion", "STNU", "Network"])
     out += ["| " + " | ".join(header) + " |", "|" + "|".join("---:" if h == "Rank" else "---" for h in header) + "|"]
     for r in data.rows:
         plan = f"[`{r.plan_id}`](#plan-{r.plan_id})" if r.featured else f"`{r.plan_id}`"
         seqs = dict(r.sequences)
         cells = ([str(r.rank), plan, r.plan_class, f"`{r.allocation}`"]
                  + [fmt_sequence(seqs.get(a, ())) for a in agents]
-                 + [fmt_makespan(r.makespan), fmt_idle(r.idle), fmt_stnu(r.stnu_size),
+                 + [fmt_makespan(r.makespan), fmt_idle(r.idle), fmt_motion_marks(r), fmt_stnu(r.stnu_size),
                     f"[graphml]({r.stnu_link})"])
         out.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     out.append("")
@@ -87,17 +93,20 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
         if explanations.get(pid):
             out += _explanation(r.plan_class, explanations[pid])
         if f"gantt_{pid}" in figures:
-            out += [f"![Gantt chart of plan {pid}]({figures[f'gantt_{pid}']})", ""]
+            out += [f"![Gantt chart of plan {pid}, earliest schedule]({figures[f'gantt_{pid}']})", ""]
+            if f"gantt_worst_{pid}" in figures:
+                out += [f"![Gantt chart of plan {pid}, worst case]({figures[f'gantt_worst_{pid}']})", ""]
         else:
-            out += ["*No schedule: not even the lower bounds of the durations fit together.*", ""]
+            out += ["*No schedule: the co-workers would block each other, or the durations cannot fit "
+                    "together even at their shortest.*", ""]
         if f"map_{pid}" in figures:
             out += [f"![Routes of plan {pid}]({figures[f'map_{pid}']})", ""]
-        if notes.get(pid):
-            out += ["**Interference** (the co-worker's motion that delays a motion, and by how much):", ""]
-            for note in notes[pid]:
-                out.append(f"- {fmt_motion(note)}")
-                out += [f"  - {fmt_cause(c)}" for c in note.causes]
-            out.append("")
-        else:
-            out += ["No interference: motion acquisition found no motion that the co-worker delays.", ""]
+        detours, passing = notes.get(pid, ((), ()))
+        if detours:
+            out += ["**Detours:**", ""] + [f"- {fmt_detour(d)}" for d in detours] + [""]
+        if passing:
+            out += ["**Waiting for the co-worker** (passing orders that hold an agent back in the earliest "
+                    "schedule):", ""] + [f"- {fmt_passing(p)}" for p in passing] + [""]
+        if not detours and not passing:
+            out += ["No interference: neither agent waits for the other to pass, and no detour is taken.", ""]
     return "\n".join(out).rstrip("\n") + "\n"

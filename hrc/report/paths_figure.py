@@ -7,11 +7,13 @@ Returns PNG bytes so the caller writes them atomically.
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from hrc.model import Plan, Task
-from hrc.motion.interference import Motion
 from hrc.motion.paths import PathLibrary
+
+if TYPE_CHECKING:
+    from hrc.compile.motion_pattern import PlanChoice
 
 __all__ = ["paths_png"]
 
@@ -19,8 +21,9 @@ _COLOURS = {"human": "tab:blue", "robot": "tab:orange"}
 
 
 def paths_png(task: Task, paths: PathLibrary, plan: Plan | None = None,
-              motions: Sequence[Motion] = (), dpi: int = 110) -> bytes:
-    """PNG of every planned path, or (with `plan`) that plan's two routes and interference points."""
+              choice: PlanChoice | None = None, dpi: int = 110) -> bytes:
+    """PNG of every planned path, or (with `plan` and its motion pattern `choice`) that plan's two routes,
+    detours dashed, and the places where a passing order makes one agent wait."""
     from matplotlib.figure import Figure  # a Figure on its own canvas: no pyplot, no global backend
     from matplotlib.patches import Circle, Polygon, Rectangle
 
@@ -43,28 +46,28 @@ def paths_png(task: Task, paths: PathLibrary, plan: Plan | None = None,
                 ax.plot(xs, ys, color=colours[agent.id], lw=1.2, alpha=0.6,
                         label=f"{agent.id} (clearance {agent.radius + task.safety_margin:g} m)" if first else None)
                 first = False
-    else:
-        title = f"{task.name}: plan {plan.id}"
+    elif choice is not None:
+        title = f"{task.name}: plan {plan.id} ({choice.classification.plan_class.value})"
+        motions = choice.pattern.motions
         for agent in task.agents:
-            mine = [m for m in motions if m.agent == agent.id]
             first = True
-            for m in mine:
-                p = paths.get(agent.id, m.origin, m.target)
-                if len(p.points) < 2:
+            for m in (m for m in motions if m.agent == agent.id):
+                if len(m.points) < 2:
                     continue
-                xs, ys = zip(*p.points, strict=True)
-                ax.plot(xs, ys, color=colours[agent.id], lw=2, alpha=0.8,
+                xs, ys = zip(*m.points, strict=True)
+                ax.plot(xs, ys, color=colours[agent.id], lw=2, alpha=0.8, linestyle="--" if m.via else "-",
                         label=f"{agent.id}: {' '.join(plan.sequence(agent.id)) or '(idle)'}" if first else None)
                 first = False
-                mid = p.points[len(p.points) // 2]
+                mid = m.points[len(m.points) // 2]
                 ax.annotate(str(m.leg), mid, color=colours[agent.id], fontsize=8, ha="center", va="center",
                             bbox={"boxstyle": "circle,pad=0.15", "fc": "white", "ec": colours[agent.id]})
-        for m in motions:
-            for inter in m.interference:
-                ax.plot(*inter.point, marker="X", color="red", ms=11, mec="black")
-                ax.annotate(f"{m.agent} {m.origin}->{m.target} waits {inter.extra_time:.1f} s\n"
-                            f"for {inter.other_agent} {inter.other_origin}->{inter.other_target}",
-                            inter.point, xytext=(6, -14), textcoords="offset points", fontsize=7, color="darkred")
+        from hrc.report.summary import binding_orders
+
+        for o in binding_orders(task, plan, choice.pattern, choice.classification):
+            ax.plot(*o.conflict.point, marker="X", color="red", ms=11, mec="black")
+            waiting, first_one = (("robot", o.conflict.human) if o.first == "human" else ("human", o.conflict.robot))
+            ax.annotate(f"{waiting} waits for {first_one.describe()}", o.conflict.point, xytext=(6, -14),
+                        textcoords="offset points", fontsize=7, color="darkred")
     for loc in ws.locations:
         ax.plot(loc.x, loc.y, "ko", ms=4)
         ax.annotate(loc.id, loc.xy, xytext=(4, 4), textcoords="offset points", fontsize=9, weight="bold")

@@ -9,14 +9,43 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from hrc.compile.temporal_net_creator import ref_timepoint
 from hrc.plans import agent_legs
 
 if TYPE_CHECKING:
+    from hrc.compile.classify import Classification
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+    from hrc.compile.motion_pattern import MotionPattern, PassingOrder
+    from hrc.model import Plan, Task
 
-__all__ = ["FEATURED_TOP", "Cause", "MotionNote", "ReportData", "Row", "agent_letters", "allocation_legend",
-           "build_report_data", "empty_class_reason", "featured_plans", "fmt_cause", "fmt_idle", "fmt_makespan",
-           "fmt_motion", "fmt_sequence", "fmt_stnu", "motion_notes", "split_explanation"]
+__all__ = ["CLASS_MEANING", "FEATURED_TOP", "MODEL_ASSUMPTIONS", "DetourNote", "PassingNote", "ReportData", "Row",
+           "agent_letters", "allocation_legend", "binding_orders", "build_report_data", "empty_class_reason",
+           "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks", "fmt_passing",
+           "fmt_sequence",
+           "fmt_stnu", "motion_notes", "split_explanation"]
+
+CLASS_MEANING = (
+    ("DC", "dynamically controllable: the robot alone meets every constraint (the deadline, the temporal "
+           "constraints and the passing orders that keep the two apart) whatever the human's durations "
+           "within their bounds, deciding as it sees them."),
+    ("consistent", "some timing of the team meets every constraint, but the robot cannot guarantee it alone; "
+                   "the explanation names the human durations that matter."),
+    ("inconsistent", "no timing meets every constraint even with every duration at its best; the plan is "
+                     "kept, ranked last, as the instruction for finishing late."),
+)
+"""What each class promises, in the words both reports use."""
+
+MODEL_ASSUMPTIONS = (
+    "The model behind the classes: the human's walking and manipulation durations are uncertain within "
+    "their bounds (walking up to the travel slack slower than at full speed, at any pace along the way); "
+    "as in the paper, the robot's strategy decides when the human leaves for and starts each step "
+    "(`hrc compile --human-waits no` takes that away: the human then never waits for the robot's sake); "
+    "both wait only at the plan's locations, never in an aisle; the robot drives each route without "
+    "stopping; an agent with nothing left to do steps out of the way; and wherever their routes or places "
+    "come within reach of each other, one of them goes first, in the order the plan fixes (a detour is the "
+    "robot's way round instead)."
+)
+"""The assumptions the classes rest on, in one paragraph."""
 
 FEATURED_TOP = 3
 """The best plans given a section of their own (plus the best of each class)."""
@@ -36,32 +65,33 @@ class Row:
     stnu_size: tuple[int, int, int]
     stnu_link: str
     featured: bool
+    detours: int = 0  # robot travels that take a detour
+    passing: int = 0  # passing orders in the STNU (the plan does not imply them)
 
 
 @dataclass(frozen=True, slots=True)
-class Cause:
-    """A co-worker's motion that costs this motion `extra_time` seconds (kind: wait, detour, ...)."""
-
-    agent: str
-    step: str  # "cube1 fetch": what the co-worker travels to do
-    origin: str
-    target: str
-    extra_time: float
-    kind: str
-    point: tuple[float, float]
-
-
-@dataclass(frozen=True, slots=True)
-class MotionNote:
-    """A motion with interference: one agent's travel `origin -> target` to do `step`."""
+class DetourNote:
+    """The robot's travel `origin -> target` (to do `step`) goes round `round`: `time` instead of `free_time`."""
 
     agent: str
     step: str
     origin: str
     target: str
     free_time: float
-    max_time: float
-    causes: tuple[Cause, ...]
+    time: float
+    round: str
+
+
+@dataclass(frozen=True, slots=True)
+class PassingNote:
+    """A passing order that makes `waiting` stand still for `wait` seconds in the earliest schedule."""
+
+    waiting: str
+    first: str  # the co-worker's occupancy that goes first, in words
+    step: str  # what the waiting agent then goes on to do
+    wait: float
+    point: tuple[float, float]
+    how: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,8 +110,9 @@ class ReportData:
     empty_reasons: tuple[tuple[str, str], ...]  # class -> why no plan is in it
     rows: tuple[Row, ...]
     featured: tuple[str, ...]  # plan ids, rank order
-    notes: tuple[tuple[str, tuple[MotionNote, ...]], ...]  # featured plan id -> interfering motions
+    notes: tuple[tuple[str, tuple[tuple[DetourNote, ...], tuple[PassingNote, ...]]], ...]  # featured id -> notes
     explanations: tuple[tuple[str, str], ...]  # featured plan id -> explanation ("" for DC)
+    options: tuple[tuple[str, str], ...] = ()  # compile options in words
 
 
 def agent_letters(agents: tuple[str, ...]) -> dict[str, str]:
@@ -143,24 +174,53 @@ def _step(action: str, phase: str) -> str:
     return f"{action} {phase}"
 
 
-def motion_notes(cps: CompiledPlanSet, cp: CompiledPlan) -> tuple[MotionNote, ...]:
-    """The plan's motions that the co-worker slows down, with who and by how much (agent, leg order)."""
-    task = cps.task
-    legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, cp.plan, a.id)}
-    notes = []
-    for m in sorted(cp.motions, key=lambda m: (task.agent_ids.index(m.agent), m.leg)):
-        if not m.interference:
-            continue
-        leg = legs[(m.agent, m.leg)]
-        causes = []
-        for i in m.interference:
-            other = legs.get((i.other_agent, i.other_leg))
-            step = _step(other.action, other.phase) if other is not None else f"leg {i.other_leg}"
-            causes.append(Cause(i.other_agent, step, i.other_origin, i.other_target, float(i.extra_time),
-                                str(i.kind), (float(i.point[0]), float(i.point[1]))))
-        notes.append(MotionNote(m.agent, _step(leg.action, leg.phase), m.origin, m.target, float(m.free_time),
-                                float(m.max_time), tuple(causes)))
-    return tuple(notes)
+def binding_orders(task: Task, plan: Plan, pattern: MotionPattern,
+                   classification: Classification) -> tuple[PassingOrder, ...]:
+    """The passing orders that are tight in the earliest schedule: where one agent waits for the other."""
+    times = dict(classification.schedule)
+    out = []
+    for o in pattern.constrained:
+        sep = o.separation
+        a, b = ref_timepoint(task, plan, sep.earlier), ref_timepoint(task, plan, sep.later)
+        if a in times and b in times and times[b] - times[a] - sep.gap <= 0.002:
+            out.append(o)
+    return tuple(out)
+
+
+def _wait_before(task: Task, plan: Plan, times: dict[str, float], agent: str, leg_index: int, what: str) -> float:
+    """How long `agent` stands still just before its leg's `what` event in the schedule `times`."""
+    legs = agent_legs(task, plan, agent)
+    leg = legs[leg_index]
+    if what == "start":
+        return times[f"{agent}.{leg.phase}.{leg.action}.start"] - times[f"{agent}.{leg.phase}.{leg.action}.arrive"]
+    before = 0.0
+    if leg_index > 0:
+        prev = legs[leg_index - 1]
+        before = times[f"{agent}.{prev.phase}.{prev.action}.end"]
+    return times[f"{agent}.{leg.phase}.{leg.action}.depart"] - before
+
+
+def motion_notes(cps: CompiledPlanSet, cp: CompiledPlan) -> tuple[tuple[DetourNote, ...], tuple[PassingNote, ...]]:
+    """The plan's detours, and the passing orders that make an agent wait in the earliest schedule."""
+    task, plan = cps.task, cp.plan
+    legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
+    detours = tuple(
+        DetourNote(m.agent, _step(legs[(m.agent, m.leg)].action, legs[(m.agent, m.leg)].phase), m.origin, m.target,
+                   float(m.free_time), float(m.time), m.via)
+        for m in sorted(cp.motions, key=lambda m: (task.agent_ids.index(m.agent), m.leg)) if m.via)
+    times = dict(cp.classification.schedule)
+    passing = []
+    if times:
+        for o in binding_orders(task, plan, cp.pattern, cp.classification):
+            ref = o.separation.later
+            waiting, other = (o.conflict.robot, o.conflict.human) if o.first == "human" else (o.conflict.human,
+                                                                                               o.conflict.robot)
+            leg = legs[(ref.agent, ref.leg)]
+            what = "start" if ref.what == "start" else "depart"
+            wait = _wait_before(task, plan, times, ref.agent, ref.leg, what)
+            passing.append(PassingNote(waiting.agent, other.describe(), _step(leg.action, leg.phase), wait,
+                                       o.conflict.point, o.how))
+    return detours, tuple(passing)
 
 
 def build_report_data(cps: CompiledPlanSet) -> ReportData:
@@ -174,7 +234,8 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         Row(rank=cp.rank, plan_id=cp.plan.id, plan_class=cp.plan_class.value,
             allocation=" ".join(letters[agent] for _, agent in cp.plan.allocation),
             sequences=cp.plan.sequences, makespan=cp.classification.makespan, idle=cp.classification.idle,
-            stnu_size=cp.stnu_size, stnu_link=f"stnu/{cp.plan.id}.graphml", featured=cp.plan.id in featured_ids)
+            stnu_size=cp.stnu_size, stnu_link=f"stnu/{cp.plan.id}.graphml", featured=cp.plan.id in featured_ids,
+            detours=len(cp.pattern.detours), passing=len(cp.pattern.constrained))
         for cp in cps.plans)
     return ReportData(
         title=f"Compiled schedules for {task.name}",
@@ -191,6 +252,9 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         featured=tuple(cp.plan.id for cp in featured),
         notes=tuple((cp.plan.id, motion_notes(cps, cp)) for cp in featured),
         explanations=tuple((cp.plan.id, cp.classification.explanation) for cp in featured),
+        options=(("human waits", "yes (the robot's strategy times the human's steps)" if cps.options.human_waits
+                  else "no (the human never waits for the robot's sake)"),
+                 ("rank within a class by", f"{cps.options.rank_by} makespan")),
     )
 
 
@@ -215,21 +279,23 @@ def fmt_stnu(size: tuple[int, int, int]) -> str:
     return " / ".join(str(n) for n in size)
 
 
-def fmt_cause(cause: Cause) -> str:
-    """``waits 2.5 s for human H → S1 (cube1 fetch) at (5.0, 5.4)``: what the delayed agent does, why."""
-    who = f"{cause.agent} {cause.origin} \u2192 {cause.target} ({cause.step})"
-    where = f"at ({cause.point[0]:.1f}, {cause.point[1]:.1f})"
-    if cause.kind == "wait":
-        return f"waits {cause.extra_time:.1f} s for {who} {where}"
-    if cause.kind == "detour":
-        return f"detours around {who} {where}: +{cause.extra_time:.1f} s"
-    return f"{cause.kind} because of {who} {where}: +{cause.extra_time:.1f} s"
+def fmt_motion_marks(row: Row) -> str:
+    """``↷1 ⇄6``: detours taken and passing orders carried, or ``—``."""
+    marks = ([f"\u21b7{row.detours}"] if row.detours else []) + ([f"\u21c4{row.passing}"] if row.passing else [])
+    return " ".join(marks) or "\u2014"
 
 
-def fmt_motion(note: MotionNote) -> str:
-    """``robot S3 → T (cube3 put): 9.1 s free, up to 12.3 s``."""
-    return (f"{note.agent} {note.origin} \u2192 {note.target} ({note.step}): {note.free_time:.1f} s free, "
-            f"up to {note.max_time:.1f} s")
+def fmt_detour(note: DetourNote) -> str:
+    """``robot R → S2 (cube2 fetch) goes round human at T: 14.2 s instead of 9.5 s``."""
+    return (f"{note.agent} {note.origin} \u2192 {note.target} ({note.step}) goes round {note.round}: "
+            f"{note.time:.1f} s instead of {note.free_time:.1f} s")
+
+
+def fmt_passing(note: PassingNote) -> str:
+    """``robot waits 3.1 s before cube3 fetch: human S2 → T goes first at (5.0, 5.4)``."""
+    first = note.first.replace("->", " \u2192 ")
+    return (f"{note.waiting} waits {note.wait:.1f} s before {note.step}: {first} goes first at "
+            f"({note.point[0]:.1f}, {note.point[1]:.1f}) ({note.how})")
 
 
 def allocation_legend(data: ReportData) -> str:
