@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from oracles import lp_consistent
+from oracles import lp_consistent, orders_schedulable
 
 from hrc.cli import main
 from hrc.compile.classify import PlanClass
@@ -20,7 +20,8 @@ from hrc.io.task_file import load_task
 from hrc.motion import plan_motions
 from hrc.plans import agent_legs, generate_plans
 from hrc.temporal import check_dc
-from hrc.temporal.graphml import read_network
+from hrc.temporal.graph import distance_edges
+from hrc.temporal.graphml import read_graphml, read_network
 
 ROOT = Path(__file__).resolve().parents[1]
 WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
@@ -51,12 +52,18 @@ def test_ranks_follow_class_then_makespan(compiled):
 
 
 def test_classes_agree_with_independent_checks(task, compiled):
-    """Inconsistent exactly when the LP finds no schedule; DC re-checked from the written GraphML."""
+    """The written STNU is inconsistent exactly when the LP finds no schedule, and an inconsistent plan has
+    no passing order at all that an LP could schedule (a MILP over the orders, on the plan's routes and on
+    the shortest ones); DC re-checked with the second algorithm."""
+    paths = compiled.paths
     for cp in compiled.plans:
-        stnu = create_stnu(task, cp.plan, cp.motions).stnu
+        stnu = read_graphml(cp.graphml.encode())
         assert lp_consistent(stnu, ORIGIN) == (cp.plan_class is not PlanClass.INCONSISTENT), cp.plan.id
-        assert check_dc(stnu).verdict.value == {"DC": "DC", "consistent": "not DC",
-                                                 "inconsistent": "inconsistent"}[cp.plan_class.value]
+        assert check_dc(stnu, "morris2014").verdict.value == {"DC": "DC", "consistent": "not DC",
+                                                               "inconsistent": "inconsistent"}[cp.plan_class.value]
+        if cp.plan_class is PlanClass.INCONSISTENT:
+            for motions in ((), cp.motions):
+                assert not orders_schedulable(task, cp.plan, paths, motions), cp.plan.id
 
 
 def test_stnu_encodes_human_as_contingent_and_robot_as_requirement(task):
@@ -76,6 +83,11 @@ def test_stnu_encodes_human_as_contingent_and_robot_as_requirement(task):
         bounds = task.action(leg.action).phase(leg.phase).duration("robot")
         link = next(r for r in stnu.requirements if (r.source, r.target) == (start, end))
         assert (link.lb, link.ub) == (round(bounds.lb * 1000), round(bounds.ub * 1000))
+        # the robot drives each route without stopping: a rigid travel link of the route's time
+        dep, arr = f"robot.{leg.phase}.{leg.action}.depart", f"robot.{leg.phase}.{leg.action}.arrive"
+        travel = next(r for r in stnu.requirements if (r.source, r.target) == (dep, arr))
+        m = next(m for m in motions if m.agent == "robot" and m.leg == leg.index)
+        assert travel.lb == travel.ub == round(m.time * 1000)
     # deadline on every agent's last end
     deadlines = [r for r in stnu.requirements if r.source == ORIGIN and r.ub is not None]
     assert {r.ub for r in deadlines} == {round(task.deadline * 1000)} and len(deadlines) == 2
@@ -83,6 +95,9 @@ def test_stnu_encodes_human_as_contingent_and_robot_as_requirement(task):
 
 def test_makespan_bounds_are_ordered_and_deadline_separates_classes(task, compiled):
     for cp in compiled.plans:
+        if cp.classification.makespan is None:  # the co-workers would block each other whatever they do
+            assert cp.plan_class is PlanClass.INCONSISTENT
+            continue
         lo, hi = cp.classification.makespan
         assert 0 < lo <= hi
         if cp.plan_class is PlanClass.INCONSISTENT:
@@ -99,14 +114,22 @@ def test_cli_compile_writes_checkable_stnus(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["compile", str(WORKSHOP), "--out", str(out), "--jobs", "1", "--no-report", "-q"]) == 0
     data = json.loads((out / "compiled.json").read_text())
-    assert data["schema_version"] == 1 and data["seed"] == 0 and len(data["plans"]) == 32
+    assert data["schema_version"] == 2 and data["seed"] == 0 and len(data["plans"]) == 32
+    assert data["options"] == {"human_waits": True, "rank_by": "worst"}
     for plan in data["plans"]:
         stnu = read_network(out / plan["stnu"])
         verdict = check_dc(stnu).verdict.value
         assert {"DC": "DC", "not DC": "consistent", "inconsistent": "inconsistent"}[verdict] == plan["class"]
         for m in plan["motions"]:
-            assert m["max_time"] >= m["free_time"] >= 0
-            assert set(m) >= {"agent", "from", "to", "free_time", "max_time", "interference"}
+            assert m["time"] >= m["free_time"] >= 0
+            assert (m["detour"] is not None or m["park"] is not None) == (m["time"] > m["free_time"])
+            assert set(m) >= {"agent", "from", "to", "free_time", "time", "detour"}
+        edges: dict[tuple[str, str], list[int]] = {}
+        for e in distance_edges(stnu):
+            edges.setdefault((e.source, e.target), []).append(e.value)
+        for p in plan["passing"]:  # every listed passing order is an edge of the written STNU
+            c = p["constraint"]  # T(to) - T(from) >= min: an edge to -> from of weight -min (ticks)
+            assert any(abs(w + c["min"] * 1000) <= 1 for w in edges[(c["to"], c["from"])]), p
         assert math.isclose(sum(1 for _ in plan["allocation"]), 5)
 
 
@@ -167,7 +190,7 @@ def test_travel_slack_widens_only_the_human_travel(task):
     motions = plan_motions(task, plan, plan_paths(task, seed=0))
     slower = replace(task, agents=tuple(replace(a, travel_slack=2.0) for a in task.agents))
     base, wide = create_stnu(task, plan, motions).stnu, create_stnu(slower, plan, motions).stnu
-    moving = {(m.agent, m.leg): m for m in motions if m.max_time > 0}
+    moving = {(m.agent, m.leg): m for m in motions if m.time > 0}
     checked = 0
     for leg in agent_legs(task, plan, "human"):
         m = moving.get(("human", leg.index))
@@ -177,7 +200,7 @@ def test_travel_slack_widens_only_the_human_travel(task):
         b = next(c for c in base.contingents if (c.source, c.target) == (dep, arr))
         w = next(c for c in wide.contingents if (c.source, c.target) == (dep, arr))
         assert b.lb == w.lb == math.floor(m.free_time * 1000 + 1e-9)
-        assert b.ub == math.ceil(m.max_time * 1.25 * 1000 - 1e-9) and w.ub == math.ceil(m.max_time * 2000 - 1e-9)
+        assert b.ub == math.ceil(m.time * 1.25 * 1000 - 1e-9) and w.ub == math.ceil(m.time * 2000 - 1e-9)
         checked += 1
     assert checked
     assert base.requirements == wide.requirements

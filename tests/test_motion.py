@@ -217,7 +217,7 @@ def test_cli_text_png_and_plan(tmp_path: FsPath, capsys: pytest.CaptureFixture[s
     out = tmp_path / "fig" / "paths.png"
     assert main(["paths", str(TASK), "--out", str(out), "--plan", plan.id]) == 0
     text = capsys.readouterr().out
-    assert text.startswith("agent") and f"plan {plan.id}" in text and "wait" in text
+    assert text.startswith("agent") and f"plan {plan.id}" in text and "passing order" in text
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["paths", str(TASK), "--plan", "nope"]) == 2
     assert capsys.readouterr().err.startswith("error: ")

@@ -1,10 +1,10 @@
 """The report writer on a synthetic compiled set of the workshop task (no motion planning, no DC check).
 
-The set is real `CompiledPlanSet` / `CompiledPlan` / `Classification` values; only the motions and the
-path library are stand-ins (straight lines, a made-up interference), and each plan's schedule is a
-simple ASAP pass over its phase graph. Then: the files exist, the HTML parses and every image it names
-exists, the ranked table lists every plan in rank order, the counts agree, and two runs give the same
-bytes.
+The set is real `CompiledPlanSet` / `CompiledPlan` / `Classification` / `MotionPattern` values; only the
+routes are stand-ins (straight lines, a made-up detour and a made-up passing order), and each plan's
+schedule is a simple ASAP pass over its phase graph. Then: the files exist, the HTML parses and every
+image it names exists, the ranked table lists every plan in rank order, the counts agree, and two runs
+give the same bytes.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -21,45 +21,17 @@ import pytest
 
 from hrc.compile.classify import Classification, PlanClass
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, rank_key
+from hrc.compile.motion_pattern import MotionPattern, PassingOrder
+from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.io.task_file import load_task
 from hrc.model import Plan, Task
+from hrc.motion import Conflict, Motion, Occupancy, Separation, TimeRef
+from hrc.motion.paths import Path as Path_
 from hrc.plans import agent_legs, generate_plans, phase_graph
 from hrc.report import FORMATS, write_report
 from hrc.report.summary import agent_letters, empty_class_reason, featured_plans, split_explanation
 
 WORKSHOP_TASK = Path(__file__).resolve().parents[1] / "tasks" / "cube_stacking.yaml"
-
-
-@dataclass(frozen=True, slots=True)
-class FakePath:
-    agent: str
-    origin: str
-    target: str
-    points: tuple[tuple[float, float], ...]
-    length: float
-    duration: float
-
-
-@dataclass(frozen=True, slots=True)
-class FakeInterference:
-    other_agent: str
-    other_leg: int
-    other_origin: str
-    other_target: str
-    extra_time: float
-    kind: str
-    point: tuple[float, float]
-
-
-@dataclass(frozen=True, slots=True)
-class FakeMotion:
-    agent: str
-    leg: int
-    origin: str
-    target: str
-    free_time: float
-    max_time: float
-    interference: tuple[FakeInterference, ...]
 
 
 class FakePaths:
@@ -68,35 +40,33 @@ class FakePaths:
     def __init__(self, task: Task) -> None:
         self.task = task
 
-    def get(self, agent: str, origin: str, target: str) -> FakePath:
+    def get(self, agent: str, origin: str, target: str) -> Path_:
         ws = self.task.workspace
         a, b = ws.location(origin).xy, ws.location(target).xy
         length = math.dist(a, b)
-        return FakePath(agent, origin, target, (a, ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2 + 0.3), b), length,
-                        length / self.task.agent(agent).speed)
+        return Path_(agent, origin, target, (a, ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2 + 0.3), b), length,
+                     length / self.task.agent(agent).speed)
 
 
-def _motions(task: Task, plan: Plan, paths: FakePaths) -> tuple[FakeMotion, ...]:
+def _motions(task: Task, plan: Plan, paths: FakePaths) -> tuple[Motion, ...]:
+    """Straight routes; the robot's trips up to the storages S1-S3 are made-up detours (+4 s)."""
     out = []
-    human_legs = agent_legs(task, plan, "human")
     for agent in task.agent_ids:
         for leg in agent_legs(task, plan, agent):
-            t = 0.0 if leg.origin == leg.location else paths.get(agent, leg.origin, leg.location).duration
-            inter: tuple[FakeInterference, ...] = ()
-            # a made-up conflict: the robot going up through the passage while the human's first leg is
-            if agent == "robot" and leg.location in ("S1", "S2", "S3") and human_legs:
-                h = human_legs[0]
-                inter = (FakeInterference("human", 0, h.origin, h.location, 2.5, "wait", (4.95, 5.4)),)
-            out.append(FakeMotion(agent, leg.index, leg.origin, leg.location, t,
-                                  t + sum(i.extra_time for i in inter), inter))
+            p = paths.get(agent, leg.origin, leg.location)
+            t = 0.0 if leg.origin == leg.location else p.duration
+            detour = agent == "robot" and leg.location in ("S1", "S2", "S3") and leg.origin != leg.location
+            points = p.points if not detour else (p.points[0], (9.2, 4.5), p.points[-1])
+            out.append(Motion(agent, leg.index, leg.origin, leg.location, t, t + (4.0 if detour else 0.0),
+                              "human at T" if detour else "", points))
     return tuple(out)
 
 
-def _schedule(task: Task, plan: Plan, motions: tuple[FakeMotion, ...], slow: bool) -> dict[str, float]:
+def _schedule(task: Task, plan: Plan, motions: tuple[Motion, ...], slow: bool) -> dict[str, float]:
     """ASAP over the phase graph: travel then manipulation per leg (lower or upper duration bounds)."""
     legs = {f"{leg.action}.{leg.phase}": leg for a in task.agent_ids for leg in agent_legs(task, plan, a)}
-    travel = {(m.agent, m.leg): (m.max_time if m.agent == "robot" or slow else m.free_time) for m in motions}
-    times: dict[str, float] = {"start": 0.0}
+    travel = {(m.agent, m.leg): (m.time * (1.25 if slow and m.agent == "human" else 1.0)) for m in motions}
+    times: dict[str, float] = {ORIGIN: 0.0}
     g = phase_graph(task, plan)
     for node in nx.topological_sort(g):
         leg = legs[node]
@@ -111,6 +81,21 @@ def _schedule(task: Task, plan: Plan, motions: tuple[FakeMotion, ...], slow: boo
         times.update({f"{prefix}.depart": dep, f"{prefix}.arrive": arr, f"{prefix}.start": st,
                       f"{prefix}.end": st + (bounds.ub if slow else bounds.lb)})
     return times
+
+
+def _orders(task: Task, plan: Plan, times: dict[str, float]) -> tuple[PassingOrder, ...]:
+    """A made-up passing order, tight in `times`: the robot's first travel after the human's first one."""
+    human, robot = agent_legs(task, plan, "human"), agent_legs(task, plan, "robot")
+    if not human or not robot or robot[0].origin == robot[0].location:
+        return ()
+    h_arr, r_dep = TimeRef("human", 0, "arrive"), TimeRef("robot", 0, "depart")
+    gap = times[f"robot.{robot[0].phase}.{robot[0].action}.depart"] - times[
+        f"human.{human[0].phase}.{human[0].action}.arrive"]
+    h_occ = Occupancy("human", "travel", 0, human[0].location, human[0].origin, TimeRef("human", 0, "depart"), h_arr)
+    r_occ = Occupancy("robot", "travel", 0, robot[0].location, robot[0].origin, r_dep, TimeRef("robot", 0, "arrive"))
+    conflict = Conflict(r_occ, h_occ, 0, Separation(r_dep, TimeRef("human", 0, "depart"), 99.0),
+                        Separation(h_arr, r_dep, gap), (4.95, 5.4), ((4.95, 5.4),))
+    return (PassingOrder(conflict, "human", "chosen"),)
 
 
 def synthetic_set(deadline_dc: float = 55.0, deadline: float = 80.0) -> CompiledPlanSet:
@@ -137,8 +122,9 @@ def synthetic_set(deadline_dc: float = 55.0, deadline: float = 80.0) -> Compiled
             busy += sum(early[k] - early[k.rsplit(".", 1)[0] + ".start"] for k in early
                         if k.startswith(agent + ".") and k.endswith(".end"))
             idle.append((agent, makespan[0] - busy))
-        c = Classification(cls, why, makespan, tuple(idle), tuple(early.items()))
-        compiled.append(CompiledPlan(plan=plan, motions=motions, classification=c, stnu_size=(len(early), 50, 8),
+        c = Classification(cls, why, makespan, tuple(idle), tuple(early.items()), tuple(late.items()))
+        pattern = MotionPattern(motions, _orders(task, plan, early), 1, True)
+        compiled.append(CompiledPlan(plan=plan, pattern=pattern, classification=c, stnu_size=(len(early), 50, 8),
                                      graphml="<graphml/>"))
     compiled.sort(key=rank_key)
     ranked = tuple(replace(cp, rank=i + 1) for i, cp in enumerate(compiled))
@@ -218,7 +204,7 @@ def test_files_exist(cps: CompiledPlanSet, report_dir: Path) -> None:
         for kind in ("gantt", "map"):
             assert (report_dir / "figures" / f"{kind}_{cp.plan.id}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     pngs = sorted(p.name for p in (report_dir / "figures").iterdir())
-    assert len(pngs) == 1 + 2 * len(featured)  # not one figure per plan
+    assert len(pngs) == 1 + 3 * len(featured)  # not one figure per plan: Gantt (earliest, worst) and map
 
 
 def test_featured_are_best_three_and_best_of_each_class(cps: CompiledPlanSet) -> None:
@@ -276,8 +262,12 @@ def test_counts_match(cps: CompiledPlanSet, report_dir: Path) -> None:
 def test_interference_and_explanations_reported(cps: CompiledPlanSet, report_dir: Path) -> None:
     md = (report_dir / "report.md").read_text(encoding="utf-8")
     html = (report_dir / "report.html").read_text(encoding="utf-8")
-    expected = "waits 2.5 s for human H \u2192 S"
-    assert expected in md and expected in html and "at (5.0, 5.4)" in md
+    expected = "goes first at (5.0, 5.4) (chosen)"
+    assert "robot waits" in md and expected in md and expected in html
+    assert "goes round human at T" in md and "goes round human at T" in html
+    assert "What the classes mean" in md and "What the classes mean" in html
+    # the ranked table marks detours and passing orders
+    assert re.search(r"\| \u21b7\d+ \u21c4\d+ \|", md)
     worst = next(cp for cp in cps.plans if cp.plan_class is PlanClass.INCONSISTENT)
     verdict, key, links = split_explanation(worst.classification.explanation)
     assert (verdict, key, links) == ("no schedule meets every constraint", ("makespan deadline 80 s",),
@@ -345,7 +335,7 @@ def test_workshop_report(workshop_dir: tuple[CompiledPlanSet, Path], tmp_path: P
     assert [r[1] for r in html.rows] == [cp.plan.id for cp in cps.plans]
     assert all((out / src).is_file() for src in html.images)
     featured = featured_plans(cps)
-    assert len(list((out / "figures").iterdir())) == 1 + 2 * len(featured)
+    assert len(list((out / "figures").iterdir())) == 1 + 3 * len(featured)
     from hrc.report.gantt import gantt_bars
 
     for cp in featured:
@@ -405,6 +395,9 @@ def test_reused_figures_match_fresh_ones(cps: CompiledPlanSet, report_dir: Path,
 
     for cp in featured_plans(cps)[1:]:  # later plans: drawn over removed artists of earlier ones
         save_png(gantt_figure(cps.task, cp), tmp_path / "g.png")
+        save_png(gantt_figure(cps.task, cp, "worst"), tmp_path / "w.png")
         save_png(map_figure(cps, cp), tmp_path / "m.png")
         assert (tmp_path / "g.png").read_bytes() == (report_dir / "figures" / f"gantt_{cp.plan.id}.png").read_bytes()
+        assert (tmp_path / "w.png").read_bytes() == (report_dir / "figures" /
+                                                     f"gantt_worst_{cp.plan.id}.png").read_bytes()
         assert (tmp_path / "m.png").read_bytes() == (report_dir / "figures" / f"map_{cp.plan.id}.png").read_bytes()

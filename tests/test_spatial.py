@@ -1,0 +1,186 @@
+"""Sound spatial constraints (issue 8): classes that are guarantees, checked by an independent referee.
+
+Small hand-made tasks (tests/data/spatial/) where the truth is easy to see, and the workshop:
+
+- one action each at one shared spot: whoever works there, the other keeps away;
+- a human who blocks the only passage: one of the two passes first;
+- a detour that beats waiting: the robot goes round the human working in front of the short passage.
+
+The referee (tests/referee.py) does not use the compiler's conflict model: it dispatches a DC plan's STNU
+with its real-time execution strategy under sampled human durations (bounds, random) and paces, moves
+both discs along the routes, and checks the distance and every task constraint; and it searches space
+and time on a grid for any schedule at all, to check that the compiler never calls a plan inconsistent
+(or slower than it is) when the team could do better.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from referee import broken_constraints, closest_approach, dispatch, earliest_completion
+
+from hrc.compile.classify import PlanClass
+from hrc.compile.compiler import CompileOptions, compile_task
+from hrc.compile.motion_pattern import choose_pattern
+from hrc.io.task_file import load_task
+from hrc.model import Task
+from hrc.temporal.graphml import read_graphml
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data" / "spatial"
+HAND_MADE = ("shared_spot", "passage", "detour")
+
+
+@pytest.fixture(scope="module")
+def compiled() -> dict:
+    out = {}
+    for name in HAND_MADE:
+        task = load_task(DATA / f"{name}.yaml")
+        out[name] = compile_task(task, seed=0, jobs=1)
+    return out
+
+
+def _reach(task: Task) -> float:
+    return sum(a.radius for a in task.agents) + task.safety_margin
+
+
+def _runs(cps, plans, runs: int, seed: int = 0):  # noqa: ANN001, ANN202
+    """Dispatched runs of DC plans: nature's durations at the bounds or random; the strategy's ticks at
+    the start, the end or anywhere in its windows; the human at each pace profile."""
+    rng = random.Random(seed)
+    picks = [lambda e, hi: e, lambda e, hi: e if hi is None else hi,
+             lambda e, hi: rng.randint(e, e + 3000 if hi is None else hi)]
+    for cp in plans:
+        stnu = read_graphml(cp.graphml.encode())
+        for run in range(runs):
+            durations = {c.target: rng.choice([c.lb, c.ub, rng.randint(c.lb, c.ub)]) for c in stnu.contingents}
+            times = dispatch(stnu, durations, picks[run % len(picks)])
+            yield cp, {k: v / 1000 for k, v in times.items()}
+
+
+def _check_runs(cps, plans, runs: int) -> int:  # noqa: ANN001
+    task = cps.task
+    checked = 0
+    for cp, times in _runs(cps, plans, runs):
+        assert broken_constraints(task, cp.plan, times) == [], cp.plan.id
+        for pace in ("even", "rush", "dawdle"):
+            distance, when = closest_approach(task, cp.plan, cp.motions, times, pace)
+            assert distance >= _reach(task) - 1e-3, (cp.plan.id, pace, distance, when)
+        checked += 1
+    return checked
+
+
+def test_shared_spot_is_taken_in_turns(compiled: dict) -> None:
+    """Where each agent has an action at X, the plan orders them there: one passing order per pair of
+    occupancies of X, and the two discs never closer than reach in any dispatched run."""
+    cps = compiled["shared_spot"]
+    split = [cp for cp in cps.plans if cp.plan.sequence("human") and cp.plan.sequence("robot")]
+    assert len(split) == 2 and len(cps.plans) == 6
+    for cp in split:
+        stays = [o for o in cp.pattern.constrained if o.conflict.robot.kind == o.conflict.human.kind == "stay"]
+        assert stays, "the two stays at X must be ordered"
+    assert _check_runs(cps, [cp for cp in cps.plans if cp.plan_class is PlanClass.DC], 3) >= 18
+
+
+def test_one_passes_the_passage_first(compiled: dict) -> None:
+    cps = compiled["passage"]
+    (cp,) = cps.plans
+    chosen = [o for o in cp.pattern.constrained if o.how == "chosen"]
+    assert chosen and chosen[0].conflict.robot.kind == chosen[0].conflict.human.kind == "travel"
+    assert cp.plan_class is PlanClass.DC
+    assert _check_runs(cps, [cp], 6) == 6
+
+
+def test_human_who_never_waits_makes_the_robot_wait(compiled: dict) -> None:
+    """--human-waits no: the human leaves at once, so only the robot can give way in the passage."""
+    task = compiled["passage"].task
+    strict = compile_task(task, seed=0, jobs=1, options=CompileOptions(human_waits=False))
+    (cp,) = strict.plans
+    travels = [o for o in cp.pattern.constrained if o.conflict.robot.kind == o.conflict.human.kind == "travel"]
+    assert travels and all(o.first == "human" for o in travels)
+    assert _check_runs(strict, [cp], 3) == 3
+
+
+def test_a_detour_beats_waiting(compiled: dict) -> None:
+    """The human works 20-24 s in front of the short passage: the robot goes round through the east gap,
+    which is longer than its shortest route but faster than waiting (in the worst case)."""
+    cps = compiled["detour"]
+    (cp,) = cps.plans
+    (robot,) = [m for m in cp.motions if m.agent == "robot"]
+    assert robot.via and robot.time > robot.free_time + 5
+    assert max(x for x, _ in robot.points) > 9.0  # through the east gap
+    waiting = choose_pattern(cps.task, cp.plan, cps.paths, rank_by="earliest")  # the other way to rank
+    assert not any(m.via for m in waiting.pattern.motions)  # at its earliest, letting the human wait wins
+    assert cp.classification.makespan[1] < waiting.classification.makespan[1]
+    assert _check_runs(cps, [cp], 3) == 3
+
+
+@pytest.mark.parametrize("name", HAND_MADE)
+def test_no_schedule_is_missed(compiled: dict, name: str) -> None:
+    """The referee's earliest completion (shortest routes, waits at the locations, discs apart on a 20 ms
+    grid with no margin beyond reach) is never earlier than the compiler's earliest makespan by more than
+    0.1 s: a deadline the team can meet is never called impossible (up to that precision)."""
+    cps = compiled[name]
+    for cp in cps.plans:
+        best = choose_pattern(cps.task, cp.plan, cps.paths, rank_by="earliest").classification.makespan
+        truth = earliest_completion(cps.task, cp.plan, cps.paths, tolerance=0.0)
+        assert truth is not None and best is not None
+        assert best[0] <= truth + 0.1, (cp.plan.id, best, truth)
+
+
+@pytest.mark.parametrize("name", HAND_MADE)
+def test_deadlines_around_the_truth(compiled: dict, name: str) -> None:
+    """With the deadline just under the referee's earliest completion no plan is consistent; just above
+    the compiler's earliest makespan, the plan is at least consistent."""
+    cps = compiled[name]
+    task = cps.task
+    for cp in cps.plans:
+        truth = earliest_completion(task, cp.plan, cps.paths, tolerance=0.05)
+        assert truth is not None
+        tight = replace(task, deadline=round(truth - 0.3, 3))
+        assert choose_pattern(tight, cp.plan, cps.paths).classification.plan_class is PlanClass.INCONSISTENT
+        best = choose_pattern(task, cp.plan, cps.paths, rank_by="earliest").classification.makespan
+        loose = replace(task, deadline=round(best[0] + 0.05, 3))
+        assert choose_pattern(loose, cp.plan, cps.paths).classification.plan_class is not PlanClass.INCONSISTENT
+
+
+@pytest.fixture(scope="module")
+def workshop():
+    task = load_task(ROOT / "tasks" / "cube_stacking.yaml")
+    return compile_task(task, seed=0, jobs=1)
+
+
+def test_workshop_dc_plans_are_guarantees(workshop) -> None:  # noqa: ANN001
+    """The three best DC plans of the workshop, dispatched under sampled human timings (the full sweep
+    over every DC plan is the slow test below)."""
+    dc = [cp for cp in workshop.plans if cp.plan_class is PlanClass.DC]
+    assert len(dc) >= 3
+    assert _check_runs(workshop, dc[:3], 2) == 6
+
+
+@pytest.mark.slow
+def test_workshop_every_dc_plan_is_a_guarantee(workshop) -> None:  # noqa: ANN001
+    dc = [cp for cp in workshop.plans if cp.plan_class is PlanClass.DC]
+    assert _check_runs(workshop, dc, 9) == 9 * len(dc)
+
+
+def test_workshop_uses_a_detour_and_reports_it(workshop, tmp_path) -> None:  # noqa: ANN001
+    from hrc.report import write_report
+
+    detoured = [cp for cp in workshop.plans if any(m.via for m in cp.motions)]
+    assert detoured, "the workshop's robot should go round the human somewhere"
+    write_report(workshop, tmp_path)
+    md = (tmp_path / "report.md").read_text("utf-8")
+    assert "goes round" in md and "\u21b7" in md
+
+
+@pytest.mark.slow
+def test_workshop_inconsistent_plans_have_no_schedule(workshop) -> None:  # noqa: ANN001
+    """Every workshop plan called inconsistent: the referee finds no way to meet the deadline either."""
+    for cp in workshop.plans:
+        if cp.plan_class is PlanClass.INCONSISTENT:
+            done = earliest_completion(workshop.task, cp.plan, workshop.paths, dt=0.05, tolerance=0.0)
+            assert done is None or done > workshop.task.deadline - 0.1, (cp.plan.id, done)
