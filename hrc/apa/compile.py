@@ -6,8 +6,10 @@ The paper's steps and what this module does for each:
 1-2. APSP of the STP, then prune redundant edges: the APSP exposes implicit constraints, the pruned
      network is handed to the solver. Here the solver gets the original interval constraints, which
      have the same feasible set and (measured, docs/apa.md) 4-8 times fewer rows than the pruned APSP
-     network; consistency and each event's window come from one Bellman-Ford pass and two Dijkstra
-     runs (Johnson's reweighting), so no n x n matrix is built. `prune_report` does lines 1-2 as the
+     network; consistency is the QP's feasibility (an infeasible QP is confirmed, and its negative
+     cycle found, by exact Bellman-Ford), and each event's window comes from two Dijkstra runs on
+     weights made non-negative by an exact schedule (Johnson's reweighting), so no n x n matrix is
+     built. `prune_report` does lines 1-2 as the
      paper does (APSP, then MMT 1998 dominance pruning) to report how many edges pruning removes.
 3.   Solve the QP (`hrc.apa.qp`: piqp, or clarabel as the cross-check).
 4-9. Tighten every preferred interval to its optimal value. **Tolerance**: the temporal core is exact
@@ -85,12 +87,31 @@ def _edge_arrays(stnu: STNU) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return src, dst, w
 
 
-def _potential(stnu: STNU) -> tuple[np.ndarray | None, tuple[str, ...]]:
-    """A feasible schedule (ticks) of `stnu`, or None and the events of a negative cycle."""
-    potential, cycle = find_negative_cycle(stnu.timepoints, distance_edges(stnu))
-    if cycle:
-        return None, tuple(e.source for e in cycle)
-    return np.array([potential[v] for v in stnu.timepoints], dtype=np.float64), ()
+def _cycle(stnu: STNU) -> tuple[str, ...]:
+    """The events of a negative cycle of `stnu` (exact Bellman-Ford), or ``()`` if it is consistent."""
+    _, cycle = find_negative_cycle(stnu.timepoints, distance_edges(stnu))
+    return tuple(e.source for e in cycle)
+
+
+def _repair(stnu: STNU, start: np.ndarray) -> np.ndarray | None:
+    """A feasible schedule (ticks) of `stnu` grown from the nearly feasible `start` (the QP's optimum
+    floored to ticks), or None if `stnu` has a negative cycle.
+
+    Bellman-Ford relaxation from arbitrary finite labels converges to labels with
+    ``p[v] - p[u] <= w`` for every edge iff there is no negative cycle; each pass here touches only the
+    violated edges, and floored optimal times violate almost none (if ``x`` meets integer difference
+    bounds exactly, so does ``floor(x)``), so a few passes suffice where a cold start takes ``O(n m)``.
+    """
+    n = len(stnu.timepoints)
+    src, dst, w = _edge_arrays(stnu)
+    p = start.astype(np.float64).copy()
+    for _ in range(n + 1):
+        cand = p[src] + w
+        bad = cand < p[dst]
+        if not bad.any():
+            return p
+        np.minimum.at(p, dst[bad], cand[bad])
+    return None
 
 
 def _distances(n: int, src: np.ndarray, dst: np.ndarray, w: np.ndarray, p: np.ndarray, ref: int,
@@ -217,8 +238,8 @@ def _tighten(stpp: STPP, stnu: STNU, x: np.ndarray, tps: int, widen: int) -> tup
 def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TICKS_PER_SECOND) -> CompileResult:
     """APACompilePlan (Fig. 5; see the module docstring for each step and the tolerance).
 
-    Cost: one Bellman-Ford pass (near-linear on plan-like networks), four Dijkstra runs, and the QP
-    (piqp: sparse interior point). Raises `ApaError` if the solver fails. An inconsistent STPP is a
+    Cost: the QP (piqp: sparse interior point; its factorisations dominate), a few vectorised
+    Bellman-Ford passes to make its optimum an exact schedule, and four Dijkstra runs. Raises `ApaError` if the solver fails. An inconsistent STPP is a
     result (``consistent=False``), not an exception.
 
     >>> from hrc.apa.model import Constraint as C, PreferenceFunction as F
@@ -237,17 +258,26 @@ def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TI
         clock = now
 
     stnu = stpp_network(stpp, tps)
-    p, cycle = _potential(stnu)
-    if p is None:
-        return CompileResult(stpp, tps, False, cycle)
-    original = _windows(stnu, p, 0)
+    qp = _build_qp(stpp, stnu, tps)
     lap("stp")
-    x = solve_qp(_build_qp(stpp, stnu, tps), solver)
+    try:
+        x = solve_qp(qp, solver)
+    except ApaError:
+        cycle = _cycle(stnu)  # an infeasible QP is an inconsistent STP: say where
+        if cycle:
+            return CompileResult(stpp, tps, False, cycle)
+        raise
     value = stpp.value(dict(zip(stpp.events, x.tolist(), strict=True)))
     lap("qp")
+    start = np.floor((x - x[0]) * tps + 1e-6)
+    p = _repair(stnu, start)
+    if p is None:  # the solver called an inconsistent problem solved
+        return CompileResult(stpp, tps, False, _cycle(stnu))
+    original = _windows(stnu, p, 0)
+    lap("original_windows")
     for widen in range(4):
         do_net, tolerance = _tighten(stpp, stnu, x, tps, widen)
-        q, _ = _potential(do_net)
+        q = _repair(do_net, start)
         if q is not None:
             break
     else:

@@ -185,3 +185,16 @@ class STPP:
         type's preference set is put on a plan (`hrc.apa.workers`)."""
         return STPP(self.events, (*self.without_preferences().constraints, *preferences), self.name)
 
+
+    def with_commitments(self, executed: Mapping[str, float], now: float | None = None) -> STPP:
+        """Fig. 8 line 7: past intervals replaced by rigid links. Every executed event (event ->
+        seconds) is tied rigidly to the first one executed, and, with `now`, every other event comes no
+        earlier than `now`. Constraints between executed events are kept (they hold already)."""
+        if not executed:
+            return self
+        first = min(executed, key=lambda e: (executed[e], self.index(e)))
+        t0 = executed[first]
+        extra = [Constraint(first, e, t - t0, t - t0) for e, t in executed.items() if e != first]
+        if now is not None:
+            extra += [Constraint(first, e, now - t0, math.inf) for e in self.events if e not in executed]
+        return STPP(self.events, (*self.constraints, *extra), self.name)
