@@ -95,12 +95,13 @@ def _cycle(stnu: STNU) -> tuple[str, ...]:
 
 def _repair(stnu: STNU, start: np.ndarray) -> np.ndarray | None:
     """A feasible schedule (ticks) of `stnu` grown from the nearly feasible `start` (the QP's optimum
-    floored to ticks), or None if `stnu` has a negative cycle.
+    rounded to ticks), or None if `stnu` has a negative cycle.
 
     Bellman-Ford relaxation from arbitrary finite labels converges to labels with
     ``p[v] - p[u] <= w`` for every edge iff there is no negative cycle; each pass here touches only the
-    violated edges, and floored optimal times violate almost none (if ``x`` meets integer difference
-    bounds exactly, so does ``floor(x)``), so a few passes suffice where a cold start takes ``O(n m)``.
+    violated edges, and rounded optimal times violate almost none (if ``x`` meets integer difference
+    bounds exactly, so does ``floor(x)``; ``x`` is off by ~1e-10 s), so a few passes suffice where a
+    cold start takes ``O(n m)``.
     """
     n = len(stnu.timepoints)
     src, dst, w = _edge_arrays(stnu)
@@ -269,7 +270,7 @@ def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TI
         raise
     value = stpp.value(dict(zip(stpp.events, x.tolist(), strict=True)))
     lap("qp")
-    start = np.floor((x - x[0]) * tps + 1e-6)
+    start = np.round((x - x[0]) * tps)
     p = _repair(stnu, start)
     if p is None:  # the solver called an inconsistent problem solved
         return CompileResult(stpp, tps, False, _cycle(stnu))
@@ -336,7 +337,7 @@ def prune_report(stpp: STPP, ticks_per_second: int = TICKS_PER_SECOND) -> PruneR
     """APSP then dominance pruning of the original STP, as Fig. 5 lines 1-2 do, counted. Dense:
     O(n^3) time, O(n^2) memory; raises `ApaError` when the STPP is inconsistent."""
     stnu = stpp_network(stpp, ticks_per_second)
-    if _potential(stnu)[0] is None:
+    if _cycle(stnu):
         raise ApaError("an inconsistent STPP has no APSP form")
     d = all_pairs_shortest_paths(stnu)
     finite = np.isfinite(d.astype(float))
