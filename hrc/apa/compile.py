@@ -240,8 +240,9 @@ def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TI
     """APACompilePlan (Fig. 5; see the module docstring for each step and the tolerance).
 
     Cost: the QP (piqp: sparse interior point; its factorisations dominate), a few vectorised
-    Bellman-Ford passes to make its optimum an exact schedule, and four Dijkstra runs. Raises `ApaError` if the solver fails. An inconsistent STPP is a
-    result (``consistent=False``), not an exception.
+    Bellman-Ford passes to make its optimum an exact schedule, and four Dijkstra runs. Raises
+    `ApaError` if the solver fails. An inconsistent STPP is a result (``consistent=False``), not an
+    exception.
 
     >>> from hrc.apa.model import Constraint as C, PreferenceFunction as F
     >>> r = compile_stpp(STPP(("a", "b"), (C("a", "b", 0, 8, F.quadratic(0, 8, -1)),)))

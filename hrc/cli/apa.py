@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
           f"{len(stpp.preferred)} preferences")
     print(f"optimal global preference value: {result.value:.9g} (every DO schedule within "
           f"{result.value_tolerance:.3g})")
-    print(f"flexibility kept by the DO form: {100 * result.flexibility:.1f} %")
+    print(f"flexibility kept by the DO form: {100 * (result.flexibility or 0.0):.1f} %")
     if prune is not None:
         print(f"pruning: {prune.apsp_edges} APSP edges -> {prune.pruned_edges} "
               f"({100 * prune.pruned_fraction:.1f} % removed; the original has {prune.original_edges})")
