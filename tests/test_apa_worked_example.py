@@ -58,7 +58,7 @@ def test_fig7_do_form(solver):
     assert tightened[("A", "D")] == (7500, 7500)   # AD[5, 10] -> AD[7.5, 7.5]
     assert tightened[("C", "B")] == (1000, 1000)   # BC[0, 2] -> BC[1, 1]
     assert [r.window(e) for e in "ABCD"] == [(0.0, 0.0), (3.5, 4.5), (2.5, 3.5), (7.5, 7.5)]
-    assert r.value_tolerance == 0.0  # both intervals snapped to exact ticks: no tolerance needed
+    assert r.value_tolerance <= 1e-12  # both intervals snapped to exact ticks: only the solver error is left
     d = do_apsp(r)
     assert d[0, 3] == d[3, 0] * -1 == 7500
     s = r.schedule()

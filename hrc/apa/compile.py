@@ -14,11 +14,14 @@ The paper's steps and what this module does for each:
 3.   Solve the QP (`hrc.apa.qp`: piqp, or clarabel as the cross-check).
 4-9. Tighten every preferred interval to its optimal value. **Tolerance**: the temporal core is exact
      in integer ticks (`ticks_per_second`, a microsecond by default), the QP is in floats; an optimal
-     difference ``d*`` (in ticks) within `SNAP` ticks of an integer ``r`` becomes the rigid ``[r, r]``,
+     difference ``d*`` (in ticks) within `SNAP` ticks of an integer ``r``, or whose neighbouring tick
+     ``r`` that its preference likes better costs at most `VALUE_SNAP` of the global value (relative),
+     becomes the rigid ``[r, r]``;
      any other becomes ``[floor d*, ceil d*]`` (one tick wide), always within its original bounds.
      Every schedule of the DO form is then within ``value_tolerance`` (the sum over preferred
-     intervals of ``max |f'| * (width + SNAP ticks)``) of the optimum; the tightened network is checked
-     to be consistent (exactly), and widened a tick at a time if the solver's own error made it not.
+     intervals of ``max |f'| * max |d - d*|`` over the tightened interval) of the optimum; the
+     tightened network is checked to be consistent (exactly), and widened a tick at a time if the
+     solver's own error made it not.
 10.  APSP again = the DO form. The tightened network (`CompileResult.do_network`) *is* the DO form in
      constraint form; `do_apsp` gives its APSP matrix and `do_form` its minimal dispatchable network
      (the compact list of constraints the CLI prints). The DO windows (each event's window relative
@@ -50,6 +53,7 @@ from hrc.temporal.ticks import to_ticks
 __all__ = [
     "SNAP",
     "TICKS_PER_SECOND",
+    "VALUE_SNAP",
     "CompileResult",
     "PruneReport",
     "compile_stpp",
@@ -65,6 +69,13 @@ TICKS_PER_SECOND = 1_000_000
 SNAP = 0.05
 """Ticks: an optimal difference this close to an integer is taken to be that integer (the QP is
 solved to about 1e-10 s, far below a tick)."""
+
+VALUE_SNAP = 1e-9
+"""Relative: an optimal difference is also rounded to the neighbouring tick its preference likes
+better when that lowers the global preference value by no more than this (the QP's own accuracy is
+about 1e-10 relative). An interior-point solver stops a little inside a bound that is active at a
+preference's peak (the spar's "fresh sealant" at 0 s came out 0.13-0.6 ms late), where the value is
+flat, so its exact place there is noise."""
 
 
 def _ticks(seconds: float, tps: int) -> int | None:
@@ -216,24 +227,30 @@ def _build_qp(stpp: STPP, stnu: STNU, tps: int) -> QuadraticProgram:
     return QuadraticProgram(n, src, dst, lb, ub, pi, pj, c1.reshape(-1), c2.reshape(-1), np.sort(anchors))
 
 
-def _tighten(stpp: STPP, stnu: STNU, x: np.ndarray, tps: int, widen: int) -> tuple[STNU, float]:
+def _tighten(stpp: STPP, stnu: STNU, x: np.ndarray, tps: int, widen: int, total: float) -> tuple[STNU, float]:
     """Fig. 5 lines 4-9: preferred intervals set to their optimal differences (see the module's
-    tolerance), `widen` extra ticks each side. Returns the network and its value tolerance."""
+    tolerance), `widen` extra ticks each side; `total` is the optimal value. Returns the network and
+    its value tolerance."""
     links = list(stnu.requirements)
     slack = 0.0
     for k, c in enumerate(stpp.constraints):
         if c.preference is None:
             continue
         d = (x[stpp.index(c.target)] - x[stpp.index(c.source)]) * tps
+        f = c.preference
         r = round(d)
-        lo, hi = (r, r) if abs(d - r) <= SNAP else (math.floor(d), math.ceil(d))
+        if abs(d - r) > SNAP:  # of the two ticks around d*, the one its preference likes better
+            r = max((math.floor(d), math.ceil(d)), key=lambda k: (f.value(k / tps), -abs(k - d)))
+        flat = f.value(r / tps) >= f.value(d / tps) - VALUE_SNAP * max(1.0, abs(total))
+        lo, hi = (r, r) if abs(d - r) <= SNAP or flat else (math.floor(d), math.ceil(d))
         old = links[k]
         lo = max(lo - widen, old.lb if old.lb is not None else lo - widen)
         hi = min(hi + widen, old.ub if old.ub is not None else hi + widen)
         lo, hi = min(lo, hi), max(lo, hi)
         links[k] = RequirementLink(old.source, old.target, lo, hi)
-        slack += c.preference.max_slope_on(lo / tps, hi / tps) * ((hi - lo) + SNAP) / tps
-    return STNU(stnu.timepoints, tuple(links), (), stnu.name), slack
+        a, b = min(lo, d), max(hi, d)  # every DO choice of this difference, and the optimum
+        slack += f.max_slope_on(a / tps, b / tps) * (b - a) / tps
+    return STNU(stnu.timepoints, tuple(links), (), stnu.name), float(slack)
 
 
 def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TICKS_PER_SECOND) -> CompileResult:
@@ -278,7 +295,7 @@ def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TI
     original = _windows(stnu, p, 0)
     lap("original_windows")
     for widen in range(4):
-        do_net, tolerance = _tighten(stpp, stnu, x, tps, widen)
+        do_net, tolerance = _tighten(stpp, stnu, x, tps, widen, value)
         q = _repair(do_net, start)
         if q is not None:
             break

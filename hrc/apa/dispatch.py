@@ -21,7 +21,8 @@ messages (``observe(event, seconds)``), never from a clock, so a replay gives th
   says so, and no DO form is claimed any more. Bad messages (unknown or repeated events, time going
   backwards) raise `DispatchError` and change nothing.
 
-Worker types (section VI) ride on top: with several named preference sets, after each observation of
+Worker types (section VI) ride on top: with several named preference sets (each added to the STPP's
+own preferences, which every worker shares), after each observation of
 a watched event the dispatcher asks `hrc.apa.workers.best_worker_type` which set achieves the larger
 global preference value given what has been observed, and switches (and recompiles) when another set
 does strictly better.
@@ -73,12 +74,13 @@ class STPPDispatcher:
         self.solver = solver
         self.tps = ticks_per_second
         self.latency = to_ticks(recompile_latency, ticks_per_second)
-        self.sets = {k: tuple(v) for k, v in (preference_sets or {}).items()}
+        shared = stpp.preferred  # every worker type's preferences include the STPP's own
+        self.sets = {k: (*shared, *v) for k, v in (preference_sets or {}).items()}
         if self.sets and worker_type not in self.sets:
             raise DispatchError(f"worker type {worker_type!r} is not one of {', '.join(self.sets)}")
         self.worker_type = worker_type if self.sets else None
         self.hard = stpp.without_preferences()
-        self.plan = stpp.with_preferences(self.sets[worker_type]) if self.sets and worker_type else stpp
+        self.plan = self.hard.with_preferences(self.sets[worker_type]) if self.sets and worker_type else stpp
         self.watch = frozenset(stpp.events if watch is None else watch)
         self.events = stpp.events
         self.index = {e: i for i, e in enumerate(self.events)}
@@ -154,7 +156,7 @@ class STPPDispatcher:
     # -- messages ----------------------------------------------------------------------------
     def observe(self, event: str, seconds: float) -> Step:
         """`event` happened at `seconds`. Raises `DispatchError` (state unchanged) for an unknown or
-        repeated event or a time before the last one."""
+        repeated event or a time before the last one (and leaves a pending recompile pending)."""
         if event not in self.index:
             raise DispatchError(f"unknown event {event!r}")
         if event in self.executed:

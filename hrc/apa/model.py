@@ -7,8 +7,10 @@ manufacturing, section III.B: fairness is no concern, so values add up).
 
 Preference functions are the paper's three shapes, ``f(d) = c0 + c1*d + c2*d**2``: constant, linear and
 quadratic; a quadratic one must be concave (``c2 <= 0``, so that maximising ``F`` is a convex QP), and
-every preference must sit on a finite interval on which it is non-negative (the paper permits only
-"positive-valued" preferences; its own worked example is 0 at both ends of its intervals).
+every preference must sit on a finite interval. The paper permits only "positive-valued" preferences
+(its own worked example is 0 at both ends of its intervals): the STPP file format holds files to
+that (`hrc.apa.io`: non-negative on the interval), but the algorithm does not need it, so the model
+does not, and preferences from task files (the workshop's is negative on most of its domain) work.
 
 Values are in seconds here (floats); `hrc.apa.compile` turns them into the temporal core's integer
 ticks in one place. Misuse raises `hrc.errors.ApaError`; `hrc.apa.io` reports bad files with their path.
@@ -112,10 +114,6 @@ class Constraint:
         if self.preference is not None:
             if not (math.isfinite(self.lb) and math.isfinite(self.ub)):
                 raise ApaError(f"{where}: a preference needs a finite interval, found [{self.lb:g}, {self.ub:g}]")
-            low = self.preference.min_on(self.lb, self.ub)
-            if low < 0:
-                raise ApaError(f"{where}: the preference must be non-negative on [{self.lb:g}, {self.ub:g}], "
-                               f"found {low:g}")
 
 
 @dataclass(frozen=True, slots=True)
