@@ -56,6 +56,7 @@ __all__ = [
     "VALUE_SNAP",
     "CompileResult",
     "PruneReport",
+    "build_qp",
     "compile_stpp",
     "do_apsp",
     "do_form",
@@ -209,7 +210,9 @@ class CompileResult:
         return (None if win.lo is None else win.lo / tps, None if win.hi is None else win.hi / tps)
 
 
-def _build_qp(stpp: STPP, stnu: STNU, tps: int) -> QuadraticProgram:
+def build_qp(stpp: STPP, stnu: STNU, tps: int) -> QuadraticProgram:
+    """Fig. 5 line 3's problem: `stpp`'s QP over the bounds of its tick network `stnu` (in seconds),
+    one anchor event per connected part (see `hrc.apa.qp`)."""
     n = len(stpp.events)
     reqs = stnu.requirements
     src = np.array([stpp.index(r.source) for r in reqs], dtype=np.int64)
@@ -277,7 +280,7 @@ def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TI
         clock = now
 
     stnu = stpp_network(stpp, tps)
-    qp = _build_qp(stpp, stnu, tps)
+    qp = build_qp(stpp, stnu, tps)
     lap("stp")
     try:
         x = solve_qp(qp, solver)
