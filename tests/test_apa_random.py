@@ -169,3 +169,25 @@ def test_inconsistent_stpp_is_an_answer(tmp_path):
         {"from": "a", "to": "c", "lb": 0, "ub": 2}]}))
     out = run_cli(path)
     assert out["consistent"] is False and set(out["cycle"]) == {"a", "b", "c"}
+
+
+@pytest.mark.parametrize("solver", ["piqp", "clarabel"])
+def test_rigid_links_are_equalities(solver):
+    """Rigid links (the past, once the dispatcher commits it) have no interior; piqp takes them as
+    equalities. Here c - b would like 3 but a -> c caps it at 2."""
+    from hrc.apa.model import Constraint, PreferenceFunction
+    stpp = STPP(("a", "b", "c"), (Constraint("a", "b", 2, 2),
+                                  Constraint("b", "c", 0, 5, PreferenceFunction.quadratic(0, 6, -1)),
+                                  Constraint("a", "c", 1, 4)))
+    r = compile_stpp(stpp, solver=solver)
+    assert r.value == pytest.approx(8.0, abs=1e-7) and r.schedule() == {"a": 0.0, "b": 2.0, "c": 4.0}
+
+
+def test_recompile_with_rigid_past_that_piqp_once_refused():
+    """The STPP a 50-event dispatch recompiled after a late event (past rigid, the rest after now;
+    data/apa_rigid_past.json): piqp called it infeasible while its rigid rows were inequalities."""
+    from pathlib import Path
+    stpp = load_stpp(Path(__file__).parent / "data" / "apa_rigid_past.json")
+    a, b = compile_stpp(stpp, solver="piqp"), compile_stpp(stpp, solver="clarabel")
+    assert a.consistent and a.value == pytest.approx(b.value, rel=1e-8)
+    assert a.value == pytest.approx(independent_optimum(stpp), rel=1e-6)

@@ -86,24 +86,26 @@ def _piqp(qp: QuadraticProgram) -> np.ndarray:
     x = np.zeros(qp.n)
     if len(free) == 0:
         return x
-    solver = piqp.SparseSolver()
-    solver.settings.eps_abs = 1e-10
-    solver.settings.eps_rel = 1e-10
-    solver.settings.max_iter = 500
-    solver.setup(P=p, c=q, G=g if g.shape[0] else None, h_l=h_l if g.shape[0] else None,
-                 h_u=h_u if g.shape[0] else None)
-    status = solver.solve()
-    if status != piqp.PIQP_SOLVED:
-        # an accuracy shortfall at 1e-10 is retried at the solver's defaults before giving up
-        solver.settings.eps_abs = 1e-8
-        solver.settings.eps_rel = 1e-9
-        solver.setup(P=p, c=q, G=g if g.shape[0] else None, h_l=h_l if g.shape[0] else None,
-                     h_u=h_u if g.shape[0] else None)
+    # rigid rows (lb == ub, e.g. the past made rigid by the dispatcher) go in as equalities: as
+    # two-sided inequalities with no interior, piqp called a feasible problem infeasible
+    eq = h_l == h_u
+    kw: dict[str, object] = {"P": p, "c": q}
+    if eq.any():
+        kw.update(A=g[np.nonzero(eq)[0]], b=h_l[eq])
+    if (~eq).any():
+        kw.update(G=g[np.nonzero(~eq)[0]], h_l=h_l[~eq], h_u=h_u[~eq])
+    status = None
+    for eps_abs, eps_rel in ((1e-10, 1e-10), (1e-8, 1e-9)):  # retried at looser accuracy before giving up
+        solver = piqp.SparseSolver()
+        solver.settings.eps_abs = eps_abs
+        solver.settings.eps_rel = eps_rel
+        solver.settings.max_iter = 500
+        solver.setup(**kw)
         status = solver.solve()
-    if status != piqp.PIQP_SOLVED:
-        raise ApaError(f"piqp could not solve the STPP's QP: {status}")
-    x[free] = np.asarray(solver.result.x)
-    return x
+        if status == piqp.PIQP_SOLVED:
+            x[free] = np.asarray(solver.result.x)
+            return x
+    raise ApaError(f"piqp could not solve the STPP's QP: {status}")
 
 
 def _clarabel(qp: QuadraticProgram) -> np.ndarray:
