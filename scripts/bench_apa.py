@@ -30,7 +30,7 @@ from hrc.apa.qp import solve_qp
 from hrc.errors import ApaError
 from hrc.temporal.stn import all_pairs_shortest_paths
 
-PAPER_COMPILE = {50: "", 150: "< 1 s", 400: "< 5 s", 1000: "(Fig. 12: ~10-20 s)", 10000: "future work"}
+PAPER_COMPILE = {50: "", 150: "< 1 s", 400: "< 5 s", 1000: "(plotted, not in the text)", 10000: "future work"}
 PAPER_FLEX = {50: ("74.7 ± 3.3", "1.0 ± 0.3"), 100: ("75.4 ± 3.2", "0.5 ± 0.1"),
               150: ("72.2 ± 3.1", "0.4 ± 0.1"), 200: ("71.7 ± 2.0", "0.2 ± 0.05")}
 
