@@ -135,3 +135,18 @@ def test_slow_recompile_dispatches_on_the_shadow_stp():
     assert disp.result is not None
     # B = 4.5: D - B in [3, 4] and D - C in [4, 5] leave D in [8, 8.5]; f_AD peaks at 7.5, so D = 8
     assert disp.window("D") == (8.0, 8.0)
+
+
+def test_shipped_example_file_and_cli(capsys):
+    from conftest import ROOT
+
+    from hrc.apa.io import load_stpp
+    from hrc.cli import main
+
+    path = ROOT / "tasks" / "apa_fig6.stpp.json"
+    assert load_stpp(path) == FIG6
+    assert main(["apa", str(path), "--prune"]) == 0
+    out = capsys.readouterr().out
+    assert "optimal global preference value: 7.25 " in out
+    for line in ("B               4  [3.5, 4.5]", "C               3  [2.5, 3.5]", "D             7.5  [7.5, 7.5]"):
+        assert line in out

@@ -167,10 +167,10 @@ class STPPDispatcher:
         if self.executed and t < self.now:
             raise DispatchError(f"time {seconds:g} s is before the last observation ({self.now / self.tps:g} s)")
         k = self.index[event]
+        self.now = t  # a recompile started by _settle starts now
         self._settle(t)
         inside_hard = self.lo0[k] <= t <= self.hi0[k]
         in_policy = self.result is not None and self.lo[k] <= t <= self.hi[k]
-        self.now = t
         self.executed[event] = t
         self.lo0 = np.maximum(self.lo0, t - self.d0[:, k])
         self.hi0 = np.minimum(self.hi0, t + self.d0[k, :])
@@ -206,8 +206,15 @@ class STPPDispatcher:
         return self._step(self._recompile(), None, seconds)
 
     def advance(self, seconds: float) -> Step:
-        """Time passes without an event (a pending recompile may become active)."""
+        """Time passes without an event (a pending recompile may become active). Raises
+        `DispatchError` for a time before the last observation."""
+        if not math.isfinite(seconds):
+            raise DispatchError(f"time must be a finite number of seconds, found {seconds!r}")
         t = to_ticks(seconds, self.tps)
+        if self.executed and t < self.now:
+            raise DispatchError(f"time {seconds:g} s is before the last observation ({self.now / self.tps:g} s)")
+        if self.executed:
+            self.now = t
         status = self._settle(t) or ("shadow" if self.pending else "on_policy")
         return self._step(status, None, seconds)
 
