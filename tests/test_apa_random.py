@@ -172,15 +172,25 @@ def test_inconsistent_stpp_is_an_answer(tmp_path):
 
 
 @pytest.mark.parametrize("solver", ["piqp", "clarabel"])
-def test_rigid_links_are_equalities(solver):
-    """Rigid links (the past, once the dispatcher commits it) have no interior; piqp takes them as
-    equalities. Here c - b would like 3 but a -> c caps it at 2."""
+def test_rigid_links_are_contracted(solver):
+    """Rigid links (the past, once the dispatcher commits it) have no interior; the QP gives the events
+    they tie one variable. Here c - b would like 3 but a -> c caps it at 2; then a rigid cycle (a -> b
+    -> c -> a, consistent, so its rows are dependent) and a contradictory one."""
     from hrc.apa.model import Constraint, PreferenceFunction
     stpp = STPP(("a", "b", "c"), (Constraint("a", "b", 2, 2),
                                   Constraint("b", "c", 0, 5, PreferenceFunction.quadratic(0, 6, -1)),
                                   Constraint("a", "c", 1, 4)))
     r = compile_stpp(stpp, solver=solver)
     assert r.value == pytest.approx(8.0, abs=1e-7) and r.schedule() == {"a": 0.0, "b": 2.0, "c": 4.0}
+    f = PreferenceFunction.quadratic(0, 8, -1)
+    cycle = STPP(("a", "b", "c", "d"), (Constraint("a", "b", 2, 2), Constraint("b", "c", 1, 1),
+                                        Constraint("c", "a", -3, -3), Constraint("a", "d", 0, 10, f),
+                                        Constraint("c", "d", 0, 3)))
+    r = compile_stpp(cycle, solver=solver)
+    assert r.value == pytest.approx(16.0, abs=1e-7) and r.schedule() == {"a": 0.0, "b": 2.0, "c": 3.0, "d": 4.0}
+    bad = STPP(("a", "b", "c"), (Constraint("a", "b", 2, 2), Constraint("b", "c", 1, 1), Constraint("c", "a", -4, -4)))
+    r = compile_stpp(bad, solver=solver)
+    assert not r.consistent and set(r.cycle) == {"a", "b", "c"}
 
 
 def test_recompile_with_rigid_past_that_piqp_once_refused():
