@@ -83,7 +83,12 @@ def sample_do_schedule(result, rng: np.random.Generator) -> dict[str, float]:
     order = [0, *rng.permutation(np.arange(1, n)).tolist()]
     for k in order:
         a, b = (0.0, 0.0) if k == 0 else (lo[k], hi[k])
-        a, b = (b - 1e6 if math.isinf(a) else a), (a + 1e6 if math.isinf(b) else b)
+        if math.isinf(a) and math.isinf(b):  # nothing dispatched so far bounds it (another part)
+            a = b = 0.0
+        elif math.isinf(a):
+            a = b - 1e6
+        elif math.isinf(b):
+            b = a + 1e6
         assert a <= b
         t[k] = int(round(rng.uniform(a, b)))
         lo = np.maximum(lo, t[k] - d[:, k])
