@@ -7,19 +7,25 @@ and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit stat
     ├── InputError                 a file given by the user is wrong (says file, line, key path)
     │   ├── TaskFileError          task YAML
     │   ├── MapFileError           map YAML or DXF floor plan
-    │   └── NetworkFileError       STNU file (GraphML, .stnu, HEATlab JSON)
+    │   ├── NetworkFileError       STNU file (GraphML, .stnu, HEATlab JSON)
+    │   └── StppFileError          STPP JSON file (APA)
     ├── UnreachableLocationError   no collision-free path between two locations
-    └── ExecutorError              a parallel or distributed executor failed or cannot be reached
+    ├── ExecutorError              a parallel or distributed executor failed or cannot be reached
+    └── ApaError                   an STPP built wrong through the API, or its QP could not be solved
+        └── DispatchError          the APA dispatcher refused a message (it changed nothing)
 """
 
 from __future__ import annotations
 
 __all__ = [
+    "ApaError",
+    "DispatchError",
     "ExecutorError",
     "HrcError",
     "InputError",
     "MapFileError",
     "NetworkFileError",
+    "StppFileError",
     "TaskFileError",
     "UnreachableLocationError",
 ]
@@ -64,3 +70,17 @@ class UnreachableLocationError(HrcError):
 
 class ExecutorError(HrcError):
     """A parallel or distributed executor failed or could not be reached."""
+
+
+class StppFileError(InputError):
+    """An STPP JSON file (APA, docs/apa.md) is malformed or inconsistent."""
+
+
+class ApaError(HrcError):
+    """An STPP was built wrong through the API (unknown event, ``lb > ub``, a convex quadratic, ...) or
+    its quadratic program could not be solved. Bad files raise `StppFileError` instead."""
+
+
+class DispatchError(ApaError):
+    """The APA dispatcher refused a message (unknown or repeated event, time going backwards); its
+    state is unchanged."""

@@ -234,6 +234,8 @@ class Task:
     `map_path` is the map's path as written in the task file (relative to it); `workspace` is that
     map, loaded. `deadline` bounds the makespan (s) from the task's start to the end of its last phase.
     `safety_margin` (m) is added to every agent's radius for clearance from obstacles and the co-worker.
+    `preference_sets` are named extra preferences, one set per *worker type* (APA, section VI: group A
+    places all fasteners then torques, group B torques each in turn); `preferences` hold for everyone.
     """
 
     name: str
@@ -246,7 +248,15 @@ class Task:
     map_path: str
     workspace: Workspace
     safety_margin: float = 0.1
+    preference_sets: tuple[tuple[str, tuple[Preference, ...]], ...] = ()
     source: str = field(default="", compare=False)
+
+    def preference_set(self, name: str) -> tuple[Preference, ...]:
+        """The named set's preferences (raises `KeyError` for an unknown name)."""
+        for set_name, prefs in self.preference_sets:
+            if set_name == name:
+                return prefs
+        raise KeyError(name)
 
     def agent(self, agent_id: str) -> Agent:
         for ag in self.agents:

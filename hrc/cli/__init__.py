@@ -24,6 +24,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "paths": ("hrc.cli.paths", "plan every travel on the map with OMPL; table, JSON or picture"),
     "check": ("hrc.cli.check", "check an STNU file: DC, not DC or inconsistent"),
     "compile": ("hrc.cli.compile", "compile a task into its ranked set of HRC schedules (STNUs)"),
+    "apa": ("hrc.cli.apa", "compile an STPP (JSON) into its dispatchably optimal form (APA)"),
 }
 
 

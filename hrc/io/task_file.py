@@ -39,7 +39,7 @@ from hrc.model import (
 __all__ = ["dump_task", "load_task", "task_to_dict"]
 
 _TOP_REQUIRED = ("name", "map", "agents", "actions")
-_TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "safety_margin")
+_TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "preference_sets", "safety_margin")
 _COEFFS = {PreferenceKind.CONSTANT: 1, PreferenceKind.LINEAR: 2, PreferenceKind.QUADRATIC: 3}
 
 
@@ -72,9 +72,19 @@ def load_task(path: str | os.PathLike[str]) -> Task:
         deadline = doc.number(top["deadline"], ("deadline",), positive=True)
     preferences = [_preference(doc, raw, ("preferences", i), by_id)
                    for i, raw in enumerate(doc.sequence(top.get("preferences", []), ("preferences",)))]
+    sets = []
+    raw_sets = top.get("preference_sets", {})
+    if not isinstance(raw_sets, dict):
+        doc.fail(("preference_sets",), "expected a mapping of set name -> list of preferences")
+    for set_name, raw_set in raw_sets.items():
+        doc.ident(set_name, ("preference_sets", set_name))
+        items = doc.sequence(raw_set, ("preference_sets", set_name), min_len=1)
+        sets.append((set_name, tuple(_preference(doc, raw, ("preference_sets", set_name, i), by_id)
+                                     for i, raw in enumerate(items))))
     return Task(name=name, agents=tuple(agents), actions=tuple(actions), precedence=tuple(precedence),
                 constraints=tuple(constraints), deadline=deadline, preferences=tuple(preferences),
-                map_path=map_path, workspace=workspace, safety_margin=margin, source=doc.file)
+                map_path=map_path, workspace=workspace, safety_margin=margin, preference_sets=tuple(sets),
+                source=doc.file)
 
 
 def _agents(doc: Doc, raw: Any, ws: Workspace, margin: float) -> list[Agent]:
@@ -261,10 +271,15 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
     out["precedence"] = [[str(p.before), str(p.after)] for p in task.precedence]
     out["constraints"] = [{"from": str(c.source), "to": str(c.target), "bounds": [c.bounds.lb, c.bounds.ub]}
                           for c in task.constraints]
-    out["preferences"] = [{"from": str(p.source), "to": str(p.target), "domain": [p.domain.lb, p.domain.ub],
-                           "kind": p.kind.value, "coefficients": list(p.coefficients)}
-                          for p in task.preferences]
+    out["preferences"] = [_preference_dict(p) for p in task.preferences]
+    if task.preference_sets:  # written only when present: older files round-trip unchanged
+        out["preference_sets"] = {name: [_preference_dict(p) for p in prefs] for name, prefs in task.preference_sets}
     return out
+
+
+def _preference_dict(p: Preference) -> dict[str, Any]:
+    return {"from": str(p.source), "to": str(p.target), "domain": [p.domain.lb, p.domain.ub],
+            "kind": p.kind.value, "coefficients": list(p.coefficients)}
 
 
 def dump_task(task: Task, path: str | os.PathLike[str]) -> None:

@@ -1,0 +1,367 @@
+"""APACompilePlan (Wilcox, Nikolaidis & Shah 2012, Fig. 5): from an STPP to its *dispatchably optimal*
+(DO) form, a flexible scheduling policy every choice of which maximises the global preference value.
+
+The paper's steps and what this module does for each:
+
+1-2. APSP of the STP, then prune redundant edges: the APSP exposes implicit constraints, the pruned
+     network is handed to the solver. Here the solver gets the original interval constraints, which
+     have the same feasible set and (measured, docs/apa.md) 4-8 times fewer rows than the pruned APSP
+     network; consistency is the QP's feasibility (an infeasible QP is confirmed, and its negative
+     cycle found, by exact Bellman-Ford), and each event's window comes from two Dijkstra runs on
+     weights made non-negative by an exact schedule (Johnson's reweighting), so no n x n matrix is
+     built. `prune_report` does lines 1-2 as the
+     paper does (APSP, then MMT 1998 dominance pruning) to report how many edges pruning removes.
+3.   Solve the QP (`hrc.apa.qp`: piqp, or clarabel as the cross-check).
+4-9. Tighten every preferred interval to its optimal value. **Tolerance**: the temporal core is exact
+     in integer ticks (`ticks_per_second`, a microsecond by default), the QP is in floats; an optimal
+     difference ``d*`` (in ticks) within `SNAP` ticks of an integer ``r``, or whose neighbouring tick
+     ``r`` that its preference likes better costs at most `VALUE_SNAP` of the global value (relative),
+     becomes the rigid ``[r, r]``;
+     any other becomes ``[floor d*, ceil d*]`` (one tick wide), always within its original bounds.
+     Every schedule of the DO form is then within ``value_tolerance`` (the sum over preferred
+     intervals of ``max |f'| * max |d - d*|`` over the tightened interval) of the optimum; the
+     tightened network is checked to be consistent (exactly), and widened a tick at a time if the
+     solver's own error made it not.
+10.  APSP again = the DO form. The tightened network (`CompileResult.do_network`) *is* the DO form in
+     constraint form; `do_apsp` gives its APSP matrix and `do_form` its minimal dispatchable network
+     (the compact list of constraints the CLI prints). The DO windows (each event's window relative
+     to the reference event) and the flexibility ratio are computed sparsely.
+
+Flexibility (section V, Fig. 11): the summed widths of the events' windows relative to the reference
+event in the DO form, over the same in the original STPP (events whose original window is unbounded
+are left out); 1.0 when the original has no flexibility to lose.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+from hrc.apa.model import STPP, Constraint
+from hrc.apa.qp import QuadraticProgram, solve_qp
+from hrc.errors import ApaError
+from hrc.temporal.graph import distance_edges
+from hrc.temporal.network import STNU, RequirementLink
+from hrc.temporal.stn import Window, all_pairs_shortest_paths, find_negative_cycle, minimal_dispatchable_network
+from hrc.temporal.ticks import to_ticks
+
+__all__ = [
+    "SNAP",
+    "TICKS_PER_SECOND",
+    "VALUE_SNAP",
+    "CompileResult",
+    "PruneReport",
+    "build_qp",
+    "compile_stpp",
+    "do_apsp",
+    "do_form",
+    "prune_report",
+    "stpp_network",
+]
+
+TICKS_PER_SECOND = 1_000_000
+"""APA's default resolution: a microsecond (the plans' STNUs use milliseconds; pass theirs)."""
+
+SNAP = 0.05
+"""Ticks: an optimal difference this close to an integer is taken to be that integer (the QP is
+solved to about 1e-10 s, far below a tick)."""
+
+VALUE_SNAP = 1e-9
+"""Relative: an optimal difference is also rounded to the neighbouring tick its preference likes
+better when that lowers the global preference value by no more than this (the QP's own accuracy is
+about 1e-10 relative). An interior-point solver stops a little inside a bound that is active at a
+preference's peak (the spar's "fresh sealant" at 0 s came out 0.13-0.6 ms late), where the value is
+flat, so its exact place there is noise."""
+
+
+def _ticks(seconds: float, tps: int) -> int | None:
+    return None if math.isinf(seconds) else to_ticks(seconds, tps)
+
+
+def stpp_network(stpp: STPP, ticks_per_second: int = TICKS_PER_SECOND) -> STNU:
+    """The STP of `stpp` in integer ticks (preferences dropped), timepoints in event order."""
+    links = tuple(RequirementLink(c.source, c.target, _ticks(c.lb, ticks_per_second), _ticks(c.ub, ticks_per_second))
+                  for c in stpp.constraints)
+    return STNU(stpp.events, links, (), stpp.name)
+
+
+def _edge_arrays(stnu: STNU) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    index = {v: i for i, v in enumerate(stnu.timepoints)}
+    edges = distance_edges(stnu)
+    src = np.fromiter((index[e.source] for e in edges), dtype=np.int64, count=len(edges))
+    dst = np.fromiter((index[e.target] for e in edges), dtype=np.int64, count=len(edges))
+    w = np.fromiter((e.value for e in edges), dtype=np.float64, count=len(edges))
+    return src, dst, w
+
+
+def _cycle(stnu: STNU) -> tuple[str, ...]:
+    """The events of a negative cycle of `stnu` (exact Bellman-Ford), or ``()`` if it is consistent."""
+    _, cycle = find_negative_cycle(stnu.timepoints, distance_edges(stnu))
+    return tuple(e.source for e in cycle)
+
+
+def _repair(stnu: STNU, start: np.ndarray) -> np.ndarray | None:
+    """A feasible schedule (ticks) of `stnu` grown from the nearly feasible `start` (the QP's optimum
+    rounded to ticks), or None if `stnu` has a negative cycle.
+
+    Bellman-Ford relaxation from arbitrary finite labels converges to labels with
+    ``p[v] - p[u] <= w`` for every edge iff there is no negative cycle; each pass here touches only the
+    violated edges, and rounded optimal times violate almost none (if ``x`` meets integer difference
+    bounds exactly, so does ``floor(x)``; ``x`` is off by ~1e-10 s), so a few passes suffice where a
+    cold start takes ``O(n m)``.
+    """
+    n = len(stnu.timepoints)
+    src, dst, w = _edge_arrays(stnu)
+    p = start.astype(np.float64).copy()
+    for _ in range(n + 1):
+        cand = p[src] + w
+        bad = cand < p[dst]
+        if not bad.any():
+            return p
+        np.minimum.at(p, dst[bad], cand[bad])
+    return None
+
+
+def _distances(n: int, src: np.ndarray, dst: np.ndarray, w: np.ndarray, p: np.ndarray, ref: int,
+               reverse: bool) -> np.ndarray:
+    """Shortest distances from `ref` (to `ref` when `reverse`), by Dijkstra on the weights reduced by
+    the feasible potential `p` (Johnson 1977), which are non-negative. Exact: integers in float64."""
+    rw = w + p[src] - p[dst]
+    a, b = (dst, src) if reverse else (src, dst)
+    key = a * n + b
+    order = np.lexsort((rw, key))
+    key, rw = key[order], rw[order]
+    first = np.ones(len(key), dtype=bool)
+    first[1:] = key[1:] != key[:-1]
+    key, rw = key[first], rw[first]  # parallel edges: keep the tightest (csr_matrix would add them)
+    graph = sp.csr_matrix((rw, (key // n, key % n)), shape=(n, n))
+    d = dijkstra(graph, directed=True, indices=ref)
+    return d + p[ref] - p if reverse else d - p[ref] + p
+
+
+def _windows(stnu: STNU, p: np.ndarray, ref: int) -> tuple[Window, ...]:
+    n = len(stnu.timepoints)
+    src, dst, w = _edge_arrays(stnu)
+    hi = _distances(n, src, dst, w, p, ref, reverse=False)
+    lo = -_distances(n, src, dst, w, p, ref, reverse=True)
+    return tuple(Window(None if math.isinf(a) else int(round(a)), None if math.isinf(b) else int(round(b)))
+                 for a, b in zip(lo, hi, strict=True))
+
+
+def _width(win: Window) -> int | None:
+    return None if win.lo is None or win.hi is None else win.hi - win.lo
+
+
+def _flexibility(original: tuple[Window, ...], do: tuple[Window, ...], ref: int) -> float:
+    total = kept = 0
+    for k, (a, b) in enumerate(zip(original, do, strict=True)):
+        wa, wb = _width(a), _width(b)
+        if k == ref or wa is None or wb is None:
+            continue
+        total += wa
+        kept += wb
+    return 1.0 if total == 0 else kept / total
+
+
+@dataclass(frozen=True, slots=True)
+class CompileResult:
+    """What `compile_stpp` found. Times and windows are aligned with ``stpp.events``.
+
+    * `consistent`: False when the hard constraints admit no schedule (`cycle` then names events of a
+      negative cycle and nothing else is set);
+    * `value`: the optimal global preference value ``F`` (of the QP's optimal times `qp_times`, s);
+    * `times`: one optimal schedule (s), read from the DO form in exact ticks, so it meets every hard
+      constraint exactly; its value is within `value_tolerance` of `value`;
+    * `do_network`: the tightened network in ticks (Fig. 5 line 9): its APSP is the DO form;
+    * `windows` / `original_windows`: each event's window (ticks) relative to the reference event
+      (the first) in the DO form and in the original STPP; `flexibility` the ratio of their widths;
+    * `seconds`: the time each step took (wall clock, for benchmarks).
+    """
+
+    stpp: STPP
+    ticks_per_second: int
+    consistent: bool
+    cycle: tuple[str, ...] = ()
+    value: float | None = None
+    qp_times: tuple[float, ...] = ()
+    times: tuple[float, ...] = ()
+    do_network: STNU | None = None
+    windows: tuple[Window, ...] = ()
+    original_windows: tuple[Window, ...] = ()
+    flexibility: float | None = None
+    value_tolerance: float = 0.0
+    solver: str = ""
+    widened: int = 0
+    seconds: tuple[tuple[str, float], ...] = ()
+
+    def schedule(self) -> dict[str, float]:
+        """`times` as ``{event: seconds}``."""
+        return dict(zip(self.stpp.events, self.times, strict=True))
+
+    def window(self, event: str) -> tuple[float | None, float | None]:
+        """The DO window of `event` in seconds relative to the reference event."""
+        win = self.windows[self.stpp.index(event)]
+        tps = self.ticks_per_second
+        return (None if win.lo is None else win.lo / tps, None if win.hi is None else win.hi / tps)
+
+
+def build_qp(stpp: STPP, stnu: STNU, tps: int) -> QuadraticProgram:
+    """Fig. 5 line 3's problem: `stpp`'s QP over the bounds of its tick network `stnu` (in seconds),
+    one anchor event per connected part (see `hrc.apa.qp`)."""
+    n = len(stpp.events)
+    reqs = stnu.requirements
+    src = np.array([stpp.index(r.source) for r in reqs], dtype=np.int64)
+    dst = np.array([stpp.index(r.target) for r in reqs], dtype=np.int64)
+    lb = np.array([-math.inf if r.lb is None else r.lb / tps for r in reqs])
+    ub = np.array([math.inf if r.ub is None else r.ub / tps for r in reqs])
+    prefs = stpp.preferred
+    pi = np.array([stpp.index(c.source) for c in prefs], dtype=np.int64)
+    pj = np.array([stpp.index(c.target) for c in prefs], dtype=np.int64)
+    c1 = np.array([c.preference.c[1] for c in prefs if c.preference is not None])
+    c2 = np.array([c.preference.c[2] for c in prefs if c.preference is not None])
+    graph = sp.csr_matrix((np.ones(len(src)), (src, dst)), shape=(n, n))
+    _, labels = connected_components(graph, directed=True, connection="weak")
+    _, anchors = np.unique(labels, return_index=True)  # the first event of each part (event 0 leads its own)
+    return QuadraticProgram(n, src, dst, lb, ub, pi, pj, c1.reshape(-1), c2.reshape(-1), np.sort(anchors))
+
+
+def _tighten(stpp: STPP, stnu: STNU, x: np.ndarray, tps: int, widen: int, total: float) -> tuple[STNU, float]:
+    """Fig. 5 lines 4-9: preferred intervals set to their optimal differences (see the module's
+    tolerance), `widen` extra ticks each side; `total` is the optimal value. Returns the network and
+    its value tolerance."""
+    links = list(stnu.requirements)
+    slack = 0.0
+    for k, c in enumerate(stpp.constraints):
+        if c.preference is None:
+            continue
+        d = (x[stpp.index(c.target)] - x[stpp.index(c.source)]) * tps
+        f = c.preference
+        r = round(d)
+        if abs(d - r) > SNAP:  # of the two ticks around d*, the one its preference likes better
+            r = max((math.floor(d), math.ceil(d)), key=lambda k: (f.value(k / tps), -abs(k - d)))
+        flat = f.value(r / tps) >= f.value(d / tps) - VALUE_SNAP * max(1.0, abs(total))
+        lo, hi = (r, r) if abs(d - r) <= SNAP or flat else (math.floor(d), math.ceil(d))
+        old = links[k]
+        lo = max(lo - widen, old.lb if old.lb is not None else lo - widen)
+        hi = min(hi + widen, old.ub if old.ub is not None else hi + widen)
+        lo, hi = min(lo, hi), max(lo, hi)
+        links[k] = RequirementLink(old.source, old.target, lo, hi)
+        a, b = min(lo, d), max(hi, d)  # every DO choice of this difference, and the optimum
+        slack += f.max_slope_on(a / tps, b / tps) * (b - a) / tps
+    return STNU(stnu.timepoints, tuple(links), (), stnu.name), float(slack)
+
+
+def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TICKS_PER_SECOND) -> CompileResult:
+    """APACompilePlan (Fig. 5; see the module docstring for each step and the tolerance).
+
+    Cost: the QP (piqp: sparse interior point; its factorisations dominate), a few vectorised
+    Bellman-Ford passes to make its optimum an exact schedule, and four Dijkstra runs. Raises
+    `ApaError` if the solver fails. An inconsistent STPP is a result (``consistent=False``), not an
+    exception.
+
+    >>> from hrc.apa.model import Constraint as C, PreferenceFunction as F
+    >>> r = compile_stpp(STPP(("a", "b"), (C("a", "b", 0, 8, F.quadratic(0, 8, -1)),)))
+    >>> round(r.value, 6), r.schedule()
+    (16.0, {'a': 0.0, 'b': 4.0})
+    """
+    tps = ticks_per_second
+    clock = time.perf_counter()
+    seconds: list[tuple[str, float]] = []
+
+    def lap(step: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        seconds.append((step, now - clock))
+        clock = now
+
+    stnu = stpp_network(stpp, tps)
+    qp = build_qp(stpp, stnu, tps)
+    lap("stp")
+    try:
+        x = solve_qp(qp, solver)
+    except ApaError:
+        cycle = _cycle(stnu)  # an infeasible QP is an inconsistent STP: say where
+        if cycle:
+            return CompileResult(stpp, tps, False, cycle)
+        raise
+    value = stpp.value(dict(zip(stpp.events, x.tolist(), strict=True)))
+    lap("qp")
+    start = np.round((x - x[0]) * tps)
+    p = _repair(stnu, start)
+    if p is None:  # the solver called an inconsistent problem solved
+        return CompileResult(stpp, tps, False, _cycle(stnu))
+    original = _windows(stnu, p, 0)
+    lap("original_windows")
+    for widen in range(4):
+        do_net, tolerance = _tighten(stpp, stnu, x, tps, widen, value)
+        q = _repair(do_net, start)
+        if q is not None:
+            break
+    else:
+        raise ApaError(f"the {solver} solution is too inaccurate to tighten the STPP consistently")
+    lap("tighten")
+    windows = _windows(do_net, q, 0)
+    times = tuple(float(v) / tps for v in (q - q[0]))
+    lap("do_windows")
+    return CompileResult(stpp, tps, True, (), float(value), tuple(float(v) for v in x), times, do_net, windows,
+                         original, _flexibility(original, windows, 0), tolerance, solver, widen, tuple(seconds))
+
+
+def do_apsp(result: CompileResult) -> np.ndarray:
+    """The DO form itself (Fig. 5 line 10): the APSP matrix of the tightened network, in ticks
+    (``D[i, j]`` bounds ``T(j) - T(i)``). Dense: O(n^2) memory, O(n^3) time (temporal core)."""
+    if result.do_network is None:
+        raise ApaError("an inconsistent STPP has no DO form")
+    return all_pairs_shortest_paths(result.do_network)
+
+
+def do_form(result: CompileResult) -> tuple[Constraint, ...]:
+    """The DO form as interval constraints (s): the minimal dispatchable network of the tightened
+    network (Muscettola, Morris & Tsamardinos 1998, via the temporal core), equivalent to its APSP
+    for dispatching, one constraint per related pair in event order. Dense: O(n^3)."""
+    if result.do_network is None:
+        raise ApaError("an inconsistent STPP has no DO form")
+    mdn = minimal_dispatchable_network(result.do_network)
+    order = {v: i for i, v in enumerate(result.stpp.events)}
+    bounds: dict[tuple[str, str], list[float]] = {}
+    tps = result.ticks_per_second
+    for e in mdn.edges:
+        if order[e.source] < order[e.target]:
+            bounds.setdefault((e.source, e.target), [-math.inf, math.inf])[1] = e.value / tps
+        else:
+            bounds.setdefault((e.target, e.source), [-math.inf, math.inf])[0] = -e.value / tps
+    return tuple(Constraint(a, b, lb, ub) for (a, b), (lb, ub) in
+                 sorted(bounds.items(), key=lambda kv: (order[kv[0][0]], order[kv[0][1]])))
+
+
+@dataclass(frozen=True, slots=True)
+class PruneReport:
+    """Fig. 5 lines 1-2 counted: directed distance-graph edges of the original STP, of its APSP form
+    (every finite pair) and of that form pruned of dominated edges (the minimal dispatchable network)."""
+
+    original_edges: int
+    apsp_edges: int
+    pruned_edges: int
+
+    @property
+    def pruned_fraction(self) -> float:
+        """The share of the APSP form's edges that pruning removes (the paper: 40-50 %)."""
+        return 0.0 if self.apsp_edges == 0 else 1 - self.pruned_edges / self.apsp_edges
+
+
+def prune_report(stpp: STPP, ticks_per_second: int = TICKS_PER_SECOND) -> PruneReport:
+    """APSP then dominance pruning of the original STP, as Fig. 5 lines 1-2 do, counted. Dense:
+    O(n^3) time, O(n^2) memory; raises `ApaError` when the STPP is inconsistent."""
+    stnu = stpp_network(stpp, ticks_per_second)
+    if _cycle(stnu):
+        raise ApaError("an inconsistent STPP has no APSP form")
+    d = all_pairs_shortest_paths(stnu)
+    finite = np.isfinite(d.astype(float))
+    np.fill_diagonal(finite, False)
+    original = len({(e.source, e.target) for e in distance_edges(stnu)})
+    return PruneReport(original, int(finite.sum()), len(minimal_dispatchable_network(stnu).edges))
