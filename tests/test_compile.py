@@ -226,3 +226,27 @@ def test_an_output_path_the_machine_refuses_is_one_error_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err == f"error: {tmp_path}: is a folder; expected a file name\n"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ranking_uses_preference_values(task, compiled):
+    """The workshop has one preference (a breather between cube 1 and cube 2): every plan gets APA's
+    optimal value on its own STNU, and within a class, among plans that finish in the same second, the
+    higher value ranks first (compiled.json carries the value)."""
+    from hrc.apa.plan import plan_preference_value
+    from hrc.compile.temporal_net_creator import event_timepoint
+
+    valued = [cp for cp in compiled.plans if cp.preference is not None]
+    assert len(valued) >= 20
+    pref = task.preferences[0]
+    for cp in valued[:5]:  # the value is APA's on the written network (read as an STP)
+        stnu = read_graphml(cp.graphml.encode())
+        ends = (event_timepoint(cp.plan, pref.source), event_timepoint(cp.plan, pref.target))
+        res = plan_preference_value(stnu, [(*ends, pref)])
+        assert res.consistent and abs(res.value - cp.preference) <= 1e-6 * max(1.0, abs(res.value))
+    for a, b in zip(compiled.plans, compiled.plans[1:], strict=False):
+        ka, kb = rank_key(a), rank_key(b)
+        if ka[:2] == kb[:2]:  # same class, same second of worst-case makespan
+            assert ka[2] <= kb[2], (a.plan.id, b.plan.id)
+    ranks = {cp.plan.id: cp.rank for cp in compiled.plans}
+    assert ranks["35ee4c9d65"] < ranks["1874730eee"]  # 82.87 s, value 9.0 before 82.71 s, value -8.27
+    assert compiled_to_dict(compiled)["plans"][0]["preference"] == round(compiled.plans[0].preference, 6)

@@ -19,6 +19,7 @@ from hrc.report.summary import (
     fmt_makespan,
     fmt_motion_marks,
     fmt_passing,
+    fmt_preference,
     fmt_sequence,
     fmt_stnu,
     split_explanation,
@@ -125,10 +126,13 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
             f'<p class="small">Allocation: {e(allocation_legend(data))}. Makespan: earliest \u2013 worst case. '
             f"Idle: {e(' / '.join(agents))}, in the earliest schedule (waiting counts as idle). "
             "Motion: \u21b7 robot travels on a detour, \u21c4 passing orders the STNU carries. "
+            + ("Preference: the worker's best achievable preference value in the plan (APA). " if data.preferences
+               else "") +
             "STNU: timepoints / requirement links / contingent links. Highlighted rows have a section below.</p>",
             '<div class="table-wrap"><table>', "<thead><tr>"]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
-              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion", "STNU", "Network"])
+              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion"]
+              + (["Preference"] if data.preferences else []) + ["STNU", "Network"])
     out.append("".join(f"<th>{e(h)}</th>" for h in header) + "</tr></thead>")
     out.append("<tbody>")
     for r in data.rows:
@@ -140,8 +144,9 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
                  + [f'<td class="seq">{e(fmt_sequence(seqs.get(a, ())))}</td>' for a in agents]
                  + [f'<td class="num">{e(fmt_makespan(r.makespan))}</td>',
                     f'<td class="num">{e(fmt_idle(r.idle))}</td>',
-                    f"<td>{e(fmt_motion_marks(r))}</td>",
-                    f'<td class="num">{e(fmt_stnu(r.stnu_size))}</td>',
+                    f"<td>{e(fmt_motion_marks(r))}</td>"]
+                 + ([f'<td class="num">{e(fmt_preference(r.preference))}</td>'] if data.preferences else [])
+                 + [f'<td class="num">{e(fmt_stnu(r.stnu_size))}</td>',
                     f'<td><a href="{e(r.stnu_link)}">graphml</a></td>'])
         out.append(('<tr class="featured">' if r.featured else "<tr>") + "".join(cells) + "</tr>")
     out += ["</tbody>", "</table></div>"]

@@ -12,6 +12,7 @@ from hrc.report.summary import (
     fmt_makespan,
     fmt_motion_marks,
     fmt_passing,
+    fmt_preference,
     fmt_sequence,
     fmt_stnu,
     split_explanation,
@@ -63,16 +64,21 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
             f"Allocation: {allocation_legend(data)}. Makespan: earliest \u2013 worst case. "
             f"Idle: {' / '.join(agents)}, in the earliest schedule (waiting counts as idle). "
             "Motion: \u21b7 robot travels on a detour, \u21c4 passing orders the STNU carries. "
+            + ("Preference: the worker's best achievable preference value in the plan (APA). " if data.preferences
+               else "") +
             "STNU: timepoints / requirement links / contingent links.", ""]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
-              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion", "STNU", "Network"])
+              + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion"]
+              + (["Preference"] if data.preferences else []) + ["STNU", "Network"])
     out += ["| " + " | ".join(header) + " |", "|" + "|".join("---:" if h == "Rank" else "---" for h in header) + "|"]
     for r in data.rows:
         plan = f"[`{r.plan_id}`](#plan-{r.plan_id})" if r.featured else f"`{r.plan_id}`"
         seqs = dict(r.sequences)
         cells = ([str(r.rank), plan, r.plan_class, f"`{r.allocation}`"]
                  + [fmt_sequence(seqs.get(a, ())) for a in agents]
-                 + [fmt_makespan(r.makespan), fmt_idle(r.idle), fmt_motion_marks(r), fmt_stnu(r.stnu_size),
+                 + [fmt_makespan(r.makespan), fmt_idle(r.idle), fmt_motion_marks(r)]
+                 + ([fmt_preference(r.preference)] if data.preferences else [])
+                 + [fmt_stnu(r.stnu_size),
                     f"[graphml]({r.stnu_link})"])
         out.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     out.append("")

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 __all__ = ["CLASS_MEANING", "FEATURED_TOP", "MODEL_ASSUMPTIONS", "DetourNote", "PassingNote", "ReportData", "Row",
            "agent_letters", "allocation_legend", "binding_orders", "build_report_data", "empty_class_reason",
            "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks", "fmt_passing",
-           "fmt_sequence",
+           "fmt_preference", "fmt_sequence",
            "fmt_stnu", "motion_notes", "split_explanation"]
 
 CLASS_MEANING = (
@@ -67,6 +67,7 @@ class Row:
     featured: bool
     detours: int = 0  # robot travels that take a detour
     passing: int = 0  # passing orders in the STNU (the plan does not imply them)
+    preference: float | None = None  # APA's optimal preference value
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,6 +114,7 @@ class ReportData:
     notes: tuple[tuple[str, tuple[tuple[DetourNote, ...], tuple[PassingNote, ...]]], ...]  # featured id -> notes
     explanations: tuple[tuple[str, str], ...]  # featured plan id -> explanation ("" for DC)
     options: tuple[tuple[str, str], ...] = ()  # compile options in words
+    preferences: bool = False  # the task has preferences: the table shows each plan's value
 
 
 def agent_letters(agents: tuple[str, ...]) -> dict[str, str]:
@@ -235,7 +237,7 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
             allocation=" ".join(letters[agent] for _, agent in cp.plan.allocation),
             sequences=cp.plan.sequences, makespan=cp.classification.makespan, idle=cp.classification.idle,
             stnu_size=cp.stnu_size, stnu_link=f"stnu/{cp.plan.id}.graphml", featured=cp.plan.id in featured_ids,
-            detours=len(cp.pattern.detours), passing=len(cp.pattern.constrained))
+            detours=len(cp.pattern.detours), passing=len(cp.pattern.constrained), preference=cp.preference)
         for cp in cps.plans)
     return ReportData(
         title=f"Compiled schedules for {task.name}",
@@ -254,7 +256,9 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         explanations=tuple((cp.plan.id, cp.classification.explanation) for cp in featured),
         options=(("human waits", "yes (the robot's strategy times the human's steps)" if cps.options.human_waits
                   else "no (the human never waits for the robot's sake)"),
-                 ("rank within a class by", f"{cps.options.rank_by} makespan")),
+                 ("rank within a class by", f"{cps.options.rank_by} makespan"
+                  + (" to the second, then the preference value" if task.preferences else ""))),
+        preferences=bool(task.preferences),
     )
 
 
@@ -277,6 +281,11 @@ def fmt_sequence(seq: tuple[str, ...]) -> str:
 def fmt_stnu(size: tuple[int, int, int]) -> str:
     """Timepoints / requirement links / contingent links."""
     return " / ".join(str(n) for n in size)
+
+
+def fmt_preference(value: float | None) -> str:
+    """APA's optimal preference value, or ``—``."""
+    return "\u2014" if value is None else f"{value:.2f}"
 
 
 def fmt_motion_marks(row: Row) -> str:
