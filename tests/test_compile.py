@@ -250,3 +250,15 @@ def test_ranking_uses_preference_values(task, compiled):
     ranks = {cp.plan.id: cp.rank for cp in compiled.plans}
     assert ranks["35ee4c9d65"] < ranks["1874730eee"]  # 82.87 s, value 9.0 before 82.71 s, value -8.27
     assert compiled_to_dict(compiled)["plans"][0]["preference"] == round(compiled.plans[0].preference, 6)
+
+
+def test_a_plan_with_no_schedule_ranks_last_in_its_class(compiled):
+    """A plan whose co-workers would block each other has no makespan: it still gets a rank key, after
+    every inconsistent plan that has a schedule."""
+    from dataclasses import replace
+
+    from hrc.compile.classify import Classification
+
+    last = compiled.plans[-1]
+    blocked = replace(last, classification=Classification(PlanClass.INCONSISTENT, "blocked", None, (), ()))
+    assert rank_key(blocked) > max(rank_key(cp) for cp in compiled.plans)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import math
 import itertools
 import json
 from collections.abc import Callable, Iterable, Iterator
@@ -128,7 +129,8 @@ def rank_key(cp: CompiledPlan, rank_by: str = "worst") -> tuple:
     idle = sum(s for _, s in c.idle) if c.idle else float("inf")
     key = pattern_key(c, rank_by)
     pref = -cp.preference if cp.preference is not None else float("inf")
-    return (key[0], round(key[1]), round(pref, 6), *key[1:], round(idle, 6), cp.plan.id)
+    second = round(key[1]) if math.isfinite(key[1]) else key[1]  # no schedule at all: last in its class
+    return (key[0], second, round(pref, 6), *key[1:], round(idle, 6), cp.plan.id)
 
 
 def _chunks(items: Iterable[Plan], size: int) -> Iterator[list[Plan]]:
