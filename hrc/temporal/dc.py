@@ -42,6 +42,7 @@ from functools import cached_property
 from hrc.temporal.bypass import bypass_closure
 from hrc.temporal.graph import Edge, EdgeKind, labelled_edges
 from hrc.temporal.network import STNU
+from hrc.temporal.rul import rul2021
 from hrc.temporal.stn import check_consistency
 
 __all__ = ["ALGORITHMS", "DEFAULT_ALGORITHM", "DCResult", "Verdict", "check_dc"]
@@ -271,6 +272,7 @@ def _morris2014(stnu: STNU) -> tuple[list[Edge], list[Edge] | None]:
 ALGORITHMS: dict[str, Callable[[STNU], tuple[list[Edge], list[Edge] | None]]] = {
     "bypass": bypass_closure,  # hrc.temporal.bypass: lower-case bypass closure, a few Dijkstras per round
     "morris2014": _morris2014,  # this module: Morris 2014 DCbackprop from every negative node
+    "rul2021": rul2021,  # hrc.temporal.rul: RUL family, one back-propagation per contingent link
 }
 """The DC algorithms, by name: each maps a *consistent* STNU to ``(cycle, None)`` (not DC, with a
 semi-reducible negative cycle) or ``([], added)`` (DC, with the edges it derived)."""
