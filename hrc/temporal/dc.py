@@ -35,14 +35,14 @@ from __future__ import annotations
 import enum
 import heapq
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
 
 from hrc.temporal.bypass import bypass_closure
 from hrc.temporal.graph import Edge, EdgeKind, labelled_edges
 from hrc.temporal.network import STNU
-from hrc.temporal.rul import rul2021
+from hrc.temporal.rul import RulOutcome, rul2021, rul2021_check
 from hrc.temporal.stn import check_consistency
 
 __all__ = ["ALGORITHMS", "DEFAULT_ALGORITHM", "DCResult", "Verdict", "check_dc"]
@@ -279,30 +279,43 @@ semi-reducible negative cycle) or ``([], added)`` (DC, with the edges it derived
 
 DEFAULT_ALGORITHM = "bypass"
 
+_FULL_CHECKS: dict[str, Callable[[STNU], RulOutcome]] = {"rul2021": rul2021_check}
+"""Algorithms that decide consistency themselves, on the way (`check_dc` then skips its own check)."""
+
 
 def check_dc(stnu: STNU, algorithm: str = DEFAULT_ALGORITHM) -> DCResult:
     """Decide whether ``stnu`` is dynamically controllable.
 
-    First the STN (contingent links as requirements) must be consistent (`check_consistency`), else
-    ``INCONSISTENT``; then the named algorithm of `ALGORITHMS` decides DC / not DC. Returns a `DCResult`;
-    raises `KeyError` for an unknown algorithm name only. O(n^3) worst case.
+    First the STN (contingent links as requirements) must be consistent, else ``INCONSISTENT``; then the
+    named algorithm of `ALGORITHMS` decides DC / not DC (``rul2021`` settles both questions with one
+    potential, `hrc.temporal.rul.rul2021_check`). Returns a `DCResult`; raises `KeyError` for an unknown
+    algorithm name only. O(n^3) worst case.
     """
     run = ALGORITHMS[algorithm]
+    full = _FULL_CHECKS.get(algorithm)
+    if full is not None:
+        verdict, cycle, built = full(stnu)
+        if verdict == "inconsistent":
+            return DCResult(Verdict.INCONSISTENT, False, cycle)
+        if verdict == "not DC":
+            return DCResult(Verdict.NOT_DC, True, cycle)
+        return DCResult(Verdict.DC, True, (), None if built is None else lambda: _dedup(built()))
     cons = check_consistency(stnu)
     if not cons.consistent:
         return DCResult(Verdict.INCONSISTENT, False, cons.cycle)
     if not stnu.contingents:
         return DCResult(Verdict.DC, True)
-    cycle, added = run(stnu)
+    found, added = run(stnu)
     if added is None:
-        return DCResult(Verdict.NOT_DC, True, tuple(cycle))
+        return DCResult(Verdict.NOT_DC, True, tuple(found))
+    return DCResult(Verdict.DC, True, (), lambda: _dedup(added))
 
-    def dedup() -> tuple[Edge, ...]:
-        best: dict[tuple[str, str, str], Edge] = {}
-        for e in added:
-            key = (e.source, e.target, e.label)
-            if key not in best or e.value < best[key].value:
-                best[key] = e
-        return tuple(best[k] for k in sorted(best))
 
-    return DCResult(Verdict.DC, True, (), dedup)
+def _dedup(edges: Iterable[Edge]) -> tuple[Edge, ...]:
+    """The shortest edge per (source, target, label), in a fixed order."""
+    best: dict[tuple[str, str, str], Edge] = {}
+    for e in edges:
+        key = (e.source, e.target, e.label)
+        if key not in best or e.value < best[key].value:
+            best[key] = e
+    return tuple(best[k] for k in sorted(best))
