@@ -102,7 +102,7 @@ class _Morris2014:
         self.names = stnu.timepoints
         n = len(self.names)
         self.index = index = {v: i for i, v in enumerate(self.names)}
-        self.table: list[Edge | tuple[int, int, int, list[int], int]] = []
+        self.table: list[Edge | tuple[int, int, int, dict[int, int], int]] = []
         best: dict[tuple[int, int], int] = {}
         self.neg_in: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]  # negative ordinary
         self.uc_in: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]  # upper-case (+label)
@@ -131,7 +131,7 @@ class _Morris2014:
         self.status = [self.UNSEEN] * n
         self.added: list[int] = []
         # (caller, caller's predecessor list, node reached) for each active recursive call
-        self.frames: list[tuple[int, list[int], int]] = []
+        self.frames: list[tuple[int, dict[int, int], int]] = []
 
     def run(self) -> None:
         for v in range(len(self.names)):
@@ -140,7 +140,7 @@ class _Morris2014:
 
     def backprop(self, src: int) -> None:
         self.status[src] = self.ACTIVE
-        new_edges: dict[int, tuple[int, list[int]]] = {}
+        new_edges: dict[int, tuple[int, dict[int, int]]] = {}
         if self.neg_in[src]:
             self._dijkstra(src, [(s, w, eid) for s, w, eid in self.neg_in[src]], -2, new_edges)
         for s, w, eid, label in self.uc_in[src]:
@@ -154,16 +154,16 @@ class _Morris2014:
         self.status[src] = self.DONE
 
     def _dijkstra(
-        self, src: int, initial: list[tuple[int, int, int]], banned: int, new_edges: dict[int, tuple[int, list[int]]]
+        self, src: int, initial: list[tuple[int, int, int]], banned: int,
+        new_edges: dict[int, tuple[int, dict[int, int]]]
     ) -> None:
-        n = len(self.names)
-        dist: list[float] = [_BIG] * n
-        pred = [-1] * n  # node -> id of the first edge of its shortest path towards src
+        dist: dict[int, int] = {}  # only the nodes this search touches: memory follows the search
+        pred: dict[int, int] = {}  # node -> id of the first edge of its shortest path towards src
         heap: list[tuple[int, int]] = []
         push, pop = heapq.heappush, heapq.heappop
         negative, status, pos_in, lc_in = self.negative, self.status, self.pos_in, self.lc_in
         for s, w, eid in initial:
-            if w < dist[s]:
+            if w < dist.get(s, _BIG):
                 dist[s] = w
                 pred[s] = eid
                 push(heap, (w, s))
@@ -181,19 +181,21 @@ class _Morris2014:
                     self.frames.pop()
             for s, w, eid in pos_in[u]:
                 nd = d + w
-                if nd < dist[s]:
+                old = dist.get(s, _BIG)
+                if nd < old:
                     if nd < 0:
                         push(heap, (nd, s))
-                    elif dist[s] == _BIG:
+                    elif old == _BIG:
                         moat.append(s)
                     dist[s] = nd
                     pred[s] = eid
             for s, w, eid, label in lc_in[u]:
                 nd = d + w
-                if nd < dist[s] and label != banned:
+                old = dist.get(s, _BIG)
+                if nd < old and label != banned:
                     if nd < 0:
                         push(heap, (nd, s))
-                    elif dist[s] == _BIG:
+                    elif old == _BIG:
                         moat.append(s)
                     dist[s] = nd
                     pred[s] = eid
@@ -201,10 +203,10 @@ class _Morris2014:
         # an ordinary edge at least as short is already there
         best = self.best_in[src]
         for u in moat:
-            du = int(dist[u])
+            du = dist[u]
             if du >= 0 and u != src and du < best.get(u, _BIG):
-                old = new_edges.get(u)
-                if old is None or du < old[0]:
+                known = new_edges.get(u)
+                if known is None or du < known[0]:
                     new_edges[u] = (du, pred)
 
     def _endpoints(self, eid: int) -> tuple[int, int]:
@@ -213,7 +215,7 @@ class _Morris2014:
             return self.index[e.source], self.index[e.target]
         return e[0], e[1]
 
-    def _path(self, pred: list[int], u: int, src: int) -> list[int]:
+    def _path(self, pred: dict[int, int], u: int, src: int) -> list[int]:
         path: list[int] = []
         v = u
         while v != src or not path:
@@ -222,7 +224,7 @@ class _Morris2014:
             v = self._endpoints(eid)[1]
         return path
 
-    def _cycle(self, pred: list[int], u: int, src: int) -> list[int]:
+    def _cycle(self, pred: dict[int, int], u: int, src: int) -> list[int]:
         """``u`` is active: its call is on the stack below ``src``'s. Chain the negative paths
         u ~> src ~> caller(src) ~> ... ~> u recorded in the call frames."""
         cycle = self._path(pred, u, src)
