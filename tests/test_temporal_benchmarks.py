@@ -63,7 +63,8 @@ def test_every_instance_gets_its_recorded_verdict(algorithm: str) -> None:
 def test_hrc_check_json_on_cstnu_tool_instances(row: dict[str, str], capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", "--json", str(BENCH / row["file"])]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) == {"file", "verdict", "consistent", "nodes", "edges", "contingent", "seconds", "cycle"}
+    assert set(out) == {"file", "algorithm", "verdict", "consistent", "nodes", "edges", "contingent", "seconds",
+                        "cycle"}
     assert out["verdict"] in ACCEPT[row["expected"]]
     assert out["consistent"] is (out["verdict"] != "inconsistent")
     assert (out["cycle"] == []) is (out["verdict"] == "DC")
