@@ -279,7 +279,7 @@ ALGORITHMS: dict[str, Callable[[STNU], tuple[list[Edge], list[Edge] | None]]] = 
 """The DC algorithms, by name: each maps a *consistent* STNU to ``(cycle, None)`` (not DC, with a
 semi-reducible negative cycle) or ``([], added)`` (DC, with the edges it derived)."""
 
-DEFAULT_ALGORITHM = "bypass"
+DEFAULT_ALGORITHM = "rul2021"
 
 _FULL_CHECKS: dict[str, Callable[[STNU], RulOutcome]] = {"rul2021": rul2021_check}
 """Algorithms that decide consistency themselves, on the way (`check_dc` then skips its own check)."""

@@ -56,6 +56,9 @@ def read_heatlab_scaled(text: str, file: str = "<json>") -> tuple[STNU, int]:
         raise NetworkFileError(file, "", f"not valid JSON: {err.msg}", err.lineno) from err
     except RecursionError as err:
         raise NetworkFileError(file, "", "not a network file: JSON nested too deeply") from err
+    except ArithmeticError as err:  # decimal.Overflow and friends: an exponent Decimal cannot hold
+        raise NetworkFileError(file, "", f"a number is out of range (at most {MAX_MAGNITUDE:.0e} in absolute "
+                                         "value)") from err
     except ValueError as err:
         raise NetworkFileError(file, "", show(str(err))[1:-1]) from err
     if not isinstance(doc, dict) or not isinstance(doc.get("nodes"), list) or not isinstance(
@@ -131,8 +134,7 @@ def _bad_constant(c: str) -> None:
 
 
 def _id(value: object, file: str, key: str) -> str:
-    if isinstance(value, Decimal) and value.is_finite() and abs(value) <= MAX_MAGNITUDE \
-            and value == value.to_integral_value():
+    if isinstance(value, Decimal) and _within(value) and value == value.to_integral_value():
         return str(int(value))
     if isinstance(value, str) and value:
         return value
@@ -142,12 +144,21 @@ def _id(value: object, file: str, key: str) -> str:
 def _check_bound(value: Decimal, file: str, key: str) -> None:
     """A bound must be finite, within ``MAX_MAGNITUDE`` and have at most ``MAX_DECIMALS`` decimals (checked
     on the Decimal, before any exact conversion could take time and memory)."""
-    if not value.is_finite() or abs(value) > MAX_MAGNITUDE:
+    if not _within(value):
         raise NetworkFileError(file, key, f"{_what(value)} is out of range (at most {MAX_MAGNITUDE:.0e} in "
                                           "absolute value)")
-    exponent = value.normalize().as_tuple().exponent
-    if isinstance(exponent, int) and exponent < -MAX_DECIMALS:
-        raise NetworkFileError(file, key, f"{_what(value)} has more than {MAX_DECIMALS} decimals")
+    _sign, digits, exponent = value.as_tuple()
+    if isinstance(exponent, int) and exponent < 0:
+        trailing = len(digits) - len(bytes(digits).rstrip(b"\0"))
+        if -exponent - min(trailing, -exponent) > MAX_DECIMALS:
+            raise NetworkFileError(file, key, f"{_what(value)} has more than {MAX_DECIMALS} decimals")
+
+
+def _within(value: Decimal) -> bool:
+    """Finite and at most `MAX_MAGNITUDE` in absolute value, decided without the decimal context (which
+    would overflow on ``1e999999999``)."""
+    return value.is_finite() and (value.is_zero() or value.adjusted() < len(str(MAX_MAGNITUDE)) - 1
+                                  or value.copy_abs() == MAX_MAGNITUDE)
 
 
 def _what(value: object) -> str:
