@@ -20,6 +20,7 @@ from hrc.cli import main
 from hrc.temporal import Verdict, check_dc
 from hrc.temporal.dc import ALGORITHMS
 from hrc.temporal.graphml import read_graphml, read_network, write_graphml
+from hrc.temporal.rul import rul2021_check
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -55,6 +56,17 @@ def test_every_instance_gets_its_recorded_verdict(algorithm: str) -> None:
         result = check_dc(read_network(BENCH / row["file"]), algorithm)
         if result.verdict.value not in ACCEPT[row["expected"]]:
             wrong.append((row["file"], row["expected"], result.verdict.value))
+    assert wrong == []
+
+
+@needs_shared
+def test_rul2021_python_gets_every_recorded_verdict_too() -> None:
+    """check_dc's rul2021 verdict comes from the C core when it is built; the Python one must match."""
+    wrong = []
+    for row in _rows():
+        verdict = rul2021_check(read_network(BENCH / row["file"]), accelerated=False)[0]
+        if verdict not in ACCEPT[row["expected"]]:
+            wrong.append((row["file"], row["expected"], verdict))
     assert wrong == []
 
 

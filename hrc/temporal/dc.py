@@ -60,7 +60,8 @@ class Verdict(enum.Enum):
 @dataclass(frozen=True)
 class DCResult:
     """``verdict``; ``consistent`` (of the STN with contingent links as requirements); ``cycle``: the
-    negative cycle that explains a ``NOT_DC`` / ``INCONSISTENT`` verdict, in path order, ``()`` when DC.
+    negative cycle that explains a ``NOT_DC`` / ``INCONSISTENT`` verdict, in path order, ``()`` when DC
+    (built on first access when the algorithm decided without it, as ``rul2021``'s C core does).
 
     ``added`` (DC only): the edges the algorithm derived, which the original links imply for every dynamic
     execution: waits a dispatcher must respect. ``morris2014`` gives non-negative ordinary edges (its
@@ -71,12 +72,16 @@ class DCResult:
 
     verdict: Verdict
     consistent: bool
-    cycle: tuple[Edge, ...] = ()
+    _cycle: tuple[Edge, ...] | Callable[[], tuple[Edge, ...]] = field(default=(), repr=False, compare=False)
     _added: Callable[[], tuple[Edge, ...]] | None = field(default=None, repr=False, compare=False)
 
     @property
     def is_dc(self) -> bool:
         return self.verdict is Verdict.DC
+
+    @cached_property
+    def cycle(self) -> tuple[Edge, ...]:
+        return self._cycle() if callable(self._cycle) else self._cycle
 
     @cached_property
     def added(self) -> tuple[Edge, ...]:

@@ -52,8 +52,12 @@ longer, and the expansion terminates).
 
 from __future__ import annotations
 
+import ctypes
+import importlib.machinery
+from array import array
 from collections.abc import Callable
 from heapq import heappop, heappush
+from pathlib import Path
 
 from hrc.temporal.graph import Edge, EdgeKind
 from hrc.temporal.network import STNU
@@ -69,9 +73,9 @@ _EXPAND_SEARCHES = 2_000  # ... or beyond this many re-run searches
 
 # One search: (outcome, distances D(V, C), first edge of V's path to C, internal nodes, moat nodes or link).
 _Search = tuple[str, dict[int, int], dict[int, int], list[int], list[int]]
-RulOutcome = tuple[str, tuple[Edge, ...], Callable[[], tuple[Edge, ...]] | None]
-"""``(verdict, cycle, added)``: verdict ``"DC"``, ``"not DC"`` or ``"inconsistent"``; the explaining cycle;
-for DC a function building the derived edges (``None`` otherwise)."""
+RulOutcome = tuple[str, tuple[Edge, ...] | Callable[[], tuple[Edge, ...]], Callable[[], tuple[Edge, ...]] | None]
+"""``(verdict, cycle, added)``: verdict ``"DC"``, ``"not DC"`` or ``"inconsistent"``; the explaining cycle,
+or a function building it; for DC a function building the derived edges (``None`` otherwise)."""
 
 
 class _NotDC(Exception):
@@ -409,28 +413,120 @@ class _Rul:
         return feasible_potential(n, out, [0] * n)
 
 
-def rul2021_check(stnu: STNU) -> RulOutcome:
-    """The whole check, consistency included (step 1 decides it): see the module docstring."""
+def _python_check(stnu: STNU) -> tuple[str, tuple[Edge, ...], _Rul]:
+    """Steps 1-5 in Python, with the explaining cycle."""
     run = _Rul(stnu)
     cycle = feasible_potential(len(run.names), run.out, run.p)
     if cycle is not None:
         if all(run.e_kind[eid] != _LC for eid in cycle):
-            return "inconsistent", run.expand(cycle), None
+            return "inconsistent", run.expand(cycle), run
         stn = run.stn_cycle()
         if stn is not None:
-            return "inconsistent", run.expand(stn), None
-        return "not DC", run.expand(cycle), None
+            return "inconsistent", run.expand(stn), run
+        return "not DC", run.expand(cycle), run
     try:
         run.run()
     except _NotDC as found:
-        return "not DC", run.expand(found.cycle), None
-    return "DC", (), run.added
+        return "not DC", run.expand(found.cycle), run
+    return "DC", (), run
+
+
+def _load_core() -> Callable[..., int] | None:
+    """The C verdict (``_rulcore.c``, built by ``pip install`` when a C compiler is there), or None."""
+    here = Path(__file__).resolve().parent
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        path = here / f"_rulcore{suffix}"
+        if path.is_file():
+            try:
+                lib = ctypes.CDLL(str(path))
+            except OSError:
+                return None
+            fn = lib.hrc_rul_verdict
+            ints, words = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int64)
+            fn.argtypes = [ctypes.c_int, ctypes.c_int, ints, ints, words, words, ctypes.c_int, ints, ints, words,
+                           words, words, words]
+            fn.restype = ctypes.c_int
+            return fn  # type: ignore[no-any-return]
+    return None
+
+
+_CORE = _load_core()
+_VERDICTS = {0: "DC", 1: "not DC", 2: "inconsistent"}
+_LOW = (1 << 64) - 1
+
+
+def _core_verdict(stnu: STNU) -> str | None:
+    """The verdict from the C core, or None when it is not built or the numbers are too large for it."""
+    core = _CORE
+    if core is None:
+        return None
+    names = stnu.timepoints
+    index = {v: i for i, v in enumerate(names)}
+    src: list[int] = []
+    dst: list[int] = []
+    wt: list[int] = []
+    for r in stnu.requirements:
+        s, t = index[r.source], index[r.target]
+        if r.ub is not None:
+            src.append(s)
+            dst.append(t)
+            wt.append(r.ub)
+        if r.lb is not None:
+            src.append(t)
+            dst.append(s)
+            wt.append(-r.lb)
+    conts = stnu.contingents
+    act = [index[c.source] for c in conts]
+    ctg = [index[c.target] for c in conts]
+    xs = [c.lb for c in conts]
+    ys = [c.ub for c in conts]
+    n = len(names)
+    biggest = max(map(abs, wt), default=0)
+    if ys:
+        biggest = max(biggest, max(ys))
+    if biggest * (n + 2) >= 1 << 120:
+        return None
+
+    def words(values: list[int]) -> tuple[array[int], array[int]]:
+        return array("Q", [v & _LOW for v in values]), array("q", [v >> 64 for v in values])
+
+    w_lo, w_hi = words(wt)
+    x_lo, x_hi = words(xs)
+    y_lo, y_hi = words(ys)
+    arrays = [array("i", src), array("i", dst), w_lo, w_hi, array("i", act), array("i", ctg), x_lo, x_hi, y_lo,
+              y_hi]
+    ptrs = [(ctypes.c_int if a.typecode == "i" else ctypes.c_int64) * max(len(a), 1) for a in arrays]
+    args = [t.from_buffer(a) if len(a) else t() for t, a in zip(ptrs, arrays, strict=True)]
+    code = core(n, len(src), args[0], args[1], args[2], args[3], len(conts), *args[4:])
+    return _VERDICTS.get(code)  # -1 (out of memory in C): fall back to Python
+
+
+def rul2021_check(stnu: STNU, *, accelerated: bool = True) -> RulOutcome:
+    """The whole check, consistency included (step 1 decides it): see the module docstring.
+
+    The verdict comes from the C core when it is built (``accelerated``); the cycle and the derived edges
+    then come from the Python implementation when first asked for (`RulOutcome`).
+    """
+    verdict = _core_verdict(stnu) if accelerated else None
+    if verdict is None:
+        verdict, cycle, run = _python_check(stnu)
+        return verdict, cycle, (run.added if verdict == "DC" else None)
+
+    def explain() -> tuple[Edge, ...]:
+        again, cycle, _run = _python_check(stnu)
+        if again != verdict:
+            raise RuntimeError(f"rul2021: the C core says {verdict}, the Python implementation {again}")
+        return cycle
+
+    if verdict == "DC":
+        return "DC", (), lambda: _python_check(stnu)[2].added()
+    return verdict, explain, None
 
 
 def rul2021(stnu: STNU) -> tuple[list[Edge], list[Edge] | None]:
     """The `hrc.temporal.dc.ALGORITHMS` entry, for a consistent STNU: ``(cycle, None)`` when not DC (a
     semi-reducible negative cycle of the labelled graph, derived edges expanded) or ``([], added)``."""
-    verdict, cycle, added = rul2021_check(stnu)
-    if added is None:
+    verdict, cycle, run = _python_check(stnu)
+    if verdict != "DC":
         return list(cycle), None
-    return [], list(added())
+    return [], list(run.added())
