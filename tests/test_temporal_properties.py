@@ -263,6 +263,12 @@ def test_rul2021_c_core_agrees_with_python(stnu: STNU) -> None:
     assert rul._core_verdict(stnu) == python
     result = check_dc(stnu)
     assert result.verdict.value == python and (result.cycle == ()) is (python == "DC")
+    # numbers past 64 bits (HEATlab's exact decimals scale to such) take the core's 128-bit path
+    f = 2**70 + 1
+    big = STNU(stnu.timepoints, tuple(RequirementLink(r.source, r.target, None if r.lb is None else r.lb * f,
+                                                      None if r.ub is None else r.ub * f) for r in stnu.requirements),
+               tuple(ContingentLink(c.source, c.target, c.lb * f, c.ub * f) for c in stnu.contingents))
+    assert rul._core_verdict(big) == python
 
 
 @FAST

@@ -4,8 +4,9 @@
  * It follows hrc/temporal/rul.py step by step (see that module's docstring for the algorithm and its
  * sources: Cairo, Hunsberger & Rizzi, TIME 2018; Hunsberger & Posenato, AAAI 2022; potentials by
  * Goldberg & Radzik 1993) and only decides the verdict: the explaining cycle and the derived edges are
- * rebuilt by the Python implementation when they are asked for. Weights are 128-bit integers; the Python
- * side only calls this when max |weight| * (nodes + 2) < 2^120, so no sum can overflow.
+ * rebuilt by the Python implementation when they are asked for. Weights are 128-bit integers, passed as
+ * signed 64-bit arrays (the high arrays NULL) or as (low, high) word pairs; the Python side only calls this
+ * when max |weight| * (nodes + 2) < 2^120, so no sum can overflow.
  *
  * Memory: O(n + m + derived edges); every search reuses the same n-long arrays, told apart by stamps.
  *
@@ -365,7 +366,11 @@ static int by_key(const void *l, const void *r) {
     return a - b;
 }
 
-static W join(int64_t lo, int64_t hi) { return (W)(((unsigned __int128)(uint64_t)hi << 64) | (uint64_t)lo); }
+/* value i of a (low, high) pair of 64-bit arrays; without a high array the low one holds signed values */
+static W join(const int64_t *lo, const int64_t *hi, int i) {
+    if (!hi) return (W)lo[i];
+    return (W)(((unsigned __int128)(uint64_t)hi[i] << 64) | (uint64_t)lo[i]);
+}
 
 static void release(Net *g) {
     free(g->src); free(g->dst); free(g->in_next); free(g->out_next); free(g->w); free(g->kind);
@@ -395,13 +400,13 @@ int hrc_rul_verdict(int n, int m, const int *src, const int *dst, const int64_t 
     for (int v = 0; v < n; v++) { g.in_head[v] = -1; g.out_head[v] = -1; g.act_first[v] = -1; }
     int result = 0;
     for (int e = 0; e < m && result == 0; e++) {
-        W w = join(w_lo[e], w_hi[e]);
+        W w = join(w_lo, w_hi, e);
         if (add_edge(&g, src[e], dst[e], w, ORD) < 0) result = -1;
         else if (hput_if_better(&g, src[e], dst[e], w) < 0) result = -1;
     }
     for (int l = k - 1; l >= 0 && result == 0; l--) {
-        g.x[l] = join(x_lo[l], x_hi[l]);
-        g.y[l] = join(y_lo[l], y_hi[l]);
+        g.x[l] = join(x_lo, x_hi, l);
+        g.y[l] = join(y_lo, y_hi, l);
         g.act_next[l] = g.act_first[act[l]];
         g.act_first[act[l]] = l;
     }

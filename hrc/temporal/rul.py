@@ -442,9 +442,7 @@ def _load_core() -> Callable[..., int] | None:
             except OSError:
                 return None
             fn = lib.hrc_rul_verdict
-            ints, words = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int64)
-            fn.argtypes = [ctypes.c_int, ctypes.c_int, ints, ints, words, words, ctypes.c_int, ints, ints, words,
-                           words, words, words]
+            fn.argtypes = [ctypes.c_int, ctypes.c_int, *[ctypes.c_void_p] * 4, ctypes.c_int, *[ctypes.c_void_p] * 6]
             fn.restype = ctypes.c_int
             return fn  # type: ignore[no-any-return]
     return None
@@ -476,28 +474,26 @@ def _core_verdict(stnu: STNU) -> str | None:
             dst.append(s)
             wt.append(-r.lb)
     conts = stnu.contingents
-    act = [index[c.source] for c in conts]
-    ctg = [index[c.target] for c in conts]
     xs = [c.lb for c in conts]
     ys = [c.ub for c in conts]
     n = len(names)
-    biggest = max(map(abs, wt), default=0)
-    if ys:
-        biggest = max(biggest, max(ys))
+    biggest = max(max(wt, default=0), -min(wt, default=0), max(ys, default=0))
     if biggest * (n + 2) >= 1 << 120:
         return None
-
-    def words(values: list[int]) -> tuple[array[int], array[int]]:
-        return array("Q", [v & _LOW for v in values]), array("q", [v >> 64 for v in values])
-
-    w_lo, w_hi = words(wt)
-    x_lo, x_hi = words(xs)
-    y_lo, y_hi = words(ys)
-    arrays = [array("i", src), array("i", dst), w_lo, w_hi, array("i", act), array("i", ctg), x_lo, x_hi, y_lo,
-              y_hi]
-    ptrs = [(ctypes.c_int if a.typecode == "i" else ctypes.c_int64) * max(len(a), 1) for a in arrays]
-    args = [t.from_buffer(a) if len(a) else t() for t, a in zip(ptrs, arrays, strict=True)]
-    code = core(n, len(src), args[0], args[1], args[2], args[3], len(conts), *args[4:])
+    keep = [array("i", src), array("i", dst), array("i", [index[c.source] for c in conts]),
+            array("i", [index[c.target] for c in conts])]
+    if biggest < 1 << 62:  # signed 64-bit words
+        w, x, y = array("q", wt), array("q", xs), array("q", ys)
+        keep += [w, x, y]
+        words = [w.buffer_info()[0], None, x.buffer_info()[0], None, y.buffer_info()[0], None]
+    else:  # (low, high) word pairs
+        words = []
+        for values in (wt, xs, ys):
+            lo, hi = array("Q", [v & _LOW for v in values]), array("q", [v >> 64 for v in values])
+            keep += [lo, hi]
+            words += [lo.buffer_info()[0], hi.buffer_info()[0]]
+    a = [arr.buffer_info()[0] for arr in keep[:4]]
+    code = core(n, len(src), a[0], a[1], words[0], words[1], len(conts), a[2], a[3], *words[2:])
     return _VERDICTS.get(code)  # -1 (out of memory in C): fall back to Python
 
 
