@@ -3,7 +3,8 @@
     .venv/bin/python scripts/bench_dc.py ../shared/benchmarks/stnu [--repeat 5] [--summary-only]
         [--algorithm rul2021 --algorithm bypass ... | --algorithm all] [--peers FILE] [--cpu N]
 
-For every file (any format `hrc check` reads) and algorithm: one warm-up run, then the median of
+``--algorithm rul2021-py`` times rul2021 without its C core (the Python implementation a machine without a
+C compiler runs). For every file (any format `hrc check` reads) and algorithm: one warm-up run, then the median of
 ``--repeat`` runs of `hrc.temporal.check_dc` (the DC check alone, its consistency check included; reading
 the file is not timed). Prints one row per instance (unless ``--summary-only``), then per size class and
 algorithm the median time, the CSTNU Tool's median over the same instances and their ratio (ours / tool,
@@ -23,6 +24,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -30,7 +32,9 @@ from hrc.errors import NetworkFileError  # noqa: E402
 from hrc.temporal.dc import ALGORITHMS, DEFAULT_ALGORITHM, check_dc  # noqa: E402
 from hrc.temporal.graphml import read_network  # noqa: E402
 from hrc.temporal.network import STNU  # noqa: E402
+from hrc.temporal.rul import rul2021_check  # noqa: E402
 
+PURE = "rul2021-py"
 CLASSES = [("<50", 0, 49), ("50-199", 50, 199), ("200-399", 200, 399), (">=400", 400, 10**12)]
 SUFFIXES = {".stnu", ".stn", ".graphml", ".json", ".cstnu"}
 ACCEPT = {"DC": {"DC"}, "consistent-not-DC": {"not DC"}, "inconsistent": {"inconsistent"},
@@ -79,15 +83,30 @@ def expected_verdicts(folder: Path) -> dict[str, str]:
         return {row["file"]: row["expected"] for row in csv.DictReader(fh)}
 
 
+class _PurePython:
+    """rul2021 without its C core (what a machine without a C compiler runs), timed like check_dc."""
+
+    def __init__(self, verdict: str, cycle: object) -> None:
+        self.verdict = type("V", (), {"value": verdict})()
+        self.cycle = cycle
+
+
+def check(net: STNU, algorithm: str) -> Any:
+    if algorithm == PURE:
+        verdict, cycle, _ = rul2021_check(net, accelerated=False)
+        return _PurePython(verdict, cycle)
+    return check_dc(net, algorithm)
+
+
 def time_check(net: STNU, algorithm: str, repeat: int) -> tuple[str, float, float]:
     """Verdict, median ms of the check, and ms to build the explaining cycle on first access (not DC)."""
-    result = check_dc(net, algorithm)  # warm-up
+    result = check(net, algorithm)  # warm-up
     times = []
     gc.disable()
     try:
         for _ in range(max(1, repeat)):
             start = time.perf_counter()
-            result = check_dc(net, algorithm)
+            result = check(net, algorithm)
             times.append((time.perf_counter() - start) * 1000)
         start = time.perf_counter()
         _ = result.cycle
@@ -102,8 +121,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("folder", type=Path)
     parser.add_argument("--repeat", type=int, default=5, help="timed runs per instance; the median is kept")
     parser.add_argument("--summary-only", action="store_true", help="print only the per-size-class summary")
-    parser.add_argument("--algorithm", action="append", choices=[*sorted(ALGORITHMS), "all"],
-                        help=f"DC algorithm, repeatable (default {DEFAULT_ALGORITHM}; 'all' for every one)")
+    parser.add_argument("--algorithm", action="append", choices=[*sorted(ALGORITHMS), PURE, "all"],
+                        help=f"DC algorithm, repeatable (default {DEFAULT_ALGORITHM}; 'all' for every one; {PURE}: "
+                             "rul2021 without its C core)")
     parser.add_argument("--peers", type=Path, help="the CSTNU Tool's times (default FOLDER/peers.md)")
     parser.add_argument("--cpu", type=int, help="pin the process to this CPU")
     args = parser.parse_args(argv)
@@ -111,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         os.sched_setaffinity(0, {args.cpu})
     algorithms = args.algorithm or [DEFAULT_ALGORITHM]
     if "all" in algorithms:
-        algorithms = sorted(ALGORITHMS)
+        algorithms = [*sorted(ALGORITHMS), PURE]
     peers = peer_times(args.peers or args.folder / "peers.md")
     expected = expected_verdicts(args.folder)
     files = sorted(p for p in args.folder.rglob("*") if p.is_file() and p.suffix in SUFFIXES)
@@ -152,12 +172,12 @@ def main(argv: list[str] | None = None) -> int:
             both = [r for r in in_class if r[0] in peers]
             ours = statistics.median(r[6] for r in in_class)
             if both:
-                tool = statistics.median(peers[r[0]] for r in both)
+                tool_ms = statistics.median(peers[r[0]] for r in both)
                 mine = statistics.median(r[6] for r in both)
                 ratios = [r[6] / peers[r[0]] for r in both if peers[r[0]] > 0]
                 per = f"{statistics.median(ratios):.2f}" if ratios else "–"
-                print(f"| {label:<10} | {algorithm:<10} | {len(in_class):9d} | {ours:9.3f} | {tool:14.2f} |"
-                      f" {mine / tool:5.2f} | {per:>25} |")
+                print(f"| {label:<10} | {algorithm:<10} | {len(in_class):9d} | {ours:9.3f} | {tool_ms:14.2f} |"
+                      f" {mine / tool_ms:5.2f} | {per:>25} |")
             else:
                 print(f"| {label:<10} | {algorithm:<10} | {len(in_class):9d} | {ours:9.3f} | {'–':>14} |"
                       f" {'–':>5} | {'–':>25} |")
