@@ -48,11 +48,12 @@ from __future__ import annotations
 import re
 import unicodedata
 from pathlib import Path
+from xml.parsers import expat
 
 from hrc.errors import NetworkFileError
 from hrc.temporal.limits import parse_int, read_bounded, show, show_path
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
-from hrc.temporal.xmlread import stream_xml
+from hrc.temporal.xmlread import MAX_DEPTH, hardened_parser, parse
 
 __all__ = ["FORMATS", "ORIGIN", "TOOL_NAME_RULE", "read_graphml", "read_network", "tool_name", "write_graphml"]
 
@@ -79,14 +80,14 @@ def _quoteattr(text: str) -> str:
 
 
 class _Reader:
-    """The state of one streaming read of a GraphML document."""
+    """The state of one streaming read of a GraphML document; its methods are the expat handlers."""
 
-    def __init__(self, file: str) -> None:
+    def __init__(self, file: str, parser: expat.XMLParserType) -> None:
         self.file = file
+        self.parser = parser
         self.names: dict[str, str] = {}  # key id -> attribute name
         self.defaults: dict[str, str] = {}
         self.graphs = 0
-        self.root = ""
         self.root_line = 1
         self.graph_line = 1
         self.graph_data: dict[str, str] = {}
@@ -97,34 +98,31 @@ class _Reader:
         self.owner: dict[str, str] | None = None  # data of the current <graph>/<edge>, or None
         self.key: str | None = None
         self.data_key: str | None = None
+        self.text: list[str] | None = None  # text of the current <data> or <default>, else not collected
 
-    def start(self, tag: str, attrs: dict[str, str], line: int) -> None:
-        file = self.file
-        if not self.stack:
-            self.root, self.root_line = tag, line
+    def start(self, name: str, attrs: dict[str, str]) -> None:
+        tag = name[name.rfind("}") + 1:]
+        stack = self.stack
+        parent = stack[-1] if stack else ""
+        if not stack:
+            self.root_line = self.parser.CurrentLineNumber
             if tag != "graphml":
-                raise NetworkFileError(file, "", f"not an STNU file: the XML root element is {show(tag)}, a CSTNU "
-                                                 "Tool GraphML file has <graphml>", line)
-        parent = self.stack[-1] if self.stack else ""
-        self.stack.append(tag)
-        if tag == "key" and parent == "graphml":
-            kid = attrs.get("id", "")
-            self.names[kid] = attrs.get("attr.name", kid)
-            self.key = kid
-        elif tag == "graph":
-            if parent != "graphml":
-                raise NetworkFileError(file, "graph", "nested graphs are not supported", line)
-            self.graphs += 1
-            if self.graphs > 1:
-                raise NetworkFileError(file, "graph", "expected one <graph>, found a second one", line)
-            self.graph_line = line
-            self.owner = self.graph_data
+                raise NetworkFileError(self.file, "", f"not an STNU file: the XML root element is {show(tag)}, a "
+                                                      "CSTNU Tool GraphML file has <graphml>", self.root_line)
+        elif len(stack) >= MAX_DEPTH:
+            raise NetworkFileError(self.file, "", f"elements nested more than {MAX_DEPTH} deep",
+                                   self.parser.CurrentLineNumber)
+        stack.append(tag)
+        if tag == "data":
+            self.data_key = attrs.get("key", "")
+            self.text = []
         elif tag == "node" and parent == "graph":
             nid = attrs.get("id")
+            line = self.parser.CurrentLineNumber
             if not nid:
-                raise NetworkFileError(file, "node", "a node has no id", line)
+                raise NetworkFileError(self.file, "node", "a node has no id", line)
             if nid in self.known:
-                raise NetworkFileError(file, f"node {show(nid)}", "node id used twice", line)
+                raise NetworkFileError(self.file, f"node {show(nid)}", "node id used twice", line)
             self.known.add(nid)
             self.nodes.append(nid)
             self.owner = None
@@ -132,31 +130,55 @@ class _Reader:
             src, tgt = attrs.get("source", ""), attrs.get("target", "")
             where = f"edge {show(attrs['id'])}" if "id" in attrs else f"edge {show(src)}->{show(tgt)}"
             data: dict[str, str] = {}
-            self.edges.append((src, tgt, where, line, data))
+            self.edges.append((src, tgt, where, self.parser.CurrentLineNumber, data))
             self.owner = data
-        elif tag == "data":
-            self.data_key = attrs.get("key", "")
+        elif tag == "key" and parent == "graphml":
+            kid = attrs.get("id", "")
+            self.names[kid] = attrs.get("attr.name", kid)
+            self.key = kid
+        elif tag == "default":
+            self.text = []
+        elif tag == "graph":
+            line = self.parser.CurrentLineNumber
+            if parent != "graphml":
+                raise NetworkFileError(self.file, "graph", "nested graphs are not supported", line)
+            self.graphs += 1
+            if self.graphs > 1:
+                raise NetworkFileError(self.file, "graph", "expected one <graph>, found a second one", line)
+            self.graph_line = line
+            self.owner = self.graph_data
 
-    def end(self, tag: str, text: str, line: int) -> None:
-        self.stack.pop()
+    def chars(self, text: str) -> None:
+        if self.text is not None:
+            self.text.append(text)
+
+    def end(self, name: str) -> None:
+        tag = self.stack.pop()
         parent = self.stack[-1] if self.stack else ""
-        if tag == "default" and parent == "key" and self.key is not None:
-            self.defaults[self.names[self.key]] = text.strip()
-        elif tag == "key":
-            self.key = None
-        elif tag == "data" and self.data_key is not None:
-            if parent in ("graph", "edge") and self.owner is not None:
-                self.owner[self.names.get(self.data_key, self.data_key)] = text
+        if tag == "data":
+            if parent in ("graph", "edge") and self.owner is not None and self.text is not None:
+                self.owner[self.names.get(self.data_key or "", self.data_key or "")] = "".join(self.text)
             self.data_key = None
+            self.text = None
         elif tag in ("edge", "node"):
             self.owner = self.graph_data
+        elif tag == "default":
+            if parent == "key" and self.key is not None and self.text is not None:
+                self.defaults[self.names[self.key]] = "".join(self.text).strip()
+            self.text = None
+        elif tag == "key":
+            self.key = None
 
 
 def read_graphml(data: bytes, file: str = "<graphml>", *, derived: bool = False) -> STNU:
     """Parse CSTNU Tool GraphML (see the module docstring) in one streaming pass. Raises
     `NetworkFileError`."""
-    reader = _Reader(file)
-    stream_xml(data, file, reader.start, reader.end)
+    parser = hardened_parser(file)
+    reader = _Reader(file, parser)
+    parser.StartElementHandler = reader.start
+    parser.EndElementHandler = reader.end
+    parser.CharacterDataHandler = reader.chars
+    parse(parser, data, file)
     if reader.graphs != 1:
         raise NetworkFileError(file, "graph", "expected one <graph>, found none", reader.root_line)
     kind = reader.graph_data.get("NetworkType", reader.defaults.get("NetworkType", "STNU")).strip()
