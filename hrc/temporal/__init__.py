@@ -2,9 +2,11 @@
 
 Pure functions over the immutable `STNU` type (`hrc.temporal.network`); exact integer ticks throughout
 (`hrc.temporal.ticks` converts seconds and decimal text). Modules: `network` (value types), `graph`
-(distance graphs), `stn` (consistency, APSP, minimal dispatchable network, propagation), `dc` (Morris
-2014 DC check), `oracle` (an independent exhaustive DC check for tests), `graphml` / `stnu_text` /
-`heatlab` (file formats; `read_network` detects the format by content).
+(distance graphs), `potential` (schedules or negative cycles, Goldberg-Radzik), `stn` (consistency, APSP,
+minimal dispatchable network, propagation), `dc` (`check_dc`, the registry of DC algorithms, Morris 2014),
+`rul` (the default DC algorithm, RUL family, with its C core `_rulcore.c`), `bypass` (bypass closure),
+`oracle` (an independent exhaustive DC check for tests), `graphml` / `stnu_text` / `heatlab` (file formats;
+`read_network` detects the format by content), `limits` / `xmlread` (bounded, hardened reading).
 """
 
 from hrc.temporal.dc import DCResult, Verdict, check_dc

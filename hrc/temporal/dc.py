@@ -1,9 +1,12 @@
 """Dynamic controllability of STNUs: `check_dc`, its algorithms, and the explaining negative cycle.
 
-Two algorithms are registered in `ALGORITHMS` (the tests run both against an exhaustive game oracle):
-``"bypass"`` (default; `hrc.temporal.bypass`, lower-case bypass closure with Dijkstra under a potential,
-a few searches per contingent link) and ``"morris2014"`` (this module, described below), slower on large
-networks because it runs one search per negative node.
+Three algorithms are registered in `ALGORITHMS` (the tests run each against an exhaustive game oracle,
+each other and the outside instances): ``"rul2021"`` (default; `hrc.temporal.rul`, the RUL family of
+Cairo, Hunsberger & Rizzi 2018: one back-propagation per contingent link under a potential, its verdict
+also in C; the fastest in every size class of scripts/bench_dc.py), ``"bypass"`` (`hrc.temporal.bypass`,
+lower-case bypass closure with Dijkstra under a potential, a few searches per contingent link) and
+``"morris2014"`` (this module, described below), slower on large networks because it runs one search per
+negative node.
 
 Source: P. Morris, "Dynamic controllability and dispatchability relationships", CPAIOR 2014,
 Algorithms 1-2 (``determineDC`` / ``DCbackprop``). An STNU is DC iff its labelled distance graph has no
@@ -20,10 +23,10 @@ reduction, Morris & Muscettola 2005). Morris keeps one distance per node; to sta
 Dijkstra per *kind* of starting edge: one over the negative ordinary edges into the node, and one per
 upper-case edge into it, in which the lower-case edge of that same contingent link is skipped.
 
-The verdict comes first from consistency (contingent links read as requirements, `check_consistency`):
-``INCONSISTENT`` with a negative cycle of the distance graph; otherwise ``NOT_DC`` with a negative cycle
-of the labelled graph whose derived edges are expanded back to original edges, or ``DC`` with the
-edges the algorithm added (``added``): Morris's non-negative waits, or the bypass closure's edges.
+The verdict comes first from consistency (contingent links read as requirements, `check_consistency`;
+``rul2021`` decides it with its own potential): ``INCONSISTENT`` with a negative cycle of the distance
+graph; otherwise ``NOT_DC`` with a negative cycle of the labelled graph whose derived edges are expanded
+back to original edges, or ``DC`` with the edges the algorithm added (``added``).
 
 >>> from hrc.temporal.network import STNU, ContingentLink as CL, RequirementLink as RL
 >>> check_dc(STNU(("A", "C", "X"), (RL("X", "C", 1, 2),), (CL("A", "C", 1, 10),))).verdict
@@ -65,9 +68,9 @@ class DCResult:
 
     ``added`` (DC only): the edges the algorithm derived, which the original links imply for every dynamic
     execution: waits a dispatcher must respect. ``morris2014`` gives non-negative ordinary edges (its
-    dispatchable extension, Morris 2014, section 5); ``bypass`` gives ordinary edges (``DERIVED``) and
-    conditional waits (``UPPER``, labelled with the contingent timepoint whose occurrence releases them).
-    Built on first access, as there can be O(n^2) of them.
+    dispatchable extension, Morris 2014, section 5); ``bypass`` and ``rul2021`` give ordinary edges
+    (``DERIVED``) and conditional waits (``UPPER``, labelled with the contingent timepoint whose occurrence
+    releases them). Built on first access, as there can be O(n^2) of them.
     """
 
     verdict: Verdict

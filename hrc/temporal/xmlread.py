@@ -1,25 +1,22 @@
-"""Streaming XML for network files: element events with line numbers, hardened against hostile input.
+"""Streaming XML for network files, hardened against hostile input.
 
-`stream_xml` calls ``start(tag, attrs, line)`` and ``end(tag, text, line)`` for each element (namespace
-dropped from tags; ``text`` is the element's own character data, collected in pieces and joined once, so
-text that arrives in a million small pieces costs linear time). Nothing but the caller's own state is
-kept, so memory follows what the caller keeps, not the size of the document. A reader that needs speed
-(GraphML) sets its own handlers on `hardened_parser` and runs `parse`; it then checks `MAX_DEPTH` itself.
-
-Refused, each with one `NetworkFileError` line: malformed XML (expat's message and line), entity
-declarations (GraphML needs none; this also rules out entity-expansion bombs, on top of expat's own
-amplification limit), documents nested deeper than `MAX_DEPTH`, and encodings expat cannot read
-(multi-byte ones other than UTF-8 and UTF-16, or unknown names).
+`hardened_parser` gives an expat parser on which a reader sets its own element and text handlers (the
+GraphML reader keeps only what it needs, collects text in pieces and joins it once, so memory follows the
+network and text that arrives in a million pieces costs linear time); `parse` runs it. Refused, each with
+one `NetworkFileError` line: malformed XML (expat's message and line), entity declarations (GraphML needs
+none; this also rules out entity-expansion bombs, on top of expat's own amplification limit, and external
+entities), and encodings expat cannot read (multi-byte ones other than UTF-8 and UTF-16, or unknown
+names). Readers refuse elements nested deeper than `MAX_DEPTH` themselves.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from xml.parsers import expat
 
 from hrc.errors import NetworkFileError
+from hrc.temporal.limits import show
 
-__all__ = ["MAX_DEPTH", "hardened_parser", "parse", "stream_xml"]
+__all__ = ["MAX_DEPTH", "hardened_parser", "parse"]
 
 MAX_DEPTH = 64
 """Deepest element nesting accepted (GraphML network files need 4)."""
@@ -47,31 +44,4 @@ def parse(parser: expat.XMLParserType, data: bytes, file: str) -> None:
         raise NetworkFileError(file, "", f"not well-formed XML: {expat.errors.messages[err.code]}",
                                err.lineno) from err
     except (LookupError, ValueError) as err:  # an encoding expat cannot read ("foo", "utf-32", ...)
-        raise NetworkFileError(file, "", f"cannot read the XML text: {err}", 1) from err
-
-
-def stream_xml(data: bytes, file: str, start: Callable[[str, dict[str, str], int], None],
-               end: Callable[[str, str, int], None]) -> None:
-    """Parse ``data`` calling ``start`` / ``end`` per element; raises `NetworkFileError` (see the module
-    docstring). Exceptions raised by the callbacks propagate unchanged."""
-    parser = hardened_parser(file)
-    texts: list[list[str]] = []
-
-    def on_start(name: str, attrs: dict[str, str]) -> None:
-        if len(texts) >= MAX_DEPTH:
-            raise NetworkFileError(file, "", f"elements nested more than {MAX_DEPTH} deep",
-                                   parser.CurrentLineNumber)
-        texts.append([])
-        start(name[name.rfind("}") + 1:], attrs, parser.CurrentLineNumber)
-
-    def on_end(name: str) -> None:
-        end(name[name.rfind("}") + 1:], "".join(texts.pop()), parser.CurrentLineNumber)
-
-    def on_chars(text: str) -> None:
-        if texts:
-            texts[-1].append(text)
-
-    parser.StartElementHandler = on_start
-    parser.EndElementHandler = on_end
-    parser.CharacterDataHandler = on_chars
-    parse(parser, data, file)
+        raise NetworkFileError(file, "", f"cannot read the XML text: {show(str(err))}", 1) from err
