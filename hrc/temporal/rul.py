@@ -432,8 +432,9 @@ def _python_check(stnu: STNU) -> tuple[str, tuple[Edge, ...], _Rul]:
 
 
 def _load_core() -> Callable[..., int] | None:
-    """The C verdict (``_rulcore.c``, built by ``pip install`` when a C compiler is there), or None."""
-    here = Path(__file__).resolve().parent
+    """The C verdict (``_rulcore.c``, built into ``_native/`` by ``pip install`` when a C compiler is
+    there), or None."""
+    here = Path(__file__).resolve().parent / "_native"
     for suffix in importlib.machinery.EXTENSION_SUFFIXES:
         path = here / f"_rulcore{suffix}"
         if path.is_file():
