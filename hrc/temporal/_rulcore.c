@@ -358,12 +358,23 @@ static int finish(Net *g, int link) {
     return 0;
 }
 
-static W *sort_keys;
-static int by_key(const void *l, const void *r) {
-    int a = *(const int *)l, b = *(const int *)r;
-    if (sort_keys[a] > sort_keys[b]) return -1;
-    if (sort_keys[a] < sort_keys[b]) return 1;
-    return a - b;
+/* links by decreasing key, then increasing index: a bottom-up merge sort (no global state, so calls from
+ * several threads at once are safe; ctypes releases the GIL) */
+static void sort_links(int *links, int *tmp, const W *keys, int k) {
+    for (int width = 1; width < k; width *= 2) {
+        for (int lo = 0; lo < k; lo += 2 * width) {
+            int mid = lo + width < k ? lo + width : k, hi = lo + 2 * width < k ? lo + 2 * width : k;
+            int i = lo, j = mid, o = lo;
+            while (i < mid && j < hi) {
+                int a = links[i], b = links[j];
+                int first = keys[a] > keys[b] || (keys[a] == keys[b] && a < b);
+                tmp[o++] = first ? links[i++] : links[j++];
+            }
+            while (i < mid) tmp[o++] = links[i++];
+            while (j < hi) tmp[o++] = links[j++];
+        }
+        memcpy(links, tmp, sizeof(int) * (size_t)k);
+    }
 }
 
 /* value i of a (low, high) pair of 64-bit arrays; without a high array the low one holds signed values */
@@ -431,8 +442,7 @@ int hrc_rul_verdict(int n, int m, const int *src, const int *dst, const int64_t 
     int *stack = malloc(sizeof(int) * (size_t)(k + 1));
     if (!links || !keys || !stack) { free(links); free(keys); free(stack); release(&g); return -1; }
     for (int l = 0; l < k; l++) { links[l] = l; keys[l] = g.p[act[l]]; }
-    sort_keys = keys;
-    qsort(links, (size_t)k, sizeof(int), by_key);
+    sort_links(links, stack, keys, k);  /* stack is free scratch space until the loop below */
     result = 0;
     for (int i = 0; i < k && result == 0; i++) {
         int first = links[i];
