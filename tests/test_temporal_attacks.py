@@ -265,6 +265,29 @@ def test_hrc_check_as_a_process_on_a_hostile_file(tmp_path: Path) -> None:
     assert proc.returncode == 2 and proc.stdout == "" and proc.stderr.count("\n") == 1, proc.stderr
 
 
+@pytest.mark.parametrize("fmt", sorted(SAMPLES))
+def test_size_limits_are_counted_while_reading(tmp_path: Path, fmt: str,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """Timepoints and bounds are counted as a file is read (here with limits of 10 and 20, in-process)."""
+    from hrc.errors import NetworkFileError
+    from hrc.temporal import graphml, limits, stnu_text
+    from hrc.temporal.graphml import read_network
+
+    for module in (limits, graphml, stnu_text):
+        monkeypatch.setattr(module, "MAX_TIMEPOINTS", 10, raising=False)
+        monkeypatch.setattr(module, "MAX_BOUNDS", 20, raising=False)
+    small, wide, long = chain(10), chain(11), chain(10)
+    long = STNU(long.timepoints, long.requirements * 3, long.contingents)  # 10 timepoints, 54 bounds
+    for net, ok in ((small, True), (wide, False), (long, False)):
+        path = tmp_path / f"n.{fmt}"
+        path.write_text(SAMPLES[fmt](net))
+        if ok:
+            assert len(read_network(path).timepoints) == len(net.timepoints)
+        else:
+            with pytest.raises(NetworkFileError, match="over the limit for a network file"):
+                read_network(path)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("fmt", sorted(SAMPLES))
 def test_100k_timepoint_files(tmp_path: Path, fmt: str) -> None:
@@ -282,7 +305,11 @@ def test_100k_duplicate_nodes_and_big_refusals(tmp_path: Path) -> None:
         "dups.graphml": (GRAPHML_HEAD + "".join(f'<node id="n{i}"/>' for i in range(100_000)) + '<node id="n0"/>'
                          "</graph></graphml>").encode(),
         "values.json": b'{"nodes": [' + b"0," * 3_000_000 + b'0], "constraints": []}',
-        "newlines.stnu": STNU_HEAD.encode() + b"\n" * (64 * 2**20) + b"x\n",
+        "newlines.stnu": STNU_HEAD.encode() + b"\n" * (200 * 2**20) + b"x\n",
+        "names.stnu": STNU_HEAD.encode() + b"600000\n# Num Ordinary Edges\n0\n# Time-Point Names\n"
+        + b" ".join(b"t%d" % i for i in range(600_000)) + b"\n",
+        "nodes.graphml": (GRAPHML_HEAD + "".join(f'<node id="n{i}"/>' for i in range(500_001))
+                          + "</graph></graphml>").encode(),
         "laughs_big.graphml": GRAPHML_HEAD.encode() + b"<node id='a'>" + b"<x>" * 60 + b"</x>" * 60
         + b"</node>" * 1 + b"\n" * (32 * 2**20) + b"</graph>",
     }

@@ -51,7 +51,7 @@ from pathlib import Path
 from xml.parsers import expat
 
 from hrc.errors import NetworkFileError
-from hrc.temporal.limits import parse_int, read_bounded, show, show_path
+from hrc.temporal.limits import MAX_BOUNDS, MAX_TIMEPOINTS, check_size, parse_int, read_bounded, show, show_path
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
 from hrc.temporal.xmlread import MAX_DEPTH, hardened_parser, parse
 
@@ -125,12 +125,16 @@ class _Reader:
                 raise NetworkFileError(self.file, f"node {show(nid)}", "node id used twice", line)
             self.known.add(nid)
             self.nodes.append(nid)
+            if len(self.nodes) > MAX_TIMEPOINTS:
+                check_size(len(self.nodes), 0, self.file, line)
             self.owner = None
         elif tag == "edge" and parent == "graph":
             src, tgt = attrs.get("source", ""), attrs.get("target", "")
             where = f"edge {show(attrs['id'])}" if "id" in attrs else f"edge {show(src)}->{show(tgt)}"
             data: dict[str, str] = {}
             self.edges.append((src, tgt, where, self.parser.CurrentLineNumber, data))
+            if len(self.edges) > MAX_BOUNDS:
+                check_size(0, len(self.edges), self.file, self.parser.CurrentLineNumber)
             self.owner = data
         elif tag == "key" and parent == "graphml":
             kid = attrs.get("id", "")

@@ -22,7 +22,7 @@ import json
 from decimal import Decimal
 
 from hrc.errors import NetworkFileError
-from hrc.temporal.limits import MAX_MAGNITUDE, show
+from hrc.temporal.limits import MAX_MAGNITUDE, check_size, show
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
 from hrc.temporal.ticks import scale_to_integers
 
@@ -66,6 +66,7 @@ def read_heatlab_scaled(text: str, file: str = "<json>") -> tuple[STNU, int]:
     ):
         raise NetworkFileError(file, "", "not an STNU file: HEATlab JSON is an object with lists 'nodes' and "
                                          "'constraints'")
+    check_size(len(doc["nodes"]), 2 * len(doc["constraints"]), file)
     names: list[str] = []
     for i, node in enumerate(doc["nodes"]):
         if not isinstance(node, dict) or "node_id" not in node:

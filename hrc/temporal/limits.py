@@ -7,6 +7,9 @@ writes names and snippets into error messages through `show`, so that a hostile 
 
 * only regular files are read (a FIFO, ``/dev/zero``, a terminal or a folder is refused before any byte is
   read; a FIFO is opened non-blocking, so refusing it cannot hang), and at most `MAX_FILE_BYTES`;
+* a network file holds at most `MAX_TIMEPOINTS` timepoints and `MAX_BOUNDS` finite bounds (edges of the
+  distance graph), counted while reading, so that reading and checking the largest accepted network stays
+  well within 2 GiB (about 1 KB per bound all told);
 * integers are ASCII digits with an optional sign, at most `MAX_DIGITS` of them, checked *before*
   conversion (Python's ``int()`` accepts other scripts' digits, refuses more than 4,300 and takes
   quadratic time below that); decimal bounds (HEATlab) are within ``±MAX_MAGNITUDE`` units;
@@ -28,8 +31,8 @@ from pathlib import Path
 
 from hrc.errors import NetworkFileError
 
-__all__ = ["MAX_DIGITS", "MAX_FILE_BYTES", "MAX_MAGNITUDE", "SHOW_CHARS", "parse_int", "read_bounded", "show",
-           "show_path"]
+__all__ = ["MAX_BOUNDS", "MAX_DIGITS", "MAX_FILE_BYTES", "MAX_MAGNITUDE", "MAX_TIMEPOINTS", "SHOW_CHARS",
+           "check_size", "parse_int", "read_bounded", "show", "show_path"]
 
 MAX_FILE_BYTES = 256 * 2**20
 """Largest network file read (256 MiB; a 100,000-timepoint GraphML file is about 40 MiB)."""
@@ -38,6 +41,10 @@ MAX_DIGITS = 40
 written back as GraphML; far below what could slow arithmetic down)."""
 MAX_MAGNITUDE = 10**15
 """Largest absolute value of a decimal bound of a HEATlab file, in the file's unit."""
+MAX_TIMEPOINTS = 500_000
+"""Most timepoints in a network file."""
+MAX_BOUNDS = 1_000_000
+"""Most finite bounds (two per requirement or contingent link with both bounds) in a network file."""
 SHOW_CHARS = 80
 """Longest name or snippet quoted in an error message."""
 
@@ -119,3 +126,12 @@ def parse_int(text: str, file: str, key: str, line: int | None, *, what: str = "
         raise NetworkFileError(file, key, f"{what} with {digits} digits is out of range (at most {MAX_DIGITS} "
                                           "digits)", line)
     return int(token)
+
+
+def check_size(timepoints: int, bounds: int, file: str, line: int | None = None) -> None:
+    """Refuse a network over `MAX_TIMEPOINTS` timepoints or `MAX_BOUNDS` bounds (`NetworkFileError`)."""
+    if timepoints > MAX_TIMEPOINTS:
+        raise NetworkFileError(file, "", f"more than {MAX_TIMEPOINTS:,} timepoints, over the limit for a network "
+                                         "file", line)
+    if bounds > MAX_BOUNDS:
+        raise NetworkFileError(file, "", f"more than {MAX_BOUNDS:,} bounds, over the limit for a network file", line)
