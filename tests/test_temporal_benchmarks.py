@@ -20,6 +20,7 @@ from hrc.cli import main
 from hrc.temporal import Verdict, check_dc
 from hrc.temporal.dc import ALGORITHMS
 from hrc.temporal.graphml import read_graphml, read_network, write_graphml
+from hrc.temporal.rul import rul2021_check
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -59,11 +60,23 @@ def test_every_instance_gets_its_recorded_verdict(algorithm: str) -> None:
 
 
 @needs_shared
+def test_rul2021_python_gets_every_recorded_verdict_too() -> None:
+    """check_dc's rul2021 verdict comes from the C core when it is built; the Python one must match."""
+    wrong = []
+    for row in _rows():
+        verdict = rul2021_check(read_network(BENCH / row["file"]), accelerated=False)[0]
+        if verdict not in ACCEPT[row["expected"]]:
+            wrong.append((row["file"], row["expected"], verdict))
+    assert wrong == []
+
+
+@needs_shared
 @pytest.mark.parametrize("row", [r for r in _rows() if r["file"].startswith("cstnu_tool/")], ids=lambda r: r["file"])
 def test_hrc_check_json_on_cstnu_tool_instances(row: dict[str, str], capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", "--json", str(BENCH / row["file"])]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) == {"file", "verdict", "consistent", "nodes", "edges", "contingent", "seconds", "cycle"}
+    assert set(out) == {"file", "algorithm", "verdict", "consistent", "nodes", "edges", "contingent", "seconds",
+                        "cycle"}
     assert out["verdict"] in ACCEPT[row["expected"]]
     assert out["consistent"] is (out["verdict"] != "inconsistent")
     assert (out["cycle"] == []) is (out["verdict"] == "DC")

@@ -54,6 +54,15 @@ CASES: dict[str, tuple[STNU, Verdict]] = {
                       (C("A", "C", 4, 5),)), Verdict.DC),
     "sync-end-wide": (STNU(("A", "C", "X", "Y"), (R("A", "X", 0, None), R("X", "Y", 3, 3), R("C", "Y", 0, 2)),
                            (C("A", "C", 2, 8),)), Verdict.NOT_DC),
+    # Y must come exactly 3 before C, which nature places: the forward check for C's own lower-case edge
+    # (A --c:1--> C --(-3)--> Y bypasses it, and Y --3--> C --C:-10--> A closes a negative cycle)
+    "pinned-before-contingent": (STNU(("A", "C", "Y"), (R("Y", "C", 3, 3),), (C("A", "C", 1, 10),)),
+                                 Verdict.NOT_DC),
+    # the requirement C - A <= 5 caps a duration nature may stretch to 10 (consistent, not DC)
+    "duration-capped": (STNU(("A", "C"), (R("A", "C", None, 5),), (C("A", "C", 1, 10),)), Verdict.NOT_DC),
+    # two links from one activation; X within 4 after both ends: wait for both (they differ by <= 4)
+    "shared-activation": (STNU(("A", "B", "C", "X"), (R("B", "X", 0, 4), R("C", "X", 0, 4)),
+                               (C("A", "B", 1, 3), C("A", "C", 2, 5))), Verdict.DC),
     # an STN (no contingent link) is DC iff consistent
     "stn": (STNU(("A", "B"), (R("A", "B", 1, 2),)), Verdict.DC),
 }

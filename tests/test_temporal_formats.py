@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hrc.cli import main
 from hrc.errors import NetworkFileError
 from hrc.temporal import STNU, ContingentLink, RequirementLink, check_dc
 from hrc.temporal.graph import distance_edges
-from hrc.temporal.graphml import read_graphml, read_network, write_graphml
+from hrc.temporal.graphml import TOOL_NAME_RULE, read_graphml, read_network, tool_name, write_graphml
 from hrc.temporal.heatlab import read_heatlab, read_heatlab_scaled
+from hrc.temporal.network import NetworkError
 from hrc.temporal.stnu_text import read_stnu_text, write_stnu_text
 
 R, C = RequirementLink, ContingentLink
+ROOT = Path(__file__).resolve().parents[1]
 NAMES = st.sampled_from(["A", "B", "C1", "X y", "n&<1>", "Ω", "t'q"])
 
 
@@ -46,13 +50,34 @@ def networks(draw, names=NAMES) -> STNU:
     return STNU(tps, tuple(reqs), tuple(conts), draw(st.sampled_from(["", "net <1> & co"])))
 
 
+def _as_written(stnu: STNU) -> STNU:
+    """What `write_graphml` says, by its documented rules: names through `tool_name`, a fixed duration as
+    a requirement link."""
+    ren = {v: tool_name(v) for v in stnu.timepoints}
+    reqs = [R(ren[r.source], ren[r.target], r.lb, r.ub) for r in stnu.requirements]
+    conts = []
+    for c in stnu.contingents:
+        if c.lb == c.ub:
+            reqs.append(R(ren[c.source], ren[c.target], c.lb, c.ub))
+        else:
+            conts.append(C(ren[c.source], ren[c.target], c.lb, c.ub))
+    return STNU(tuple(ren[v] for v in stnu.timepoints), tuple(reqs), tuple(conts), stnu.name)
+
+
 @settings(max_examples=200, deadline=None, database=None)
 @given(networks())
 def test_graphml_round_trip_and_determinism(stnu: STNU) -> None:
+    ids = [tool_name(v) for v in stnu.timepoints]
+    if len(set(ids)) < len(ids):  # two names, one node id: refused, never written ambiguously
+        with pytest.raises(NetworkError, match="would both be written as node"):
+            write_graphml(stnu)
+        return
     text = write_graphml(stnu)
     assert write_graphml(stnu) == text
     back = read_graphml(text.encode(), "mem.graphml")
-    assert _semantics(back) == _semantics(stnu)
+    assert _semantics(back) == _semantics(_as_written(stnu))
+    assert all(TOOL_NAME_RULE.fullmatch(v) for v in back.timepoints)
+    assert check_dc(back).verdict is check_dc(stnu).verdict
     assert back.name == stnu.name
     assert write_graphml(back) == write_graphml(STNU(back.timepoints, back.requirements, back.contingents,
                                                      back.name))
@@ -136,11 +161,12 @@ BAD_FILES = [
     ("x.stnu", "# KIND OF NETWORK\nSTNU\n# Num Time-Points\n3\n# Num Ordinary Edges\n0\n"
      "# Time-Point Names\nA B\n", 8, "declared 3 names"),
     ("x.stnu", "# KIND OF NETWORK\nCSTN\n", 2, "expected STNU or STN"),
-    ("x.stnu", "# Bogus\n1\n", 1, "unknown section"),
+    ("x.stnu", "# Bogus\n1\n", 1, "not an STNU file"),
+    ("x.stnu", "# KIND OF NETWORK\nSTNU\n# Bogus\n1\n", 3, "unknown section"),
     ("x.json", '{"nodes": [{"node_id": 1}],\n "constraints": [}', 2, "not valid JSON"),
     ("x.json", '{"nodes": [{"node_id": 1}], "constraints": [{"first_node": 1, "second_node": 2, '
-     '"type": "stc", "min_duration": 0, "max_duration": 1}]}', None, "unknown node 2"),
-    ("x.txt", "hello", 1, "unknown format"),
+     '"type": "stc", "min_duration": 0, "max_duration": 1}]}', None, "unknown node '2'"),
+    ("x.txt", "hello", 1, "not an STNU file"),
 ]
 
 
@@ -162,3 +188,108 @@ def test_stnu_text_tolerates_quotes_and_header_case() -> None:
     net = read_stnu_text(text)
     assert net.timepoints == ("A", "C", "X") and net.contingents == (C("A", "C", 1, 3),)
     assert net.requirements == (R("X", "C", None, -2),)
+
+
+ORIGIN_TEXT = ("# KIND OF NETWORK\nSTN\n# Num Time-Points\n3\n# Num Ordinary Edges\n2\n# Num Contingent Links\n0\n"
+               "# Time-Point Names\nZ X Y\n# Ordinary Edges\nZ 3 X\nX -5 Y\n")
+
+
+def test_stnu_text_origin_decides_a_verdict(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """X at most 3 after Z, Y at least 5 before X: consistent only if Y may precede the origin Z."""
+    with_origin, without = read_stnu_text(ORIGIN_TEXT), read_stnu_text(ORIGIN_TEXT, origin=False)
+    assert R("Z", "Y", 0, None) in with_origin.requirements and without.requirements == (R("Z", "X", None, 3),
+                                                                                          R("X", "Y", None, -5))
+    assert check_dc(with_origin).verdict.value == "inconsistent" and check_dc(without).verdict.value == "DC"
+    renamed = read_stnu_text(ORIGIN_TEXT.replace("Z", "O"))  # no Z, no origin
+    assert check_dc(renamed).verdict.value == "DC"
+    path = tmp_path / "o.stnu"
+    path.write_text(ORIGIN_TEXT)
+    assert main(["check", str(path)]) == 0 and capsys.readouterr().out.startswith("inconsistent\n")
+    assert main(["check", "--no-origin", str(path)]) == 0 and capsys.readouterr().out.startswith("DC\n")
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(st.text(max_size=12))
+def test_tool_name_follows_the_cstnu_tool_rule(name: str) -> None:
+    nid = tool_name(name)
+    assert TOOL_NAME_RULE.fullmatch(nid) and tool_name(nid) == nid  # valid, and a fixed point
+    if TOOL_NAME_RULE.fullmatch(name):
+        assert nid == name  # names the tool accepts are kept
+
+
+def test_writer_maps_names_and_fixed_durations() -> None:
+    net = STNU(("Z", "h.a-1.fetch.start", "h.a-1.fetch.end", "r.x.y"),
+               (R("Z", "h.a-1.fetch.start", 0, None),),
+               (C("h.a-1.fetch.start", "h.a-1.fetch.end", 2, 4), C("Z", "r.x.y", 3, 3)))
+    text = write_graphml(net)
+    assert 'id="h_a_1_fetch_start"' in text and "LC(h_a_1_fetch_end):2" in text and "UC(h_a_1_fetch_end):-4" in text
+    back = read_graphml(text.encode())
+    assert back.contingents == (C("h_a_1_fetch_start", "h_a_1_fetch_end", 2, 4),)  # [3, 3] became a requirement
+    assert R("Z", "r_x_y", None, 3) in back.requirements and R("r_x_y", "Z", None, -3) in back.requirements
+    assert '<data key="nContingent">1</data>' in text
+    zero = write_graphml(STNU(("A", "C"), (), (C("A", "C", 0, 4),)))
+    assert "LC(C):0" in zero  # written as it is (the tool refuses it; hrc reads it back)
+    with pytest.raises(NetworkError, match="'a.b' and 'a_b' would both be written as node 'a_b'"):
+        write_graphml(STNU(("a.b", "a_b")))
+    # files of older hrc versions, with dotted names, still read
+    old = text.replace("h_a_1_fetch_start", "h.a-1.fetch.start")
+    assert "h.a-1.fetch.start" in read_graphml(old.encode()).timepoints
+
+
+def _cstnu_tool_refusals(data: bytes) -> list[str]:
+    """What the CSTNU Tool 5.0 would refuse in a GraphML file, by its sources (TNGraphMLReader,
+    STNUEdge.setLabeledValue, ALabelAlphabet.ALETTER_RANGE, STNU.initAndCheck), read with the standard
+    library's parser (independent of hrc's reader)."""
+    import xml.etree.ElementTree as ET
+
+    ns = "{http://graphml.graphdrawing.org/xmlns/graphml}"
+    root = ET.fromstring(data)
+    problems = []
+    keys = {k.get("id"): k.get("for") for k in root.iter(f"{ns}key")}
+    for needed, domain in (("x", "node"), ("y", "node"), ("Type", "edge"), ("NetworkType", "graph")):
+        if keys.get(needed) != domain:
+            problems.append(f"no {domain} key {needed}")
+    nodes = [n.get("id") or "" for n in root.iter(f"{ns}node")]
+    problems += [f"node name {n!r}" for n in nodes if not TOOL_NAME_RULE.fullmatch(n)]
+    bounds: dict[str, list[int]] = {}
+    weights = []
+    for e in root.iter(f"{ns}edge"):
+        data_of = {d.get("key"): d.text or "" for d in e.iter(f"{ns}data")}
+        if "Value" in data_of:
+            weights.append(int(data_of["Value"]))
+        if data_of.get("Type") == "contingent":
+            m = re.fullmatch(r"(LC|UC)\(([^)]*)\):(-?[0-9]+)", data_of.get("LabeledValue", ""))
+            if not m or not TOOL_NAME_RULE.fullmatch(m.group(2)):
+                problems.append(f"labelled value {data_of.get('LabeledValue')!r}")
+                continue
+            weights.append(int(m.group(3)))
+            bounds.setdefault(m.group(2), []).append(abs(int(m.group(3))))
+    for c, (lo, hi) in ((c, sorted(b)) for c, b in bounds.items()):
+        if not 0 < lo < hi:
+            problems.append(f"contingent link of {c} with bounds [{lo}, {hi}] (the tool wants 0 < x < y)")
+    if weights and max(map(abs, weights)) * max(len(nodes) - 1, 1) >= 2**31 - 1:
+        problems.append("weights over the tool's 32-bit horizon")
+    return problems
+
+
+def test_compile_writes_graphml_the_cstnu_tool_reads(tmp_path: Path) -> None:
+    """Every node id and labelled value the compile writes for the workshop passes the tool's rules."""
+    out = tmp_path / "out"
+    assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--jobs", "1",
+                 "--no-report", "-q"]) == 0
+    files = sorted((out / "stnu").glob("*.graphml"))
+    assert len(files) == 32
+    for path in files:
+        assert _cstnu_tool_refusals(path.read_bytes()) == [], path.name
+    # the rule checker itself notices what the tool refuses
+    assert _cstnu_tool_refusals(write_graphml(STNU(("A", "C"), (), (C("A", "C", 0, 4),))).encode())
+    assert _cstnu_tool_refusals(b'<graphml xmlns="http://graphml.graphdrawing.org/xmlns/graphml"><graph>'
+                                b'<node id="a.b"/></graph></graphml>')
+
+
+def test_hrc_check_on_a_task_file_says_it_is_not_an_stnu_file(capsys: pytest.CaptureFixture[str]) -> None:
+    for task in ("cube_stacking.yaml", "kitting.yaml"):
+        assert main(["check", str(ROOT / "tasks" / task)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "not an STNU file" in err
+        assert "GraphML" in err and ".stnu" in err and "HEATlab" in err

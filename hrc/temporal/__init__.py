@@ -2,10 +2,13 @@
 
 Pure functions over the immutable `STNU` type (`hrc.temporal.network`); exact integer ticks throughout
 (`hrc.temporal.ticks` converts seconds and decimal text). Modules: `network` (value types), `graph`
-(distance graphs), `stn` (consistency, APSP, minimal dispatchable network, propagation), `dc` (Morris
-2014 DC check), `oracle` (an independent exhaustive DC check for tests), `graphml` / `stnu_text` /
-`heatlab` (file formats; `read_network` detects the format by content), `execution` (real-time execution:
-the residual network of a partial execution and the RTE*-style window of each timepoint).
+(distance graphs), `potential` (schedules or negative cycles, Goldberg-Radzik), `stn` (consistency, APSP,
+minimal dispatchable network, propagation), `dc` (`check_dc`, the registry of DC algorithms, Morris 2014),
+`rul` (the default DC algorithm, RUL family, with its C core `_rulcore.c`), `bypass` (bypass closure),
+`oracle` (an independent exhaustive DC check for tests), `graphml` / `stnu_text` / `heatlab` (file formats;
+`read_network` detects the format by content), `limits` / `xmlread` (bounded, hardened reading), `execution`
+(real-time execution: the residual network of a partial execution and the RTE*-style window of each
+timepoint).
 """
 
 from hrc.temporal.dc import DCResult, Verdict, check_dc

@@ -119,19 +119,17 @@ class _Closure:
             return self.index[e.source], self.index[e.target]
         return e[0], e[1]
 
-    def bypasses_from(self, c: int, x: int) -> tuple[list[tuple[int, int, int, list[int], int, int]], set[int]]:
+    def bypasses_from(self, c: int, x: int) -> tuple[list[tuple[int, int, int, dict[int, int], int, int]], set[int]]:
         """Dijkstra from C on reduced weights, expanding only nodes at a non-negative true distance.
 
         Returns the bypasses of a lower-case edge ``A --c:x--> C`` as ``(W, weight, label, pred, u, eid)``:
         Q is the predecessor path from C to ``u`` followed by edge ``eid`` (rebuilt only when a cycle is
         explained), and the set of expanded nodes (new edges out of others cannot change the result).
         """
-        n = len(self.names)
         p = self.potential
         pc = p[c]
-        dist: list[float] = [_BIG] * n  # reduced distance from C (integers; inf = unreached)
-        pred = [-1] * n
-        dist[c] = 0
+        dist: dict[int, int] = {c: 0}  # reduced distance from C, over the nodes this search touches
+        pred: dict[int, int] = {}
         heap = [(0, c)]
         push, pop = heapq.heappush, heapq.heappop
         uc_best: dict[tuple[int, int], tuple[int, int, int]] = {}  # (W, L) -> (true dist, last eid, from u)
@@ -157,20 +155,20 @@ class _Closure:
                                 uc_best[key] = (t, eid, u)
                         continue
                 nd = d + w + p[u] - p[v]
-                if nd < dist[v]:
+                if nd < dist.get(v, _BIG):
                     dist[v] = nd
                     pred[v] = eid
                     push(heap, (nd, v))
         result = []
         for v in found:
-            result.append((v, x + int(dist[v]) - pc + p[v], -1, pred, self._ends(pred[v])[0], pred[v]))
+            result.append((v, x + dist[v] - pc + p[v], -1, pred, self._ends(pred[v])[0], pred[v]))
         for (v, label), (t, eid, u) in uc_best.items():
             weight = x + t
             final = -1 if weight >= -self.min_lb[label] else label  # label removal
             result.append((v, weight, final, pred, u, eid))
         return result, expanded
 
-    def _path(self, pred: list[int], c: int, v: int) -> list[int]:
+    def _path(self, pred: dict[int, int], c: int, v: int) -> list[int]:
         path: list[int] = []
         while v != c:
             eid = pred[v]

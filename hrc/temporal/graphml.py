@@ -20,26 +20,54 @@ Reading semantics, applied here so that the algorithms stay format-agnostic:
    negative self-loop occurs in the benchmark set): they are ignored by default, which keeps the DC
    verdict (they are implied) and keeps consistency about the written constraints only; ``derived=True``
    reads them as requirements.
+4. Node ids are read as they are: files written by older hrc versions (dotted names such as
+   ``human.a1.fetch.start``) and by this one (``human_a1_fetch_start``) both read.
 
-Writing: `write_graphml` emits the labelled contingent form, one edge per finite bound, in a fixed
-order, so equal networks give byte-identical text. A network with a node ``Z`` gets the origin
-semantics of (1) when the tool (or `read_network`) loads it again.
+Writing for the CSTNU Tool (`write_graphml`): the tool reads a node only if its name matches
+`TOOL_NAME_RULE`, ``[A-Za-z0-9_ωΩ? ]+`` (its ``ALabelAlphabet.ALETTER_RANGE``, checked when it turns a
+contingent timepoint's name into an A-letter; the same name is in ``LC(C)``/``UC(C)``, split at ``:``).
+`tool_name` is the one place that decides the node id of a timepoint: accents are dropped (``é`` -> ``e``),
+every other character outside the rule becomes ``_`` (so ``human.a1.fetch.start`` is written
+``human_a1_fetch_start``), the empty name becomes ``_``. Code that looks a timepoint up in a written file
+goes through it. Two names of one network that would get the same id (``a.b`` and ``a_b``) are refused
+with a `NetworkError` naming both: the mapping stays a function of the name alone, so lookups through
+`tool_name` stay right. The origin is the timepoint named ``Z`` (`ORIGIN`), as the tool expects.
+
+A contingent link with ``lb == ub`` (a fixed duration, which the tool refuses: it wants
+``0 < lb < ub``) is written as the requirement link ``[lb, lb]``; nature has no choice in it, so the
+network's class (DC, consistent, inconsistent) is the same. A contingent link with ``lb == 0`` is
+written as it is (``LC(C):0``): hrc reads it, the tool refuses the file; no requirement network says
+the same thing, so a task that wants tool-readable files must give the human a duration of at least one
+tick. Weights are written as they are: the tool stores 32-bit integers.
+
+The output has one edge per finite bound in a fixed order, so equal networks give byte-identical text.
 """
 
 from __future__ import annotations
 
 import re
+import unicodedata
 from pathlib import Path
+from xml.parsers import expat
 
 from hrc.errors import NetworkFileError
+from hrc.temporal.limits import MAX_BOUNDS, MAX_TIMEPOINTS, check_size, parse_int, read_bounded, show, show_path
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
-from hrc.temporal.xmlread import XmlElement, parse_xml
+from hrc.temporal.xmlread import MAX_DEPTH, hardened_parser, parse
 
-__all__ = ["ORIGIN", "read_graphml", "read_network", "tool_name", "write_graphml"]
+__all__ = ["FORMATS", "ORIGIN", "TOOL_NAME_RULE", "read_graphml", "read_network", "tool_name", "write_graphml"]
 
 ORIGIN = "Z"
+TOOL_NAME_RULE = re.compile(r"[A-Za-z0-9_ωΩ? ]+")
+"""The CSTNU Tool 5.0's rule for timepoint names (Java regex, matched against the whole name)."""
+FORMATS = ("CSTNU Tool GraphML (XML with a <graphml> root)",
+           "the .stnu text format (first line '# KIND OF NETWORK')",
+           "HEATlab JSON (an object with 'nodes' and 'constraints')")
+"""The network formats `read_network` accepts, as its messages name them."""
+
 _ORDINARY_TYPES = {"requirement", "normal", "constraint", "derived", "internal"}
-_LABELLED = re.compile(r"^\s*(LC|UC)\((.+)\)\s*:\s*([-+]?\d+)\s*$")
+_LABELLED = re.compile(r"\s*(LC|UC)\((.+)\)\s*:\s*([-+]?[0-9]+)\s*")
+_NOT_TOOL = re.compile(r"[^A-Za-z0-9_ωΩ? ]")
 
 
 def _escape(text: str) -> str:
@@ -51,87 +79,155 @@ def _quoteattr(text: str) -> str:
     return '"' + _escape(text).replace('"', "&quot;").replace("\n", "&#10;").replace("\t", "&#9;") + '"'
 
 
-def _int(text: str, file: str, key: str, line: int) -> int:
-    try:
-        return int(text.strip())
-    except ValueError as err:
-        raise NetworkFileError(file, key, f"expected an integer, found {text.strip()!r}", line) from err
+class _Reader:
+    """The state of one streaming read of a GraphML document; its methods are the expat handlers."""
+
+    def __init__(self, file: str, parser: expat.XMLParserType) -> None:
+        self.file = file
+        self.parser = parser
+        self.names: dict[str, str] = {}  # key id -> attribute name
+        self.defaults: dict[str, str] = {}
+        self.graphs = 0
+        self.root_line = 1
+        self.graph_line = 1
+        self.graph_data: dict[str, str] = {}
+        self.nodes: list[str] = []
+        self.known: set[str] = set()
+        self.edges: list[tuple[str, str, str, int, dict[str, str]]] = []  # source, target, where, line, data
+        self.stack: list[str] = []
+        self.owner: dict[str, str] | None = None  # data of the current <graph>/<edge>, or None
+        self.key: str | None = None
+        self.data_key: str | None = None
+        self.text: list[str] | None = None  # text of the current <data> or <default>, else not collected
+
+    def start(self, name: str, attrs: dict[str, str]) -> None:
+        tag = name[name.rfind("}") + 1:]
+        stack = self.stack
+        parent = stack[-1] if stack else ""
+        if not stack:
+            self.root_line = self.parser.CurrentLineNumber
+            if tag != "graphml":
+                raise NetworkFileError(self.file, "", f"not an STNU file: the XML root element is {show(tag)}, a "
+                                                      "CSTNU Tool GraphML file has <graphml>", self.root_line)
+        elif len(stack) >= MAX_DEPTH:
+            raise NetworkFileError(self.file, "", f"elements nested more than {MAX_DEPTH} deep",
+                                   self.parser.CurrentLineNumber)
+        stack.append(tag)
+        if tag == "data":
+            self.data_key = attrs.get("key", "")
+            self.text = []
+        elif tag == "node" and parent == "graph":
+            nid = attrs.get("id")
+            line = self.parser.CurrentLineNumber
+            if not nid:
+                raise NetworkFileError(self.file, "node", "a node has no id", line)
+            if nid in self.known:
+                raise NetworkFileError(self.file, f"node {show(nid)}", "node id used twice", line)
+            self.known.add(nid)
+            self.nodes.append(nid)
+            if len(self.nodes) > MAX_TIMEPOINTS:
+                check_size(len(self.nodes), 0, self.file, line)
+            self.owner = None
+        elif tag == "edge" and parent == "graph":
+            src, tgt = attrs.get("source", ""), attrs.get("target", "")
+            where = f"edge {show(attrs['id'])}" if "id" in attrs else f"edge {show(src)}->{show(tgt)}"
+            data: dict[str, str] = {}
+            self.edges.append((src, tgt, where, self.parser.CurrentLineNumber, data))
+            if len(self.edges) > MAX_BOUNDS:
+                check_size(0, len(self.edges), self.file, self.parser.CurrentLineNumber)
+            self.owner = data
+        elif tag == "key" and parent == "graphml":
+            kid = attrs.get("id", "")
+            self.names[kid] = attrs.get("attr.name", kid)
+            self.key = kid
+        elif tag == "default":
+            self.text = []
+        elif tag == "graph":
+            line = self.parser.CurrentLineNumber
+            if parent != "graphml":
+                raise NetworkFileError(self.file, "graph", "nested graphs are not supported", line)
+            self.graphs += 1
+            if self.graphs > 1:
+                raise NetworkFileError(self.file, "graph", "expected one <graph>, found a second one", line)
+            self.graph_line = line
+            self.owner = self.graph_data
+
+    def chars(self, text: str) -> None:
+        if self.text is not None:
+            self.text.append(text)
+
+    def end(self, name: str) -> None:
+        tag = self.stack.pop()
+        parent = self.stack[-1] if self.stack else ""
+        if tag == "data":
+            if parent in ("graph", "edge") and self.owner is not None and self.text is not None:
+                self.owner[self.names.get(self.data_key or "", self.data_key or "")] = "".join(self.text)
+            self.data_key = None
+            self.text = None
+        elif tag in ("edge", "node"):
+            self.owner = self.graph_data
+        elif tag == "default":
+            if parent == "key" and self.key is not None and self.text is not None:
+                self.defaults[self.names[self.key]] = "".join(self.text).strip()
+            self.text = None
+        elif tag == "key":
+            self.key = None
 
 
 def read_graphml(data: bytes, file: str = "<graphml>", *, derived: bool = False) -> STNU:
-    """Parse CSTNU Tool GraphML (see the module docstring). Raises `NetworkFileError`."""
-    root = parse_xml(data, file)
-    if root.tag != "graphml":
-        raise NetworkFileError(file, "", f"expected a <graphml> root element, found <{root.tag}>", root.line)
-    defaults: dict[str, str] = {}
-    names: dict[str, str] = {}  # key id -> attribute name
-    for key in root.find_all("key"):
-        kid = key.attrs.get("id", "")
-        names[kid] = key.attrs.get("attr.name", kid)
-        for d in key.find_all("default"):
-            defaults[names[kid]] = d.text.strip()
-    graphs = root.find_all("graph")
-    if len(graphs) != 1:
-        raise NetworkFileError(file, "graph", f"expected one <graph>, found {len(graphs)}", root.line)
-    graph = graphs[0]
-
-    def data_of(el: XmlElement) -> dict[str, str]:
-        return {names.get(d.attrs.get("key", ""), d.attrs.get("key", "")): d.text for d in el.find_all("data")}
-
-    gdata = data_of(graph)
-    kind = gdata.get("NetworkType", "STNU").strip()
+    """Parse CSTNU Tool GraphML (see the module docstring) in one streaming pass. Raises
+    `NetworkFileError`."""
+    parser = hardened_parser(file)
+    reader = _Reader(file, parser)
+    parser.StartElementHandler = reader.start
+    parser.EndElementHandler = reader.end
+    parser.CharacterDataHandler = reader.chars
+    parse(parser, data, file)
+    if reader.graphs != 1:
+        raise NetworkFileError(file, "graph", "expected one <graph>, found none", reader.root_line)
+    kind = reader.graph_data.get("NetworkType", reader.defaults.get("NetworkType", "STNU")).strip()
     if kind not in {"STN", "STNU"}:
-        raise NetworkFileError(file, "NetworkType", f"expected STN or STNU, found {kind!r}", graph.line)
-    nodes: list[str] = []
-    for node in graph.find_all("node"):
-        nid = node.attrs.get("id")
-        if not nid:
-            raise NetworkFileError(file, "node", "a node has no id", node.line)
-        if nid in nodes:
-            raise NetworkFileError(file, f"node {nid}", "node id used twice", node.line)
-        nodes.append(nid)
-    known = set(nodes)
+        raise NetworkFileError(file, "NetworkType", f"expected STN or STNU, found {show(kind)}", reader.graph_line)
+    defaults, known = reader.defaults, reader.known
     reqs: list[RequirementLink] = []
     # contingent edges, keyed by the unordered pair: (source, target, value, LC/UC/"", label, line)
     cont: dict[frozenset[str], list[tuple[str, str, int, str, str, int]]] = {}
-    for edge in graph.find_all("edge"):
-        src, tgt = edge.attrs.get("source", ""), edge.attrs.get("target", "")
-        where = f"edge {edge.attrs.get('id', f'{src}->{tgt}')}"
+    for src, tgt, where, line, edata in reader.edges:
         for end in (src, tgt):
             if end not in known:
-                raise NetworkFileError(file, where, f"unknown node {end!r}", edge.line)
-        values = {**defaults, **data_of(edge)}
-        etype = values.get("Type", "requirement").strip()
-        value_text = values.get("Value", "").strip()
-        labelled = values.get("LabeledValue", "").strip()
+                raise NetworkFileError(file, where, f"unknown node {show(end)}", line)
+        etype = edata.get("Type", defaults.get("Type", "requirement")).strip()
+        value_text = edata.get("Value", defaults.get("Value", "")).strip()
+        labelled = edata.get("LabeledValue", defaults.get("LabeledValue", "")).strip()
         if etype == "contingent":
             if labelled:
-                m = _LABELLED.match(labelled)
+                m = _LABELLED.fullmatch(labelled)
                 if not m:
-                    raise NetworkFileError(
-                        file, where, f"expected LC(C):l or UC(C):-u, found {labelled!r}", edge.line
-                    )
-                entry = (src, tgt, int(m.group(3)), m.group(1), m.group(2), edge.line)
+                    raise NetworkFileError(file, where, f"expected LC(C):l or UC(C):-u, found {show(labelled)}",
+                                           line)
+                value = parse_int(m.group(3), file, where, line)
+                entry = (src, tgt, value, m.group(1), m.group(2), line)
             elif value_text:
-                entry = (src, tgt, _int(value_text, file, where, edge.line), "", "", edge.line)
+                entry = (src, tgt, parse_int(value_text, file, where, line), "", "", line)
             else:
-                raise NetworkFileError(file, where, "contingent edge without Value or LabeledValue", edge.line)
+                raise NetworkFileError(file, where, "contingent edge without Value or LabeledValue", line)
             cont.setdefault(frozenset((src, tgt)), []).append(entry)
         elif etype in _ORDINARY_TYPES:
             if etype == "derived" and not derived:
                 continue
             if not value_text:
-                raise NetworkFileError(file, where, f"{etype} edge without a Value", edge.line)
-            w = _int(value_text, file, where, edge.line)
-            reqs.append(_make(RequirementLink, file, where, edge.line, src, tgt, None, w))
+                raise NetworkFileError(file, where, f"{etype} edge without a Value", line)
+            w = parse_int(value_text, file, where, line)
+            reqs.append(_make(RequirementLink, file, where, line, src, tgt, None, w))
         else:
-            raise NetworkFileError(file, where, f"unknown edge Type {etype!r}", edge.line)
+            raise NetworkFileError(file, where, f"unknown edge Type {show(etype)}", line)
     contingents = [_contingent_link(pair_edges, file) for pair_edges in cont.values()]
     if kind == "STN" and contingents:
-        raise NetworkFileError(file, "NetworkType", "an STN with contingent edges", graph.line)
+        raise NetworkFileError(file, "NetworkType", "an STN with contingent edges", reader.graph_line)
+    nodes = reader.nodes
     if ORIGIN in known:
         reqs.extend(RequirementLink(ORIGIN, x, 0, None) for x in nodes if x != ORIGIN)
-    name = gdata.get("Name", "").strip()
+    name = reader.graph_data.get("Name", defaults.get("Name", "")).strip()
     try:
         return STNU(tuple(nodes), tuple(reqs), tuple(contingents), name)
     except NetworkError as err:
@@ -147,12 +243,13 @@ def _make(cls, file: str, where: str, line: int, *args):  # type: ignore[no-unty
 
 def _contingent_link(edges: list[tuple[str, str, int, str, str, int]], file: str) -> ContingentLink:
     line = edges[0][5]
-    where = f"contingent link {edges[0][0]}-{edges[0][1]}"
+    where = f"contingent link {show(edges[0][0])}-{show(edges[0][1])}"
     if len(edges) != 2 or edges[0][:2] == edges[1][:2]:
         raise NetworkFileError(file, where, f"expected two opposite contingent edges, found {len(edges)}", line)
     labels = {e[4] for e in edges if e[3]}
     if len(labels) > 1:
-        raise NetworkFileError(file, where, f"contingent edges name different timepoints {sorted(labels)}", line)
+        raise NetworkFileError(file, where, f"contingent edges name different timepoints "
+                                            f"{', '.join(show(x) for x in sorted(labels))}", line)
     if labels:
         c = labels.pop()
     else:  # plain form: A->C carries u >= 0, C->A carries -l <= 0
@@ -164,7 +261,7 @@ def _contingent_link(edges: list[tuple[str, str, int, str, str, int]], file: str
         ac = next(e for e in edges if e[1] == c)
         ca = next(e for e in edges if e[0] == c)
     except StopIteration:
-        raise NetworkFileError(file, where, f"label names {c!r}, which is not an end of the link", line) from None
+        raise NetworkFileError(file, where, f"label names {show(c)}, which is not an end of the link", line) from None
     if (ac[3], ca[3]) == ("LC", "UC"):
         lb, ub = ac[2], -ca[2]
     elif (ac[3], ca[3]) == ("", ""):
@@ -175,24 +272,50 @@ def _contingent_link(edges: list[tuple[str, str, int, str, str, int]], file: str
 
 
 def tool_name(name: str) -> str:
-    """The node id `write_graphml` gives timepoint `name` (the one place that decides it).
+    """The node id `write_graphml` gives timepoint ``name`` (the one place that decides it): the name with
+    accents dropped and every character outside ``[A-Za-z0-9_ωΩ? ]`` replaced by ``_``.
 
-    Code that looks a timepoint up in a written file goes through this function.
+    >>> tool_name("human.cube-1.fetch.start"), tool_name("Z"), tool_name("café"), tool_name("")
+    ('human_cube_1_fetch_start', 'Z', 'cafe', '_')
     """
-    return name
+    plain = "".join(ch for ch in unicodedata.normalize("NFKD", name) if not unicodedata.combining(ch))
+    return _NOT_TOOL.sub("_", plain) or "_"
+
+
+def _node_ids(stnu: STNU) -> dict[str, str]:
+    """`tool_name` of every timepoint; raises `NetworkError` if two timepoints would share an id."""
+    ids: dict[str, str] = {}
+    owner: dict[str, str] = {}
+    for v in stnu.timepoints:
+        nid = tool_name(v)
+        if nid in owner:
+            raise NetworkError(f"timepoints {show(owner[nid])} and {show(v)} would both be written as node "
+                               f"{show(nid)} (the CSTNU Tool allows only [A-Za-z0-9_ωΩ? ] in names); rename one")
+        owner[nid] = v
+        ids[v] = nid
+    return ids
 
 
 def write_graphml(stnu: STNU) -> str:
-    """The network as CSTNU Tool GraphML text (deterministic; see the module docstring)."""
+    """The network as CSTNU Tool GraphML text (deterministic; node ids by `tool_name`, fixed durations as
+    requirement links: see the module docstring). Raises `NetworkError` if two names share an id."""
+    ids = _node_ids(stnu)
     edges: list[tuple[str, str, str, str, str]] = []  # (source, target, Type, key, value)
     for r in stnu.requirements:
         if r.ub is not None:
-            edges.append((r.source, r.target, "requirement", "Value", str(r.ub)))
+            edges.append((ids[r.source], ids[r.target], "requirement", "Value", str(r.ub)))
         if r.lb is not None:
-            edges.append((r.target, r.source, "requirement", "Value", str(-r.lb)))
+            edges.append((ids[r.target], ids[r.source], "requirement", "Value", str(-r.lb)))
+    contingent = 0
     for c in stnu.contingents:
-        edges.append((c.source, c.target, "contingent", "LabeledValue", f"LC({c.target}):{c.lb}"))
-        edges.append((c.target, c.source, "contingent", "LabeledValue", f"UC({c.target}):{-c.ub}"))
+        a, t = ids[c.source], ids[c.target]
+        if c.lb == c.ub:  # a fixed duration: the same network with a requirement link
+            edges.append((a, t, "requirement", "Value", str(c.ub)))
+            edges.append((t, a, "requirement", "Value", str(-c.lb)))
+            continue
+        contingent += 1
+        edges.append((a, t, "contingent", "LabeledValue", f"LC({t}):{c.lb}"))
+        edges.append((t, a, "contingent", "LabeledValue", f"UC({t}):{-c.ub}"))
     out = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         '<graphml xmlns="http://graphml.graphdrawing.org/xmlns/graphml" '
@@ -217,13 +340,13 @@ def write_graphml(stnu: STNU) -> str:
         out.append(f"<default>{default}</default>")
         out.append("</key>")
     out.append('<graph edgedefault="directed">')
-    out.append(f'<data key="nContingent">{len(stnu.contingents)}</data>')
-    out.append(f'<data key="NetworkType">{"STNU" if stnu.contingents else "STN"}</data>')
+    out.append(f'<data key="nContingent">{contingent}</data>')
+    out.append(f'<data key="NetworkType">{"STNU" if contingent else "STN"}</data>')
     out.append(f'<data key="nEdges">{len(edges)}</data>')
     out.append(f'<data key="nVertices">{len(stnu.timepoints)}</data>')
     out.append(f'<data key="Name">{_escape(stnu.name)}</data>')
     for i, v in enumerate(stnu.timepoints):
-        out.append(f"<node id={_quoteattr(v)}>")
+        out.append(f"<node id={_quoteattr(ids[v])}>")
         out.append(f'<data key="x">{150.0 * (i % 10):.1f}</data>')
         out.append(f'<data key="y">{150.0 * (i // 10):.1f}</data>')
         out.append("</node>")
@@ -237,25 +360,29 @@ def write_graphml(stnu: STNU) -> str:
     return "\n".join(out) + "\n"
 
 
-def read_network(path: str | Path, *, derived: bool = False) -> STNU:
-    """Read an STNU file, detecting the format by content: XML -> CSTNU Tool GraphML
-    (`read_graphml`), ``#`` -> the plain ``.stnu`` text format (`hrc.temporal.stnu_text`), ``{`` -> HEATlab
-    JSON (`hrc.temporal.heatlab`). Raises `NetworkFileError` (file, line, what is wrong)."""
-    from hrc.temporal import heatlab, stnu_text  # local: formats import this module
+def read_network(path: str | Path, *, derived: bool = False, origin: bool = True) -> STNU:
+    """Read an STNU file, detecting the format by content: XML -> CSTNU Tool GraphML (`read_graphml`); a
+    first line ``# KIND OF NETWORK`` -> the ``.stnu`` text format (`hrc.temporal.stnu_text`, with the
+    origin ``Z`` applied unless ``origin=False``); ``{`` -> HEATlab JSON (`hrc.temporal.heatlab`).
 
-    file = str(path)
-    try:
-        data = Path(path).read_bytes()
-    except OSError as err:
-        raise NetworkFileError(file, "", f"cannot read: {err.strerror or err}") from err
-    head = data.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
-    if head == b"<":
+    Reads at most `hrc.temporal.limits.MAX_FILE_BYTES` of a regular file. Raises `NetworkFileError`
+    (file, line, what is wrong, on one line); anything else is "not an STNU file" with the accepted
+    formats (`FORMATS`).
+    """
+    from hrc.temporal import heatlab, stnu_text  # local: those modules are only needed for their format
+
+    file = show_path(path)
+    data = read_bounded(path, file)
+    body = data[3:] if data.startswith(b"\xef\xbb\xbf") else data
+    head = body.lstrip(b" \t\r\n")[:1]
+    if head == b"<" or body[:2] in (b"\xff\xfe", b"\xfe\xff"):
         return read_graphml(data, file, derived=derived)
-    if head == b"#":
-        return stnu_text.read_stnu_text(_decode(data, file), file)
     if head in (b"{", b"["):
         return heatlab.read_heatlab(_decode(data, file), file)
-    raise NetworkFileError(file, "", "unknown format: expected GraphML (<), .stnu text (#) or HEATlab JSON ({)", 1)
+    if head == b"#" and stnu_text.looks_like_stnu_text(body):
+        return stnu_text.read_stnu_text(_decode(data, file), file, origin=origin)
+    raise NetworkFileError(file, "", "not an STNU file: expected " + ", ".join(FORMATS[:-1]) + " or " + FORMATS[-1],
+                           1)
 
 
 def _decode(data: bytes, file: str) -> str:

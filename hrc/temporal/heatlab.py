@@ -22,11 +22,18 @@ import json
 from decimal import Decimal
 
 from hrc.errors import NetworkFileError
+from hrc.temporal.limits import MAX_MAGNITUDE, check_size, show
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
 from hrc.temporal.ticks import scale_to_integers
 
-__all__ = ["read_heatlab", "read_heatlab_scaled"]
+__all__ = ["MAX_DECIMALS", "MAX_JSON_VALUES", "read_heatlab", "read_heatlab_scaled"]
 
+MAX_JSON_VALUES = 4_000_000
+"""Most JSON values (counted as commas and colons, before parsing) in a HEATlab file: parsing builds a
+Python object per value, so this bounds the memory a file can take (about 1 GiB)."""
+MAX_DECIMALS = 20
+"""Most decimals in a HEATlab bound (the dataset prints floats in full, up to 17 significant digits); with
+bounds within `MAX_MAGNITUDE` units, the exact scale to integer ticks is then at most 10^20."""
 _POS_INF = {"inf", "+inf", "infinity", "+infinity"}
 _NEG_INF = {"-inf", "-infinity"}
 
@@ -38,17 +45,28 @@ def read_heatlab(text: str, file: str = "<json>") -> STNU:
 
 def read_heatlab_scaled(text: str, file: str = "<json>") -> tuple[STNU, int]:
     """Like `read_heatlab`, also returning the scale: ticks per unit of the file's numbers."""
+    values = text.count(",") + text.count(":")
+    if values > MAX_JSON_VALUES:
+        raise NetworkFileError(file, "", f"about {values:,} JSON values, over the limit of {MAX_JSON_VALUES:,} "
+                                         "for a network file")
     try:
         doc = json.loads(text, parse_float=Decimal, parse_int=Decimal,
                          parse_constant=lambda c: None if c == "Infinity" else _bad_constant(c))
     except json.JSONDecodeError as err:
         raise NetworkFileError(file, "", f"not valid JSON: {err.msg}", err.lineno) from err
+    except RecursionError as err:
+        raise NetworkFileError(file, "", "not a network file: JSON nested too deeply") from err
+    except ArithmeticError as err:  # decimal.Overflow and friends: an exponent Decimal cannot hold
+        raise NetworkFileError(file, "", f"a number is out of range (at most {MAX_MAGNITUDE:.0e} in absolute "
+                                         "value)") from err
     except ValueError as err:
-        raise NetworkFileError(file, "", str(err)) from err
+        raise NetworkFileError(file, "", show(str(err))[1:-1]) from err
     if not isinstance(doc, dict) or not isinstance(doc.get("nodes"), list) or not isinstance(
         doc.get("constraints"), list
     ):
-        raise NetworkFileError(file, "", "expected an object with lists 'nodes' and 'constraints'")
+        raise NetworkFileError(file, "", "not an STNU file: HEATlab JSON is an object with lists 'nodes' and "
+                                         "'constraints'")
+    check_size(len(doc["nodes"]), 2 * len(doc["constraints"]), file)
     names: list[str] = []
     for i, node in enumerate(doc["nodes"]):
         if not isinstance(node, dict) or "node_id" not in node:
@@ -69,17 +87,19 @@ def read_heatlab_scaled(text: str, file: str = "<json>") -> tuple[STNU, int]:
         b = _id(con.get("second_node"), file, f"{key}.second_node")
         for end in (a, b):
             if end not in known:
-                raise NetworkFileError(file, key, f"unknown node {end}")
+                raise NetworkFileError(file, key, f"unknown node {show(end)}")
         kind = con.get("type")
         if kind not in ("stc", "stcu"):
-            raise NetworkFileError(file, f"{key}.type", f"expected 'stc' or 'stcu', found {kind!r}")
+            raise NetworkFileError(file, f"{key}.type", f"expected 'stc' or 'stcu', found {_what(kind)}")
         lo, hi = con.get("min_duration"), con.get("max_duration")
         # the dataset writes an unbounded side as the string "inf" ("-inf" for a lower bound)
         lo = None if isinstance(lo, str) and lo.strip().lower() in _NEG_INF else lo
         hi = None if isinstance(hi, str) and hi.strip().lower() in _POS_INF else hi
         for label, val in (("min_duration", lo), ("max_duration", hi)):
             if val is not None and not isinstance(val, Decimal):
-                raise NetworkFileError(file, f"{key}.{label}", f"expected a number, found {val!r}")
+                raise NetworkFileError(file, f"{key}.{label}", f"expected a number, found {_what(val)}")
+            if val is not None:
+                _check_bound(val, file, f"{key}.{label}")
         if kind == "stcu" and (lo is None or hi is None):
             raise NetworkFileError(file, key, "a contingent link (stcu) needs finite min and max durations")
         raw.append((a, b, kind, lo, hi, key))
@@ -115,8 +135,40 @@ def _bad_constant(c: str) -> None:
 
 
 def _id(value: object, file: str, key: str) -> str:
-    if isinstance(value, Decimal) and value == value.to_integral_value():
+    if isinstance(value, Decimal) and _within(value) and value == value.to_integral_value():
         return str(int(value))
     if isinstance(value, str) and value:
         return value
-    raise NetworkFileError(file, key, f"expected a node id, found {value!r}")
+    raise NetworkFileError(file, key, f"expected a node id (an integer or a text), found {_what(value)}")
+
+
+def _check_bound(value: Decimal, file: str, key: str) -> None:
+    """A bound must be finite, within ``MAX_MAGNITUDE`` and have at most ``MAX_DECIMALS`` decimals (checked
+    on the Decimal, before any exact conversion could take time and memory)."""
+    if not _within(value):
+        raise NetworkFileError(file, key, f"{_what(value)} is out of range (at most {MAX_MAGNITUDE:.0e} in "
+                                          "absolute value)")
+    _sign, digits, exponent = value.as_tuple()
+    if isinstance(exponent, int) and exponent < 0:
+        trailing = len(digits) - len(bytes(digits).rstrip(b"\0"))
+        if -exponent - min(trailing, -exponent) > MAX_DECIMALS:
+            raise NetworkFileError(file, key, f"{_what(value)} has more than {MAX_DECIMALS} decimals")
+
+
+def _within(value: Decimal) -> bool:
+    """Finite and at most `MAX_MAGNITUDE` in absolute value, decided without the decimal context (which
+    would overflow on ``1e999999999``)."""
+    return value.is_finite() and (value.is_zero() or value.adjusted() < len(str(MAX_MAGNITUDE)) - 1
+                                  or value.copy_abs() == MAX_MAGNITUDE)
+
+
+def _what(value: object) -> str:
+    """A JSON value for an error message, quoted and cut short."""
+    if isinstance(value, str):
+        return show(value)
+    if isinstance(value, Decimal):
+        text = str(value)
+        return text if len(text) <= 40 else text[:40] + "..."
+    if isinstance(value, dict | list):
+        return f"a JSON {'object' if isinstance(value, dict) else 'array'}"
+    return show(repr(value))[1:-1]

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 from hrc.temporal.graph import Edge, distance_edges
 from hrc.temporal.network import STNU, NetworkError
+from hrc.temporal.potential import feasible_potential
 
 if TYPE_CHECKING:
     import numpy as np
@@ -51,57 +52,24 @@ class ConsistencyResult:
 
 
 def find_negative_cycle(nodes: Iterable[str], edges: Iterable[Edge]) -> tuple[dict[str, int], tuple[Edge, ...]]:
-    """Queue-based Bellman-Ford from a virtual source joined to every node by a 0 edge.
+    """A potential of the graph, from a virtual source joined to every node by a 0 edge, or a negative cycle.
 
     Returns ``(potential, ())`` where ``potential[v] - potential[u] <= w`` for every edge, or
-    ``({}, cycle)`` with a negative cycle in path order. O(n m) worst case, near-linear in practice.
+    ``({}, cycle)`` with a negative cycle in path order. Goldberg-Radzik (`hrc.temporal.potential`):
+    O(n m) worst case, one or two linear passes on plan networks and chains.
     """
     names = list(nodes)
     index = {v: i for i, v in enumerate(names)}
     n = len(names)
-    out: list[list[tuple[int, int, Edge]]] = [[] for _ in range(n)]
-    for e in edges:
-        out[index[e.source]].append((index[e.target], e.value, e))
+    table = list(edges)
+    out: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
+    for eid, e in enumerate(table):
+        out[index[e.source]].append((index[e.target], e.value, eid))
     dist = [0] * n
-    pred: list[Edge | None] = [None] * n
-    length = [0] * n  # edges on the current shortest path; >= n means a cycle
-    queue = deque(range(n))
-    queued = [True] * n
-    while queue:
-        u = queue.popleft()
-        queued[u] = False
-        du = dist[u]
-        for v, w, e in out[u]:
-            if du + w < dist[v]:
-                dist[v] = du + w
-                pred[v] = e
-                length[v] = length[u] + 1
-                if length[v] >= n:
-                    cycle, real = _parent_cycle(v, pred, index)
-                    if cycle:
-                        return {}, cycle
-                    length[v] = real  # lengths were stale; the parent chain is still a tree
-                if not queued[v]:
-                    queued[v] = True
-                    queue.append(v)
+    cycle = feasible_potential(n, out, dist)
+    if cycle is not None:
+        return {}, tuple(table[eid] for eid in cycle)
     return {names[i]: dist[i] for i in range(n)}, ()
-
-
-def _parent_cycle(v: int, pred: list[Edge | None], index: dict[str, int]) -> tuple[tuple[Edge, ...], int]:
-    """Walk the parent pointers from ``v``: a cycle there is negative (label-correcting lemma, e.g.
-    Cherkassky & Goldberg 1999); otherwise return the true length of ``v``'s parent chain."""
-    seen: dict[int, int] = {}
-    chain: list[Edge] = []
-    while v not in seen:
-        seen[v] = len(chain)
-        e = pred[v]
-        if e is None:
-            return (), len(chain)
-        chain.append(e)
-        v = index[e.source]
-    cycle = chain[seen[v]:]
-    cycle.reverse()
-    return tuple(cycle), 0
 
 
 def check_consistency(stnu: STNU) -> ConsistencyResult:
