@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import math
 import itertools
 import json
+import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 
