@@ -27,6 +27,7 @@ from hrc.model import Plan, Task
 from hrc.motion import PathLibrary
 from hrc.plans import agent_legs
 from hrc.temporal import STNU
+from hrc.temporal.graphml import tool_name
 
 
 @dataclass
@@ -201,11 +202,11 @@ def trajectory(task: Task, plan: Plan, motions, times: dict[str, float], agent_i
     for leg in legs:
         m = by_leg[leg.index]
         name = f"{agent_id}.{leg.phase}.{leg.action}"
-        dep, arr = times[f"{name}.depart"], times[f"{name}.arrive"]
+        dep, arr = times[tool_name(f"{name}.depart")], times[tool_name(f"{name}.arrive")]
         stands.append((last, dep, here))
         pts = np.asarray(m.points if m.points else (here,), dtype=float)
         if m.park:
-            park, unpark = times[f"{name}.park"], times[f"{name}.unpark"]
+            park, unpark = times[tool_name(f"{name}.park")], times[tool_name(f"{name}.unpark")]
             xy = task.workspace.location(m.park).xy
             k = int(np.argmin(np.hypot(pts[:, 0] - xy[0], pts[:, 1] - xy[1])))
             first, second = pts[:k + 1], pts[k:]
@@ -216,7 +217,7 @@ def trajectory(task: Task, plan: Plan, motions, times: dict[str, float], agent_i
             pieces.append((dep, arr, pts, _cum(pts)))
         here = task.workspace.location(leg.location).xy
         last = arr
-        end_time = times[f"{name}.end"]
+        end_time = times[tool_name(f"{name}.end")]
     stands.append((last, end_time, here))
     speed = agent.speed
 
@@ -276,7 +277,7 @@ def broken_constraints(task: Task, plan: Plan, times: dict[str, float], tol: flo
     owner = dict(plan.allocation)
 
     def tp(action: str, phase: str, what: str) -> float:
-        return times[f"{owner[action]}.{phase}.{action}.{what}"]
+        return times[tool_name(f"{owner[action]}.{phase}.{action}.{what}")]
 
     for action in task.actions:
         for phase in action.phases:
@@ -295,7 +296,7 @@ def broken_constraints(task: Task, plan: Plan, times: dict[str, float], tol: flo
         if not c.bounds.lb - tol <= d <= c.bounds.ub + tol:
             out.append(f"constraint {c.target} - {c.source} = {d:.3f} s outside {tuple(c.bounds)}")
     if task.deadline is not None:
-        last = max(t for name, t in times.items() if name.endswith(".end"))
+        last = max(tp(a.id, ph.id, "end") for a in task.actions for ph in a.phases)
         if last > task.deadline + tol:
             out.append(f"deadline {task.deadline} s missed: {last:.3f} s")
     return out

@@ -21,7 +21,7 @@ from hrc.motion import plan_motions
 from hrc.plans import agent_legs, generate_plans
 from hrc.temporal import check_dc
 from hrc.temporal.graph import distance_edges
-from hrc.temporal.graphml import read_graphml, read_network
+from hrc.temporal.graphml import read_graphml, read_network, tool_name
 
 ROOT = Path(__file__).resolve().parents[1]
 WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
@@ -240,7 +240,7 @@ def test_ranking_uses_preference_values(task, compiled):
     pref = task.preferences[0]
     for cp in valued[:5]:  # the value is APA's on the written network (read as an STP)
         stnu = read_graphml(cp.graphml.encode())
-        ends = (event_timepoint(cp.plan, pref.source), event_timepoint(cp.plan, pref.target))
+        ends = (tool_name(event_timepoint(cp.plan, pref.source)), tool_name(event_timepoint(cp.plan, pref.target)))
         res = plan_preference_value(stnu, [(*ends, pref)])
         assert res.consistent and abs(res.value - cp.preference) <= 1e-6 * max(1.0, abs(res.value))
     for a, b in zip(compiled.plans, compiled.plans[1:], strict=False):

@@ -22,8 +22,9 @@ Schema version 2 (times in seconds, rounded to the millisecond; plans in rank or
 
 An OCCUPANCY is ``{"kind": "travel", "leg": i, "from": LOC, "to": LOC}`` or ``{"kind": "stay", "leg": i,
 "at": LOC}`` (leg indices as in `hrc.plans.agent_legs`, -1 for the start location). ``passing`` lists
-the passing orders the plan's STNU carries (``T(to) - T(from) >= min``, timepoints named as in the STNU,
-`hrc.compile.temporal_net_creator`); orders the plan implies anyway are only counted (``implied``).
+the passing orders the plan's STNU carries (``T(to) - T(from) >= min``, timepoints named as the node ids
+of the written STNU file: `hrc.temporal.graphml.tool_name` of `hrc.compile.temporal_net_creator`'s
+names); orders the plan implies anyway are only counted (``implied``).
 A ``time`` above ``free_time`` is a detour's, or a stop at a waiting place (``park``: the agent goes
 to LOC, its start, in ``park.time`` of its moving time, waits there as the plan needs, then goes on; its
 STNU has the timepoints ``...park`` and ``...unpark``); the robot drives a route in exactly its time.
@@ -55,6 +56,7 @@ from hrc.io.task_file import load_task, task_to_dict
 from hrc.model import Task
 from hrc.motion import Occupancy
 from hrc.plans import agent_legs
+from hrc.temporal.graphml import tool_name
 
 __all__ = ["SCHEMA_VERSION", "compiled_json", "compiled_to_dict", "load_compiled_task", "write_compiled",
            "write_input"]
@@ -95,8 +97,8 @@ def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
         passing.append({
             "robot": _occupancy(o.conflict.robot), "human": _occupancy(o.conflict.human),
             "first": o.first, "how": o.how, "point": _xy(o.conflict.point),
-            "constraint": {"from": ref_timepoint(task, plan, sep.earlier), "to": ref_timepoint(task, plan, sep.later),
-                           "min": _s(sep.gap)},
+            "constraint": {"from": tool_name(ref_timepoint(task, plan, sep.earlier)),
+                           "to": tool_name(ref_timepoint(task, plan, sep.later)), "min": _s(sep.gap)},
         })
     pattern = cp.pattern
     return {
