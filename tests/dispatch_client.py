@@ -96,9 +96,15 @@ class Run:
         node = tool_name(f"{self.human}.{phase}.{action}.{event}")
         stnu = self._stnu()
         link = next((c for c in stnu.contingents if c.target == node), None)
-        if link is None:  # a fixed duration (no travel: [0, 0]) is written as a requirement link
-            fixed = next(r for r in stnu.requirements if r.target == node and r.lb == r.ub)
-            return (fixed.lb or 0) / 1000
+        if link is None:  # a fixed duration (no travel: [0, 0]) is written as requirement links
+            points = [n for _, n in self.by_id[self.decision["plan"]].leg_points[(self.human, action, phase)]]
+            prev = points[points.index(node) - 1]
+            for r in stnu.requirements:
+                if (r.source, r.target) == (prev, node):
+                    return (r.lb if r.lb is not None else r.ub) / 1000
+                if (r.source, r.target) == (node, prev):
+                    return -(r.ub if r.ub is not None else r.lb) / 1000
+            raise AssertionError(f"no link ends at {node}")
         return self.rng.choice([link.lb, link.ub, self.rng.randint(link.lb, link.ub)]) / 1000
 
     def _next_action(self) -> str | None:

@@ -63,7 +63,7 @@ from hrc.temporal.graph import Edge, EdgeKind
 from hrc.temporal.network import STNU
 from hrc.temporal.potential import feasible_potential
 
-__all__ = ["RulOutcome", "rul2021", "rul2021_check"]
+__all__ = ["RulOutcome", "core_verdict", "rul2021", "rul2021_check"]
 
 _INF = float("inf")
 _UNSTARTED, _STARTED, _DONE = 0, 1, 2
@@ -456,8 +456,7 @@ _LOW = (1 << 64) - 1
 
 def _core_verdict(stnu: STNU) -> str | None:
     """The verdict from the C core, or None when it is not built or the numbers are too large for it."""
-    core = _CORE
-    if core is None:
+    if _CORE is None:
         return None
     names = stnu.timepoints
     index = {v: i for i, v in enumerate(names)}
@@ -475,14 +474,24 @@ def _core_verdict(stnu: STNU) -> str | None:
             dst.append(s)
             wt.append(-r.lb)
     conts = stnu.contingents
-    xs = [c.lb for c in conts]
-    ys = [c.ub for c in conts]
-    n = len(names)
+    return core_verdict(len(names), src, dst, wt, [index[c.source] for c in conts], [index[c.target] for c in conts],
+                        [c.lb for c in conts], [c.ub for c in conts])
+
+
+def core_verdict(n: int, src: list[int], dst: list[int], wt: list[int], act: list[int], ctg: list[int],
+                 xs: list[int], ys: list[int]) -> str | None:
+    """The C core's verdict ("DC", "not DC", "inconsistent") for a network given as index arrays: the
+    ordinary edges ``src[i] --wt[i]--> dst[i]`` (T(dst) - T(src) <= wt) and the contingent links
+    ``act[j] --[xs[j], ys[j]]--> ctg[j]``; None when the core is not built or the numbers are too large
+    for it (the caller falls back to `check_dc`). For callers that check many networks of one shape
+    (the dispatcher) without building `STNU` values."""
+    core = _CORE
+    if core is None:
+        return None
     biggest = max(max(wt, default=0), -min(wt, default=0), max(ys, default=0))
     if biggest * (n + 2) >= 1 << 120:
         return None
-    keep = [array("i", src), array("i", dst), array("i", [index[c.source] for c in conts]),
-            array("i", [index[c.target] for c in conts])]
+    keep = [array("i", src), array("i", dst), array("i", act), array("i", ctg)]
     if biggest < 1 << 62:  # signed 64-bit words
         w, x, y = array("q", wt), array("q", xs), array("q", ys)
         keep += [w, x, y]
@@ -494,7 +503,7 @@ def _core_verdict(stnu: STNU) -> str | None:
             keep += [lo, hi]
             words += [lo.buffer_info()[0], hi.buffer_info()[0]]
     a = [arr.buffer_info()[0] for arr in keep[:4]]
-    code = core(n, len(src), a[0], a[1], words[0], words[1], len(conts), a[2], a[3], *words[2:])
+    code = core(n, len(src), a[0], a[1], words[0], words[1], len(act), a[2], a[3], *words[2:])
     return _VERDICTS.get(code)  # -1 (out of memory in C): fall back to Python
 
 
