@@ -22,6 +22,7 @@ import pytest
 import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.sparse.csgraph import csgraph_from_dense, floyd_warshall
 
 from hrc.apa.compile import compile_stpp, do_apsp, stpp_network
 from hrc.apa.generator import random_stpp
@@ -96,6 +97,23 @@ def sample_do_schedule(result, rng: np.random.Generator) -> dict[str, float]:
     return {e: t[i] / result.ticks_per_second for i, e in enumerate(result.stpp.events)}
 
 
+def dispatch_matrix(d: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A schedule dispatched through the distance matrix `d` (seconds): events in random order, each at a
+    uniform time of its current window (the first at 0), one-step propagation."""
+    n = d.shape[0]
+    lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
+    t = np.zeros(n)
+    for k in [0, *rng.permutation(np.arange(1, n)).tolist()]:
+        a, b = (0.0, 0.0) if k == 0 else (lo[k], hi[k])
+        a, b = (a if math.isfinite(a) else (b - 100 if math.isfinite(b) else 0.0)), b
+        b = b if math.isfinite(b) else a + 100
+        assert a <= b + 1e-9
+        t[k] = rng.uniform(a, max(a, b))
+        lo = np.maximum(lo, t[k] - d[:, k])
+        hi = np.minimum(hi, t[k] + d[k, :])
+    return t
+
+
 def run_cli(path) -> dict:
     out = io.StringIO()
     with redirect_stdout(out):
@@ -117,9 +135,32 @@ def test_cli_optimum_matches_an_independent_qp(tmp_path, n, seed):
     assert stpp.violation(times) <= 1e-9
     assert stpp.value(times) == pytest.approx(truth, rel=1e-6)
     assert 0 <= out["flexibility"] <= 1
-    # the printed DO form is the DO form: same windows from the reference as the compile's
+    # the printed DO form, read back on its own (scipy's Floyd-Warshall on whole microseconds, exact in
+    # float64, as the printed seconds are): its windows from the reference are the printed windows, and
+    # schedules dispatched inside it keep the optimum
     cons = out["do_form"]
     assert all(set(c) == {"from", "to", "lb", "ub"} for c in cons)
+    idx = {e: i for i, e in enumerate(stpp.events)}
+    dense = np.full((n, n), np.inf)
+    np.fill_diagonal(dense, 0.0)
+    for c in cons:
+        i, j = idx[c["from"]], idx[c["to"]]
+        if c["ub"] is not None:
+            dense[i, j] = min(dense[i, j], round(c["ub"] * 1e6))
+        if c["lb"] is not None:
+            dense[j, i] = min(dense[j, i], -round(c["lb"] * 1e6))
+    d = floyd_warshall(csgraph_from_dense(dense, null_value=np.inf)) / 1e6  # a 0 weight is an edge
+    for e, (lo, hi) in out["windows"].items():
+        k = idx[e]
+        assert (lo is None) == math.isinf(d[k, 0]) and (hi is None) == math.isinf(d[0, k])
+        assert lo is None or lo == pytest.approx(-d[k, 0], abs=1e-9)
+        assert hi is None or hi == pytest.approx(d[0, k], abs=1e-9)
+    rng = np.random.default_rng(seed)
+    for _ in range(5):
+        sample = dispatch_matrix(d, rng)
+        times = {e: sample[i] for i, e in enumerate(stpp.events)}
+        assert stpp.violation(times) <= 1e-6
+        assert stpp.value(times) == pytest.approx(truth, rel=1e-6, abs=1e-6)
 
 
 @settings(max_examples=15, deadline=None)

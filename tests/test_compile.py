@@ -262,3 +262,32 @@ def test_a_plan_with_no_schedule_ranks_last_in_its_class(compiled):
     last = compiled.plans[-1]
     blocked = replace(last, classification=Classification(PlanClass.INCONSISTENT, "blocked", None, (), ()))
     assert rank_key(blocked) > max(rank_key(cp) for cp in compiled.plans)
+
+
+def test_why_consistent_names_the_human_durations_that_matter(task, compiled):
+    """A consistent plan's explanation names human durations such that, were the robot to decide them
+    (contingent links made requirement links), the plan would be DC, and none of them can be left out:
+    re-checked with the second DC algorithm on the plan's own network."""
+    from hrc.compile.motion_pattern import choose_pattern
+    from hrc.temporal import STNU, RequirementLink
+
+    def controlled(stnu: STNU, names: set) -> STNU:
+        keep = tuple(c for c in stnu.contingents if (c.source, c.target) not in names)
+        made = tuple(RequirementLink(c.source, c.target, c.lb, c.ub) for c in stnu.contingents
+                     if (c.source, c.target) in names)
+        return STNU(stnu.timepoints, stnu.requirements + made, keep, stnu.name)
+
+    consistent = [cp for cp in compiled.plans if cp.plan_class is PlanClass.CONSISTENT]
+    assert len(consistent) >= 5
+    for cp in consistent:
+        choice = choose_pattern(task, cp.plan, compiled.paths)
+        assert choice.classification.explanation == cp.classification.explanation
+        _, sep, rest = cp.classification.explanation.partition("if the human takes long on: ")
+        assert sep, cp.classification.explanation
+        by_text = {text: key for key, (kind, text) in choice.net.meaning if kind == "human"}
+        named = [by_text[text] for text in rest.split("; ")]
+        stnu = choice.net.stnu
+        assert check_dc(stnu, "morris2014").verdict.value == "not DC"
+        assert check_dc(controlled(stnu, set(named)), "morris2014").is_dc, cp.plan.id
+        for link in named:
+            assert not check_dc(controlled(stnu, set(named) - {link}), "morris2014").is_dc, (cp.plan.id, link)

@@ -275,8 +275,27 @@ def test_interference_and_explanations_reported(cps: CompiledPlanSet, report_dir
     assert f"**Why inconsistent:** {verdict} \u2014 makespan deadline 80 s." in md
     assert "<b>Why inconsistent:</b> no schedule meets every constraint \u2014 makespan deadline 80 s." in html
     consistent = next(cp for cp in cps.plans if cp.plan_class is PlanClass.CONSISTENT)
-    if consistent.plan.id in {cp.plan.id for cp in featured_plans(cps)}:
-        assert "<li>human&#x27;s put of cube2 (2-4 s)</li>" in html
+    assert consistent.plan.id in {cp.plan.id for cp in featured_plans(cps)}
+    # the one human duration that matters is named in the sentence itself, not in a collapsed list
+    assert "**Why consistent:** not controllable by the robot alone: human's put of cube2 (2-4 s)." in md
+    assert "<b>Why consistent:</b> not controllable by the robot alone: human&#x27;s put of cube2 (2-4 s).</div>" \
+        in html
+
+
+def test_why_consistent_names_few_links_inline_and_lists_many() -> None:
+    from hrc.report.html import _explanation as html_why
+    from hrc.report.markdown import _explanation as md_why
+
+    few = "deadline 80 s cannot be guaranteed if the human takes long on: walk a (1-2 s); put b (2-4 s)"
+    assert md_why("consistent", few) == [
+        "**Why consistent:** deadline 80 s cannot be guaranteed if the human takes long on: walk a (1-2 s); "
+        "put b (2-4 s).", ""]
+    assert "<details>" not in html_why("consistent", few) and "put b (2-4 s)." in html_why("consistent", few)
+    many = "not DC: " + "; ".join(f"step {i} (1-2 s)" for i in range(5))
+    text = "\n".join(md_why("consistent", many))
+    assert "**Why consistent:** not DC:\n" in text and "<details><summary>these 5 links</summary>" in text
+    assert "5. step 4 (1-2 s)" in text
+    assert html_why("consistent", many).count("<li>") == 5
 
 
 def test_split_explanation() -> None:

@@ -315,3 +315,65 @@ def test_100k_duplicate_nodes_and_big_refusals(tmp_path: Path) -> None:
     }
     results = run_checks(write_all(tmp_path, files), seconds=60)
     assert_refused_or_checked(results, refused=True)
+
+
+_RSS_RUNNER = r"""
+import ctypes, gc, os, sys, threading
+sys.path.insert(0, "tests")
+from test_temporal_attacks import chain
+from hrc.temporal import check_dc
+net = chain(int(sys.argv[1]), int(sys.argv[2]))
+assert check_dc(chain(50, 5)).is_dc  # the C core loaded before measuring
+gc.collect()
+ctypes.CDLL("libc.so.6").malloc_trim(0)
+page = os.sysconf("SC_PAGE_SIZE")
+
+def rss():
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * page
+
+before, peak, done = rss(), [0], threading.Event()
+
+def watch():
+    while not done.is_set():
+        peak[0] = max(peak[0], rss())
+        done.wait(0.0005)
+
+watcher = threading.Thread(target=watch)
+watcher.start()
+assert check_dc(net).is_dc  # ctypes releases the GIL: the watcher samples during the C call too
+done.set()
+watcher.join()
+print(max(peak[0], rss()) - before)
+"""
+
+
+@pytest.mark.parametrize("every", [3, 50])
+def test_dc_check_memory_grows_linearly(every: int) -> None:
+    """The default DC check (rul2021, Python implementation, which also builds the explanations) on
+    chains of 1,000 and 4,000 timepoints: peak traced memory about 4 times larger, not 16 (quadratic)."""
+    import tracemalloc
+
+    from hrc.temporal.rul import rul2021_check
+
+    peaks = []
+    for n in (1000, 4000):
+        net = chain(n, every)
+        tracemalloc.start()
+        assert rul2021_check(net, accelerated=False)[0] == "DC"
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    assert 2 < peaks[1] / peaks[0] < 6, peaks
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("every", [3, 50])
+def test_dc_check_memory_grows_linearly_with_the_c_core(every: int) -> None:
+    """`check_dc` as the compiler calls it (verdict from the C core, whose allocations tracemalloc does not
+    see): resident memory sampled during the check, above what it was before, chains of 50,000 and 200,000."""
+    grown = []
+    for n in (50_000, 200_000):
+        proc = subprocess.run([sys.executable, "-c", _RSS_RUNNER, str(n), str(every)], capture_output=True,
+                              text=True, cwd=ROOT, timeout=300, check=True)
+        grown.append(int(proc.stdout))
+    assert 2 < grown[1] / grown[0] < 6, grown

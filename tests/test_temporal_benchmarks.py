@@ -1,4 +1,4 @@
-"""Outside instances (../shared/benchmarks/stnu): every recorded verdict is reproduced, via `hrc check`.
+"""Outside instances (shared/benchmarks/stnu): every recorded verdict is reproduced, via `hrc check`.
 
 Verdicts come from their sources (see INDEX.md there); none is special-cased. Mapping of expected values:
 ``DC`` -> DC; ``consistent-not-DC`` -> not DC; ``inconsistent`` -> inconsistent; ``not-DC`` -> not DC or
@@ -23,11 +23,25 @@ from hrc.temporal.graphml import read_graphml, read_network, write_graphml
 from hrc.temporal.rul import rul2021_check
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-BENCH = SHARED / "benchmarks" / "stnu"
+
+
+def _find_bench() -> Path:
+    """The outside instances: $HRC_SHARED/benchmarks/stnu, else the nearest `shared/benchmarks/stnu` in a
+    folder above the checkout (beside it for /work/main, two levels up for a worktree under /work/wt)."""
+    import os
+
+    if os.environ.get("HRC_SHARED"):
+        return Path(os.environ["HRC_SHARED"]) / "benchmarks" / "stnu"
+    for parent in ROOT.parents:
+        if (parent / "shared" / "benchmarks" / "stnu" / "verdicts.csv").is_file():
+            return parent / "shared" / "benchmarks" / "stnu"
+    return ROOT.parent / "shared" / "benchmarks" / "stnu"
+
+
+BENCH = _find_bench()
 needs_shared = pytest.mark.skipif(
     not (BENCH / "verdicts.csv").is_file(),
-    reason=f"outside instances not found at {BENCH} (the shared folder beside the checkout)",
+    reason=f"outside instances not found at {BENCH} (set HRC_SHARED to the shared folder)",
 )
 
 ACCEPT = {

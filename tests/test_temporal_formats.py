@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -273,14 +274,19 @@ def _cstnu_tool_refusals(data: bytes) -> list[str]:
 
 
 def test_compile_writes_graphml_the_cstnu_tool_reads(tmp_path: Path) -> None:
-    """Every node id and labelled value the compile writes for the workshop passes the tool's rules."""
+    """Every node id and labelled value the compile writes for the workshop passes the tool's rules, and
+    each file, read with the tool's semantics, has the class compiled.json records."""
     out = tmp_path / "out"
     assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--jobs", "1",
                  "--no-report", "-q"]) == 0
     files = sorted((out / "stnu").glob("*.graphml"))
     assert len(files) == 32
+    recorded = {p["id"]: p["class"] for p in json.loads((out / "compiled.json").read_text("utf-8"))["plans"]}
+    verdict_of = {"DC": "DC", "consistent": "not DC", "inconsistent": "inconsistent"}
     for path in files:
         assert _cstnu_tool_refusals(path.read_bytes()) == [], path.name
+        # read as the tool reads it (Z the origin, every other timepoint at or after it): the class recorded
+        assert check_dc(read_network(path), "morris2014").verdict.value == verdict_of[recorded[path.stem]]
     # the rule checker itself notices what the tool refuses
     assert _cstnu_tool_refusals(write_graphml(STNU(("A", "C"), (), (C("A", "C", 0, 4),))).encode())
     assert _cstnu_tool_refusals(b'<graphml xmlns="http://graphml.graphdrawing.org/xmlns/graphml"><graph>'

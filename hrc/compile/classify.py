@@ -75,18 +75,32 @@ def _controlled(stnu: STNU, names: set[tuple[str, str]]) -> STNU:
 
 
 def _links_that_matter(stnu: STNU, cycle: tuple) -> list[tuple[str, str]]:
-    """A minimal set of the cycle's contingent links whose control by the robot would make `stnu` DC.
+    """A minimal set of contingent links whose control by the robot would make `stnu` DC.
 
-    Deletion filter over the contingent links the negative cycle runs through: a link stays only if the
-    network is not DC without it under control. Falls back to all of them if even all are not enough
-    (another cycle). O(k) DC checks for k such links.
+    Starts from the contingent links the negative cycle runs through; while the network with those under
+    control is still not DC, adds the links of the cycle its check finds next (a plan may fail in more
+    than one way). Then a deletion filter: a link stays only if the network is not DC without it under
+    control. So the links named are enough, and none of them can be left out. O(k) DC checks for k links.
     """
-    on_cycle = {(e.source, e.target) for e in cycle} | {(e.target, e.source) for e in cycle}
-    names = [(c.source, c.target) for c in stnu.contingents if (c.source, c.target) in on_cycle]
-    if not names or not check_dc(_controlled(stnu, set(names))).is_dc:
-        return names
-    needed = list(names)
-    for link in names:
+    def on(cyc: tuple) -> set[tuple[str, str]]:
+        return {(e.source, e.target) for e in cyc} | {(e.target, e.source) for e in cyc}
+
+    order = [(c.source, c.target) for c in stnu.contingents]
+    chosen: set[tuple[str, str]] = set()
+    found = on(cycle)
+    while True:
+        more = {k for k in order if k in found} - chosen
+        if not more:
+            break  # the cycle runs through no link left to control: keep what we have
+        chosen |= more
+        result = check_dc(_controlled(stnu, chosen))
+        if result.is_dc:
+            break
+        found = on(result.cycle)
+    if not chosen or not check_dc(_controlled(stnu, chosen)).is_dc:
+        return [k for k in order if k in chosen]
+    needed = [k for k in order if k in chosen]
+    for link in list(needed):
         trial = [x for x in needed if x != link]
         if check_dc(_controlled(stnu, set(trial))).is_dc:
             needed = trial

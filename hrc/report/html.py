@@ -11,6 +11,7 @@ from html import escape
 from hrc.report.figures import CLASS_COLORS
 from hrc.report.summary import (
     CLASS_MEANING,
+    INLINE_LINKS,
     MODEL_ASSUMPTIONS,
     ReportData,
     allocation_legend,
@@ -76,6 +77,9 @@ def _badge(cls: str) -> str:
 def _explanation(plan_class: str, text: str) -> str:
     verdict, key, links = split_explanation(text)
     e = escape
+    if not key and 0 < len(links) <= INLINE_LINKS:  # the few human durations that matter: in the sentence
+        return (f'<div class="why {e(plan_class)}"><b>Why {e(plan_class)}:</b> {e(verdict)}: '
+                f'{e("; ".join(links))}.</div>')
     tail = f" \u2014 {e('; '.join(key))}." if key else (":" if links else ".")
     html = f'<div class="why {e(plan_class)}"><b>Why {e(plan_class)}:</b> {e(verdict)}{tail}'
     if links:

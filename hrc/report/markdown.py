@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from hrc.report.summary import (
     CLASS_MEANING,
+    INLINE_LINKS,
     MODEL_ASSUMPTIONS,
     ReportData,
     allocation_legend,
@@ -27,6 +28,8 @@ def _cell(text: str) -> str:
 
 def _explanation(plan_class: str, text: str) -> list[str]:
     verdict, key, links = split_explanation(text)
+    if not key and 0 < len(links) <= INLINE_LINKS:  # the few human durations that matter: in the sentence
+        return [f"**Why {plan_class}:** {verdict}: {_cell('; '.join(links))}.", ""]
     tail = f" \u2014 {'; '.join(key)}." if key else (":" if links else ".")
     out = [f"**Why {plan_class}:** {verdict}{tail}", ""]
     if links:

@@ -18,11 +18,15 @@ if TYPE_CHECKING:
     from hrc.compile.motion_pattern import MotionPattern, PassingOrder
     from hrc.model import Plan, Task
 
-__all__ = ["CLASS_MEANING", "FEATURED_TOP", "MODEL_ASSUMPTIONS", "DetourNote", "PassingNote", "ReportData", "Row",
+__all__ = ["CLASS_MEANING", "FEATURED_TOP", "INLINE_LINKS", "MODEL_ASSUMPTIONS", "DetourNote", "PassingNote",
+           "ReportData", "Row",
            "agent_letters", "allocation_legend", "binding_orders", "build_report_data", "empty_class_reason",
            "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks", "fmt_passing",
            "fmt_preference", "fmt_sequence",
            "fmt_stnu", "motion_notes", "split_explanation"]
+
+INLINE_LINKS = 3
+"""A "why consistent" naming at most this many human durations says them in its sentence, not in a list."""
 
 CLASS_MEANING = (
     ("DC", "dynamically controllable: the robot alone meets every constraint (the deadline, the temporal "
