@@ -1,0 +1,153 @@
+"""The operator console in a real headless Chromium (issue 14): a whole workshop run pressing only the
+offered buttons, bad input, a dropped connection, no network but loopback, the README's screenshot.
+
+Skipped with the reason when playwright or Chromium is missing (failed instead under
+HRC_REQUIRE_BROWSER=1, as CI sets it). Each test starts its own ``hrc console`` process.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium, record_requests
+
+from hrc.compile.compiler import compile_task
+from hrc.compile.output import write_compiled
+from hrc.io.task_file import load_task
+
+SPEED = 10.0          # run seconds per real second: the workshop's ~70 s run takes ~7 s
+RUN_TIMEOUT = 90.0    # real seconds for a whole run
+SCREENSHOT = ROOT / "docs" / "console.png"
+
+pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
+
+
+@pytest.fixture(scope="module")
+def workshop(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    browser_or_skip()  # before spending seconds on compiling
+    out = tmp_path_factory.mktemp("ws")
+    write_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1), out)
+    return out
+
+
+@pytest.fixture
+def console(workshop: Path, tmp_path: Path, request: pytest.FixtureRequest):
+    marker = request.node.get_closest_marker("console_args")
+    proc = ConsoleProcess(workshop, tmp_path / "run.jsonl", *(marker.args if marker else ("--simulate-robot",)))
+    try:
+        yield proc
+    finally:
+        proc.stop()
+
+
+# What the page shows now, read in one go (so that it is one rendering).
+_SNAPSHOT = """() => { const c = window.hrcConsole, s = c.state;
+  return {seq: s.seq, hseq: s.hseq, finished: s.finished, now: c.runNow(), connected: c.connected,
+          busy: c.pending.size > 0,
+          buttons: [...document.querySelectorAll('#buttons button.act')].map(b =>
+            [b.dataset.action, b.dataset.phase, b.dataset.event, b.disabled]),
+          robot: JSON.parse(document.getElementById('robot-step').dataset.decision || 'null'),
+          error: document.getElementById('error').hidden ? null : document.getElementById('error-text').textContent};
+}"""
+# Press the offered button `[action, phase, event]` if it is still on screen; what was pressed, or null.
+_PRESS = """([a, p, e]) => { const b = document.querySelector(
+  `#buttons button.act[data-action="${a}"][data-phase="${p}"][data-event="${e}"]`);
+  if (!b || b.disabled) return null; b.click(); return [a, p, e]; }"""
+
+
+def _wait(page: Any, js: str, arg: Any = None, timeout: float = 15.0) -> Any:
+    return page.wait_for_function(js, arg=arg, timeout=timeout * 1000, polling=20)
+
+
+def _min_durations(out_dir: Path) -> dict[tuple[str, str, str], float]:
+    """The person's shortest time from each event to the next one of the same phase (run seconds):
+    a manipulation's lower bound (start -> end) and a walk's free-space time (depart -> arrive)."""
+    task = load_task(out_dir / "input" / "task.yaml")
+    out = {}
+    for action in task.actions:
+        for phase in action.phases:
+            out[(action.id, phase.id, "end")] = phase.duration("human").lb
+    for plan in json.loads((out_dir / "compiled.json").read_text())["plans"]:
+        for m in plan["motions"]:
+            if m["agent"] == "human":
+                key = (m["action"], m["phase"], "arrive")
+                out[key] = max(out.get(key, 0.0), m["time"])
+    return out
+
+
+def _choose(buttons: list[list[Any]]) -> list[str] | None:
+    """Like a person finishing what they do first: "done" before anything new, else the first offered."""
+    offered = [b[:3] for b in buttons if not b[3]]
+    if not offered:
+        return None
+    return next((b for b in offered if b[2] == "end"), offered[0])
+
+
+def test_a_person_completes_the_workshop_pressing_only_the_offered_buttons(console: ConsoleProcess,
+                                                                         workshop: Path) -> None:
+    waits = _min_durations(workshop)
+    begun: dict[tuple[str, str], float] = {}
+    seen: list[dict[str, Any]] = []       # every rendering the harness looked at
+    pressed: list[list[str]] = []
+    with chromium() as ctx:
+        page = ctx.new_page()
+        requests = record_requests(page)
+        page.goto(console.url)
+        _wait(page, "() => window.hrcConsole && window.hrcConsole.state !== null && window.hrcConsole.connected")
+        stop = time.monotonic() + RUN_TIMEOUT
+        while time.monotonic() < stop:
+            snap = page.evaluate(_SNAPSHOT)
+            seen.append(snap)
+            assert snap["error"] is None, f"the page shows an error: {snap['error']}"
+            if snap["finished"]:
+                break
+            choice = None if snap["busy"] else _choose(snap["buttons"])
+            if choice is None:
+                time.sleep(0.02)  # the robot is at work, or the page is waiting for its reply
+                continue
+            action, phase, event = choice
+            ready_at = begun.get((action, phase), 0.0) + waits.get((action, phase, event), 0.0) + 0.3
+            if snap["now"] < ready_at:  # a person takes at least the shortest time the task allows
+                time.sleep(min(0.05, (ready_at - snap["now"]) / SPEED))
+                continue
+            if page.evaluate(_PRESS, choice) is None:
+                continue
+            pressed.append(choice)
+            _wait(page, "h => window.hrcConsole.state.hseq > h || !document.getElementById('error').hidden",
+                  snap["hseq"])
+            begun[(action, phase)] = page.evaluate("() => window.hrcConsole.runNow()")
+            if len(pressed) == 6:
+                page.screenshot(path=str(SCREENSHOT), full_page=True)
+        else:
+            pytest.fail(f"the run did not finish within {RUN_TIMEOUT} s; last view {seen[-1]}")
+        latencies = page.evaluate("() => window.hrcConsole.stats.pressToState")
+        page_log = page.evaluate("() => window.hrcConsole.state.log")
+        # nothing but this machine's loopback was asked for
+        assert requests and all(u.startswith(("http://127.0.0.1:", "ws://127.0.0.1:")) for u in requests), requests
+
+    state = console.state()
+    assert state["finished"] and state["decision"]["robot"] is None
+    lines = console.log_lines()
+    ins, outs = lines[0::2], lines[1::2]
+    assert len(ins) == len(outs) == state["log_total"]
+    # every press is in the log, accepted, as the person's
+    person = [e for e in page_log if e["source"] == "person"]
+    assert [[e["in"]["action"], e["in"]["phase"], e["in"]["event"]] for e in person] == pressed
+    assert all(e["out"]["ok"] for e in person)
+    assert all(o["ok"] for o in outs), [o for o in outs if not o["ok"]]
+    # every decision the page showed is the dispatcher's at that point of the run
+    decisions = [None] + [o for o in outs if o["ok"]]  # decisions[k]: after k accepted messages
+    for snap in seen:
+        if snap["seq"] > 0:
+            assert snap["robot"] == decisions[snap["seq"]]["robot"], snap
+    # the page's log is the file's
+    assert [e["out"] for e in page_log] == outs[-len(page_log):]
+    median = statistics.median(latencies)
+    print(f"\npresses: {len(pressed)}; press -> decision on screen: median {median:.1f} ms, "
+          f"max {max(latencies):.1f} ms; messages logged: {len(ins)}")
+    assert median < 500
