@@ -114,3 +114,24 @@ def record_requests(page: Any) -> list[str]:
     page.on("request", lambda r: seen.append(r.url))
     page.on("websocket", lambda ws: seen.append(ws.url))
     return seen
+
+
+def offline_main(out_dir: str, log: str) -> None:
+    """Run in a network namespace with nothing but loopback (see the test): start the console, load the
+    page in Chromium, print one JSON line of what the page drew."""
+    server = ConsoleProcess(Path(out_dir), Path(log), "--simulate-robot")
+    try:
+        with chromium() as ctx:
+            page = ctx.new_page()
+            requests = record_requests(page)
+            page.goto(server.url)
+            page.wait_for_function("() => window.hrcConsole && window.hrcConsole.connected "
+                                   "&& document.querySelectorAll('#map polygon').length > 0", timeout=15_000)
+            drawn = page.evaluate("""() => ({buttons: document.querySelectorAll('#buttons button.act').length,
+                obstacles: document.querySelectorAll('#map polygon').length,
+                bars: document.querySelectorAll('#gantt rect').length,
+                link: document.getElementById('link').textContent,
+                css: getComputedStyle(document.body).backgroundColor})""")
+            print(json.dumps({"drawn": drawn, "requests": requests}), flush=True)
+    finally:
+        server.stop()

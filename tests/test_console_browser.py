@@ -151,3 +151,120 @@ def test_a_person_completes_the_workshop_pressing_only_the_offered_buttons(conso
     print(f"\npresses: {len(pressed)}; press -> decision on screen: median {median:.1f} ms, "
           f"max {max(latencies):.1f} ms; messages logged: {len(ins)}")
     assert median < 500
+
+
+_STATIC_KEYS = ("seq", "hseq", "decision", "options", "under_way", "finished", "log_total")
+
+
+def _run_view(console: ConsoleProcess) -> dict[str, Any]:
+    """The parts of the server's state that only an accepted message changes."""
+    s = console.state()
+    return {k: s[k] for k in _STATIC_KEYS} | {"accepted": sum(e["out"]["ok"] for e in s["log"])}
+
+
+def _error_shown(page: Any) -> str:
+    _wait(page, "() => !document.getElementById('error').hidden")
+    text = page.text_content("#error-text")
+    page.click("#error-close")
+    return text
+
+
+@pytest.mark.console_args("--tick", "0")  # no robot, no ticks: only a message the server accepts moves the run
+def test_bad_input_two_tabs_and_a_dropped_connection_leave_the_run_unchanged(console: ConsoleProcess) -> None:
+    with chromium() as ctx:
+        page, other = ctx.new_page(), ctx.new_page()
+        for p in (page, other):
+            p.goto(console.url)
+            _wait(p, "() => window.hrcConsole && window.hrcConsole.connected && window.hrcConsole.state")
+        before = _run_view(console)
+        h = before["hseq"]
+
+        # a malformed message, a message of an unknown type, an oversized one
+        for bad, expect in (("{not json", "malformed message (not JSON"), ("[1, 2]", "a JSON object was expected"),
+                            ('{"type": "launch", "hseq": 0}', "unknown message type"),
+                            ('{"type": "press", "hseq": 0}', "missing action, phase, event"),
+                            ("x" * 5000, "longer than")):
+            page.evaluate("t => window.hrcConsole.ws.send(t)", bad)
+            assert expect in _error_shown(page)
+        # impossible presses: an unknown action, and a phase ended before it began
+        for action, phase, event in (("cube9", "fetch", "start"), ("cube1", "fetch", "end")):
+            page.evaluate("m => window.hrcConsole.ws.send(JSON.stringify(m))",
+                          {"type": "press", "hseq": h, "action": action, "phase": phase, "event": event})
+            assert _error_shown(page)
+        after = _run_view(console)
+        assert {k: after[k] for k in ("seq", "hseq", "decision", "options", "under_way", "accepted")} == \
+               {k: before[k] for k in ("seq", "hseq", "decision", "options", "under_way", "accepted")}
+
+        # a dropped connection: the page reconnects by itself and shows the same run
+        page.evaluate("() => window.hrcConsole.ws.close()")
+        _wait(page, "() => window.hrcConsole.stats.reconnects >= 1 && window.hrcConsole.connected")
+        assert page.evaluate("() => window.hrcConsole.state.seq") == before["seq"]
+
+        # two tabs pressing the same offered button at once: one press counts, the other is refused
+        button = page.locator("#buttons button.act").first
+        choice = [button.get_attribute(f"data-{k}") for k in ("action", "phase", "event")]
+        assert page.evaluate(_PRESS, choice) == choice and other.evaluate(_PRESS, choice) == choice
+        assert "the run moved on" in _error_shown(other)
+        _wait(page, "h => window.hrcConsole.state.hseq === h + 1", h)
+        _wait(other, "h => window.hrcConsole.state.hseq === h + 1", h)
+        pressed = _run_view(console)
+        assert pressed["hseq"] == h + 1 and pressed["accepted"] == before["accepted"] + 1
+
+        # undo: withdrawn through the dispatcher, logged as such, and the buttons come back
+        page.click("#undo")
+        _wait(page, "h => window.hrcConsole.state.hseq === h + 2", h)
+        assert console.state()["options"] == before["options"]
+        assert console.log_lines()[-2]["event"] == "undo"
+        # still usable: a real mouse click on an offered button moves the run on
+        page.locator("#buttons button.act").first.click()
+        _wait(page, "h => window.hrcConsole.state.hseq === h + 3", h)
+
+
+@pytest.mark.console_args("--tick", "0")
+def test_the_robot_endpoint_takes_acks_and_refuses_bad_ones(console: ConsoleProcess) -> None:
+    from websockets.sync.client import connect
+
+    url = console.url.replace("http://", "ws://") + "robot"
+    with connect(url, open_timeout=10, close_timeout=5) as robot:
+        hello = json.loads(robot.recv(timeout=10))
+        first = json.loads(robot.recv(timeout=10))
+        assert hello["type"] == "hello" and first["type"] == "decision"
+        step = first["decision"]["robot"]
+        assert step and "action" in step, f"the workshop's best plan starts with the robot moving: {step}"
+        with connect(url, open_timeout=10, close_timeout=5) as second:  # one controller at a time
+            assert "already connected" in json.loads(second.recv(timeout=10))["error"]
+        for bad, expect in (("nonsense", "not JSON"), ('{"type": "ack", "action": 1}', "must be strings"),
+                            (json.dumps({"type": "ack", **{k: step[k] for k in ("action", "phase", "event")},
+                                         "t": 10_000}), "in the future")):
+            robot.send(bad)
+            reply = json.loads(robot.recv(timeout=10))
+            assert reply["type"] == "reply" and not reply["ok"] and expect in reply["error"], reply
+        assert console.state()["seq"] == 0
+        robot.send(json.dumps({"type": "ack", "id": 7, **{k: step[k] for k in ("action", "phase", "event")}}))
+        reply = json.loads(robot.recv(timeout=10))
+        assert reply["ok"] and reply["id"] == 7
+        pushed = json.loads(robot.recv(timeout=10))
+        assert pushed["type"] == "decision" and pushed["seq"] == 1 and pushed["decision"] == reply["decision"]
+    assert console.log_lines()[-2]["agent"] == "robot"
+
+
+def test_the_page_loads_with_no_network_but_loopback(workshop: Path, tmp_path: Path) -> None:
+    """In a network namespace of its own (root and unshare needed) the machine has loopback only."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    if os.geteuid() != 0 or not shutil.which("unshare") or not shutil.which("ip"):
+        pytest.skip("needs root, unshare and ip to cut the network off (the run test checks the requests)")
+    code = f"import console_harness as h; h.offline_main({str(workshop)!r}, {str(tmp_path / 'run.jsonl')!r})"
+    path = [str(ROOT / "tests"), str(ROOT), os.environ.get("PYTHONPATH", "")]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(path))
+    done = subprocess.run(["unshare", "--net", "sh", "-c", 'ip link set lo up && exec "$0" -c "$1"',
+                           sys.executable, code], capture_output=True, text=True, timeout=120, env=env, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    drawn = result["drawn"]
+    assert drawn["buttons"] >= 1 and drawn["obstacles"] == 9 and drawn["bars"] > 0, drawn
+    assert drawn["link"].startswith("connected") and drawn["css"] != "rgba(0, 0, 0, 0)", drawn
+    assert all(u.startswith(("http://127.0.0.1:", "ws://127.0.0.1:")) for u in result["requests"])

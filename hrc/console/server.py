@@ -180,8 +180,7 @@ class ConsoleServer:
         client = self.robot = _Client(ws)
         self.session.robot_link = "connected"
         client.push({"type": "hello", "now": self.session.now(), "speed": self.session.clock.speed})
-        client.push(self._decision())
-        self.changed()
+        self.changed()  # the decision to the robot, the link to the pages
         try:
             await self._serve(client, self.session.robot_message)
         finally:
