@@ -90,7 +90,11 @@ class ConsoleProcess:
         return json.loads(self.get("state"))
 
     def log_lines(self) -> list[dict[str, Any]]:
-        return [json.loads(x) for x in self.log.read_text(encoding="utf-8").splitlines() if x.strip()]
+        """The log's messages and answers after its header, decoded, in order: in, out, in, out, ..."""
+        from hrc.dispatch.protocol import read_log
+
+        _header, pairs = read_log(self.log)
+        return [json.loads(x) for pair in pairs for x in pair if x is not None]
 
     def stderr(self) -> str:
         return self.proc.stderr.read() if self.proc.poll() is not None and self.proc.stderr else ""

@@ -8,7 +8,10 @@ HRC_REQUIRE_BROWSER=1, as CI sets it). Each test starts its own ``hrc console`` 
 from __future__ import annotations
 
 import json
+import os
 import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -20,7 +23,7 @@ from hrc.compile.compiler import compile_task
 from hrc.compile.output import write_compiled
 from hrc.io.task_file import load_task
 
-SPEED = 10.0          # run seconds per real second: the workshop's ~70 s run takes ~7 s
+SPEED = 5.0           # run seconds per real second: the workshop's ~70 s run takes ~15 s
 RUN_TIMEOUT = 90.0    # real seconds for a whole run
 SCREENSHOT = ROOT / "docs" / "console.png"
 
@@ -38,7 +41,8 @@ def workshop(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture
 def console(workshop: Path, tmp_path: Path, request: pytest.FixtureRequest):
     marker = request.node.get_closest_marker("console_args")
-    proc = ConsoleProcess(workshop, tmp_path / "run.jsonl", *(marker.args if marker else ("--simulate-robot",)))
+    args = marker.args if marker else ("--simulate-robot",)
+    proc = ConsoleProcess(workshop, tmp_path / "run.jsonl", "--speed", str(SPEED), *args)
     try:
         yield proc
     finally:
@@ -76,7 +80,7 @@ def _min_durations(out_dir: Path) -> dict[tuple[str, str, str], float]:
         for m in plan["motions"]:
             if m["agent"] == "human":
                 key = (m["action"], m["phase"], "arrive")
-                out[key] = max(out.get(key, 0.0), m["time"])
+                out[key] = min(out.get(key, m["free_time"]), m["free_time"])
     return out
 
 
@@ -126,6 +130,7 @@ def test_a_person_completes_the_workshop_pressing_only_the_offered_buttons(conso
         else:
             pytest.fail(f"the run did not finish within {RUN_TIMEOUT} s; last view {seen[-1]}")
         latencies = page.evaluate("() => window.hrcConsole.stats.pressToState")
+        replies = page.evaluate("() => window.hrcConsole.stats.pressToReply")
         page_log = page.evaluate("() => window.hrcConsole.state.log")
         # nothing but this machine's loopback was asked for
         assert requests and all(u.startswith(("http://127.0.0.1:", "ws://127.0.0.1:")) for u in requests), requests
@@ -147,9 +152,29 @@ def test_a_person_completes_the_workshop_pressing_only_the_offered_buttons(conso
             assert snap["robot"] == decisions[snap["seq"]]["robot"], snap
     # the page's log is the file's
     assert [e["out"] for e in page_log] == outs[-len(page_log):]
+    # the buttons on screen were exactly the dispatcher's options at that point: replay the log's accepted
+    # lines into a fresh dispatcher over the same folder
+    from hrc.dispatch import Dispatcher
+    from hrc.dispatch.protocol import handle_line, read_log
+
+    fresh = Dispatcher.from_folder(workshop)
+    options = [sorted([o.action, o.phase, o.event] for o in fresh.human_options())]
+    for line_in, _ in read_log(console.log)[1]:
+        if json.loads(handle_line(fresh, line_in))["ok"]:
+            options.append(sorted([o.action, o.phase, o.event] for o in fresh.human_options()))
+    for snap in seen:
+        if not snap["finished"]:
+            assert sorted(b[:3] for b in snap["buttons"]) == options[snap["seq"]], snap
+    # and the log replays through `hrc dispatch --replay` to the same decisions, byte for byte
+    done = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(workshop), "--replay", str(console.log)],
+                          capture_output=True, text=True, timeout=120, cwd=ROOT,
+                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert done.returncode == 0, done.stderr
+    assert [json.loads(x) for x in done.stdout.splitlines()] == outs
     median = statistics.median(latencies)
-    print(f"\npresses: {len(pressed)}; press -> decision on screen: median {median:.1f} ms, "
-          f"max {max(latencies):.1f} ms; messages logged: {len(ins)}")
+    print(f"\npresses: {len(pressed)}; press -> reply with the decision: median {statistics.median(replies):.1f} ms;"
+          f" press -> decision on screen: median {median:.1f} ms, max {max(latencies):.1f} ms; "
+          f"messages logged: {len(ins)}")
     assert median < 500
 
 
@@ -169,7 +194,8 @@ def _error_shown(page: Any) -> str:
     return text
 
 
-@pytest.mark.console_args("--tick", "0")  # no robot, no ticks: only a message the server accepts moves the run
+# no robot, no ticks: only a message the server accepts moves the run; real time, so that undo stays offered
+@pytest.mark.console_args("--tick", "0", "--speed", "1")
 def test_bad_input_two_tabs_and_a_dropped_connection_leave_the_run_unchanged(console: ConsoleProcess) -> None:
     with chromium() as ctx:
         page, other = ctx.new_page(), ctx.new_page()
@@ -224,36 +250,46 @@ def test_bad_input_two_tabs_and_a_dropped_connection_leave_the_run_unchanged(con
 def test_the_robot_endpoint_takes_acks_and_refuses_bad_ones(console: ConsoleProcess) -> None:
     from websockets.sync.client import connect
 
-    url = console.url.replace("http://", "ws://") + "robot"
-    with connect(url, open_timeout=10, close_timeout=5) as robot:
-        hello = json.loads(robot.recv(timeout=10))
-        first = json.loads(robot.recv(timeout=10))
-        assert hello["type"] == "hello" and first["type"] == "decision"
-        step = first["decision"]["robot"]
-        assert step and "action" in step, f"the workshop's best plan starts with the robot moving: {step}"
-        with connect(url, open_timeout=10, close_timeout=5) as second:  # one controller at a time
+    base = console.url.replace("http://", "ws://")
+    with connect(base + "robot", open_timeout=10, close_timeout=5) as robot, \
+            connect(base + "ws", open_timeout=10, close_timeout=5) as person:
+        assert json.loads(robot.recv(timeout=10))["type"] == "hello"
+        decision = json.loads(robot.recv(timeout=10))
+        assert decision["type"] == "decision"
+        with connect(base + "robot", open_timeout=10, close_timeout=5) as second:  # one controller at a time
             assert "already connected" in json.loads(second.recv(timeout=10))["error"]
+        # the workshop's best plan has the robot wait for the person's first move: press it (the page's protocol)
+        hseq = 0
+        while "action" not in (decision["decision"]["robot"] or {}):
+            state = console.state()
+            option = state["options"][0]
+            person.send(json.dumps({"type": "press", "hseq": state["hseq"], **option}))
+            hseq += 1
+            decision = json.loads(robot.recv(timeout=10))
+            assert decision["type"] == "decision" and console.state()["hseq"] == hseq, decision
+        step = decision["decision"]["robot"]
+        event = {k: step[k] for k in ("action", "phase", "event")}
+        seq = console.state()["seq"]
         for bad, expect in (("nonsense", "not JSON"), ('{"type": "ack", "action": 1}', "must be strings"),
-                            (json.dumps({"type": "ack", **{k: step[k] for k in ("action", "phase", "event")},
-                                         "t": 10_000}), "in the future")):
+                            ('{"type": "go"}', "unknown message type"),
+                            (json.dumps({"type": "ack", **event, "t": 10_000}), "in the future"),
+                            (json.dumps({"type": "ack", **event, "event": "end"}), "")):
             robot.send(bad)
             reply = json.loads(robot.recv(timeout=10))
             assert reply["type"] == "reply" and not reply["ok"] and expect in reply["error"], reply
-        assert console.state()["seq"] == 0
-        robot.send(json.dumps({"type": "ack", "id": 7, **{k: step[k] for k in ("action", "phase", "event")}}))
+        assert console.state()["seq"] == seq
+        time.sleep(max(0.0, step["earliest"] - console.state()["now"]) / SPEED + 0.05)  # into the window
+        robot.send(json.dumps({"type": "ack", "id": 7, **event}))
         reply = json.loads(robot.recv(timeout=10))
-        assert reply["ok"] and reply["id"] == 7
+        assert reply["ok"] and reply["id"] == 7, reply
         pushed = json.loads(robot.recv(timeout=10))
-        assert pushed["type"] == "decision" and pushed["seq"] == 1 and pushed["decision"] == reply["decision"]
-    assert console.log_lines()[-2]["agent"] == "robot"
+        assert pushed["type"] == "decision" and pushed["seq"] == seq + 1 and pushed["decision"] == reply["decision"]
+    assert console.log_lines()[-2] == {"t": console.log_lines()[-2]["t"], "agent": "robot", **event}
 
 
 def test_the_page_loads_with_no_network_but_loopback(workshop: Path, tmp_path: Path) -> None:
     """In a network namespace of its own (root and unshare needed) the machine has loopback only."""
-    import os
     import shutil
-    import subprocess
-    import sys
 
     if os.geteuid() != 0 or not shutil.which("unshare") or not shutil.which("ip"):
         pytest.skip("needs root, unshare and ip to cut the network off (the run test checks the requests)")

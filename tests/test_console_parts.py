@@ -25,6 +25,8 @@ class Obs:
 def test_run_clock_counts_run_seconds_at_its_speed() -> None:
     ticks = iter([100.0, 100.25, 101.0, 101.0])
     clock = RunClock(speed=4.0, monotonic=lambda: next(ticks))
+    assert clock.now() == 0.0 and clock.real_delay(1.0) == float("inf")  # not started
+    clock.start()
     assert clock.now() == 1.0
     assert clock.real_delay(6.0) == pytest.approx(0.5)   # at run time 4.0, 2 run s = 0.5 real s
     assert clock.real_delay(1.0) == 0.0                   # already past

@@ -7,7 +7,7 @@ robot controller's acknowledgements into the dispatcher's JSON lines (`hrc.dispa
 pushes every decision to the page and the robot over websockets.
 
     clock     RunClock: a monotonic clock in run seconds (``--speed``)
-    runlog    RunLog: the run's log file, synced line by line
+    runlog    a new log file per run (the dispatcher's Log: --replay reads it)
     views     the map, each plan's routes, the Gantt bars
     session   ConsoleSession: the one dispatcher and the messages of the page and the robot
     robot     SimulatedRobot: ``--simulate-robot``

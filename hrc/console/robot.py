@@ -37,7 +37,7 @@ class SimulatedRobot:
             return
         self.stop()
         self._key = key
-        if step is not None and key is not None:
+        if step is not None and key is not None and self.session.clock.started:
             delay = self.session.clock.real_delay(step.earliest) + 0.002  # never a hair early
             self._handle = asyncio.get_running_loop().call_later(delay, self._act, key)
 

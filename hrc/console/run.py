@@ -12,7 +12,7 @@ from pathlib import Path
 import uvicorn
 
 from hrc.console.clock import RunClock
-from hrc.console.runlog import RunLog, next_log_path
+from hrc.console.runlog import next_log_path, open_log
 from hrc.console.server import MAX_MESSAGE, ConsoleServer
 from hrc.console.session import ConsoleSession
 from hrc.console.views import PlanRoutes
@@ -38,7 +38,7 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     except (OSError, ValueError) as err:
         raise InputError(str(path), "", f"cannot read it ({err})") from err
     routes = PlanRoutes(compiled, plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
-    run_log = RunLog(next_log_path(out_dir) if log is None else log)
+    run_log = open_log(next_log_path(out_dir) if log is None else log, dispatcher)
     session = ConsoleSession(dispatcher, compiled, routes, RunClock(speed), run_log)
     return ConsoleServer(session, simulate_robot=simulate_robot, tick=tick)
 

@@ -1,16 +1,19 @@
-"""The run's log file: every line the console gave the dispatcher, and its answer, on disk before
-anyone is told the answer (so a crash loses nothing already acknowledged).
+"""Where a console run's log goes: a new file per run, never an old one overwritten.
 
-Format: JSON lines as ``hrc dispatch`` reads and writes them: each message in, then its answer.
+The log itself is the dispatcher's (`hrc.dispatch.protocol.Log`: a header, then every line in and every
+answer, flushed and synced before the answer is given), so that ``hrc dispatch OUT_DIR --replay LOG``
+replays a console run like any other.
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import IO
 
-__all__ = ["RunLog", "next_log_path"]
+from hrc.dispatch import Dispatcher
+from hrc.dispatch.protocol import Log
+
+__all__ = ["next_log_path", "open_log"]
 
 
 def next_log_path(out_dir: str | os.PathLike[str]) -> Path:
@@ -22,24 +25,14 @@ def next_log_path(out_dir: str | os.PathLike[str]) -> Path:
     return folder / f"console-{n}.jsonl"
 
 
-class RunLog:
-    """Append-only; each `write` is flushed and synced. `path=None` keeps nothing (tests of the page)."""
+def open_log(path: str | os.PathLike[str], dispatcher: Dispatcher) -> Log:
+    """The dispatcher's log at `path`, a new file (its folder made if missing); `FileExistsError` if it exists.
 
-    def __init__(self, path: str | os.PathLike[str] | None) -> None:
-        self.path = None if path is None else Path(path)
-        self._file: IO[str] | None = None
-        if self.path is not None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = open(self.path, "x", encoding="utf-8")  # noqa: SIM115 - lives as long as the run
-
-    def write(self, line_in: str, line_out: str) -> None:
-        if self._file is None:
-            return
-        self._file.write(line_in + "\n" + line_out + "\n")
-        self._file.flush()
-        os.fsync(self._file.fileno())
-
-    def close(self) -> None:
-        if self._file is not None:
-            self._file.close()
-            self._file = None
+    A console run has a file of its own: the dispatcher's `Log` appends, and a replay takes the last
+    session of a file, so an old file would work, but one file per run is easier to find and to keep.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "x", encoding="utf-8"):
+        pass
+    return Log(path, dispatcher)

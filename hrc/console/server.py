@@ -158,8 +158,15 @@ class ConsoleServer:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await writer
 
+    def _start_run(self) -> None:
+        """The run's clock starts when the first page or robot controller connects."""
+        if not self.session.clock.started:
+            self.session.clock.start()
+            self.changed()
+
     async def page_socket(self, ws: WebSocket) -> None:
         await ws.accept()
+        self._start_run()
         client = _Client(ws)
         client.push(self.session.setup())
         client.push(self.session.state())
@@ -177,6 +184,7 @@ class ConsoleServer:
             await ws.send_text(json.dumps({"type": "reply", "ok": False, "error": f"refused: {why}"}))
             await ws.close(code=1008)
             return
+        self._start_run()
         client = self.robot = _Client(ws)
         self.session.robot_link = "connected"
         client.push({"type": "hello", "now": self.session.now(), "speed": self.session.clock.speed})
@@ -194,7 +202,7 @@ class ConsoleServer:
         s = self.session
         while self.tick > 0:
             await asyncio.sleep(self.tick / s.clock.speed)
-            if not s.finished and s.clock.now() - s.dispatcher.now >= self.tick:
+            if s.clock.started and not s.finished and s.clock.now() - s.dispatcher.now >= self.tick:
                 if s.tick()["ok"]:
                     self.changed()
 

@@ -18,10 +18,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from hrc.console.clock import RunClock
-from hrc.console.runlog import RunLog
 from hrc.console.views import PlanRoutes, gantt_bars, map_view, under_way
 from hrc.dispatch import Dispatcher, RobotStep
-from hrc.dispatch.protocol import handle_line
+from hrc.dispatch.protocol import Log, handle_line
 
 __all__ = ["PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply"]
 
@@ -62,7 +61,7 @@ class ConsoleSession:
     """
 
     def __init__(self, dispatcher: Dispatcher, compiled: Mapping[str, Any], routes: PlanRoutes,
-                 clock: RunClock, log: RunLog, robot_link: str = "none") -> None:
+                 clock: RunClock, log: Log, robot_link: str = "none") -> None:
         self.dispatcher = dispatcher
         self.compiled = compiled
         self.routes = routes
@@ -84,7 +83,7 @@ class ConsoleSession:
         line = json.dumps(message, separators=(",", ":"))
         out_line = handle_line(self.dispatcher, line)
         out = json.loads(out_line)
-        self.log.write(line, out_line)  # on disk before anyone is told
+        self.log.record(line, out_line)  # on disk before anyone is told
         entry = {"n": len(self.entries) + 1, "source": source, "in": message, "out": out}
         self.entries.append(entry)
         if not out.get("ok"):
@@ -169,7 +168,7 @@ class ConsoleSession:
                                                              "phases": {p.id: p.location for p in a.phases}}
                                                       for a in task.actions}},
                 "map": map_view(task), "speed": self.clock.speed, "undo_window": UNDO_WINDOW,
-                "log_file": str(self.log.path) if self.log.path else None}
+                "log_file": str(self.log.path)}
 
     def _undo(self, now: float) -> dict[str, Any] | None:
         last = next((o for o in reversed(self.dispatcher.history) if o.agent == "human"), None)

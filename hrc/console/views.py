@@ -25,12 +25,17 @@ Times = Mapping[tuple[str, str, str, str], float]
 _BAR_EVENTS = (("travel", "depart", "arrive"), ("wait", "park", "unpark"), ("work", "start", "end"))
 
 
-class _Observed(Protocol):
-    t: float
-    event: str
-    agent: str | None
-    action: str | None
-    phase: str | None
+class _Observed(Protocol):  # read-only, as `hrc.dispatch.Observation` (frozen) has them
+    @property
+    def t(self) -> float: ...
+    @property
+    def event(self) -> str: ...
+    @property
+    def agent(self) -> str | None: ...
+    @property
+    def action(self) -> str | None: ...
+    @property
+    def phase(self) -> str | None: ...
 
 
 def _xy(p: Iterable[float]) -> list[float]:

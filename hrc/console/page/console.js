@@ -115,7 +115,8 @@
     const opts = s.options.slice().sort((a, b) => (a.event === "end" ? 0 : 1) - (b.event === "end" ? 0 : 1));
     for (const o of opts) {
       const [big, small] = optionLabel(o);
-      const b = el("button", { type: "button", class: "act" + (o.event === "end" ? " done" : ""),
+      const h = s.decision.human, hinted = h && h.action === o.action && h.phase === o.phase && h.event === o.event;
+      const b = el("button", { type: "button", class: "act" + (o.event === "end" ? " done" : "") + (hinted ? " hint" : ""),
                                "data-action": o.action, "data-phase": o.phase, "data-event": o.event });
       b.append(document.createTextNode(big), el("small", {}, small));
       b.disabled = busy;
@@ -142,6 +143,10 @@
     const doing = $("doing"); doing.textContent = "";
     if (d.human_away) doing.append(el("span", { class: "away" }, "You are away: the robot takes what you have not started."));
     else if (s.under_way.length) doing.append(document.createTextNode("Under way: " + s.under_way.map(([a, p]) => cap(p) + " " + a).join(", ")));
+    const h = d.human;  // the dispatcher's hint: the person's next step in the best plan, or what to wait for
+    if (h && h.wait_for) doing.append(el("div", { class: "hint-line wait" }, "Please wait for the " + h.wait_for.replace(/\./g, " ")));
+    else if (h && h.action) doing.append(el("div", { class: "hint-line" }, "Suggested: " + optionLabel(h).join(" · ") +
+      (h.latest !== null ? " (by " + fmt(h.latest) + " s)" : "")));
     drawButtons();
     // the robot
     const r = d.robot;
