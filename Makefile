@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/cube_stacking
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench clean browser
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -18,10 +18,18 @@ demo: $(STAMP)
 	$(BIN)/hrc show tasks/cube_stacking.yaml
 	$(BIN)/hrc compile tasks/cube_stacking.yaml --out $(OUT)
 
-test: $(STAMP)
+test: $(STAMP) browser
 	$(BIN)/ruff check hrc tests scripts
 	$(BIN)/mypy hrc
 	$(BIN)/python -m pytest -q
+
+# The console's browser tests drive Debian's Chromium: installed here when missing and run as root (as CI
+# runs); otherwise those tests skip and say why.
+browser:
+	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
+	  DEBIAN_FRONTEND=noninteractive apt-get update -q && \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null; } || \
+	  echo "make: no chromium (as root: apt-get install chromium): the console's browser tests will skip"
 
 lint: $(STAMP)
 	$(BIN)/ruff check hrc tests scripts

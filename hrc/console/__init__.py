@@ -1,0 +1,17 @@
+"""The operator console (issue 14): a local web page where the person tells the robot what they do,
+and where the engineer sees what it will do.
+
+Strassmair & Taylor 2014, section V.B: a lean human action detector "could rely on buttons". The
+console is that detector: it holds one `hrc.dispatch.Dispatcher`, turns the person's presses and the
+robot controller's acknowledgements into the dispatcher's JSON lines (`hrc.dispatch.protocol`), and
+pushes every decision to the page and the robot over websockets.
+
+    clock     RunClock: a monotonic clock in run seconds (``--speed``)
+    runlog    a new log file per run (the dispatcher's Log: --replay reads it)
+    views     the map, each plan's routes, the Gantt bars
+    session   ConsoleSession: the one dispatcher and the messages of the page and the robot
+    robot     SimulatedRobot: ``--simulate-robot``
+    server    ConsoleServer: the Starlette app (page, /ws, /robot)
+    run       open_console, serve
+    page/     index.html, console.js, console.css (hand-written, no library, served by hrc)
+"""

@@ -1,0 +1,293 @@
+// hrc console page: plain JavaScript, no library. Talks to the server over one websocket (/ws):
+// receives "setup" once per connection, then "state" after every change, and "reply" to its own messages.
+"use strict";
+(function () {
+  const SVGNS = "http://www.w3.org/2000/svg";
+  const $ = (id) => document.getElementById(id);
+  const C = {                      // what the tests and the curious may read: window.hrcConsole
+    ws: null, setup: null, state: null, receivedAt: 0, nextId: 1, pending: new Map(),
+    stats: { pressToReply: [], pressToState: [], reconnects: 0, errors: [] }, connected: false,
+  };
+  window.hrcConsole = C;
+  C.runNow = () => runNow();
+  let backoff = 250;
+
+  // ---- the connection -------------------------------------------------------------------------
+  function connect() {
+    const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
+    C.ws = ws;
+    ws.onopen = () => { backoff = 250; };
+    ws.onmessage = (ev) => {
+      let msg;
+      try { msg = JSON.parse(ev.data); } catch (e) { showError("the server sent something unreadable"); return; }
+      if (msg.type === "setup") { C.setup = msg; C.connected = true; drawSetup(); }
+      else if (msg.type === "state") { onState(msg); }
+      else if (msg.type === "reply") { onReply(msg); }
+    };
+    ws.onclose = () => {
+      if (C.ws !== ws) return;
+      C.connected = false; C.pending.clear();
+      setLink(false, "connection lost, reconnecting…");
+      drawButtons();
+      C.stats.reconnects += 1;
+      setTimeout(connect, backoff);
+      backoff = Math.min(backoff * 2, 4000);
+    };
+  }
+
+  function send(msg) {
+    if (!C.connected || !C.ws || C.ws.readyState !== WebSocket.OPEN) { showError("not connected: wait until the page reconnects"); return; }
+    msg.id = C.nextId++;
+    msg.hseq = C.state ? C.state.hseq : -1;
+    C.pending.set(msg.id, { at: performance.now(), hseq: msg.hseq });
+    C.ws.send(JSON.stringify(msg));
+    drawButtons();
+  }
+
+  function onReply(msg) {
+    const p = C.pending.get(msg.id);
+    if (p) {
+      C.pending.delete(msg.id);
+      if (msg.ok) { p.replied = performance.now(); C.stats.pressToReply.push(p.replied - p.at); C.waitState = p; }
+    }
+    if (!msg.ok) showError(msg.error);
+    drawButtons();
+  }
+
+  function onState(s) {
+    C.state = s; C.receivedAt = performance.now();
+    setLink(true, s.robot_link === "simulated" ? "connected · robot simulated" :
+                  s.robot_link === "connected" ? "connected · robot connected" : "connected · no robot");
+    drawState();
+    if (C.waitState && s.hseq > C.waitState.hseq) {  // the press is now on screen
+      C.stats.pressToState.push(performance.now() - C.waitState.at);
+      C.waitState = null;
+    }
+    drawStats();
+  }
+
+  // ---- time -----------------------------------------------------------------------------------
+  function runNow() {
+    if (!C.state) return 0;
+    if (C.state.finished) return C.state.now;
+    return C.state.now + (performance.now() - C.receivedAt) / 1000 * (C.setup ? C.setup.speed : 1);
+  }
+  const fmt = (t) => (t === null || t === undefined) ? "∞" : t.toFixed(1);
+
+  // ---- drawing --------------------------------------------------------------------------------
+  function el(tag, attrs, text) {
+    const e = tag.startsWith("svg:") ? document.createElementNS(SVGNS, tag.slice(4)) : document.createElement(tag);
+    for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, v);
+    if (text !== undefined) e.textContent = text;
+    return e;
+  }
+  function setLink(ok, text) { const l = $("link"); l.textContent = text; l.className = "link " + (ok ? "ok" : "bad"); }
+  function showError(text) { C.stats.errors.push(text); $("error-text").textContent = text; $("error").hidden = false; }
+  function where(action, phase) {
+    const a = C.setup && C.setup.task.actions[action];
+    return a && a.phases[phase] ? a.phases[phase] : "?";
+  }
+  const cap = (s) => s.charAt(0).toUpperCase() + s.slice(1);
+  function optionLabel(o) {
+    const what = cap(o.phase) + " " + o.action, at = where(o.action, o.phase);
+    switch (o.event) {
+      case "depart": return ["Go to " + at, "for: " + what];
+      case "arrive": return ["I'm at " + at, "for: " + what];
+      case "park": return ["Waiting aside", what];
+      case "unpark": return ["Going on", what];
+      case "start": return [what, "start now, at " + at];
+      case "end": return ["Done: " + what, "finished at " + at];
+      default: return [o.event + " " + what, ""];
+    }
+  }
+
+  function drawSetup() {
+    $("task-name").textContent = "hrc console · " + C.setup.task.name;
+    $("speed").textContent = C.setup.speed !== 1 ? "×" + C.setup.speed : "";
+  }
+
+  function drawButtons() {
+    const box = $("buttons"), s = C.state;
+    box.textContent = "";
+    const busy = !C.connected || C.pending.size > 0 || !s || s.finished;
+    if (!s) return;
+    // "done" first: the phase under way
+    const opts = s.options.slice().sort((a, b) => (a.event === "end" ? 0 : 1) - (b.event === "end" ? 0 : 1));
+    for (const o of opts) {
+      const [big, small] = optionLabel(o);
+      const h = s.decision.human, hinted = h && h.action === o.action && h.phase === o.phase && h.event === o.event;
+      const b = el("button", { type: "button", class: "act" + (o.event === "end" ? " done" : "") + (hinted ? " hint" : ""),
+                               "data-action": o.action, "data-phase": o.phase, "data-event": o.event });
+      b.append(document.createTextNode(big), el("small", {}, small));
+      b.disabled = busy;
+      b.addEventListener("click", () => send({ type: "press", action: o.action, phase: o.phase, event: o.event }));
+      box.append(b);
+    }
+    if (!opts.length) box.append(el("div", { class: "none" }, s.finished ? "All done." : "Nothing for you to start now."));
+    const away = s.decision && s.decision.human_away;
+    $("away").hidden = !!away; $("back").hidden = !away;
+    $("away").disabled = $("back").disabled = busy;
+    $("undo").disabled = busy;
+  }
+
+  function drawState() {
+    const s = C.state, d = s.decision;
+    $("finished").hidden = !s.finished;
+    // counts per class
+    const counts = $("counts"); counts.textContent = "";
+    for (const k of ["DC", "consistent", "inconsistent"]) {
+      const c = el("span", { class: "count c-" + k, "data-class": k }); c.append(el("small", {}, k), document.createTextNode(String(d.candidates ? d.candidates[k] : 0)));
+      counts.append(c);
+    }
+    // the person: what they are doing
+    const doing = $("doing"); doing.textContent = "";
+    if (d.human_away) doing.append(el("span", { class: "away" }, "You are away: the robot takes what you have not started."));
+    else if (s.under_way.length) doing.append(document.createTextNode("Under way: " + s.under_way.map(([a, p]) => cap(p) + " " + a).join(", ")));
+    const h = d.human;  // the dispatcher's hint: the person's next step in the best plan, or what to wait for
+    if (h && h.wait_for) doing.append(el("div", { class: "hint-line wait" }, "Please wait for the " + h.wait_for.replace(/\./g, " ")));
+    else if (h && h.action) doing.append(el("div", { class: "hint-line" }, "Suggested: " + optionLabel(h).join(" · ") +
+      (h.latest !== null ? " (by " + fmt(h.latest) + " s)" : "")));
+    drawButtons();
+    // the robot
+    const r = d.robot;
+    $("robot-step").textContent = d.stopped ? "STOPPED (no feasible plan)" : !r ? (s.finished ? "finished" : "nothing left to do")
+      : r.wait_for ? "wait for " + r.wait_for : r.event + " · " + r.phase + " " + r.action;
+    $("robot-step").setAttribute("data-decision", JSON.stringify(r));
+    $("robot-window").textContent = r && r.action ? "window " + fmt(r.earliest) + " – " + fmt(r.latest) + " s" : "";
+    $("plan-line").textContent = d.plan ? "best plan " + d.plan + " (" + d.class + ")" +
+      (s.best && s.best.makespan !== null ? ", makespan " + fmt(s.best.makespan) + " s" : "") +
+      (s.best ? " · human: " + (s.best.sequences.human || []).join(" ") + " · robot: " + (s.best.sequences.robot || []).join(" ") : "") : "no plan";
+    drawGantt(); drawMap(); drawLog();
+  }
+
+  function tickDraw() {
+    if (C.state) {
+      const now = runNow();
+      $("clock").textContent = fmt(now) + " s";
+      const r = C.state.decision.robot;
+      let text = "";
+      if (r && r.action) {
+        text = now < r.earliest ? "in " + (r.earliest - now).toFixed(1) + " s" :
+               (r.latest === null || now <= r.latest) ? "now" + (r.latest !== null ? " (" + (r.latest - now).toFixed(1) + " s left)" : "") : "late";
+      }
+      $("robot-countdown").textContent = text;
+      const u = C.state.undo, ub = $("undo");
+      if (u && now <= u.until && !C.state.finished) { ub.hidden = false; ub.textContent = "Undo " + u.what + " (" + Math.max(0, u.until - now).toFixed(0) + " s)"; }
+      else ub.hidden = true;
+      const line = document.getElementById("now-line");
+      if (line && C.gx) { const x = C.gx(now); line.setAttribute("x1", x); line.setAttribute("x2", x); }
+    }
+    requestAnimationFrame(tickDraw);
+  }
+
+  // Gantt: one row per agent, the plan's bars above (outlined), what happened below (filled).
+  function drawGantt() {
+    const svg = $("gantt"), s = C.state, g = s.gantt;
+    svg.textContent = "";
+    const W = 800, rowH = 56, top = 22, left = 64, H = top + 2 * rowH + 26;
+    svg.setAttribute("viewBox", `0 0 ${W} ${H}`);
+    const deadline = C.setup.task.deadline;
+    let tmax = Math.max(deadline || 0, s.now);
+    for (const b of g.planned.concat(g.actual)) tmax = Math.max(tmax, b.to);
+    tmax = Math.ceil((tmax + 5) / 10) * 10;
+    const x = (t) => left + (W - left - 10) * t / tmax;
+    C.gx = x;
+    for (let t = 0; t <= tmax; t += 10) {
+      svg.append(el("svg:line", { x1: x(t), x2: x(t), y1: top - 4, y2: H - 20, stroke: "#e2e2e2" }));
+      svg.append(el("svg:text", { x: x(t), y: H - 6, "font-size": 12, "text-anchor": "middle", fill: "#666" }, String(t)));
+    }
+    const agents = ["human", "robot"];
+    agents.forEach((a, i) => svg.append(el("svg:text", { x: 6, y: top + i * rowH + rowH / 2 + 5, "font-size": 15, "font-weight": 700, fill: a === "human" ? "#d9731a" : "#1f6fb2" }, a)));
+    const fill = { travel: "#9aa7b4", wait: "#e6c229", work: null };
+    const draw = (b, actual) => {
+      const i = agents.indexOf(b.agent); if (i < 0) return;
+      const y = top + i * rowH + (actual ? rowH / 2 : 2), h = rowH / 2 - 6;
+      const color = fill[b.kind] || (b.agent === "human" ? "#d9731a" : "#1f6fb2");
+      const w = Math.max(1.5, x(b.to) - x(b.from));
+      const r = el("svg:rect", { x: x(b.from), y, width: w, height: h, rx: 3,
+        fill: actual ? color : "none", stroke: color, "stroke-width": actual ? 0 : 2, "stroke-dasharray": actual ? "" : (b.kind === "work" ? "" : "4 3"),
+        class: (actual ? "bar-actual" : "bar-planned") + " bar-" + b.kind });
+      r.append(el("svg:title", {}, `${b.agent} ${b.kind} ${b.action}.${b.phase}: ${fmt(b.from)} – ${fmt(b.to)} s`));
+      svg.append(r);
+      if (b.kind === "work" && w > 34) svg.append(el("svg:text", { x: x(b.from) + 3, y: y + h - 7, "font-size": 11, fill: actual ? "#fff" : "#333" }, b.action.replace("cube", "c").replace("triangle", "tri") + (b.phase === "put" ? "↓" : "↑")));
+    };
+    g.planned.forEach((b) => draw(b, false));
+    g.actual.forEach((b) => draw(b, true));
+    if (deadline) {
+      svg.append(el("svg:line", { x1: x(deadline), x2: x(deadline), y1: top - 12, y2: H - 20, stroke: "#000", "stroke-width": 2, "stroke-dasharray": "6 4" }));
+      svg.append(el("svg:text", { x: x(deadline) + 3, y: top - 10, "font-size": 11 }, "deadline " + deadline + " s"));
+    }
+    svg.append(el("svg:line", { id: "now-line", x1: x(runNow()), x2: x(runNow()), y1: top - 12, y2: H - 20, stroke: "#d00", "stroke-width": 2 }));
+  }
+
+  // The map: obstacles, locations, both agents' routes in the best plan, where each agent is.
+  function drawMap() {
+    const svg = $("map"), m = C.setup.map, s = C.state;
+    svg.textContent = "";
+    const [x0, y0, x1, y1] = m.bounds, pad = 0.4;
+    svg.setAttribute("viewBox", `${x0 - pad} ${-(y1 + pad)} ${x1 - x0 + 2 * pad} ${y1 - y0 + 2 * pad}`);
+    const P = (p) => `${p[0]},${-p[1]}`;
+    svg.append(el("svg:rect", { x: x0, y: -y1, width: x1 - x0, height: y1 - y0, fill: "#fff", stroke: "#444", "stroke-width": 0.05 }));
+    for (const o of m.obstacles) svg.append(el("svg:polygon", { points: o.points.map(P).join(" "), fill: "#bbb", stroke: "#888", "stroke-width": 0.02 }));
+    const colors = { human: "#d9731a", robot: "#1f6fb2" };
+    for (const [agent, legs] of Object.entries(s.routes)) {
+      legs.forEach((leg) => {
+        if (leg.points.length < 2) return;
+        const pl = el("svg:polyline", { points: leg.points.map(P).join(" "), fill: "none", stroke: colors[agent] || "#333",
+          "stroke-width": 0.07, "stroke-dasharray": agent === "robot" ? "0.25 0.12" : "", "stroke-linejoin": "round", "stroke-opacity": 0.8, class: "route route-" + agent });
+        pl.append(el("svg:title", {}, `${agent}: ${leg.from} → ${leg.to} for ${leg.action}.${leg.phase}` + (leg.detour ? ` (detour round ${leg.detour})` : "")));
+        svg.append(pl);
+      });
+    }
+    for (const [id, p] of Object.entries(m.locations)) {
+      svg.append(el("svg:circle", { cx: p[0], cy: -p[1], r: 0.09, fill: "#333" }));
+      svg.append(el("svg:text", { x: p[0] + 0.14, y: -p[1] - 0.1, "font-size": 0.32, fill: "#222" }, id));
+    }
+    for (const [agent, a] of Object.entries(m.agents)) {
+      const at = s.where && s.where[agent] ? s.where[agent] : a.start, p = m.locations[at];
+      if (!p) continue;
+      svg.append(el("svg:circle", { cx: p[0], cy: -p[1], r: a.radius, fill: colors[agent] || "#333", "fill-opacity": 0.35, stroke: colors[agent] || "#333", "stroke-width": 0.05 }));
+    }
+  }
+
+  function describeIn(m) {
+    if (m.event === "tick") return "tick";
+    return [m.agent, m.event, m.action, m.phase].filter(Boolean).join(" ");
+  }
+  function describeOut(o) {
+    if (!o.ok) return "refused: " + o.error;
+    const r = o.robot;
+    const step = !r ? "robot: nothing" : r.wait_for ? "robot waits for " + r.wait_for : `robot ${r.event} ${r.action}.${r.phase} in [${fmt(r.earliest)}, ${fmt(r.latest)}]`;
+    return `${step} · plan ${o.plan} (${o.class})`;
+  }
+  function drawLog() {
+    const s = C.state, body = $("log").querySelector("tbody");
+    body.textContent = "";
+    $("log-count").textContent = "(" + s.log_total + " messages)";
+    let prev = null;
+    const rows = [];
+    for (const e of s.log) {
+      const key = JSON.stringify([e.out.robot, e.out.plan, e.out.ok]);
+      if (e.in.event === "tick" && e.out.ok && key === prev) continue;  // ticks that changed nothing
+      prev = e.out.ok ? key : prev;
+      const tr = el("tr", { class: e.out.ok ? "ok" : "refused", "data-n": e.n });
+      tr.append(el("td", {}, String(e.n)), el("td", {}, fmt(e.in.t)), el("td", {}, e.source), el("td", {}, describeIn(e.in)), el("td", { class: "decision" }, describeOut(e.out)));
+      rows.push(tr);
+    }
+    rows.reverse().forEach((r) => body.append(r));
+  }
+  function drawStats() {
+    const a = C.stats.pressToState;
+    if (!a.length) return;
+    const sorted = a.slice().sort((p, q) => p - q), med = sorted[Math.floor(sorted.length / 2)];
+    $("stats").textContent = `press → decision on screen: median ${med.toFixed(1)} ms over ${a.length} presses`;
+  }
+
+  // ---- the person's other buttons --------------------------------------------------------------
+  $("away").addEventListener("click", () => send({ type: "away" }));
+  $("back").addEventListener("click", () => send({ type: "back" }));
+  $("undo").addEventListener("click", () => send({ type: "undo" }));
+  $("error-close").addEventListener("click", () => { $("error").hidden = true; });
+  connect();
+  requestAnimationFrame(tickDraw);
+})();

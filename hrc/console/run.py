@@ -1,0 +1,59 @@
+"""Open a console on an `hrc compile` output folder and serve it (what ``hrc console`` calls)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import socket
+from collections.abc import Callable
+from pathlib import Path
+
+import uvicorn
+
+from hrc.console.clock import RunClock
+from hrc.console.runlog import next_log_path, open_log
+from hrc.console.server import MAX_MESSAGE, ConsoleServer
+from hrc.console.session import ConsoleSession
+from hrc.console.views import PlanRoutes
+from hrc.dispatch import Dispatcher
+from hrc.errors import InputError
+from hrc.motion import plan_paths
+
+__all__ = ["open_console", "serve"]
+
+
+def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,
+                 simulate_robot: bool = False, tick: float = 2.0) -> ConsoleServer:
+    """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
+    ``OUT_DIR/runs/console-N.jsonl``). The run's clock starts now.
+
+    Raises `InputError` when `out_dir` is not an ``hrc compile`` output, `FileExistsError` when `log` exists.
+    Cost: loading the plan set and planning the free-space paths again (about 2 s for the workshop).
+    """
+    dispatcher = Dispatcher.from_folder(out_dir)
+    path = Path(out_dir) / "compiled.json"
+    try:
+        compiled = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise InputError(str(path), "", f"cannot read it ({err})") from err
+    routes = PlanRoutes(compiled, plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
+    run_log = open_log(next_log_path(out_dir) if log is None else log, dispatcher)
+    session = ConsoleSession(dispatcher, compiled, routes, RunClock(speed), run_log)
+    return ConsoleServer(session, simulate_robot=simulate_robot, tick=tick)
+
+
+def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
+          ready: Callable[[str], None] | None = None) -> None:
+    """Serve until interrupted; `ready(url)` is called once the socket listens (port 0: any free port)."""
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind((host, port))
+    sock.listen(64)
+    bound = sock.getsockname()[1]
+    config = uvicorn.Config(server.app, log_level="warning", ws_max_size=MAX_MESSAGE * 4, ws_ping_interval=5.0,
+                            ws_ping_timeout=10.0, timeout_graceful_shutdown=2, lifespan="on")
+    if ready is not None:
+        shown = f"[{host}]" if ":" in host else host
+        ready(f"http://{shown}:{bound}/")
+    asyncio.run(uvicorn.Server(config).serve(sockets=[sock]))

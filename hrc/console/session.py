@@ -1,0 +1,208 @@
+"""One console run: the one `hrc.dispatch.Dispatcher`, the run's clock and log, and what the page and
+the robot controller may ask of them.
+
+Every press of the person, every acknowledgement of the robot and every tick goes to the dispatcher
+as one JSON line through `hrc.dispatch.protocol.handle_line` (the protocol `hrc dispatch` speaks), so
+that the run's log replays with ``hrc dispatch OUT_DIR --replay LOG``. Messages from the page and the
+robot are checked here first (shape, type, the page's view of the run being current) and a message
+refused here or by the dispatcher changes nothing but the reply.
+
+The session is not thread-safe: the server calls it from its one event loop, which serializes the
+messages of every tab and of the robot.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import Any
+
+from hrc.console.clock import RunClock
+from hrc.console.views import PlanRoutes, gantt_bars, map_view, under_way
+from hrc.dispatch import Dispatcher, RobotStep
+from hrc.dispatch.protocol import Log, handle_line
+
+__all__ = ["PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply"]
+
+# How long after a press of the person the page offers to undo it, in run seconds (the dispatcher
+# itself accepts an undo within 10 s of the observation it withdraws).
+UNDO_WINDOW = 8.0
+# The page's messages and the keys each needs besides "type" and "hseq".
+PAGE_MESSAGES: dict[str, tuple[str, ...]] = {"press": ("action", "phase", "event"), "away": (), "back": (),
+                                             "undo": ()}
+_LOG_SHOWN = 300  # log entries sent to a page (the file keeps all)
+
+
+class Reply(dict[str, Any]):
+    """The answer to one message: ``{"ok": True, ...}`` or ``{"ok": False, "error": "one line"}``."""
+
+    @classmethod
+    def error(cls, message: str) -> Reply:
+        return cls(ok=False, error=message)
+
+
+def _loads(text: str | bytes) -> dict[str, Any] | str:
+    """The message as a JSON object, or why it is not one (a line for the page)."""
+    try:
+        msg = json.loads(text)
+    except (ValueError, UnicodeDecodeError) as err:
+        return f"malformed message (not JSON: {err})"
+    if not isinstance(msg, dict):
+        return f"malformed message (a JSON object was expected, got {type(msg).__name__})"
+    return msg
+
+
+class ConsoleSession:
+    """The state of one run as the console sees it.
+
+    `hseq` counts the person's accepted messages: a page sends the `hseq` it has drawn with each press,
+    and a press made on a page that has not yet shown the previous one (two tabs pressing at once) is
+    refused, so that no one confirms what they have not seen. `seq` counts every accepted message.
+    """
+
+    def __init__(self, dispatcher: Dispatcher, compiled: Mapping[str, Any], routes: PlanRoutes,
+                 clock: RunClock, log: Log, robot_link: str = "none") -> None:
+        self.dispatcher = dispatcher
+        self.compiled = compiled
+        self.routes = routes
+        self.clock = clock
+        self.log = log
+        self.robot_link = robot_link  # "simulated" | "connected" | "none"
+        self.seq = 0
+        self.hseq = 0
+        self.entries: list[dict[str, Any]] = []
+        self._phases = {(a.id, p.id) for a in dispatcher.task.actions for p in a.phases}
+
+    # -- time -------------------------------------------------------------------------------------
+    def now(self) -> float:
+        """The run's time for a new message: never before the dispatcher's last accepted message."""
+        return max(self.clock.now(), self.dispatcher.now)
+
+    # -- the one way into the dispatcher ----------------------------------------------------------
+    def _submit(self, message: dict[str, Any], source: str) -> Reply:
+        line = json.dumps(message, separators=(",", ":"))
+        out_line = handle_line(self.dispatcher, line)
+        out = json.loads(out_line)
+        self.log.record(line, out_line)  # on disk before anyone is told
+        entry = {"n": len(self.entries) + 1, "source": source, "in": message, "out": out}
+        self.entries.append(entry)
+        if not out.get("ok"):
+            return Reply.error(str(out.get("error", "refused by the dispatcher")))
+        self.seq += 1
+        return Reply(ok=True, decision=out)
+
+    # -- the person (the page) --------------------------------------------------------------------
+    def page_message(self, text: str | bytes) -> Reply:
+        """A message from a page (see `PAGE_MESSAGES`); refused here when malformed or stale."""
+        msg = _loads(text)
+        if isinstance(msg, str):
+            return Reply.error(msg)
+        kind = msg.get("type")
+        if kind not in PAGE_MESSAGES:
+            return Reply.error(f"unknown message type {kind!r} (expected one of {', '.join(PAGE_MESSAGES)})")
+        missing = [k for k in ("hseq", *PAGE_MESSAGES[kind]) if k not in msg]
+        if missing:
+            return Reply.error(f"malformed {kind} message: missing {', '.join(missing)}")
+        if msg["hseq"] != self.hseq:
+            return Reply.error("refused: the run moved on since this page was drawn (another press); "
+                               "look again and press again")
+        if self.finished:
+            return Reply.error("refused: the run is over")
+        t = self.now()
+        if kind == "press":
+            fields = {k: msg[k] for k in PAGE_MESSAGES["press"]}
+            if not all(isinstance(v, str) for v in fields.values()):
+                return Reply.error("malformed press message: action, phase and event must be strings")
+            obs: dict[str, Any] = {"t": t, "agent": "human", **fields}
+        elif kind == "undo":
+            obs = {"t": t, "event": "undo"}
+        else:
+            obs = {"t": t, "agent": "human", "event": kind}
+        reply = self._submit(obs, "person")
+        if reply["ok"]:
+            self.hseq += 1
+        return reply
+
+    # -- the robot (its controller, or the simulated robot) ---------------------------------------
+    def robot_message(self, text: str | bytes, source: str = "robot") -> Reply:
+        """An acknowledgement ``{"type": "ack", "action", "phase", "event"[, "t"]}`` from the robot.
+
+        ``t`` (run seconds, optional) is when the event happened; it may not lie in the future nor before
+        the dispatcher's last accepted message. Without it the event happened now.
+        """
+        msg = _loads(text)
+        if isinstance(msg, str):
+            return Reply.error(msg)
+        if msg.get("type") != "ack":
+            return Reply.error(f"unknown message type {msg.get('type')!r} (the robot sends only ack)")
+        fields = {k: msg.get(k) for k in ("action", "phase", "event")}
+        if not all(isinstance(v, str) for v in fields.values()):
+            return Reply.error("malformed ack: action, phase and event must be strings")
+        now = self.now()
+        t = msg.get("t", now)
+        if isinstance(t, bool) or not isinstance(t, int | float):
+            return Reply.error("malformed ack: t must be a number of run seconds")
+        if t > now:
+            return Reply.error(f"refused: t = {t} lies in the future (the run's time is {now})")
+        return self._submit({"t": round(float(t), 3), "agent": "robot", **fields}, source)
+
+    def tick(self) -> Reply:
+        """Tell the dispatcher that time passed with nothing seen."""
+        return self._submit({"t": self.now(), "event": "tick"}, "clock")
+
+    # -- what the page and the robot are shown ----------------------------------------------------
+    @property
+    def finished(self) -> bool:
+        ended = {(o.action, o.phase) for o in self.dispatcher.history if o.event == "end"}
+        return self._phases <= ended
+
+    def robot_step(self) -> RobotStep | None:
+        step = self.dispatcher.decision.robot
+        return step if isinstance(step, RobotStep) else None
+
+    def setup(self) -> dict[str, Any]:
+        """What does not change during a run (sent once per connection)."""
+        task = self.dispatcher.task
+        return {"type": "setup", "task": {"name": task.name, "deadline": task.deadline,
+                                          "actions": {a.id: {"name": a.name,
+                                                             "phases": {p.id: p.location for p in a.phases}}
+                                                      for a in task.actions}},
+                "map": map_view(task), "speed": self.clock.speed, "undo_window": UNDO_WINDOW,
+                "log_file": str(self.log.path)}
+
+    def _undo(self, now: float) -> dict[str, Any] | None:
+        last = next((o for o in reversed(self.dispatcher.history) if o.agent == "human"), None)
+        if last is None or now - last.t > UNDO_WINDOW:
+            return None
+        what = " ".join(x for x in (last.event, last.action, last.phase) if x)
+        return {"until": round(last.t + UNDO_WINDOW, 3), "what": what}
+
+    def state(self) -> dict[str, Any]:
+        """The whole view of the run now (sent after every change, and on every (re)connection)."""
+        d = self.dispatcher
+        now = self.now()
+        decision = d.decision.to_json()
+        best = d.candidates[0] if d.candidates else None
+        plan = decision.get("plan")
+        return {
+            "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,
+            "decision": decision,
+            "options": [{"action": o.action, "phase": o.phase, "event": o.event} for o in d.human_options()],
+            "under_way": [list(x) for x in under_way(d.history, "human")],
+            "undo": self._undo(now),
+            "best": None if best is None else {"plan": best.plan, "class": best.plan_class,
+                                               "makespan": best.makespan, "sequences": dict(best.sequences)},
+            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now),
+            "routes": self.routes.routes(plan),
+            "log": self.entries[-_LOG_SHOWN:], "log_total": len(self.entries),
+            "robot_link": self.robot_link, "where": self._where(),
+        }
+
+    def _where(self) -> dict[str, str]:
+        """Each agent's last known location: its start, or where it last arrived or worked."""
+        task = self.dispatcher.task
+        at = {a.id: a.start for a in task.agents}
+        for o in self.dispatcher.history:
+            if o.agent in at and o.action and o.phase and o.event in ("arrive", "start", "end"):
+                at[o.agent] = task.action(o.action).phase(o.phase).location
+        return at

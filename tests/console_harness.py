@@ -1,0 +1,141 @@
+"""Helpers of the console's tests: a compiled workshop, an `hrc console` process, a headless Chromium.
+
+The browser is Debian's ``/usr/bin/chromium`` driven by playwright for Python (no browser download),
+started with the flags that keep it offline and quiet, and behind a proxy that does not exist, so
+that anything the page asked of a host other than this machine's loopback would fail (and is also
+recorded by `record_requests`). Every wait here is bounded.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import shutil
+import subprocess
+import sys
+import threading
+import urllib.request
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = os.environ.get("HRC_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--proxy-server=http://127.0.0.1:9"]  # loopback bypasses proxies: everything else fails
+START_TIMEOUT = 60.0  # s for `hrc console` to listen (it plans the map's paths first)
+
+
+def browser_or_skip() -> Any:
+    """playwright's sync API, or skip (fail when HRC_REQUIRE_BROWSER=1, as in CI) naming what is missing."""
+    missing = None
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        missing = "playwright for Python is not installed (pip install -e '.[test]')"
+    if missing is None and not (os.path.exists(CHROMIUM) or shutil.which(CHROMIUM)):
+        missing = f"no Chromium at {CHROMIUM} (as root: apt-get install chromium; `make test` does it)"
+    if missing:
+        if os.environ.get("HRC_REQUIRE_BROWSER") == "1":
+            pytest.fail(f"browser tests required (HRC_REQUIRE_BROWSER=1) but {missing}")
+        pytest.skip(f"browser tests skipped: {missing}")
+    return sync_playwright
+
+
+@contextmanager
+def chromium(viewport: tuple[int, int] = (1400, 1050)) -> Iterator[Any]:
+    """A browser context of a headless Chromium; its default timeout is 15 s."""
+    sync_playwright = browser_or_skip()
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_FLAGS, timeout=30_000)
+        try:
+            context = browser.new_context(viewport={"width": viewport[0], "height": viewport[1]})
+            context.set_default_timeout(15_000)
+            yield context
+        finally:
+            browser.close()
+
+
+class ConsoleProcess:
+    """``python -m hrc console OUT_DIR --port 0 ...`` in a subprocess; `url` once it listens."""
+
+    def __init__(self, out_dir: Path, log: Path, *args: str) -> None:
+        env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        self.log = log
+        self.proc = subprocess.Popen([sys.executable, "-m", "hrc", "console", str(out_dir), "--port", "0",
+                                      "--log", str(log), *args], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True)
+        lines: queue.Queue[str] = queue.Queue()
+        threading.Thread(target=lambda: [lines.put(x) for x in self.proc.stdout or ()], daemon=True).start()
+        try:
+            first = lines.get(timeout=START_TIMEOUT)
+        except queue.Empty:
+            self.stop()
+            raise AssertionError(f"hrc console did not start within {START_TIMEOUT} s") from None
+        if "http://" not in first:
+            self.stop()
+            raise AssertionError(f"hrc console: {first} {self.stderr()}")
+        self.url = first.split()[2]
+
+    def get(self, path: str) -> bytes:
+        with urllib.request.urlopen(self.url + path.lstrip("/"), timeout=10) as r:
+            return r.read()
+
+    def state(self) -> dict[str, Any]:
+        return json.loads(self.get("state"))
+
+    def log_lines(self) -> list[dict[str, Any]]:
+        """The log's messages and answers after its header, decoded, in order: in, out, in, out, ..."""
+        from hrc.dispatch.protocol import read_log
+
+        _header, pairs = read_log(self.log)
+        return [json.loads(x) for pair in pairs for x in pair if x is not None]
+
+    def stderr(self) -> str:
+        return self.proc.stderr.read() if self.proc.poll() is not None and self.proc.stderr else ""
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=10)
+        for f in (self.proc.stdout, self.proc.stderr):
+            if f:
+                f.close()
+
+
+def record_requests(page: Any) -> list[str]:
+    """Every URL the page asks for (its websockets included), appended as they happen."""
+    seen: list[str] = []
+    page.on("request", lambda r: seen.append(r.url))
+    page.on("websocket", lambda ws: seen.append(ws.url))
+    return seen
+
+
+def offline_main(out_dir: str, log: str) -> None:
+    """Run in a network namespace with nothing but loopback (see the test): start the console, load the
+    page in Chromium, print one JSON line of what the page drew."""
+    server = ConsoleProcess(Path(out_dir), Path(log), "--simulate-robot")
+    try:
+        with chromium() as ctx:
+            page = ctx.new_page()
+            requests = record_requests(page)
+            page.goto(server.url)
+            page.wait_for_function("() => window.hrcConsole && window.hrcConsole.connected "
+                                   "&& document.querySelectorAll('#map polygon').length > 0", timeout=15_000)
+            drawn = page.evaluate("""() => ({buttons: document.querySelectorAll('#buttons button.act').length,
+                obstacles: document.querySelectorAll('#map polygon').length,
+                bars: document.querySelectorAll('#gantt rect').length,
+                link: document.getElementById('link').textContent,
+                css: getComputedStyle(document.body).backgroundColor})""")
+            print(json.dumps({"drawn": drawn, "requests": requests}), flush=True)
+    finally:
+        server.stop()
