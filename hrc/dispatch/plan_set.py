@@ -25,6 +25,7 @@ from hrc.plans import agent_legs
 from hrc.temporal import STNU
 from hrc.temporal.graphml import read_graphml, read_network, tool_name
 
+from .fastnet import PlanNet
 from .messages import LEG_EVENTS
 
 __all__ = ["PlanEntry", "PlanSet", "load_plan_set", "plan_set_from_compiled"]
@@ -48,6 +49,7 @@ class PlanEntry:
     legs: Mapping[str, tuple[tuple[str, str], ...]]
     leg_points: Mapping[LegKey, tuple[tuple[str, str], ...]]
     events: Mapping[str, EventKey]
+    net: PlanNet  # the same network as index arrays, for re-checking it at every message
 
     @property
     def id(self) -> str:
@@ -87,7 +89,16 @@ def _entry(task: Task, plan: Plan, rank: int, compiled_class: str, preference: f
                 raise InputError(where, "", f"the STNU lacks the timepoints of {agent.id}'s "
                                             f"{leg.action}.{leg.phase} (not compiled from this task?)")
             points[(agent.id, leg.action, leg.phase)] = tuple(found)
-    return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events)
+    index = {v: i for i, v in enumerate(stnu.timepoints)}
+    net_legs: dict[str, list[tuple[int, int, int, int, int, int]]] = {}
+    for (agent_id, _action, _phase), found_points in points.items():
+        at = dict(found_points)
+        net_legs.setdefault(agent_id, []).append(tuple(  # type: ignore[arg-type]
+            index[at[e]] if e in at else -1 for e in ("depart", "arrive", "park", "unpark", "start", "end")))
+    for agent_id in legs:  # in each agent's order (points were filled agent by agent)
+        net_legs.setdefault(agent_id, [])
+    net = PlanNet(stnu.timepoints, stnu.requirements, stnu.contingents, ORIGIN, net_legs)
+    return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events, net)
 
 
 def plan_set_from_compiled(cps: Any) -> PlanSet:

@@ -30,7 +30,7 @@ from hrc.temporal import STNU, ContingentLink, RequirementLink, Verdict, check_d
 
 from .plan_set import PlanEntry
 
-__all__ = ["CLASS_NAMES", "Evaluation", "evaluate", "rank_key", "schedule"]
+__all__ = ["CLASS_NAMES", "Evaluation", "evaluate", "rank_key", "reference_evaluate", "schedule"]
 
 CLASS_NAMES = {Verdict.DC: "DC", Verdict.NOT_DC: "consistent", Verdict.INCONSISTENT: "inconsistent"}
 _CLASS_ORDER = {"DC": 0, "consistent": 1, "inconsistent": 2}
@@ -101,7 +101,25 @@ def _idle(entry: PlanEntry, times: Mapping[str, int]) -> int:
 
 
 def evaluate(entry: PlanEntry, executed: Mapping[str, int], now: int, rank_by: str = "worst") -> Evaluation:
-    """The plan's class, finish and idle time with `executed` seen by tick `now` (module docstring)."""
+    """The plan's class, finish and idle time with `executed` seen by tick `now` (module docstring),
+    on the plan's index arrays (`hrc.dispatch.fastnet.PlanNet`); the same as `reference_evaluate`."""
+    net = entry.net
+    ex: list[int | None] = [None] * net.n
+    for name, t in executed.items():
+        ex[net.index[name]] = t
+    plan_class = net.verdict(ex, now)
+    if plan_class is None:  # no C core: the residual network's DC check
+        plan_class = CLASS_NAMES[check_dc(residual_network(entry.stnu, executed, now)).verdict]
+    times = net.schedule(ex, now, rank_by)
+    if times is None:
+        return Evaluation(plan_class, None, 0)
+    return Evaluation(plan_class, max(times), net.idle(times))
+
+
+def reference_evaluate(entry: PlanEntry, executed: Mapping[str, int], now: int,
+                       rank_by: str = "worst") -> Evaluation:
+    """`evaluate` from the residual network (`residual_network`, `check_dc`, `schedule`): slower, and
+    the definition the fast path is tested against."""
     residual = residual_network(entry.stnu, executed, now)
     verdict = check_dc(residual).verdict
     found = schedule(residual, rank_by)
