@@ -11,7 +11,9 @@ plan of the highest non-empty class:
   whatever the human's remaining durations, or wait for the human's event it depends on;
 - consistent: the same windows with the human's durations read as the plan's (`ExecutionMode.STN`);
 - inconsistent: as early as the lower bounds allow (`ExecutionMode.EARLIEST`), no latest time: finishing
-  beats the deadline.
+  beats the deadline;
+- the end of a drive under way (``arrive``, ``park``) is no decision: the robot drives a route in its
+  planned time, so its window is that time after the departure, whatever the class.
 
 The human's own departures and starts are theirs (`uncontrolled`): the robot never goes together with one
 it must follow. Started actions are never preempted: validation keeps only plans that continue every leg
@@ -262,6 +264,10 @@ class Dispatcher:
                 out.append(None)
                 continue
             action, phase, event, node = nxt
+            arrival = self._arrival(entry, agent, action, phase, event, node, done, now)
+            if arrival is not None:  # under way: it gets there when its drive says
+                out.append(arrival)
+                continue
             if state is None:
                 state = real_time_state(entry.stnu, done, now)
                 if _rank(state.default_mode()) > _rank(mode):  # the two DC checks disagree: the stricter reading
@@ -276,6 +282,34 @@ class Dispatcher:
             w_agent, w_action, w_phase, w_event = entry.events.get(waits[0], ("", "", "", waits[0]))
             out.append(WaitFor(w_agent, w_action, w_phase, w_event))
         return out[0], out[1]
+
+    @staticmethod
+    def _arrival(entry: PlanEntry, agent: str, action: str, phase: str, event: str, node: str,
+                 done: dict[str, int], now: int) -> RobotStep | None:
+        """The end of a drive under way (``arrive`` or ``park`` after an executed ``depart`` or ``unpark``):
+        not a decision but the drive's own time, from the link between the two (the robot drives a route
+        in exactly its time; a window of it when the link is a range), never before now. None otherwise."""
+        if event not in ("arrive", "park"):
+            return None
+        points = entry.leg_points[(agent, action, phase)]
+        names = [n for _, n in points]
+        prev = names[names.index(node) - 1]
+        if prev not in done:
+            return None
+        lo, hi = 0, None
+        for r in entry.stnu.requirements:
+            if (r.source, r.target) == (prev, node):
+                lo = max(lo, r.lb or 0)
+                hi = r.ub if hi is None or (r.ub is not None and r.ub < hi) else hi
+            elif (r.source, r.target) == (node, prev):
+                if r.ub is not None:
+                    lo = max(lo, -r.ub)
+                if r.lb is not None:
+                    hi = -r.lb if hi is None else min(hi, -r.lb)
+        start = done[prev]
+        earliest = max(now, start + lo)
+        latest = None if hi is None else max(earliest, start + hi)
+        return RobotStep(action, phase, event, earliest / 1000, None if latest is None else latest / 1000)
 
     @staticmethod
     def _next_events(entry: PlanEntry, agent: str, history: History) -> list[Observation]:
