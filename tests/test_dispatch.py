@@ -209,3 +209,17 @@ def test_human_options_are_what_the_dispatcher_accepts(plan_set):
         if action not in actions:
             with pytest.raises(DispatchError):
                 Dispatcher(plan_set).observe(Observation(0.0, "start", "human", action, "fetch"))
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["dispatch", "/nonexistent/out"], "not a folder"),
+    (["dispatch", str(ROOT / "tasks")], "not an hrc compile output"),
+    (["dispatch", "FOLDER", "--replay", str(ROOT / "README.md")], "not a JSON line"),
+    (["dispatch", "FOLDER", "--replay", "LOG", "--log", "LOG"], "cannot be used together"),
+    (["dispatch", "FOLDER", "--log", "/"], "must be a regular file"),
+])
+def test_cli_errors_are_one_line_and_exit_2(folder, tmp_path, capsys, argv, message):
+    argv = [str(folder) if a == "FOLDER" else str(tmp_path / "x.log") if a == "LOG" else a for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and message in err, err

@@ -29,7 +29,8 @@ def run(args: argparse.Namespace) -> int:
     from hrc.dispatch.protocol import Log, replay, serve
 
     if args.replay and args.log:
-        raise SystemExit("error: hrc dispatch: --replay and --log cannot be used together")
+        print("error: hrc dispatch: --replay and --log cannot be used together", file=sys.stderr)
+        return 2
     dispatcher = Dispatcher.from_folder(args.out_dir, feasible_only=args.feasible_only)
     if args.replay:
         differ = 0
