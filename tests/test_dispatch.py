@@ -223,3 +223,18 @@ def test_cli_errors_are_one_line_and_exit_2(folder, tmp_path, capsys, argv, mess
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and message in err, err
+
+
+def test_preferences_narrow_the_robot_window_to_apas(tmp_path):
+    """The spar assembly (APA's demo: each fastener placed soon after its sealant): with the task's
+    preferences the robot's first window is APA's DO window inside the class's window, narrower; the
+    same run with --no-preferences gets the class's window."""
+    out = tmp_path / "spar"
+    assert main(["compile", str(ROOT / "tasks" / "spar_assembly.yaml"), "--out", str(out), "--no-report",
+                 "-q"]) == 0
+    plan_set = load_plan_set(out)
+    pref = Dispatcher(plan_set).decision.robot
+    plain = Dispatcher(plan_set, use_preferences=False).decision.robot
+    assert pref is not None and plain is not None and pref.event == plain.event == "depart"
+    assert plain.earliest <= pref.earliest and pref.latest is not None and plain.latest is not None
+    assert pref.latest < plain.latest - 1.0

@@ -21,6 +21,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--replay", metavar="LOG", help="re-run a log written with --log and print its answers")
     p.add_argument("--feasible-only", action="store_true",
                    help="drop plans that are neither DC nor consistent; stop when none is left")
+    p.add_argument("--no-preferences", dest="preferences", action="store_false",
+                   help="do not narrow the robot's windows to APA's optimal (DO) windows where the task has "
+                        "preferences")
     p.set_defaults(run=run)
 
 
@@ -31,7 +34,8 @@ def run(args: argparse.Namespace) -> int:
     if args.replay and args.log:
         print("error: hrc dispatch: --replay and --log cannot be used together", file=sys.stderr)
         return 2
-    dispatcher = Dispatcher.from_folder(args.out_dir, feasible_only=args.feasible_only)
+    dispatcher = Dispatcher.from_folder(args.out_dir, feasible_only=args.feasible_only,
+                                         use_preferences=args.preferences)
     if args.replay:
         differ = 0
         for number, (out, logged) in enumerate(replay(dispatcher, args.replay), 1):

@@ -12,6 +12,9 @@ plan of the highest non-empty class:
 - consistent: the same windows with the human's durations read as the plan's (`ExecutionMode.STN`);
 - inconsistent: as early as the lower bounds allow (`ExecutionMode.EARLIEST`), no latest time: finishing
   beats the deadline;
+- where the task has preferences (APA), the window for a DC or consistent plan is narrowed to the DO
+  window of the robot's timepoint, recompiled on the residual network at each decision (Wilcox et al.
+  2012, Fig. 8: recompile on every deviation), where the two meet;
 - the end of a drive under way (``arrive``, ``park``) is no decision: the robot drives a route in its
   planned time, so its window is that time after the departure, whatever the class.
 
@@ -33,7 +36,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
-from hrc.errors import DispatchError
+from hrc.errors import DispatchError, HrcError
 from hrc.model import Task
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 
@@ -68,11 +71,14 @@ class Dispatcher:
     Build with `from_folder` (an `hrc compile` output folder) or `from_compiled` (in memory).
     `feasible_only` drops plans that are not DC or consistent; when none is left the robot is told
     nothing more (``Decision.stopped``), as Chaski-style dispatchers do (for comparisons).
+    `use_preferences`: where the task has preferences, the robot's window is narrowed to APA's DO window
+    (`_preferred`), at the cost of one small QP per decision.
     """
 
-    def __init__(self, plan_set: PlanSet, *, feasible_only: bool = False) -> None:
+    def __init__(self, plan_set: PlanSet, *, feasible_only: bool = False, use_preferences: bool = True) -> None:
         self.plan_set = plan_set
         self.feasible_only = feasible_only
+        self.use_preferences = use_preferences
         human = _human(plan_set.task)
         self._human_nodes = [frozenset(n for n, ev in e.events.items() if ev[0] == human) for e in plan_set.plans]
         self._robot_nodes = [frozenset(n for n, ev in e.events.items() if ev[0] != human) for e in plan_set.plans]
@@ -276,12 +282,42 @@ class Dispatcher:
             step = state.step(node, mode, uncontrolled=uncontrolled)
             if isinstance(step, ExecutionWindow):
                 latest = None if step.latest is None or mode is ExecutionMode.EARLIEST else step.latest / 1000
-                out.append(RobotStep(action, phase, event, step.earliest / 1000, latest))
+                found = RobotStep(action, phase, event, step.earliest / 1000, latest)
+                if agent == robot and mode is not ExecutionMode.EARLIEST and self.use_preferences:
+                    found = self._preferred(entry, state.residual, node, found)
+                out.append(found)
                 continue
             waits = sorted(step.until, key=lambda n: (entry.events.get(n, ("",))[0] == agent, n))
             w_agent, w_action, w_phase, w_event = entry.events.get(waits[0], ("", "", "", waits[0]))
             out.append(WaitFor(w_agent, w_action, w_phase, w_event))
         return out[0], out[1]
+
+    def _preferred(self, entry: PlanEntry, residual: Any, node: str, step: RobotStep) -> RobotStep:
+        """`step` narrowed to the DO window of its timepoint (Wilcox, Nikolaidis & Shah 2012, Figs. 5 and 8:
+        APA recompiled on what was seen, the residual network read as an STP with the task's preferences)
+        where the two meet; as it was when the task has no preferences or they do not meet (the class's
+        promise first)."""
+        task = self.task
+        if not task.preferences:
+            return step
+        from hrc.apa.plan import plan_preference_value  # the QP solver only where preferences are used
+        from hrc.compile.temporal_net_creator import event_timepoint
+        from hrc.temporal.graphml import tool_name
+
+        prefs = [(tool_name(event_timepoint(entry.plan, p.source)), tool_name(event_timepoint(entry.plan, p.target)),
+                  p) for p in task.preferences]
+        try:
+            result = plan_preference_value(residual, prefs)
+        except HrcError:
+            return step
+        if not result.consistent:
+            return step
+        lo, hi = result.window(node)
+        earliest = step.earliest if lo is None else max(step.earliest, round(lo, 3))
+        latest = hi if step.latest is None else step.latest if hi is None else min(step.latest, round(hi, 3))
+        if latest is not None and latest < earliest:
+            return step
+        return RobotStep(step.action, step.phase, step.event, earliest, latest)
 
     @staticmethod
     def _arrival(entry: PlanEntry, agent: str, action: str, phase: str, event: str, node: str,
