@@ -37,7 +37,7 @@ def _pct(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
-def bench(task: str, runs: int, clock=time.perf_counter) -> dict:  # noqa: ANN001
+def bench(task: str, runs: int, clock=time.perf_counter, preferences: bool = True) -> dict:  # noqa: ANN001
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
         subprocess.run([sys.executable, "-m", "hrc", "compile", task, "--out", str(out), "--no-report", "-q"],
@@ -48,7 +48,7 @@ def bench(task: str, runs: int, clock=time.perf_counter) -> dict:  # noqa: ANN00
     all_ms: list[float] = []
     first_ms: list[float] = []
     for seed in range(runs):
-        d = Dispatcher(base.plan_set)
+        d = Dispatcher(base.plan_set, use_preferences=preferences)
         times: list[float] = []
 
         def send(line: str, d: Dispatcher = d, times: list[float] = times) -> str:
@@ -72,16 +72,19 @@ def main() -> None:
     parser.add_argument("--cpu", action="store_true",
                         help="time with this process's CPU time (time.thread_time) instead of wall time: "
                              "steadier on a shared, loaded machine")
+    parser.add_argument("--no-preferences", dest="preferences", action="store_false",
+                        help="dispatch without APA's DO windows (hrc dispatch --no-preferences)")
     args = parser.parse_args()
     clock = time.thread_time if args.cpu else time.perf_counter
     print(f"# {platform.processor() or platform.machine()}, Python {platform.python_version()}, "
           f"{args.runs} random histories per task, {'CPU' if args.cpu else 'wall'} time, "
-          f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+          f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores, "
+          f"APA windows {'on' if args.preferences else 'off'}")
     print("| task | plans | load (s) | messages | median (ms) | p99 (ms) | max (ms) | "
           "first message median / max (ms) |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for task in args.tasks:
-        r = bench(task, args.runs, clock)
+        r = bench(task, args.runs, clock, args.preferences)
         print(f"| {r['task']} | {r['plans']} | {r['load']:.2f} | {r['messages']} | {r['median']:.2f} | "
               f"{r['p99']:.2f} | {r['max']:.2f} | {r['first_median']:.1f} / {r['first_max']:.1f} |", flush=True)
 

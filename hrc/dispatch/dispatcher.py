@@ -34,7 +34,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Literal
 
 from hrc.errors import DispatchError, HrcError
 from hrc.model import Task
@@ -63,6 +63,7 @@ class _State:
     ranked: tuple[int, ...]  # indices into the plan set, best first
     evaluations: MappingProxyType  # index -> (key, Evaluation)
     decision: Decision
+    do_forms: MappingProxyType  # plan index -> APA's DO form of the plan (`_do_form`), or False
 
 
 class Dispatcher:
@@ -83,7 +84,7 @@ class Dispatcher:
         self._human_nodes = [frozenset(n for n, ev in e.events.items() if ev[0] == human) for e in plan_set.plans]
         self._robot_nodes = [frozenset(n for n, ev in e.events.items() if ev[0] != human) for e in plan_set.plans]
         history = History.start(plan_set.task)
-        self._state = self._settle(history, (), (), tuple(range(len(plan_set.plans))), {})
+        self._state = self._settle(history, (), (), tuple(range(len(plan_set.plans))), {}, {})
 
     @classmethod
     def from_folder(cls, out_dir: str | os.PathLike[str], **options: Any) -> Dispatcher:
@@ -194,7 +195,7 @@ class Dispatcher:
                 raise DispatchError(f"no remaining plan allows {_describe(obs)} "
                                     f"({len(state.ranked)} plans agreed with what was seen before)")
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept,
-                                   state.evaluations)
+                                   state.evaluations, state.do_forms)
         return self._state.decision
 
     def _undo(self, obs: Observation) -> Decision:
@@ -218,11 +219,12 @@ class Dispatcher:
             history = history.add(o)
         history = history.add(Observation(obs.t, "tick"))
         kept = tuple(i for i in range(len(self.plan_set.plans)) if agrees(self.plan_set.plans[i], history))
-        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.evaluations)
+        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.evaluations,
+                                   state.do_forms)
         return self._state.decision
 
     def _settle(self, history: History, accepted: tuple[Observation, ...], effective: tuple[Observation, ...],
-                kept: Sequence[int], previous: Any) -> _State:
+                kept: Sequence[int], previous: Any, do_forms: Any) -> _State:
         """Rank `kept` under `history` (re-checking only plans whose evaluation inputs changed), decide."""
         plans = self.plan_set.plans
         now = ticks(history.now)
@@ -248,13 +250,17 @@ class Dispatcher:
             decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True)
         else:
             best = ranked[0]
-            robot, human = self._steps(plans[best], done_of[best], history, evaluations[best][1].plan_class, best)
+            do = dict(do_forms)
+            robot, human = self._steps(plans[best], done_of[best], history, evaluations[best][1].plan_class, best,
+                                       do)
+            do_forms = MappingProxyType(do)
             decision = Decision(history.now, plans[best].id, evaluations[best][1].plan_class,
                                 MappingProxyType(counts), robot, history.away, False, human)
-        return _State(history, accepted, effective, ranked, MappingProxyType(evaluations), decision)
+        return _State(history, accepted, effective, ranked, MappingProxyType(evaluations), decision,
+                      MappingProxyType(dict(do_forms)))
 
     def _steps(self, entry: PlanEntry, done: dict[str, int], history: History, plan_class: str,
-               index: int) -> tuple[RobotStep | WaitFor | None, RobotStep | WaitFor | None]:
+               index: int, do: dict[int, Any]) -> tuple[RobotStep | WaitFor | None, RobotStep | WaitFor | None]:
         """The robot's next step in `entry` (module docstring) and the human's hint (`Decision.human`)."""
         robot = next((a.id for a in self.task.agents if not a.is_human), "")
         human = history.human
@@ -284,7 +290,7 @@ class Dispatcher:
                 latest = None if step.latest is None or mode is ExecutionMode.EARLIEST else step.latest / 1000
                 found = RobotStep(action, phase, event, step.earliest / 1000, latest)
                 if agent == robot and mode is not ExecutionMode.EARLIEST and self.use_preferences:
-                    found = self._preferred(entry, state.residual, node, found)
+                    found = self._preferred(entry, index, do, state.residual, done, now, node, found)
                 out.append(found)
                 continue
             waits = sorted(step.until, key=lambda n: (entry.events.get(n, ("",))[0] == agent, n))
@@ -292,29 +298,30 @@ class Dispatcher:
             out.append(WaitFor(w_agent, w_action, w_phase, w_event))
         return out[0], out[1]
 
-    def _preferred(self, entry: PlanEntry, residual: Any, node: str, step: RobotStep) -> RobotStep:
-        """`step` narrowed to the DO window of its timepoint (Wilcox, Nikolaidis & Shah 2012, Figs. 5 and 8:
-        APA recompiled on what was seen, the residual network read as an STP with the task's preferences)
-        where the two meet; as it was when the task has no preferences or they do not meet (the class's
-        promise first)."""
+    def _preferred(self, entry: PlanEntry, index: int, do: dict[int, Any], residual: Any, done: dict[str, int],
+                   now: int, node: str, step: RobotStep) -> RobotStep:
+        """`step` narrowed to the DO window of its timepoint where the two meet (Wilcox, Nikolaidis & Shah
+        2012): the plan's DO form (Fig. 5, APA on its residual network read as an STP with the task's
+        preferences) dispatched by propagation from what has happened, and compiled again (Fig. 8, line 7)
+        when what happened left it. As it was when the task has no preferences, the plan keeps none, or
+        the two windows do not meet: the class's promise comes first."""
         task = self.task
         if not task.preferences:
             return step
-        from hrc.apa.plan import plan_preference_value  # the QP solver only where preferences are used
-        from hrc.compile.temporal_net_creator import event_timepoint
-        from hrc.temporal.graphml import tool_name
-
-        prefs = [(tool_name(event_timepoint(entry.plan, p.source)), tool_name(event_timepoint(entry.plan, p.target)),
-                  p) for p in task.preferences]
-        try:
-            result = plan_preference_value(residual, prefs)
-        except HrcError:
+        form = do.get(index)
+        if form is None or (form is not False and not _within(form, done)):
+            form = do[index] = _do_form(entry, residual, task.preferences)
+        if form is False:
             return step
-        if not result.consistent:
-            return step
-        lo, hi = result.window(node)
-        earliest = step.earliest if lo is None else max(step.earliest, round(lo, 3))
-        latest = hi if step.latest is None else step.latest if hi is None else min(step.latest, round(hi, 3))
+        events, apsp = form
+        past = _past(form, done)
+        i = events[node]
+        lo = max(t - apsp[i, j] for j, t in past)
+        hi = min(t + apsp[j, i] for j, t in past)
+        earliest = max(step.earliest, round(max(lo, now) / 1000, 3))
+        latest = step.latest
+        if hi != float("inf"):
+            latest = round(hi / 1000, 3) if latest is None else min(latest, round(hi / 1000, 3))
         if latest is not None and latest < earliest:
             return step
         return RobotStep(step.action, step.phase, step.event, earliest, latest)
@@ -368,6 +375,42 @@ class Dispatcher:
             return []
         action, phase = legs[len(seen)]
         return [Observation(t, e, agent, action, phase) for e in ("depart", "start")]
+
+
+_DOForm = tuple[dict[str, int], Any]  # event -> index, the DO form's APSP matrix (ticks); index 0: its origin
+
+
+def _do_form(entry: PlanEntry, residual: Any, preferences: Any) -> _DOForm | Literal[False]:
+    """APA's DO form of the plan's residual network (its event index and APSP matrix in ticks, the
+    residual's origin, at the task's start, first), or False when the plan can keep no preferred interval."""
+    from hrc.apa.compile import do_apsp
+    from hrc.apa.plan import plan_preference_value  # the QP solver only where preferences are used
+    from hrc.compile.temporal_net_creator import event_timepoint
+    from hrc.temporal.graphml import tool_name
+
+    prefs = [(tool_name(event_timepoint(entry.plan, p.source)), tool_name(event_timepoint(entry.plan, p.target)), p)
+             for p in preferences]
+    try:
+        result = plan_preference_value(residual, prefs)
+    except HrcError:
+        return False
+    if not result.consistent:
+        return False
+    return {e: k for k, e in enumerate(result.stpp.events)}, do_apsp(result)
+
+
+def _past(form: _DOForm, done: dict[str, int]) -> list[tuple[int, int]]:
+    """``(index in the DO form, tick)`` of its origin and of every executed timepoint."""
+    events = form[0]
+    return [(0, 0)] + [(events[x], t) for x, t in done.items() if x in events]
+
+
+def _within(form: _DOForm, done: dict[str, int]) -> bool:
+    """Whether what happened keeps to the DO form (every pair of executed timepoints within its bounds,
+    to the tick): otherwise the optimal policy was left and APA compiles again (Fig. 8, line 7)."""
+    apsp = form[1]
+    past = _past(form, done)
+    return all(t2 - t1 <= apsp[i, j] + 1 for i, t1 in past for j, t2 in past if i != j)
 
 
 def _rank(mode: ExecutionMode) -> int:
