@@ -111,6 +111,7 @@ class CompiledPlanSet:
     plans: tuple[CompiledPlan, ...]
     options: CompileOptions = CompileOptions()
     summary: PlanSetSummary | None = None
+    stnu_files: str = "graphml"  # how the STNUs were written (`hrc.compile.output.STNU_MODES`)
 
     @property
     def total(self) -> int:

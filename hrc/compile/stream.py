@@ -183,7 +183,7 @@ class PlanSink:
         chosen.update({i: cp for _, i, cp in self._best.values()})
         plans = tuple(sorted((replace(cp, rank=int(rank[i])) for i, cp in chosen.items()), key=lambda cp: cp.rank))
         return CompiledPlanSet(task=self.task, seed=seed, digest=digest, paths=paths, plans=plans, options=options,
-                               summary=self._summary(counts, n))
+                               summary=self._summary(counts, n), stnu_files=self.stnu)
 
     def _write_archive(self, order: np.ndarray) -> None:
         """``stnu.zip``: the GraphML files in rank order, deflated, with fixed dates (deterministic bytes)."""
