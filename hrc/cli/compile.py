@@ -177,7 +177,8 @@ def run(args: argparse.Namespace) -> int:
 
     def on_estimate(per_plan: float) -> None:
         t = est.wall(jobs or workers, per_plan)[0]
-        say(f"first plans: {per_plan:.3f} s each here; the {total:,} plans should take about {fmt_seconds(t)}")
+        say(f"the first plans took {per_plan:.3f} s each: about {fmt_seconds(t)} for all {total:,} at that pace "
+            "(plans differ a lot: the progress line's estimate follows the real pace)")
 
     progress = _Progress(tty=sys.stderr.isatty(), quiet=quiet)
     t0 = time.perf_counter()

@@ -7,11 +7,13 @@ it measures on its first plans.
 
 Per plan, with ``L`` legs (one per phase of every action) and ``T = 1 + 4 L`` timepoints:
 
-- its ``compiled.json`` line: about ``JSON_BYTES[0] + JSON_BYTES[1] * L`` bytes;
-- its GraphML file: about ``GRAPHML_BYTES[0] + GRAPHML_BYTES[1] * T`` bytes, plus a file system block
-  per file (``--stnu graphml``); deflated in ``stnu.zip`` about `ZIP_RATIO` of that (``--stnu archive``);
-- its CPU time: `SECONDS_PER_PLAN` (the range measured per plan and core on the bundled tasks: the
-  motion-pattern search dominates and depends on how often the two agents' routes meet).
+- its ``compiled.json`` line: about ``JSON_BYTES * L`` bytes (measured: 5.6 kB for the 14 legs of
+  kitting_7picks, 9.3 kB for the workshop's 10, whose plans carry more passing orders and explanations);
+- its GraphML file: about ``GRAPHML_BYTES * T`` bytes (430-520 measured), rounded up to a file
+  system block (``--stnu graphml``); deflated in ``stnu.zip`` about `ZIP_RATIO` of that (``--stnu archive``);
+- its CPU time: `SECONDS_PER_PLAN`, the range of the mean time per plan and core on the bundled tasks (the
+  motion-pattern search dominates; it depends on how often the two agents' routes meet, so single plans
+  range from a few milliseconds to over a second).
 """
 
 from __future__ import annotations
@@ -28,11 +30,11 @@ DEFAULT_MAX_PLANS = 50_000
 """``hrc compile --max-plans`` default: the 40,320 plans of 7 independent picks pass, 8 picks
 (362,880) are refused up front."""
 
-JSON_BYTES = (400, 260)
-GRAPHML_BYTES = (900, 330)
+JSON_BYTES = 600
+GRAPHML_BYTES = 480
 BLOCK = 4096
-ZIP_RATIO = 0.12
-SECONDS_PER_PLAN = (0.02, 0.3)
+ZIP_RATIO = 0.1
+SECONDS_PER_PLAN = (0.01, 0.15)
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,8 +63,8 @@ def estimate(task: Task) -> Estimate:
     count = estimate_plan_count(task)
     legs = sum(len(a.phases) for a in task.actions)
     n = count.value
-    line = JSON_BYTES[0] + JSON_BYTES[1] * legs
-    graphml = GRAPHML_BYTES[0] + GRAPHML_BYTES[1] * (1 + 4 * legs)
+    line = JSON_BYTES * legs
+    graphml = GRAPHML_BYTES * (1 + 4 * legs)
     blocks = -(-graphml // BLOCK) * BLOCK
     return Estimate(plans=count, json_bytes=n * line,
                     stnu_bytes={"graphml": n * blocks, "archive": int(n * graphml * ZIP_RATIO), "none": 0},
@@ -71,6 +73,8 @@ def estimate(task: Task) -> Estimate:
 
 def fmt_bytes(n: float) -> str:
     """``812 kB``, ``1.3 GB`` (decimal units, two significant figures at most)."""
+    if n >= 1e15:
+        return f"{n / 1e12:.2g} TB"
     for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if n >= size:
             return f"{n / size:.2g} {unit}" if n / size < 10 else f"{n / size:,.0f} {unit}"
@@ -78,11 +82,13 @@ def fmt_bytes(n: float) -> str:
 
 
 def fmt_seconds(s: float) -> str:
-    """``45 s``, ``12 min``, ``3.5 h``, ``2.1 days``."""
+    """``45 s``, ``12 min``, ``3.5 h``, ``2.1 days``, ``3.4e+06 years``."""
     if s < 90:
         return f"{s:.0f} s"
     if s < 90 * 60:
         return f"{s / 60:.0f} min"
     if s < 48 * 3600:
         return f"{s / 3600:.1f} h"
-    return f"{s / 86400:,.1f} days"
+    if s < 365 * 86400:
+        return f"{s / 86400:.1f} days"
+    return f"{s / (365.25 * 86400):.2g} years"
