@@ -24,7 +24,8 @@ from hrc.errors import InputError
 from hrc.model import PhaseRef, Plan, Task
 
 __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocations", "count_plans", "estimate_plan_count",
-           "generate_plans", "must_precede", "phase_graph", "pin_actions", "plan_count_bound"]
+           "generate_plans", "identical_actions", "is_canonical", "must_precede", "phase_graph", "pin_actions",
+           "plan_count_bound", "symmetry_factor"]
 
 COUNT_STATES = 100_000
 """Most run states `estimate_plan_count` memoizes before it falls back to `plan_count_bound` (about
@@ -109,12 +110,51 @@ def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
         yield tuple(combo)
 
 
-def generate_plans(task: Task) -> Iterator[Plan]:
-    """Stream every valid plan of `task` (allocation x sequences), in a deterministic order."""
+def generate_plans(task: Task, symmetry: bool = False) -> Iterator[Plan]:
+    """Stream every valid plan of `task` (allocation x sequences), in a deterministic order; with
+    `symmetry`, one plan per class of plans that differ only by swapping identical actions
+    (`identical_actions`, `is_canonical`)."""
     before = must_precede(task)
+    groups = identical_actions(task) if symmetry else ()
     for allocation in allocations(task):
         for sequences in _sequences(task, allocation, before):
-            yield Plan(allocation=allocation, sequences=sequences)
+            plan = Plan(allocation=allocation, sequences=sequences)
+            if not groups or is_canonical(task, plan, groups):
+                yield plan
+
+
+def identical_actions(task: Task) -> tuple[tuple[str, ...], ...]:
+    """Groups (two or more, in task order) of actions that nothing tells apart but their ids: the same
+    agents, the same phases (ids, locations, durations) and named by no precedence, temporal constraint
+    or preference. Swapping two of them in a plan gives a plan with the same schedule, class and
+    makespan (its STNU is the same up to the names)."""
+    named = {pr.before.action for pr in task.precedence} | {pr.after.action for pr in task.precedence}
+    named |= {c.source.action for c in task.constraints} | {c.target.action for c in task.constraints}
+    prefs = list(task.preferences) + [p for _, ps in task.preference_sets for p in ps]
+    named |= {p.source.action for p in prefs} | {p.target.action for p in prefs}
+    by_shape: dict[tuple, list[str]] = {}
+    for a in task.actions:
+        if a.id not in named:
+            shape = (a.agents, tuple((p.id, p.location, p.durations) for p in a.phases))
+            by_shape.setdefault(shape, []).append(a.id)
+    return tuple(tuple(ids) for ids in by_shape.values() if len(ids) > 1)
+
+
+def is_canonical(task: Task, plan: Plan, groups: tuple[tuple[str, ...], ...]) -> bool:
+    """Whether, in every group of identical actions, the actions in task order take the plan's slots in
+    order (a slot: the agent, in task order, and the position in its sequence). Of the ``m!`` plans that
+    differ only by relabelling a group of ``m``, exactly this one is canonical."""
+    slot = {}
+    for n, agent in enumerate(task.agent_ids):
+        for pos, action in enumerate(plan.sequence(agent)):
+            slot[action] = (n, pos)
+    return all(slot[a] < slot[b] for group in groups for a, b in itertools.pairwise(group))
+
+
+def symmetry_factor(task: Task) -> int:
+    """How many plans each canonical plan stands for: the product of ``m!`` over the groups of
+    `identical_actions` (each relabelling of a plan is a distinct, valid plan)."""
+    return math.prod(math.factorial(len(g)) for g in identical_actions(task))
 
 
 def count_plans(task: Task, max_states: int | None = None) -> int:
@@ -207,13 +247,15 @@ class PlanCount:
         return f"{self.value:,}" if self.exact else f"at most {self.value:,}"
 
 
-def estimate_plan_count(task: Task, max_states: int = COUNT_STATES) -> PlanCount:
+def estimate_plan_count(task: Task, max_states: int = COUNT_STATES, symmetry: bool = False) -> PlanCount:
     """The plan count in bounded time and memory: `count_plans` if it needs at most `max_states` run
-    states, else `plan_count_bound` (exact when the task has no precedence, an upper bound otherwise)."""
+    states, else `plan_count_bound` (exact when the task has no precedence, an upper bound otherwise);
+    with `symmetry`, of the canonical plans only (divided by `symmetry_factor`)."""
+    factor = symmetry_factor(task) if symmetry else 1
     try:
-        return PlanCount(count_plans(task, max_states), True)
+        return PlanCount(count_plans(task, max_states) // factor, True)
     except _TooManyStates:
-        return PlanCount(plan_count_bound(task), not task.precedence)
+        return PlanCount(plan_count_bound(task) // factor, not task.precedence)
 
 
 @dataclass(frozen=True, slots=True)

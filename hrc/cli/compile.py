@@ -70,6 +70,9 @@ def add_parser(sub: Any) -> None:
                    help=f"refuse a task with more plans than this (default {DEFAULT_MAX_PLANS:,})")
     p.add_argument("--pin", type=_pin, action="append", default=[], metavar="ACTION=AGENT",
                    help="give ACTION to AGENT only (fewer plans: the others are not compiled); repeatable")
+    p.add_argument("--symmetry", action="store_true",
+                   help="compile one plan per relabelling of identical actions (same agents, phases, "
+                        "locations, durations; in no precedence, constraint or preference)")
     p.add_argument("--report-top", type=_positive, default=REPORT_TOP, metavar="N",
                    help=f"the report's ranked table shows the N best plans and the best of each class "
                         f"(default {REPORT_TOP}), with statistics over all plans")
@@ -143,7 +146,7 @@ def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
                       f"{fmt_seconds(lo)}-{fmt_seconds(hi)} on {workers} core{'s' * (workers > 1)}, "
                       f"{fmt_bytes(est.disk('archive'))} with --stnu archive): raise --max-plans to compile "
                       "them all, spread them over a Dask cluster (--executor dask://HOST:PORT), or compile "
-                      "fewer (--pin ACTION=AGENT)")
+                      "fewer (--pin ACTION=AGENT, --symmetry)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -163,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
         workers = default_jobs()
     else:
         workers = check_jobs(args.jobs) if args.jobs is not None else default_jobs()
-    est = estimate(task)
+    est = estimate(task, symmetry=args.symmetry)
     if est.plans.value > args.max_plans:
         raise _refusal(args.task, est, args.max_plans, workers)
     total = est.plans.value
@@ -189,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
                                     options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
-                                    estimate=on_estimate)
+                                    estimate=on_estimate, symmetry=args.symmetry)
         finally:
             progress.close()
         if not args.no_report and not result.partial:

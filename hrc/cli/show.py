@@ -11,6 +11,7 @@ from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate, fmt_bytes, fmt_sec
 from hrc.compile.executors import default_jobs
 from hrc.io.task_file import load_task
 from hrc.model import Task
+from hrc.plans import identical_actions, symmetry_factor
 
 __all__ = ["add_parser", "run", "task_summary"]
 
@@ -55,6 +56,8 @@ def task_summary(task: Task) -> dict[str, Any]:
         "estimate": {"disk_bytes": {mode: est.disk(mode) for mode in est.stnu_bytes},
                      "cpu_seconds": [round(est.cpu_seconds[0], 1), round(est.cpu_seconds[1], 1)],
                      "max_plans_default": DEFAULT_MAX_PLANS},
+        "identical_actions": [list(g) for g in identical_actions(task)],
+        "symmetry_factor": symmetry_factor(task),
     }
 
 
@@ -98,7 +101,11 @@ def _text(s: dict[str, Any]) -> str:
                  f"{fmt_bytes(disk['none'])})")
     if s["plan_count"] > e["max_plans_default"]:
         lines.append(f"  more than {e['max_plans_default']:,} plans: `hrc compile` refuses it unless --max-plans "
-                     "allows it; or use --executor (Dask) or --pin ACTION=AGENT to compile fewer")
+                     "allows it; or use --executor (Dask), or --pin ACTION=AGENT or --symmetry to compile fewer")
+    if s["identical_actions"]:
+        groups = "; ".join(", ".join(g) for g in s["identical_actions"])
+        lines.append(f"  identical actions ({groups}): `hrc compile --symmetry` compiles one plan in "
+                     f"{s['symmetry_factor']}")
     count = f"{s['plan_count']}" if s["plan_count_exact"] else f"at most {s['plan_count']} (exact count too slow)"
     lines.append(f"plans: {count} (allocations x valid per-agent sequences)")
     return "\n".join(lines)

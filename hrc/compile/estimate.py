@@ -58,9 +58,9 @@ class Estimate:
         return lo / max(workers, 1), hi / max(workers, 1)
 
 
-def estimate(task: Task) -> Estimate:
+def estimate(task: Task, symmetry: bool = False) -> Estimate:
     """The up-front estimate for `task` (see the module docstring); bounded time and memory."""
-    count = estimate_plan_count(task)
+    count = estimate_plan_count(task, symmetry=symmetry)
     legs = sum(len(a.phases) for a in task.actions)
     n = count.value
     line = JSON_BYTES * legs

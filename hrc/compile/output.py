@@ -34,7 +34,9 @@ they say something: ``"stnu_files": "archive"`` with ``"stnu_archive": "stnu.zip
 zip file's members named by each plan's ``stnu``, not files beside it) or ``"stnu_files": "none"`` (no
 STNU written, every ``stnu`` is null): `hrc compile --stnu`; ``"partial": true`` with
 ``"plans_expected": N`` (the run was interrupted: ``plans`` holds the plans compiled by then, ranked
-among themselves, and ``counts`` counts them).
+among themselves, and ``counts`` counts them); ``"identical_actions": [[ACTION, ...], ...]`` (`hrc compile
+--symmetry`: of the plans that differ only by swapping the actions of a group, only the one in which
+they come in this order, by agent then position, was compiled).
 
 The file is written streaming by `hrc.compile.stream` (header, then one plan per line in rank order,
 so that it diffs plan by plan); it is one JSON document for `json.load`.
@@ -140,11 +142,13 @@ def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dic
 
 
 def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, counts: dict[str, int],
-                stnu: str = "graphml", partial: tuple[int, int] | None = None) -> dict[str, Any]:
+                stnu: str = "graphml", partial: tuple[int, int] | None = None,
+                symmetric: tuple[tuple[str, ...], ...] = ()) -> dict[str, Any]:
     """``compiled.json`` without its plans. The optional keys appear only when they say something:
     ``stnu_files`` ("none" or "archive") and ``stnu_archive`` when the STNUs are not one GraphML file per
     plan; ``partial`` and ``plans_expected`` when the run was interrupted (`partial`: plans written, plans
-    expected, the latter possibly an upper bound)."""
+    expected, the latter possibly an upper bound); ``identical_actions`` when only one plan per
+    relabelling of identical actions was compiled (``hrc compile --symmetry``)."""
     out: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
         "generator": f"hrc {__version__}",
@@ -158,6 +162,8 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
         out["stnu_files"] = stnu
         if stnu == "archive":
             out["stnu_archive"] = STNU_ARCHIVE
+    if symmetric:
+        out["identical_actions"] = [list(g) for g in symmetric]
     if partial is not None:
         out["partial"] = True
         out["plans_expected"] = partial[1]

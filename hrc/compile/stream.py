@@ -52,7 +52,7 @@ from hrc.compile.output import JSON_TAIL, STNU_ARCHIVE, STNU_MODES, header_dict,
 from hrc.errors import HrcError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
-from hrc.plans import generate_plans
+from hrc.plans import generate_plans, identical_actions
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "StreamResult", "chunk_size", "compile_records",
            "compile_stream"]
@@ -98,10 +98,11 @@ class PlanSink:
     docstring); `finish` writes ``compiled.json`` and returns what the report needs."""
 
     def __init__(self, task: Task, out_dir: Path, stnu: str = "graphml", keep: int = REPORT_TOP,
-                 rank_by: str = "worst") -> None:
+                 rank_by: str = "worst", symmetric: tuple[tuple[str, ...], ...] = ()) -> None:
         if stnu not in STNU_MODES:
             raise ValueError(f"stnu must be one of {STNU_MODES}, got {stnu!r}")
         self.task, self.out_dir, self.stnu, self.keep, self.rank_by = task, Path(out_dir), stnu, keep, rank_by
+        self.symmetric = symmetric
         self._lines: IO[bytes] = open(self.out_dir / ".plans.spool", "w+b")  # noqa: SIM115 - closed in finish
         self._graphml: IO[bytes] | None = None
         if stnu == "graphml":
@@ -167,7 +168,7 @@ class PlanSink:
         counts = {c.value: int(np.count_nonzero(cls_col == c.order)) for c in PlanClass}
         digest = task_digest(self.task)
         header = header_dict(self.task, seed, digest, options, counts, self.stnu,
-                             None if partial is None else (n, partial))
+                             None if partial is None else (n, partial), self.symmetric)
         with open(self.out_dir / "compiled.json", "wb") as out:
             out.write(json_head(header).encode("utf-8"))
             for k, i in enumerate(order):
@@ -264,16 +265,19 @@ def _sample(task: Task, paths: PathLibrary, plans: Iterator[Plan], options: Comp
 def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs: int | None = None,
                    executor: str | None = None, options: CompileOptions | None = None,
                    stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
-                   estimate: Callable[[float], None] | None = None, sample_seconds: float = 1.0) -> StreamResult:
+                   estimate: Callable[[float], None] | None = None, sample_seconds: float = 1.0,
+                   symmetry: bool = False) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
     seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
     goes to the executor. Interrupted (KeyboardInterrupt) after some plans: a partial output; before
-    any: re-raised. Raises `hrc.errors.HrcError` subclasses."""
+    any: re-raised. `symmetry`: one plan per class of plans that differ only by swapping identical actions
+    (`hrc.plans.identical_actions`; ``compiled.json`` names the groups). Raises `hrc.errors.HrcError`."""
     options = options or CompileOptions()
     out_dir = Path(out_dir)
     write_input(task, out_dir)
-    sink = PlanSink(task, out_dir, stnu, keep, options.rank_by)
+    sink = PlanSink(task, out_dir, stnu, keep, options.rank_by,
+                    identical_actions(task) if symmetry else ())
     paths: PathLibrary | None = None
     per_plan: float | None = None
     partial = False
@@ -281,7 +285,7 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
         with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
             paths = plan_paths(task, seed=seed,
                                progress=(lambda d, t: progress("motion", d, t)) if progress else None)
-            stream = generate_plans(task)
+            stream = generate_plans(task, symmetry=symmetry)
             _, per_plan = _sample(task, paths, stream, options, stnu, sink, sample_seconds)
             if estimate is not None:
                 estimate(per_plan)
