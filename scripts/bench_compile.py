@@ -21,6 +21,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import signal
 import statistics
 import subprocess
@@ -78,8 +79,15 @@ def _tree_rss(pid: int) -> int:
     return total
 
 
-def run_once(task: str, args: list[str], out: Path, time_limit: float | None) -> tuple[float, int, int, bool]:
-    """(wall s, peak tree RSS bytes, plans written, partial)."""
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def run_once(task: str, args: list[str], out: Path,
+             time_limit: float | None) -> tuple[float, int, int, bool, float]:
+    """(wall s, peak tree RSS bytes, plans written, partial, CPU s of the compile and its workers)."""
+    cpu0 = _children_cpu()
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "hrc", "compile", task, "--out", str(out), "--no-report", "-q",
                              *args], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)))
@@ -95,7 +103,7 @@ def run_once(task: str, args: list[str], out: Path, time_limit: float | None) ->
     if proc.returncode not in (0, 130):
         raise SystemExit(f"hrc compile {task} {' '.join(args)} failed with exit status {proc.returncode}")
     data = json.loads((out / "compiled.json").read_text())
-    return wall, peak, len(data["plans"]), bool(data.get("partial"))
+    return wall, peak, len(data["plans"]), bool(data.get("partial")), _children_cpu() - cpu0
 
 
 def main() -> int:
@@ -117,8 +125,8 @@ def main() -> int:
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
           f"{platform.python_version()}, load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} at start")
     print(f"| task | plans | workers | wall s (median of {args.repeat}) | plans/s | plans/s per core | "
-          "peak memory MB | speed-up |")
-    print("|---|---:|---|---:|---:|---:|---:|---:|")
+          "plans per CPU s | peak memory MB | speed-up |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
     with tempfile.TemporaryDirectory() as tmp:
         for spec in args.tasks:
             kind, _, n = spec.partition(":")
@@ -139,8 +147,10 @@ def main() -> int:
                 rate = plans / wall
                 base = base or rate
                 name = Path(task).stem + (" (stopped: partial)" if partial else "")
+                cpu = statistics.median(r[4] for r in runs)
+                per_cpu = f"{plans / cpu:.1f}" if "Dask" not in label else "n/a"  # Dask workers are not ours
                 print(f"| {name} | {plans:,} | {label} | {wall:.1f} | {rate:.1f} | {rate / workers:.1f} | "
-                      f"{peak / 2**20:.0f} | {rate / base:.2f} |", flush=True)
+                      f"{per_cpu} | {peak / 2**20:.0f} | {rate / base:.2f} |", flush=True)
     if cluster is not None:
         cluster.close()
     return 0
