@@ -91,8 +91,14 @@ def test_out_where_the_machine_refuses_a_folder(tmp_path, monkeypatch, capsys):
     assert list(tmp_path.iterdir()) == []  # the folder made for it is gone again
 
 
-def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path):
+@pytest.mark.parametrize("earlier", [False, True])
+def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path, earlier):
+    """SIGTERM mid-compile: the plans so far as a partial output in a new folder; an earlier output in
+    --out is kept instead. Either way no staging folder is left."""
     out = tmp_path / "out"
+    if earlier:
+        out.mkdir()
+        (out / "compiled.json").write_text('{"earlier": true}')
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "hrc", "compile", str(WORKSHOP_TASK), "--out", str(out),
                              "--jobs", "1", "--no-report"], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
@@ -110,6 +116,10 @@ def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path):
     assert proc.returncode == 130, err
     assert err.strip().splitlines()[-1].startswith("error: interrupted after ") and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder
+    if earlier:
+        assert "earlier output" in err and sorted(p.name for p in out.iterdir()) == ["compiled.json"]
+        assert json.loads((out / "compiled.json").read_text()) == {"earlier": True}
+        return
     data = json.loads((out / "compiled.json").read_text())
     assert data["partial"] is True and data["plans_expected"] == 32
     assert [p["rank"] for p in data["plans"]] == list(range(1, len(data["plans"]) + 1))

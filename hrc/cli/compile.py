@@ -7,7 +7,8 @@ after the compile), counts the plans in bounded time (or bounds them) and refuse
 the paths, measures its first plans and says how long the rest will take. Plans are compiled streaming
 (`hrc.compile.stream`); progress is a bar with ETA on a terminal, a line every `PROGRESS_EVERY` seconds
 otherwise. Interrupted (Ctrl-C or SIGTERM), it writes the plans compiled so far as a partial output
-(``"partial": true`` in compiled.json) and exits 130; nothing else is left behind.
+(``"partial": true`` in compiled.json) into a new or empty ``--out`` (an earlier complete output there is
+kept instead) and exits 130; nothing else is left behind.
 """
 
 from __future__ import annotations
@@ -138,6 +139,14 @@ def _check_out(out: str) -> None:
                                        "compiled.json (not an earlier hrc compile output)")
 
 
+class _KeptEarlier(Exception):
+    """Interrupted while an earlier output is in --out: drop the partial one (the staging folder goes)."""
+
+    def __init__(self, compiled: int) -> None:
+        super().__init__(compiled)
+        self.compiled = compiled
+
+
 def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
     from hrc.compile.estimate import fmt_bytes, fmt_seconds
 
@@ -188,17 +197,25 @@ def run(args: argparse.Namespace) -> int:
     from hrc.compile.stream import compile_stream
 
     options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
-    with atomic_dir(out) as stage:
-        try:
-            result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
-                                    options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
-                                    estimate=on_estimate, symmetry=args.symmetry)
-        finally:
-            progress.close()
-        if not args.no_report and not result.partial:
-            from hrc.report import write_report
+    earlier = Path(out).is_dir() and any(Path(out).iterdir())  # an earlier output: not replaced by a partial one
+    try:
+        with atomic_dir(out) as stage:
+            try:
+                result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
+                                        options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
+                                        estimate=on_estimate, symmetry=args.symmetry)
+            finally:
+                progress.close()
+            if result.partial and earlier:
+                raise _KeptEarlier(result.compiled)
+            if not args.no_report and not result.partial:
+                from hrc.report import write_report
 
-            write_report(result.plan_set, stage)
+                write_report(result.plan_set, stage)
+    except _KeptEarlier as kept:
+        print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
+              "(a partial output replaces only a new or empty folder)", file=sys.stderr)
+        return 130
     cps = result.plan_set
     if result.partial:
         print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote them as a partial output "
