@@ -13,16 +13,27 @@ under the "must precede" relation, filtered by a joint acyclicity check (O(phase
 
 from __future__ import annotations
 
-import functools
 import itertools
+import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import networkx as nx
 
+from hrc.errors import InputError
 from hrc.model import PhaseRef, Plan, Task
 
-__all__ = ["Leg", "agent_legs", "allocations", "count_plans", "generate_plans", "must_precede", "phase_graph"]
+__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocations", "count_plans", "estimate_plan_count",
+           "generate_plans", "identical_actions", "is_canonical", "must_precede", "phase_graph", "pin_actions",
+           "plan_count_bound", "symmetry_factor"]
+
+COUNT_STATES = 100_000
+"""Most run states `estimate_plan_count` memoizes before it falls back to `plan_count_bound` (about
+40 MB and 1-2 s; the exact count of 14 independent actions needs millions)."""
+
+
+class _TooManyStates(Exception):
+    """The exact count would memoize more run states than allowed."""
 
 
 def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
@@ -99,15 +110,54 @@ def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
         yield tuple(combo)
 
 
-def generate_plans(task: Task) -> Iterator[Plan]:
-    """Stream every valid plan of `task` (allocation x sequences), in a deterministic order."""
+def generate_plans(task: Task, symmetry: bool = False) -> Iterator[Plan]:
+    """Stream every valid plan of `task` (allocation x sequences), in a deterministic order; with
+    `symmetry`, one plan per class of plans that differ only by swapping identical actions
+    (`identical_actions`, `is_canonical`)."""
     before = must_precede(task)
+    groups = identical_actions(task) if symmetry else ()
     for allocation in allocations(task):
         for sequences in _sequences(task, allocation, before):
-            yield Plan(allocation=allocation, sequences=sequences)
+            plan = Plan(allocation=allocation, sequences=sequences)
+            if not groups or is_canonical(task, plan, groups):
+                yield plan
 
 
-def count_plans(task: Task) -> int:
+def identical_actions(task: Task) -> tuple[tuple[str, ...], ...]:
+    """Groups (two or more, in task order) of actions that nothing tells apart but their ids: the same
+    agents, the same phases (ids, locations, durations) and named by no precedence, temporal constraint
+    or preference. Swapping two of them in a plan gives a plan with the same schedule, class and
+    makespan (its STNU is the same up to the names)."""
+    named = {pr.before.action for pr in task.precedence} | {pr.after.action for pr in task.precedence}
+    named |= {c.source.action for c in task.constraints} | {c.target.action for c in task.constraints}
+    prefs = list(task.preferences) + [p for _, ps in task.preference_sets for p in ps]
+    named |= {p.source.action for p in prefs} | {p.target.action for p in prefs}
+    by_shape: dict[tuple, list[str]] = {}
+    for a in task.actions:
+        if a.id not in named:
+            shape = (a.agents, tuple((p.id, p.location, p.durations) for p in a.phases))
+            by_shape.setdefault(shape, []).append(a.id)
+    return tuple(tuple(ids) for ids in by_shape.values() if len(ids) > 1)
+
+
+def is_canonical(task: Task, plan: Plan, groups: tuple[tuple[str, ...], ...]) -> bool:
+    """Whether, in every group of identical actions, the actions in task order take the plan's slots in
+    order (a slot: the agent, in task order, and the position in its sequence). Of the ``m!`` plans that
+    differ only by relabelling a group of ``m``, exactly this one is canonical."""
+    slot = {}
+    for n, agent in enumerate(task.agent_ids):
+        for pos, action in enumerate(plan.sequence(agent)):
+            slot[action] = (n, pos)
+    return all(slot[a] < slot[b] for group in groups for a, b in itertools.pairwise(group))
+
+
+def symmetry_factor(task: Task) -> int:
+    """How many plans each canonical plan stands for: the product of ``m!`` over the groups of
+    `identical_actions` (each relabelling of a plan is a distinct, valid plan)."""
+    return math.prod(math.factorial(len(g)) for g in identical_actions(task))
+
+
+def count_plans(task: Task, max_states: int | None = None) -> int:
     """The number of plans `generate_plans` yields, counted without enumerating them.
 
     A plan is valid iff its phase graph is acyclic, iff this greedy execution never gets stuck: an agent
@@ -118,7 +168,9 @@ def count_plans(task: Task) -> int:
     complete runs correspond one to one; a memoized count over run states ``(phases done, each agent's
     action and phase)`` counts them. The states are the task's order ideals times the agents' positions,
     far fewer than the plans when actions are independent (2,880 plans of tasks/kitting.yaml: 2,086
-    states, 4 ms instead of 0.2 s).
+    states, 4 ms instead of 0.2 s), but still exponential in the number of independent actions (14 of
+    them: millions of states). With `max_states`, raises `_TooManyStates` past that many
+    (`estimate_plan_count` then falls back to a bound).
     """
     actions = task.actions
     index = {(a.id, p.id): (i, k) for i, a in enumerate(actions) for k, p in enumerate(a.phases)}
@@ -134,8 +186,18 @@ def count_plans(task: Task) -> int:
     allowed = [[i for i, a in enumerate(actions) if ag.id in a.agents] for ag in task.agents]
     choosing, finished = -1, -2  # agent states besides (action, phase index)
 
-    @functools.cache
+    memo: dict[tuple[int, tuple], int] = {}
+
     def count(done: int, states: tuple) -> int:
+        key = (done, states)
+        found = memo.get(key)
+        if found is None:
+            if max_states is not None and len(memo) >= max_states:
+                raise _TooManyStates
+            found = memo[key] = step(done, states)
+        return found
+
+    def step(done: int, states: tuple) -> int:
         if done == all_done:
             return 1  # every agent is between actions: its only choice left is "done"
         busy = {st[0] for st in states if isinstance(st, tuple)}
@@ -154,6 +216,46 @@ def count_plans(task: Task) -> int:
         return 0  # stuck: the plan's phase graph has a cycle, or actions are left that nobody will do
 
     return count(0, (choosing,) * len(task.agents))
+
+
+def plan_count_bound(task: Task) -> int:
+    """An upper bound of the plan count, exact when the task has no precedence: the sum over
+    allocations of the product of each agent's number of orders of its actions (``k!`` for ``k``
+    actions), as if no order were forbidden. A dynamic program over the actions whose state is each
+    agent's number of actions: O(actions x states x agents), states at most ``(actions + 1) ** agents``.
+    """
+    ways: dict[tuple[int, ...], int] = {(0,) * len(task.agents): 1}
+    for action in task.actions:
+        nxt: dict[tuple[int, ...], int] = {}
+        for counts, n in ways.items():
+            for i, agent in enumerate(task.agents):
+                if agent.id in action.agents:
+                    key = counts[:i] + (counts[i] + 1,) + counts[i + 1:]
+                    nxt[key] = nxt.get(key, 0) + n
+        ways = nxt
+    return sum(n * math.prod(math.factorial(k) for k in counts) for counts, n in ways.items())
+
+
+@dataclass(frozen=True, slots=True)
+class PlanCount:
+    """How many plans a task has: `value`, exact or (``exact`` False) an upper bound."""
+
+    value: int
+    exact: bool
+
+    def __str__(self) -> str:
+        return f"{self.value:,}" if self.exact else f"at most {self.value:,}"
+
+
+def estimate_plan_count(task: Task, max_states: int = COUNT_STATES, symmetry: bool = False) -> PlanCount:
+    """The plan count in bounded time and memory: `count_plans` if it needs at most `max_states` run
+    states, else `plan_count_bound` (exact when the task has no precedence, an upper bound otherwise);
+    with `symmetry`, of the canonical plans only (divided by `symmetry_factor`)."""
+    factor = symmetry_factor(task) if symmetry else 1
+    try:
+        return PlanCount(count_plans(task, max_states) // factor, True)
+    except _TooManyStates:
+        return PlanCount(plan_count_bound(task) // factor, not task.precedence)
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,3 +279,30 @@ def agent_legs(task: Task, plan: Plan, agent_id: str) -> tuple[Leg, ...]:
             legs.append(Leg(agent_id, len(legs), here, phase.location, action_id, phase.id))
             here = phase.location
     return tuple(legs)
+
+
+def pin_actions(task: Task, pins: dict[str, str]) -> Task:
+    """`task` with each action in `pins` given to its one agent (``hrc compile --pin ACTION=AGENT``).
+
+    Fewer plans where the choice is already made: an action pinned to one of two agents halves the
+    allocations. What it gives up: the plans in which another agent does that action are not compiled,
+    so neither the ranking nor the dispatcher can fall back on them (the dispatcher sees the pinned task:
+    it is the task as compiled, in ``input/task.yaml``). Raises `InputError` for an unknown action, or an
+    agent that may not do it.
+    """
+    actions = {a.id: a for a in task.actions}
+    for action_id, agent_id in pins.items():
+        where = f"--pin {action_id}={agent_id}"
+        if action_id not in actions:
+            raise InputError(task.source, where, f"no action '{action_id}' (actions: {', '.join(actions)})")
+        if agent_id not in actions[action_id].agents:
+            raise InputError(task.source, where, f"'{agent_id}' may not do {action_id} (its agents: "
+                                                 f"{', '.join(actions[action_id].agents)})")
+    new = []
+    for a in task.actions:
+        if a.id in pins:
+            ag = pins[a.id]
+            a = replace(a, agents=(ag,), phases=tuple(replace(p, durations=tuple((x, iv) for x, iv in p.durations
+                                                                                   if x == ag)) for p in a.phases))
+        new.append(a)
+    return replace(task, actions=tuple(new))

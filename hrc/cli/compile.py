@@ -1,4 +1,15 @@
-"""`hrc compile TASK.yaml --out DIR [--seed N] [--jobs N] [--executor URL]`: the compiler's main job."""
+"""`hrc compile TASK.yaml --out DIR [--seed N] [--jobs N] [--executor URL]`: the compiler's main job.
+
+Before any work (issue 12) it checks every argument and the output folder (a staging folder is made
+beside it at once, so that a read-only place, ``/proc/...`` or a parent that is a file fail now, not
+after the compile), counts the plans in bounded time (or bounds them) and refuses more than
+``--max-plans`` with one line that says how to go on; it then says what the compile will cost, plans
+the paths, measures its first plans and says how long the rest will take. Plans are compiled streaming
+(`hrc.compile.stream`); progress is a bar with ETA on a terminal, a line every `PROGRESS_EVERY` seconds
+otherwise. Interrupted (Ctrl-C or SIGTERM), it writes the plans compiled so far as a partial output
+(``"partial": true`` in compiled.json) into a new or empty ``--out`` (an earlier complete output there is
+kept instead) and exits 130; nothing else is left behind.
+"""
 
 from __future__ import annotations
 
@@ -12,15 +23,40 @@ from hrc.errors import InputError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
-__all__ = ["add_parser", "run"]
+__all__ = ["PROGRESS_EVERY", "add_parser", "run"]
+
+PROGRESS_EVERY = 30.0
+"""Seconds between progress lines when stderr is not a terminal."""
+
+
+def _positive(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected at least 1, found {text}")
+    return n
+
+
+def _pin(text: str) -> tuple[str, str]:
+    action, sep, agent = text.partition("=")
+    if not sep or not action or not agent:
+        raise argparse.ArgumentTypeError(f"expected ACTION=AGENT, found {text!r}")
+    return action, agent
 
 
 def add_parser(sub: Any) -> None:
+    from hrc.compile.estimate import DEFAULT_MAX_PLANS
+    from hrc.compile.output import STNU_MODES
+    from hrc.compile.stream import REPORT_TOP
+
     p = sub.add_parser("compile", help="compile a task into its ranked set of HRC schedules (STNUs)")
     p.add_argument("task", help="task YAML file")
     p.add_argument("--out", default=None, help="output folder (default: out/TASK_NAME)")
     p.add_argument("--seed", type=int, default=0, help="seed for motion planning (default 0)")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core; 1 = serial)")
+    p.add_argument("--jobs", type=_positive, default=None,
+                   help="worker processes, at most the cores (default: one per core; 1 = serial)")
     p.add_argument("--executor", default=None, metavar="URL",
                    help="run plans on a Dask scheduler instead, e.g. dask://127.0.0.1:8786")
     p.add_argument("--human-waits", choices=("yes", "no"), default="yes",
@@ -28,68 +64,166 @@ def add_parser(sub: Any) -> None:
                         "for and starts each step; no: the human never waits for the robot's sake")
     p.add_argument("--rank-by", choices=("worst", "earliest", "nominal"), default="worst",
                    help="makespan that ranks plans within a class (default: worst case)")
+    p.add_argument("--stnu", choices=STNU_MODES, default="graphml",
+                   help="STNUs as one GraphML file per plan in stnu/ (default), packed into stnu.zip "
+                        "(archive), or not written (none)")
+    p.add_argument("--max-plans", type=_positive, default=DEFAULT_MAX_PLANS,
+                   help=f"refuse a task with more plans than this (default {DEFAULT_MAX_PLANS:,})")
+    p.add_argument("--pin", type=_pin, action="append", default=[], metavar="ACTION=AGENT",
+                   help="give ACTION to AGENT only (fewer plans: the others are not compiled); repeatable")
+    p.add_argument("--symmetry", action="store_true",
+                   help="compile one plan per relabelling of identical actions (same agents, phases, "
+                        "locations, durations; in no precedence, constraint or preference)")
+    p.add_argument("--report-top", type=_positive, default=REPORT_TOP, metavar="N",
+                   help=f"the report's ranked table shows the N best plans and the best of each class "
+                        f"(default {REPORT_TOP}), with statistics over all plans")
     p.add_argument("--no-report", action="store_true", help="write compiled.json and STNUs only")
-    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary")
+    p.add_argument("--quiet", "-q", action="store_true", help="no estimate, no progress, no summary")
     p.set_defaults(run=run)
 
 
-class _Bar:
-    """A tqdm progress bar per stage on a terminal; nothing when stderr is piped."""
+class _Progress:
+    """A tqdm bar per stage (with ETA) on a terminal; otherwise one line every `every` seconds."""
 
-    def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled
+    def __init__(self, tty: bool, quiet: bool, every: float = PROGRESS_EVERY) -> None:
+        self.tty, self.quiet, self.every = tty, quiet, every
         self.bars: dict[str, Any] = {}
+        self.t0 = time.monotonic()
+        self.last = self.t0
+        self.start_done: dict[str, tuple[float, int]] = {}
 
     def __call__(self, stage: str, done: int, total: int) -> None:
-        if not self.enabled:
+        if self.quiet:
             return
-        from tqdm import tqdm
+        label = {"motion": "motion planning", "plans": "plans"}.get(stage, stage)
+        if self.tty:
+            from tqdm import tqdm
 
-        bar = self.bars.get(stage)
-        if bar is None:
-            label = {"motion": "motion planning", "plans": "plans"}.get(stage, stage)
-            bar = self.bars[stage] = tqdm(total=total, desc=label, unit="", file=sys.stderr, leave=False)
-        bar.update(done - bar.n)
+            bar = self.bars.get(stage)
+            if bar is None:
+                bar = self.bars[stage] = tqdm(total=total, desc=label, unit="", file=sys.stderr, leave=False,
+                                              dynamic_ncols=True)
+            bar.update(done - bar.n)
+            return
+        now = time.monotonic()
+        t_start, d_start = self.start_done.setdefault(stage, (now, done))
+        if now - self.last < self.every or stage != "plans":
+            return
+        self.last = now
+        rate = (done - d_start) / max(now - t_start, 1e-9)
+        from hrc.compile.estimate import fmt_seconds
+
+        eta = fmt_seconds((total - done) / rate) if rate > 0 and total >= done else "?"
+        print(f"{label}: {done:,}/{total:,} ({100 * done / max(total, 1):.0f} %), {rate:.1f}/s, "
+              f"{fmt_seconds(now - self.t0)} so far, about {eta} left", file=sys.stderr, flush=True)
 
     def close(self) -> None:
         for bar in self.bars.values():
             bar.close()
+        self.bars.clear()
 
 
 def _check_out(out: str) -> None:
-    """The output folder is replaced whole, so it must be new, empty, or an earlier compile's output."""
+    """The output folder is replaced whole, so it must be new, empty, or an earlier compile's output,
+    and must not hold the current folder (``--out .``)."""
     path = Path(out)
     if path.exists() and not path.is_dir():
         raise InputError(out, "--out", "exists and is not a folder")
+    resolved = path.resolve()
+    here = Path.cwd().resolve()
+    if resolved == here or resolved in here.parents:
+        raise InputError(out, "--out", "is the current folder or holds it; the output folder is replaced "
+                                       "whole: name a new folder, e.g. --out out/NAME")
     if path.is_dir() and any(path.iterdir()) and not (path / "compiled.json").is_file():
         raise InputError(out, "--out", "refusing to replace a folder that is not empty and holds no "
                                        "compiled.json (not an earlier hrc compile output)")
 
 
+class _KeptEarlier(Exception):
+    """Interrupted while an earlier output is in --out: drop the partial one (the staging folder goes)."""
+
+    def __init__(self, compiled: int) -> None:
+        super().__init__(compiled)
+        self.compiled = compiled
+
+
+def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
+    from hrc.compile.estimate import fmt_bytes, fmt_seconds
+
+    lo, hi = est.wall(workers)
+    return InputError(task_file, "", f"{est.plans} plans, more than --max-plans {limit:,} (about "
+                      f"{fmt_seconds(lo)}-{fmt_seconds(hi)} on {workers} core{'s' * (workers > 1)}, "
+                      f"{fmt_bytes(est.disk('archive'))} with --stnu archive): raise --max-plans to compile "
+                      "them all, spread them over a Dask cluster (--executor dask://HOST:PORT), or compile "
+                      "fewer (--pin ACTION=AGENT, --symmetry)")
+
+
 def run(args: argparse.Namespace) -> int:
-    from hrc.compile.compiler import CompileOptions, compile_task
-    from hrc.compile.output import write_compiled
+    from hrc.compile.compiler import CompileOptions
+    from hrc.compile.estimate import estimate, fmt_bytes, fmt_seconds
+    from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
+    from hrc.plans import pin_actions
 
     task = load_task(args.task)
+    if args.pin:
+        task = pin_actions(task, dict(args.pin))
     out = args.out or f"out/{task.name}"
     _check_out(out)
-    bar = _Bar(enabled=sys.stderr.isatty() and not args.quiet)
-    t0 = time.perf_counter()
-    try:
-        options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
-        cps = compile_task(task, seed=args.seed, jobs=args.jobs, executor=args.executor, progress=bar,
-                           options=options)
-    finally:
-        bar.close()
-    with atomic_dir(out) as stage:
-        write_compiled(cps, stage)
-        if not args.no_report:
-            from hrc.report import write_report
+    if args.executor is not None:
+        _, host, port = parse_executor_url(args.executor)
+        probe_scheduler(f"tcp://[{host}]:{port}" if ":" in host else f"tcp://{host}:{port}")
+        workers = default_jobs()
+    else:
+        workers = check_jobs(args.jobs) if args.jobs is not None else default_jobs()
+    est = estimate(task, symmetry=args.symmetry)
+    if est.plans.value > args.max_plans:
+        raise _refusal(args.task, est, args.max_plans, workers)
+    total = est.plans.value
+    jobs = None if args.executor is not None else max(1, min(workers, total))  # no idle worker processes
+    quiet = args.quiet
+    say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+    lo, hi = est.wall(jobs or workers)
+    say(f"{task.name}: {est.plans} plans; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu {args.stnu}); "
+        f"{fmt_seconds(lo)}-{fmt_seconds(hi)} on {jobs or workers} worker{'s' * ((jobs or workers) > 1)} "
+        "until measured")
 
-            write_report(cps, stage)
-    if not args.quiet:
+    def on_estimate(per_plan: float) -> None:
+        t = est.wall(jobs or workers, per_plan)[0]
+        say(f"the first plans took {per_plan:.3f} s each: about {fmt_seconds(t)} for all {total:,} at that pace "
+            "(plans differ a lot: the progress line's estimate follows the real pace)")
+
+    progress = _Progress(tty=sys.stderr.isatty(), quiet=quiet)
+    t0 = time.perf_counter()
+    from hrc.compile.stream import compile_stream
+
+    options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
+    earlier = Path(out).is_dir() and any(Path(out).iterdir())  # an earlier output: not replaced by a partial one
+    try:
+        with atomic_dir(out) as stage:
+            try:
+                result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
+                                        options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
+                                        estimate=on_estimate, symmetry=args.symmetry)
+            finally:
+                progress.close()
+            if result.partial and earlier:
+                raise _KeptEarlier(result.compiled)
+            if not args.no_report and not result.partial:
+                from hrc.report import write_report
+
+                write_report(result.plan_set, stage)
+    except _KeptEarlier as kept:
+        print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
+              "(a partial output replaces only a new or empty folder)", file=sys.stderr)
+        return 130
+    cps = result.plan_set
+    if result.partial:
+        print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote them as a partial output "
+              f"to {out} (\"partial\": true in compiled.json, no report)", file=sys.stderr)
+        return 130
+    if not quiet:
         counts = cps.counts()
-        print(f"compiled {len(cps.plans)} plans of {task.name} in {time.perf_counter() - t0:.2f} s: "
+        print(f"compiled {cps.total} plans of {task.name} in {time.perf_counter() - t0:.2f} s: "
               + ", ".join(f"{n} {c}" for c, n in counts.items()))
         if cps.plans:
             best = cps.plans[0]
@@ -97,6 +231,9 @@ def run(args: argparse.Namespace) -> int:
             span = "" if ms is None else f", makespan {ms[0]:.1f}-{ms[1]:.1f} s"
             print(f"best plan {best.plan.id} ({best.plan_class.value}{span}): "
                   + "; ".join(f"{agent}: {' -> '.join(seq) or '-'}" for agent, seq in best.plan.sequences))
-        print(f"wrote {out}/compiled.json, {out}/stnu/ ({len(cps.plans)} GraphML)"
+        stnu = {"graphml": f"{out}/stnu/ ({cps.total} GraphML)", "archive": f"{out}/stnu.zip",
+                "none": "no STNU files"}[args.stnu]
+        print(f"wrote {out}/compiled.json, {stnu}"
               + ("" if args.no_report else f", {out}/report.md, {out}/report.html"))
     return 0
+

@@ -10,7 +10,9 @@ and the places where one agent waits for the other, with ``--plan``), written at
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import os
 from typing import TYPE_CHECKING, Any
 
 from hrc.errors import InputError
@@ -99,7 +101,17 @@ def _text(s: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _check_out(out: str) -> None:
+    """Before any planning: the picture is a PNG, so the name must say .png, and it goes to a file."""
+    if os.path.isdir(out):
+        raise IsADirectoryError(errno.EISDIR, "is a folder; expected a file name", out)
+    if not out.lower().endswith(".png"):
+        raise InputError(out, "--out", "expected a file name ending in .png (the picture is written as PNG)")
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.out:
+        _check_out(args.out)
     task = load_task(args.task)
     paths = plan_paths(task, seed=args.seed)
     plan = _find_plan(task, args.plan) if args.plan else None

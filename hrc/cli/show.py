@@ -7,9 +7,11 @@ import json
 import math
 from typing import Any
 
+from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate, fmt_bytes, fmt_seconds
+from hrc.compile.executors import default_jobs
 from hrc.io.task_file import load_task
 from hrc.model import Task
-from hrc.plans import count_plans
+from hrc.plans import identical_actions, symmetry_factor
 
 __all__ = ["add_parser", "run", "task_summary"]
 
@@ -26,8 +28,11 @@ def _bound(x: float) -> float | str:
 
 
 def task_summary(task: Task) -> dict[str, Any]:
-    """A JSON-ready summary of `task`, including ``plan_count``."""
+    """A JSON-ready summary of `task`, including ``plan_count`` (exact, or an upper bound when
+    ``plan_count_exact`` is false: counting would be slow) and the up-front ``estimate`` of a compile
+    (bytes on disk per ``--stnu`` mode, CPU seconds low and high, `hrc.compile.estimate`)."""
     ws = task.workspace
+    est = estimate(task)
     return {
         "task": task.name,
         "file": task.source,
@@ -46,7 +51,13 @@ def task_summary(task: Task) -> dict[str, Any]:
         "map": {"name": ws.name, "file": ws.source, "bounds": list(ws.bounds),
                 "obstacles": len(ws.obstacles), "floorplan": ws.floorplan,
                 "locations": {loc.id: [loc.x, loc.y] for loc in ws.locations}},
-        "plan_count": count_plans(task),
+        "plan_count": est.plans.value,
+        "plan_count_exact": est.plans.exact,
+        "estimate": {"disk_bytes": {mode: est.disk(mode) for mode in est.stnu_bytes},
+                     "cpu_seconds": [round(est.cpu_seconds[0], 1), round(est.cpu_seconds[1], 1)],
+                     "max_plans_default": DEFAULT_MAX_PLANS},
+        "identical_actions": [list(g) for g in identical_actions(task)],
+        "symmetry_factor": symmetry_factor(task),
     }
 
 
@@ -81,7 +92,22 @@ def _text(s: dict[str, Any]) -> str:
     lines.append(f"map {m['name']}  ({m['file']}): {xmax - xmin:g} m x {ymax - ymin:g} m, "
                  f"{m['obstacles']} obstacles" + (f" (floor plan {m['floorplan']})" if m["floorplan"] else ""))
     lines.append("  locations: " + ", ".join(f"{k} ({x:g}, {y:g})" for k, (x, y) in m["locations"].items()))
-    lines.append(f"plans: {s['plan_count']} (allocations x valid per-agent sequences)")
+    e = s["estimate"]
+    jobs = default_jobs()
+    lo, hi = (t / jobs for t in e["cpu_seconds"])
+    disk = e["disk_bytes"]
+    lines.append(f"compile estimate: {fmt_seconds(lo)} - {fmt_seconds(hi)} on {jobs} core{'s' * (jobs > 1)}; on disk "
+                 f"{fmt_bytes(disk['graphml'])} (--stnu archive: {fmt_bytes(disk['archive'])}, none: "
+                 f"{fmt_bytes(disk['none'])})")
+    if s["plan_count"] > e["max_plans_default"]:
+        lines.append(f"  more than {e['max_plans_default']:,} plans: `hrc compile` refuses it unless --max-plans "
+                     "allows it; or use --executor (Dask), or --pin ACTION=AGENT or --symmetry to compile fewer")
+    if s["identical_actions"]:
+        groups = "; ".join(", ".join(g) for g in s["identical_actions"])
+        lines.append(f"  identical actions ({groups}): `hrc compile --symmetry` compiles one plan in "
+                     f"{s['symmetry_factor']}")
+    count = f"{s['plan_count']}" if s["plan_count_exact"] else f"at most {s['plan_count']} (exact count too slow)"
+    lines.append(f"plans: {count} (allocations x valid per-agent sequences)")
     return "\n".join(lines)
 
 

@@ -29,7 +29,8 @@ from hrc.motion import Motion, PathLibrary, plan_paths
 from hrc.plans import count_plans, generate_plans
 from hrc.temporal.graphml import write_graphml
 
-__all__ = ["CompileOptions", "CompiledPlan", "CompiledPlanSet", "compile_chunk", "compile_plan", "compile_task",
+__all__ = ["ClassStats", "CompileOptions", "CompiledPlan", "CompiledPlanSet", "PlanSetSummary", "compile_chunk",
+           "compile_plan", "compile_task",
            "rank_key", "task_digest"]
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
@@ -72,8 +73,36 @@ class CompiledPlan:
 
 
 @dataclass(frozen=True, slots=True)
+class ClassStats:
+    """Makespans of one class over every plan of a streamed compile (s; None without a schedule):
+    quantiles (min, 25 %, median, 75 %, max) of the earliest and worst-case makespans, and the number of
+    plans per bin of `PlanSetSummary.bins` by worst-case makespan."""
+
+    plan_class: str
+    plans: int
+    no_schedule: int
+    earliest: tuple[float, ...] | None
+    worst: tuple[float, ...] | None
+    histogram: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class PlanSetSummary:
+    """What a streamed compile knows of every plan when `CompiledPlanSet.plans` holds only the best
+    (`hrc.compile.stream`): the total, the class counts, makespan statistics per class, and the plan
+    with the slowest earliest makespan (for the report's sentence on an empty class)."""
+
+    total: int
+    counts: tuple[tuple[str, int], ...]
+    stats: tuple[ClassStats, ...]
+    bins: tuple[float, ...]  # edges of the worst-case makespan histogram (s)
+    slowest: tuple[float, str] | None  # (earliest makespan, plan id)
+
+
+@dataclass(frozen=True, slots=True)
 class CompiledPlanSet:
-    """The compiler's output: every plan of `task`, ranked best first."""
+    """The compiler's output: every plan of `task`, ranked best first; or, with `summary` (a streamed
+    compile), only the best plans and the best of each class, with their global ranks."""
 
     task: Task
     seed: int
@@ -81,8 +110,17 @@ class CompiledPlanSet:
     paths: PathLibrary
     plans: tuple[CompiledPlan, ...]
     options: CompileOptions = CompileOptions()
+    summary: PlanSetSummary | None = None
+    stnu_files: str = "graphml"  # how the STNUs were written (`hrc.compile.output.STNU_MODES`)
+
+    @property
+    def total(self) -> int:
+        """The number of plans compiled (more than ``len(plans)`` when only the best are held)."""
+        return len(self.plans) if self.summary is None else self.summary.total
 
     def counts(self) -> dict[str, int]:
+        if self.summary is not None:
+            return dict(self.summary.counts)
         out = {c.value: 0 for c in PlanClass}
         for p in self.plans:
             out[p.plan_class.value] += 1
@@ -96,15 +134,16 @@ def task_digest(task: Task) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def compile_plan(task: Task, plan: Plan, paths: PathLibrary,
-                 options: CompileOptions = CompileOptions()) -> CompiledPlan:
+def compile_plan(task: Task, plan: Plan, paths: PathLibrary, options: CompileOptions = CompileOptions(),
+                 graphml: bool = True) -> CompiledPlan:
     """Motion acquisition (routes, conflicts, passing orders), temporal net creator and classification
-    for one plan (rank left at 0)."""
+    for one plan (rank left at 0; `graphml` False leaves its GraphML text empty)."""
     choice = choose_pattern(task, plan, paths, human_waits=options.human_waits, rank_by=options.rank_by)
     stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
     return CompiledPlan(plan=plan, pattern=choice.pattern, classification=choice.classification, stnu_size=size,
-                        graphml=write_graphml(stnu), preference=plan_preference(task, plan, choice.net))
+                        graphml=write_graphml(stnu) if graphml else "",
+                        preference=plan_preference(task, plan, choice.net))
 
 
 def compile_chunk(task: Task, paths: PathLibrary, plans: list[Plan],

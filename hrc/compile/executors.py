@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
+import signal
+import socket
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 from urllib.parse import urlparse
 
 from hrc.errors import ExecutorError
 
-__all__ = ["EXECUTORS", "DaskExecutor", "PoolExecutor", "SerialExecutor", "default_jobs", "make_executor"]
+__all__ = ["EXECUTORS", "DaskExecutor", "PoolExecutor", "SerialExecutor", "check_jobs", "default_jobs",
+           "make_executor", "parse_executor_url", "probe_scheduler"]
 
 
 def default_jobs() -> int:
@@ -29,6 +32,8 @@ def default_jobs() -> int:
 
 class SerialExecutor:
     """Runs every chunk in this process, in order."""
+
+    jobs = 1
 
     def __enter__(self) -> SerialExecutor:
         return self
@@ -47,6 +52,10 @@ _WORKER_SHARED: dict[str, Any] = {}
 
 
 def _init_worker(task: Any, paths: Any) -> None:
+    # Ctrl-C reaches the whole process group: the parent alone handles it (and stops the workers), so
+    # workers ignore SIGINT and die quietly on SIGTERM (not through a handler inherited from the parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _WORKER_SHARED["args"] = (task, paths)
 
 
@@ -66,10 +75,20 @@ class PoolExecutor:
     def __enter__(self) -> PoolExecutor:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(cancel_futures=True)
-            self._pool = None
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        if exc_type is None:
+            pool.shutdown(cancel_futures=True)
+            return
+        # interrupted or failed: do not wait for the chunks in flight, stop the workers now
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            proc.terminate()
+        for proc in procs:
+            proc.join(5)
 
     def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
         if self._pool is not None:
@@ -89,7 +108,7 @@ class PoolExecutor:
 class DaskExecutor:
     """A Dask distributed scheduler at ``dask://HOST:PORT`` (or ``tcp://HOST:PORT``)."""
 
-    def __init__(self, address: str, timeout: float = 10.0) -> None:
+    def __init__(self, address: str, timeout: float = 5.0) -> None:
         self.address = address
         self.timeout = timeout
         self.window = 4
@@ -100,6 +119,7 @@ class DaskExecutor:
             from distributed import Client
         except ImportError as err:  # pragma: no cover - a dependency of the package
             raise ExecutorError("the 'distributed' package is needed for --executor dask://") from err
+        probe_scheduler(self.address, self.timeout)
         try:
             self._client = Client(self.address, timeout=self.timeout, set_as_default=False)
         except (OSError, TimeoutError) as err:
@@ -110,7 +130,7 @@ class DaskExecutor:
 
     def __exit__(self, *exc: object) -> None:
         if self._client is not None:
-            self._client.close()
+            self._client.close(timeout=self.timeout)
 
     def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
         from distributed import as_completed
@@ -134,6 +154,45 @@ class DaskExecutor:
                 yield future.result()
 
 
+def probe_scheduler(address: str, timeout: float = 5.0) -> None:
+    """Check that ``tcp://HOST:PORT`` answers like a Dask scheduler, within `timeout` seconds.
+
+    A scheduler speaks first on a new connection (Dask's comm handshake: its frames arrive before the
+    client sends anything); a web server or another service waits for a request. Without this check,
+    `distributed.Client` waits on such a server far past its own timeout. Raises `ExecutorError`.
+    """
+    host, _, port = address.removeprefix("tcp://").rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            first = sock.recv(8)
+    except TimeoutError as err:
+        raise ExecutorError(f"{address} accepted the connection but said nothing within {timeout:g} s: not a "
+                            "Dask scheduler (start one with `dask scheduler`)") from err
+    except OSError as err:
+        raise ExecutorError(f"cannot reach the Dask scheduler at {address}: {err.strerror or err}") from err
+    if not first:
+        raise ExecutorError(f"{address} closed the connection at once: not a Dask scheduler")
+
+
+def parse_executor_url(url: str) -> tuple[str, str, int]:
+    """``(scheme, host, port)`` of an executor URL ``SCHEME://HOST:PORT``; raises `ExecutorError` naming
+    what is wrong (a port is required: Dask's default would hide a typo)."""
+    expected = "expected one of: " + ", ".join(f"{s}://HOST:PORT" for s in EXECUTORS)
+    try:
+        parsed = urlparse(url)
+        port = parsed.port
+    except ValueError as err:
+        raise ExecutorError(f"bad executor URL {url!r}: {err} ({expected})") from err
+    if parsed.scheme not in EXECUTORS or not parsed.hostname:
+        raise ExecutorError(f"unknown executor {url!r} ({expected})")
+    if port is None or port == 0:
+        raise ExecutorError(f"executor URL {url!r} has no port ({expected}, e.g. dask://127.0.0.1:8786)")
+    if parsed.path not in ("", "/") or parsed.query or parsed.fragment or parsed.username or parsed.password:
+        raise ExecutorError(f"executor URL {url!r} has more than SCHEME://HOST:PORT ({expected})")
+    return parsed.scheme, parsed.hostname, port
+
+
 EXECUTORS: dict[str, Callable[[str], Any]] = {
     "dask": lambda netloc: DaskExecutor(f"tcp://{netloc}"),
     "tcp": lambda netloc: DaskExecutor(f"tcp://{netloc}"),
@@ -143,12 +202,18 @@ EXECUTORS: dict[str, Callable[[str], Any]] = {
 def make_executor(url: str | None, jobs: int | None) -> SerialExecutor | PoolExecutor | DaskExecutor:
     """``url`` None: a pool of `jobs` processes (default: one per core), serial when `jobs` is 1."""
     if url is None:
-        n = default_jobs() if jobs is None else jobs
-        if n < 1:
-            raise ExecutorError(f"--jobs must be at least 1, found {n}")
+        n = default_jobs() if jobs is None else check_jobs(jobs)
         return SerialExecutor() if n == 1 else PoolExecutor(n)
-    parsed = urlparse(url)
-    if parsed.scheme not in EXECUTORS or not parsed.netloc:
-        raise ExecutorError(f"unknown executor '{url}' (expected one of: "
-                            + ", ".join(f"{s}://HOST:PORT" for s in EXECUTORS) + ")")
-    return EXECUTORS[parsed.scheme](parsed.netloc)
+    scheme, host, port = parse_executor_url(url)
+    return EXECUTORS[scheme](f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+
+
+def check_jobs(jobs: int) -> int:
+    """`jobs` if it is between 1 and the cores this process may use (more processes than cores only
+    slow a CPU-bound compile down); raises `ExecutorError` otherwise."""
+    cores = default_jobs()
+    if not 1 <= jobs <= cores:
+        shown = str(jobs) if len(str(jobs)) <= 12 else f"{str(jobs)[:12]}..."
+        raise ExecutorError(f"--jobs {shown}: expected 1 to {cores} (the cores this machine gives hrc); "
+                            "for more workers use a Dask cluster: --executor dask://HOST:PORT")
+    return jobs

@@ -36,21 +36,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse.csgraph import NegativeCycleError, csgraph_from_dense, floyd_warshall
 
-from hrc.compile.classify import Classification, PlanClass, classify, measure
+from hrc.compile.classify import Classification, EarliestStart, PlanClass, classify, earliest_start, measure
 from hrc.compile.temporal_net_creator import (
     ORIGIN,
     TICKS_PER_SECOND,
     PlanNetwork,
     create_stnu,
     ref_namer,
-    with_separations,
 )
 from hrc.model import Plan, Task
 from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detour, find_conflicts, plan_motions
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs
-from hrc.temporal import STNU, RequirementLink, check_consistency
-from hrc.temporal.graph import distance_edges
+from hrc.temporal import STNU, ContingentLink, RequirementLink, check_consistency
 
 __all__ = ["LEAF_CAP", "NODE_CAP", "RANK_BY", "TRIAL_CAP", "MotionPattern", "PassingOrder", "PlanChoice",
            "choose_pattern", "pattern_key"]
@@ -122,10 +120,18 @@ def _apsp(stnu: STNU) -> np.ndarray | None:
     n = len(stnu.timepoints)
     index = {v: i for i, v in enumerate(stnu.timepoints)}
     mat = np.full((n, n), np.inf)
-    for e in distance_edges(stnu):
-        i, j = index[e.source], index[e.target]
+    edges: list[tuple[int, int, int]] = []  # the distance graph, contingents read as requirements
+    links: tuple[RequirementLink | ContingentLink, ...] = (*stnu.requirements, *stnu.contingents)
+    for r in links:
+        i, j = index[r.source], index[r.target]
         if i != j:
-            mat[i, j] = min(mat[i, j], e.value)
+            if r.ub is not None:
+                edges.append((i, j, r.ub))
+            if r.lb is not None:
+                edges.append((j, i, -r.lb))
+    if edges:
+        e = np.array(edges, dtype=np.int64)
+        np.minimum.at(mat, (e[:, 0], e[:, 1]), e[:, 2].astype(np.float64))
     # a dense 0 means "no edge" to scipy: go through csgraph_from_dense with inf as the null value
     try:
         return floyd_warshall(csgraph_from_dense(mat, null_value=np.inf), directed=True)
@@ -146,10 +152,29 @@ def _text(order: PassingOrder) -> str:
 
 
 def _evaluate(task: Task, base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[PassingOrder],
-              rank_by: str) -> tuple[PlanNetwork, Classification]:
-    seps = [(o.separation, _text(o)) for o in orders if o.how != "implied"]
-    net = with_separations(base, seps, namer)
-    return net, classify(task, net, explained=False, full=rank_by == "nominal")
+              rank_by: str, start: EarliestStart | None = None) -> tuple[PlanNetwork, Classification]:
+    """The pattern's network and its class and makespans, without the passing orders' words (a search
+    classifies many patterns and explains one: `_worded` adds them to the one it keeps)."""
+    s = base.stnu
+    cut = len(s.requirements) - base.n_limits
+    added = tuple(RequirementLink(namer(o.separation.earlier), namer(o.separation.later),
+                                  math.ceil(o.separation.gap * TICKS_PER_SECOND - 1e-9), None)
+                  for o in orders if o.how != "implied")
+    net = PlanNetwork(stnu=STNU(s.timepoints, s.requirements[:cut] + added + s.requirements[cut:], s.contingents,
+                                s.name), meaning=base.meaning, last_ends=base.last_ends, n_limits=base.n_limits)
+    return net, classify(task, net, explained=False, full=rank_by == "nominal", start=start)
+
+
+def _worded(task: Task, plan: Plan, net: PlanNetwork, orders: tuple[PassingOrder, ...]) -> PlanNetwork:
+    """`net` (from `_evaluate`) with each passing order's meaning in words, as `with_separations` gives
+    it: the same links, so the same STNU; the words explain a class."""
+    namer = ref_namer(task, plan)
+    meaning = dict(net.meaning)
+    for o in orders:
+        if o.how != "implied":
+            meaning.setdefault((namer(o.separation.earlier), namer(o.separation.later)), ("space", _text(o)))
+    return PlanNetwork(stnu=net.stnu, meaning=tuple(sorted(meaning.items())), last_ends=net.last_ends,
+                       n_limits=net.n_limits)
 
 
 def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_waits: bool,
@@ -169,6 +194,7 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
     assert robust is not None  # lower bounds and the robot's own durations along an acyclic phase graph
     z = index[ORIGIN]
     namer = ref_namer(task, plan)
+    warm = earliest_start(base.without_limits())  # each leaf's makespans: from here, incrementally
     k = len(conflicts)
     # per conflict and order (0: robot first, 1: human first): T(later) - T(earlier) >= gap, in ticks
     earlier = np.zeros((k, 2), dtype=int)
@@ -192,7 +218,7 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
         state["leaves"] += 1
         orders = [PassingOrder(c, ("robot", "human")[first_of[j] if settled[j] else how[j][0]],
                                "implied" if settled[j] else how[j][1]) for j, c in enumerate(conflicts)]
-        net, cls = _evaluate(task, base, namer, orders, rank_by)
+        net, cls = _evaluate(task, base, namer, orders, rank_by, warm)
         key = pattern_key(cls, rank_by)
         results.append((key, PlanChoice(MotionPattern(motions, tuple(orders), 0, True), net, cls)))
         if bound is not None and key <= bound:
@@ -375,5 +401,6 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
                              "keeps them apart", None, (), ())
         return PlanChoice(MotionPattern(motions, (), count, exhaustive), net, cls)
     pattern = best.pattern
-    return PlanChoice(MotionPattern(pattern.motions, pattern.orders, count, exhaustive), best.net,
-                      classify(task, best.net))  # again, in full, with its explanation
+    net = _worded(task, plan, best.net, pattern.orders)
+    return PlanChoice(MotionPattern(pattern.motions, pattern.orders, count, exhaustive), net,
+                      classify(task, net))  # again, in full, with its explanation

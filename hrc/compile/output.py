@@ -10,7 +10,7 @@ Schema version 2 (times in seconds, rounded to the millisecond; plans in rank or
                 "allocation": {ACTION: AGENT}, "sequences": {AGENT: [ACTION, ...]},
                 "makespan": [earliest, worst case] | null, "nominal_makespan": s | null, "idle": {AGENT: s},
                 "preference": value | null (APA's optimal global preference value, `hrc.compile.preferences`),
-                "stnu": "stnu/ID.graphml", "stnu_size": {"timepoints", "requirement_links", "contingent_links"},
+                "stnu": "stnu/ID.graphml" | null, "stnu_size": {"timepoints", "requirement_links", "contingent_links"},
                 "explanation": str | null,
                 "motions": [{"agent", "leg", "from", "to", "action", "phase", "free_time", "time",
                              "detour": null | {"round": str, "points": [[x, y], ...]},
@@ -28,6 +28,18 @@ names); orders the plan implies anyway are only counted (``implied``).
 A ``time`` above ``free_time`` is a detour's, or a stop at a waiting place (``park``: the agent goes
 to LOC, its start, in ``park.time`` of its moving time, waits there as the plan needs, then goes on; its
 STNU has the timepoints ``...park`` and ``...unpark``); the robot drives a route in exactly its time.
+
+Optional keys (schema version 2 still: readers of the keys above need no change), present only when
+they say something: ``"stnu_files": "archive"`` with ``"stnu_archive": "stnu.zip"`` (the STNUs are the
+zip file's members named by each plan's ``stnu``, not files beside it) or ``"stnu_files": "none"`` (no
+STNU written, every ``stnu`` is null): `hrc compile --stnu`; ``"partial": true`` with
+``"plans_expected": N`` (the run was interrupted: ``plans`` holds the plans compiled by then, ranked
+among themselves, and ``counts`` counts them); ``"identical_actions": [[ACTION, ...], ...]`` (`hrc compile
+--symmetry`: of the plans that differ only by swapping the actions of a group, only the one in which
+they come in this order, by agent then position, was compiled).
+
+The file is written streaming by `hrc.compile.stream` (header, then one plan per line in rank order,
+so that it diffs plan by plan); it is one JSON document for `json.load`.
 
 The file is deterministic for a given task and seed: no timestamps, no host names, sorted keys where
 order carries no meaning.
@@ -48,7 +60,7 @@ from typing import Any
 import yaml
 
 from hrc import __version__
-from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, task_digest
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, task_digest
 from hrc.compile.temporal_net_creator import ref_timepoint
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
@@ -58,10 +70,17 @@ from hrc.motion import Occupancy
 from hrc.plans import agent_legs
 from hrc.temporal.graphml import tool_name
 
-__all__ = ["SCHEMA_VERSION", "compiled_json", "compiled_to_dict", "load_compiled_task", "write_compiled",
-           "write_input"]
+__all__ = ["JSON_TAIL", "SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json", "compiled_to_dict",
+           "header_dict", "json_head", "load_compiled_task", "plan_dict", "write_compiled", "write_input"]
 
 SCHEMA_VERSION = 2
+
+STNU_MODES = ("graphml", "archive", "none")
+"""How the plans' STNUs are written (``hrc compile --stnu``): one GraphML file per plan in ``stnu/`` (the
+default), the same files packed into one zip file `STNU_ARCHIVE` (member names as the ``stnu`` paths),
+or not at all (``"stnu": null`` per plan)."""
+
+STNU_ARCHIVE = "stnu.zip"
 
 
 def _s(x: float) -> float:
@@ -78,8 +97,9 @@ def _xy(p: tuple[float, float]) -> list[float]:
     return [round(p[0], 3), round(p[1], 3)]
 
 
-def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
-    task, plan, c = cps.task, cp.plan, cp.classification
+def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dict[str, Any]:
+    """One plan's entry of ``compiled.json`` (``stnu``: the `STNU_MODES` value; None writes ``"stnu": null``)."""
+    plan, c = cp.plan, cp.classification
     legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
     motions = []
     for m in cp.motions:
@@ -111,7 +131,7 @@ def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
         "nominal_makespan": None if c.nominal is None else _s(c.nominal),
         "idle": {agent: _s(t) for agent, t in c.idle},
         "preference": None if cp.preference is None else round(cp.preference, 6),
-        "stnu": f"stnu/{plan.id}.graphml",
+        "stnu": f"stnu/{plan.id}.graphml" if stnu not in (None, "none") else None,
         "stnu_size": dict(zip(("timepoints", "requirement_links", "contingent_links"), cp.stnu_size, strict=True)),
         "explanation": c.explanation or None,
         "motions": motions,
@@ -121,18 +141,39 @@ def _plan_dict(cps: CompiledPlanSet, cp: CompiledPlan) -> dict[str, Any]:
     }
 
 
-def compiled_to_dict(cps: CompiledPlanSet) -> dict[str, Any]:
-    task = cps.task
-    return {
+def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, counts: dict[str, int],
+                stnu: str = "graphml", partial: tuple[int, int] | None = None,
+                symmetric: tuple[tuple[str, ...], ...] = ()) -> dict[str, Any]:
+    """``compiled.json`` without its plans. The optional keys appear only when they say something:
+    ``stnu_files`` ("none" or "archive") and ``stnu_archive`` when the STNUs are not one GraphML file per
+    plan; ``partial`` and ``plans_expected`` when the run was interrupted (`partial`: plans written, plans
+    expected, the latter possibly an upper bound); ``identical_actions`` when only one plan per
+    relabelling of identical actions was compiled (``hrc compile --symmetry``)."""
+    out: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
         "generator": f"hrc {__version__}",
-        "seed": cps.seed,
-        "options": {"human_waits": cps.options.human_waits, "rank_by": cps.options.rank_by},
-        "task": {"name": task.name, "digest": cps.digest, "deadline": task.deadline,
+        "seed": seed,
+        "options": {"human_waits": options.human_waits, "rank_by": options.rank_by},
+        "task": {"name": task.name, "digest": digest, "deadline": task.deadline,
                  "agents": {a.id: a.kind.value for a in task.agents}},
-        "counts": cps.counts(),
-        "plans": [_plan_dict(cps, cp) for cp in cps.plans],
+        "counts": counts,
     }
+    if stnu != "graphml":
+        out["stnu_files"] = stnu
+        if stnu == "archive":
+            out["stnu_archive"] = STNU_ARCHIVE
+    if symmetric:
+        out["identical_actions"] = [list(g) for g in symmetric]
+    if partial is not None:
+        out["partial"] = True
+        out["plans_expected"] = partial[1]
+    return out
+
+
+def compiled_to_dict(cps: CompiledPlanSet) -> dict[str, Any]:
+    data = header_dict(cps.task, cps.seed, cps.digest, cps.options, cps.counts())
+    data["plans"] = [plan_dict(cps.task, cp) for cp in cps.plans]
+    return data
 
 
 def write_input(task: Task, out_dir: Path) -> None:
@@ -182,7 +223,15 @@ def compiled_json(cps: CompiledPlanSet) -> str:
     2,880-plan file takes 0.3 s instead of 3 s with `indent` everywhere, and still diffs plan by plan)."""
     data = compiled_to_dict(cps)
     plans = data.pop("plans")
-    head = json.dumps(data, indent=1)
     body = ",\n".join(json.dumps(p, separators=(",", ":")) for p in plans)
-    return f'{head[:-2]},\n "plans": [\n{body}\n ]\n}}\n'
+    return json_head(data) + body + JSON_TAIL
+
+
+def json_head(header: dict[str, Any]) -> str:
+    """``compiled.json``'s text up to its first plan line (`header_dict` indented, then ``"plans": [``)."""
+    return json.dumps(header, indent=1)[:-2] + ',\n "plans": [\n'
+
+
+JSON_TAIL = "\n ]\n}\n"
+"""``compiled.json``'s text after its last plan line."""
 

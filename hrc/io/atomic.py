@@ -52,22 +52,58 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
     write_bytes_atomic(path, text.encode("utf-8"))
 
 
+def _make_parents(folder: Path) -> list[Path]:
+    """``mkdir -p folder``; returns the folders it created, deepest first (to remove them on failure)."""
+    missing = []
+    for p in (folder, *folder.parents):
+        if p.exists() or p.is_symlink():
+            break
+        missing.append(p)
+    folder.mkdir(parents=True, exist_ok=True)
+    return missing
+
+
+def _remove_created(created: list[Path]) -> None:
+    for p in created:  # deepest first; only while empty (nothing of anybody else's is removed)
+        with contextlib.suppress(OSError):
+            p.rmdir()
+
+
 @contextlib.contextmanager
 def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a fresh staging folder; on success it replaces `path` (an existing folder is swapped out)."""
+    """Yield a fresh staging folder; on success it replaces `path` (an existing folder is swapped out).
+
+    On any failure (an exception, KeyboardInterrupt, a failed rename) the staging folder is removed,
+    the folders made for it too, and an existing `path` is left as it was.
+    """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    created = _make_parents(target.parent)
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    except BaseException:
+        _remove_created(created)
+        raise
     try:
         yield staging
+        os.chmod(staging, 0o777 & ~_umask())  # mkdtemp makes it private (0o700)
+        old = None
+        if target.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=target.parent))
+            try:
+                os.replace(target, old / "x")
+            except BaseException:
+                old.rmdir()
+                raise
+        try:
+            os.replace(staging, target)
+        except BaseException:
+            if old is not None:  # put the earlier output back
+                os.replace(old / "x", target)
+                old.rmdir()
+            raise
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
+        _remove_created(created)
         raise
-    os.chmod(staging, 0o777 & ~_umask())  # mkdtemp makes it private (0o700)
-    old = None
-    if target.exists():
-        old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=target.parent))
-        os.replace(target, old / "x")
-    os.replace(staging, target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)

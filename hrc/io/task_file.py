@@ -38,6 +38,13 @@ from hrc.model import (
 
 __all__ = ["dump_task", "load_task", "task_to_dict"]
 
+MAX_SECONDS = 1e6
+"""Largest duration, deadline or constraint bound (s, about 11.6 days): schedules are exact to the
+millisecond, and sums of such numbers must stay far inside what the temporal core handles exactly."""
+MIN_SPEED = 0.01
+"""Slowest agent speed (m/s): slower, a travel across a shop floor would outlast `MAX_SECONDS`."""
+MAX_TRAVEL_SLACK = 100.0
+
 _TOP_REQUIRED = ("name", "map", "agents", "actions")
 _TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "preference_sets", "safety_margin")
 _COEFFS = {PreferenceKind.CONSTANT: 1, PreferenceKind.LINEAR: 2, PreferenceKind.QUADRATIC: 3}
@@ -60,6 +67,7 @@ def load_task(path: str | os.PathLike[str]) -> Task:
     actions = [_action(doc, raw, ("actions", i), agents, workspace, margin)
                for i, raw in enumerate(raw_actions)]
     doc.unique([a.id for a in actions], ("actions",), "action")
+    _check_reachable(doc, agents, actions, workspace, margin)
     by_id = {a.id: a for a in actions}
 
     precedence = [_precedence(doc, raw, ("precedence", i), by_id)
@@ -69,7 +77,7 @@ def load_task(path: str | os.PathLike[str]) -> Task:
                    for i, raw in enumerate(doc.sequence(top.get("constraints", []), ("constraints",)))]
     deadline = None
     if top.get("deadline") is not None:
-        deadline = doc.number(top["deadline"], ("deadline",), positive=True)
+        deadline = doc.number(top["deadline"], ("deadline",), positive=True, maximum=MAX_SECONDS, unit=" s")
     preferences = [_preference(doc, raw, ("preferences", i), by_id)
                    for i, raw in enumerate(doc.sequence(top.get("preferences", []), ("preferences",)))]
     sets = []
@@ -99,9 +107,10 @@ def _agents(doc: Doc, raw: Any, ws: Workspace, margin: float) -> list[Agent]:
         if m["kind"] not in kinds:
             doc.fail(path + ("kind",), f"expected one of {', '.join(kinds)}, found {m['kind']!r}")
         radius = doc.number(m["radius"], path + ("radius",), positive=True)
-        speed = doc.number(m["speed"], path + ("speed",), positive=True)
+        speed = doc.number(m["speed"], path + ("speed",), positive=True, minimum=MIN_SPEED, unit=" m/s")
         start = doc.ident(m["start"], path + ("start",))
-        slack = doc.number(m.get("travel_slack", DEFAULT_TRAVEL_SLACK), path + ("travel_slack",), minimum=1)
+        slack = doc.number(m.get("travel_slack", DEFAULT_TRAVEL_SLACK), path + ("travel_slack",), minimum=1,
+                           maximum=MAX_TRAVEL_SLACK)
         agent = Agent(id=aid, kind=AgentKind(m["kind"]), radius=radius, speed=speed, start=start,
                       travel_slack=slack)
         _check_location(doc, path + ("start",), start, agent, ws, margin)
@@ -122,6 +131,40 @@ def _check_location(doc: Doc, path: tuple, loc_id: str, agent: Agent, ws: Worksp
     if dist < need + 1e-6:  # the motion planner keeps 1 um more than the clearance: reject ties here
         doc.fail(path, f"{agent.id} at location '{loc_id}' overlaps {what}: clearance {dist:.3f} m < "
                        f"radius {agent.radius:g} + safety margin {margin:g} m")
+
+
+def _check_reachable(doc: Doc, agents: list[Agent], actions: list[Action], ws: Workspace, margin: float) -> None:
+    """Every phase location an agent may be given lies in the part of the floor its disc can reach from
+    its start: free space (the bounds minus the obstacles, each grown by the agent's radius + safety
+    margin) split into its connected parts (shapely). Without this, `hrc show` would count plans that
+    path planning then refuses. O(obstacles log obstacles) per agent."""
+    import shapely
+    from shapely.geometry import Point, Polygon, box
+
+    xmin, ymin, xmax, ymax = ws.bounds
+    obstacles = shapely.union_all([Polygon(o.polygon) for o in ws.obstacles]) if ws.obstacles else None
+    for agent in agents:
+        need = agent.radius + margin
+        if 2 * need >= min(xmax - xmin, ymax - ymin):
+            continue  # _check_location has said what is wrong, or will
+        free = box(xmin + need, ymin + need, xmax - need, ymax - need)
+        if obstacles is not None:
+            free = free.difference(obstacles.buffer(need, quad_segs=16))
+        start = ws.location(agent.start)
+        parts = list(getattr(free, "geoms", [free]))
+        home = next((g.buffer(1e-6) for g in parts if g.buffer(1e-6).covers(Point(start.x, start.y))), None)
+        if home is None:
+            continue
+        for i, action in enumerate(actions):
+            if agent.id not in action.agents:
+                continue
+            for j, phase in enumerate(action.phases):
+                loc = ws.location(phase.location)
+                if not home.covers(Point(loc.x, loc.y)):
+                    doc.fail(("actions", i, "phases", j, "location"),
+                             f"{agent.id} cannot reach location '{phase.location}' from its start "
+                             f"'{agent.start}': no way through keeps its clearance of {need:g} m (radius + "
+                             f"safety margin); take {agent.id} out of {action.id}'s agents, or move the location")
 
 
 def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace, margin: float) -> Action:
@@ -150,7 +193,7 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
         dm = doc.mapping(pm["duration"], ppath + ("duration",), required=who)
         durations = []
         for ag in who:
-            lb, ub = doc.interval(dm[ag], ppath + ("duration", ag))
+            lb, ub = doc.interval(dm[ag], ppath + ("duration", ag), maximum=MAX_SECONDS, unit=" s")
             durations.append((ag, Interval(lb, ub)))
             _check_location(doc, ppath + ("location",), loc, known[ag], ws, margin)
         phases.append(Phase(id=pid, location=loc, durations=tuple(durations)))
@@ -226,8 +269,8 @@ def _signed_interval(doc: Doc, raw: Any, path: tuple) -> tuple[float, float]:
     seq = doc.sequence(raw, path)
     if len(seq) != 2:
         doc.fail(path, f"expected [lb, ub], found a list of {len(seq)}")
-    lb = doc.number(seq[0], path + (0,))
-    ub = doc.number(seq[1], path + (1,), allow_inf=True)
+    lb = doc.number(seq[0], path + (0,), maximum=MAX_SECONDS, unit=" s")
+    ub = doc.number(seq[1], path + (1,), allow_inf=True, maximum=MAX_SECONDS, unit=" s")
     if lb > ub:
         doc.fail(path, f"lb {lb:g} > ub {ub:g}")
     return lb, ub

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any, NoReturn
@@ -16,6 +17,9 @@ from typing import Any, NoReturn
 import yaml
 
 from hrc.errors import InputError
+
+# what a reader means as a number but YAML 1.1 (PyYAML) reads as a string: 1e300, 1E-3, 2.5e3 (no sign)
+_YAML11_FLOAT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
 
 Path_ = tuple[str | int, ...]
 
@@ -80,8 +84,13 @@ class Doc:
 
     def number(
         self, value: Any, path: Path_, *, minimum: float | None = None, positive: bool = False,
-        allow_inf: bool = False,
+        allow_inf: bool = False, maximum: float | None = None, unit: str = "",
     ) -> float:
+        if isinstance(value, str) and _YAML11_FLOAT.fullmatch(value.strip()):
+            m, _, e = value.strip().lower().partition("e")
+            fixed = f"{m if '.' in m else m + '.0'}e{e if e[:1] in '+-' else '+' + e}"
+            self.fail(path, f"expected a number, found the string '{value}': YAML 1.1 reads an exponent "
+                            f"without a dot and a sign as text; write {fixed}")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.fail(path, f"expected a number, found {_kind(value)}")
         try:
@@ -93,7 +102,9 @@ class Doc:
         if positive and x <= 0:
             self.fail(path, f"expected a positive number, found {value}")
         if minimum is not None and x < minimum:
-            self.fail(path, f"expected a number >= {minimum:g}, found {value}")
+            self.fail(path, f"expected a number >= {minimum:g}{unit}, found {value}")
+        if maximum is not None and abs(x) > maximum and not (allow_inf and math.isinf(x)):
+            self.fail(path, f"expected a number of at most {maximum:g}{unit}, found {value}")
         return x
 
     def ident(self, value: Any, path: Path_) -> str:
@@ -108,13 +119,14 @@ class Doc:
             self.fail(path, f"expected a string, found {_kind(value)}")
         return value
 
-    def interval(self, value: Any, path: Path_, *, allow_inf: bool = False) -> tuple[float, float]:
-        """``[lb, ub]`` with ``0 <= lb <= ub``; ``ub`` may be ``.inf`` when `allow_inf`."""
+    def interval(self, value: Any, path: Path_, *, allow_inf: bool = False, maximum: float | None = None,
+                 unit: str = "") -> tuple[float, float]:
+        """``[lb, ub]`` with ``0 <= lb <= ub`` (at most `maximum`); ``ub`` may be ``.inf`` when `allow_inf`."""
         seq = self.sequence(value, path)
         if len(seq) != 2:
             self.fail(path, f"expected [lb, ub], found a list of {len(seq)}")
-        lb = self.number(seq[0], path + (0,), minimum=0)
-        ub = self.number(seq[1], path + (1,), minimum=0, allow_inf=allow_inf)
+        lb = self.number(seq[0], path + (0,), minimum=0, maximum=maximum, unit=unit)
+        ub = self.number(seq[1], path + (1,), minimum=0, allow_inf=allow_inf, maximum=maximum, unit=unit)
         if lb > ub:
             self.fail(path, f"lb {lb:g} > ub {ub:g}")
         return lb, ub

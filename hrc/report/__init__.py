@@ -6,9 +6,11 @@ best and the best of each class: a report of thousands of plans still has a hand
 renders each format in `FORMATS` from the same data. Output is deterministic: the same compiled set
 gives the same bytes (no timestamps; PNGs without software/date metadata).
 
-Figures: ``counts.png`` (plans per class), ``gantt_ID.png`` (earliest schedule per agent),
-``gantt_worst_ID.png`` (the same with every human duration at its maximum), ``map_ID.png`` (workspace,
-both agents' routes with detours, the places where a passing order makes one wait).
+Figures: ``counts.png`` (plans per class), ``makespans.png`` (worst-case makespans of all plans per
+class, only when the ranked table holds the best plans only: `hrc.compile.stream`), ``gantt_ID.png``
+(earliest schedule per agent), ``gantt_worst_ID.png`` (the same with every human duration at its
+maximum), ``map_ID.png`` (workspace, both agents' routes with detours, the places where a passing order
+makes one wait).
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
     workspace) is drawn once and each plan's artists are removed after saving, which saves about a third
     of the drawing time (ticks and text layouts are cached). The bytes are those of a fresh figure.
     """
-    from hrc.report.figures import counts_figure, save_png
+    from hrc.report.figures import counts_figure, makespans_figure, save_png
     from hrc.report.gantt import draw_gantt, gantt_base
     from hrc.report.maps import draw_map, map_base
 
@@ -55,6 +57,9 @@ def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
         written[key] = f"figures/{key}.png"
 
     save("counts", counts_figure(cps.counts()))
+    if cps.summary is not None and cps.total > len(cps.plans):  # a large set: its distribution, not its rows
+        save("makespans", makespans_figure(cps.summary.bins,
+                                           {st.plan_class: st.histogram for st in cps.summary.stats}))
     featured = featured_plans(cps)
     for which, prefix in (("earliest", "gantt_"), ("worst", "gantt_worst_")):
         gantt_fig, gantt_ax = gantt_base(cps.task, which)

@@ -14,7 +14,8 @@ from pathlib import Path
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-__all__ = ["AGENT_COLORS", "CLASS_COLORS", "DPI", "agent_color", "counts_figure", "new_figure", "save_png"]
+__all__ = ["AGENT_COLORS", "CLASS_COLORS", "DPI", "agent_color", "counts_figure", "makespans_figure", "new_figure",
+           "save_png"]
 
 DPI = 100
 
@@ -59,5 +60,25 @@ def counts_figure(counts: Mapping[str, int]) -> Figure:
     ax.set_ylim(0, max(top, 1) * 1.18)
     ax.set_ylabel("plans")
     ax.set_title("Plans per class")
+    ax.spines[["top", "right"]].set_visible(False)
+    return fig
+
+
+def makespans_figure(bins: tuple[float, ...], histograms: Mapping[str, tuple[int, ...]]) -> Figure:
+    """Stacked histogram of worst-case makespans over all plans, one colour per class (a large plan
+    set's report shows this instead of every row)."""
+    fig = new_figure(6.4, 2.8)
+    ax = fig.add_axes((0.1, 0.17, 0.86, 0.7))
+    lefts, widths = bins[:-1], [b - a for a, b in zip(bins[:-1], bins[1:], strict=True)]
+    bottom = [0] * len(lefts)
+    for cls, counts in histograms.items():
+        if any(counts):
+            ax.bar(lefts, counts, width=widths, bottom=bottom, align="edge", color=CLASS_COLORS.get(cls, "#777777"),
+                   label=cls, edgecolor="white", linewidth=0.4)
+            bottom = [b + c for b, c in zip(bottom, counts, strict=True)]
+    ax.set_xlabel("worst-case makespan (s)")
+    ax.set_ylabel("plans")
+    ax.set_title("Worst-case makespans of all plans")
+    ax.legend(frameon=False, fontsize=8)
     ax.spines[["top", "right"]].set_visible(False)
     return fig

@@ -13,6 +13,7 @@ from hrc.report.summary import (
     CLASS_MEANING,
     INLINE_LINKS,
     MODEL_ASSUMPTIONS,
+    STATS_HEADER,
     ReportData,
     allocation_legend,
     fmt_detour,
@@ -24,6 +25,8 @@ from hrc.report.summary import (
     fmt_sequence,
     fmt_stnu,
     split_explanation,
+    stats_rows,
+    table_scope,
 )
 
 __all__ = ["render_html"]
@@ -89,6 +92,13 @@ def _explanation(plan_class: str, text: str) -> str:
     return html + "</div>"
 
 
+def _link_cell(target: str) -> str:
+    if not target:
+        return "<td>\u2014</td>"
+    label = "graphml" if target.endswith(".graphml") else target
+    return f'<td><a href="{escape(target)}">{escape(label)}</a></td>'
+
+
 def render_html(data: ReportData, figures: dict[str, str]) -> str:
     """The HTML page; `figures` maps a figure key (``counts``, ``gantt_ID``, ``map_ID``) to its path."""
     e = escape
@@ -132,8 +142,10 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
             "Motion: \u21b7 robot travels on a detour, \u21c4 passing orders the STNU carries. "
             + ("Preference: the worker's best achievable preference value in the plan (APA). " if data.preferences
                else "") +
-            "STNU: timepoints / requirement links / contingent links. Highlighted rows have a section below.</p>",
-            '<div class="table-wrap"><table>', "<thead><tr>"]
+            "STNU: timepoints / requirement links / contingent links. Highlighted rows have a section below.</p>"]
+    if data.truncated:
+        out.append(f'<p class="note">{e(table_scope(data))}</p>')
+    out += ['<div class="table-wrap"><table>', "<thead><tr>"]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
               + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion"]
               + (["Preference"] if data.preferences else []) + ["STNU", "Network"])
@@ -151,9 +163,18 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
                     f"<td>{e(fmt_motion_marks(r))}</td>"]
                  + ([f'<td class="num">{e(fmt_preference(r.preference))}</td>'] if data.preferences else [])
                  + [f'<td class="num">{e(fmt_stnu(r.stnu_size))}</td>',
-                    f'<td><a href="{e(r.stnu_link)}">graphml</a></td>'])
+                    _link_cell(r.stnu_link)])
         out.append(('<tr class="featured">' if r.featured else "<tr>") + "".join(cells) + "</tr>")
     out += ["</tbody>", "</table></div>"]
+    if data.truncated:
+        out += ['<h2 id="all">All plans</h2>', f'<p class="small">Makespans of all {data.total:,} plans per class.</p>',
+                '<div class="table-wrap"><table>', "<thead><tr>" + "".join(f"<th>{e(h)}</th>" for h in STATS_HEADER)
+                + "</tr></thead>", "<tbody>"]
+        out += ["<tr>" + f"<td>{_badge(row[0])}</td>" + "".join(f'<td class="num">{e(c)}</td>' for c in row[1:])
+                + "</tr>" for row in stats_rows(data)]
+        out += ["</tbody>", "</table></div>"]
+        if "makespans" in figures:
+            out.append(f'<img src="{e(figures["makespans"])}" alt="Worst-case makespans of all plans per class">')
 
     rows = {r.plan_id: r for r in data.rows}
     notes = dict(data.notes)
@@ -172,7 +193,8 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
         out += [f"<dt>{e(a)}</dt><dd>{e(fmt_sequence(seqs.get(a, ())))}</dd>" for a in agents]
         out += [f"<dt>Makespan</dt><dd>{e(fmt_makespan(r.makespan))} s (earliest \u2013 worst case)</dd>",
                 f"<dt>Idle</dt><dd>{e(idle)}</dd>",
-                f'<dt>STNU</dt><dd><a href="{e(r.stnu_link)}">{e(r.stnu_link)}</a> ({e(fmt_stnu(r.stnu_size))})</dd>',
+                "<dt>STNU</dt><dd>" + (f'<a href="{e(r.stnu_link)}">{e(r.stnu_link)}</a>' if r.stnu_link
+                                       else "not written") + f" ({e(fmt_stnu(r.stnu_size))})</dd>",
                 "</dl>"]
         if explanations.get(plan_id):
             out.append(_explanation(r.plan_class, explanations[plan_id]))

@@ -6,6 +6,7 @@ from hrc.report.summary import (
     CLASS_MEANING,
     INLINE_LINKS,
     MODEL_ASSUMPTIONS,
+    STATS_HEADER,
     ReportData,
     allocation_legend,
     fmt_detour,
@@ -17,6 +18,8 @@ from hrc.report.summary import (
     fmt_sequence,
     fmt_stnu,
     split_explanation,
+    stats_rows,
+    table_scope,
 )
 
 __all__ = ["render_markdown"]
@@ -38,6 +41,12 @@ def _explanation(plan_class: str, text: str) -> list[str]:
         out += [f"{i}. {_cell(link)}" for i, link in enumerate(links, 1)]
         out += ["", "</details>", ""]
     return out
+
+
+def _link(target: str) -> str:
+    if not target:
+        return "\u2014"
+    return f"[{'graphml' if target.endswith('.graphml') else target}]({target})"
 
 
 def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
@@ -70,6 +79,8 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
             + ("Preference: the worker's best achievable preference value in the plan (APA). " if data.preferences
                else "") +
             "STNU: timepoints / requirement links / contingent links.", ""]
+    if data.truncated:
+        out += [f"**{table_scope(data)}**", ""]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
               + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion"]
               + (["Preference"] if data.preferences else []) + ["STNU", "Network"])
@@ -82,9 +93,16 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
                  + [fmt_makespan(r.makespan), fmt_idle(r.idle), fmt_motion_marks(r)]
                  + ([fmt_preference(r.preference)] if data.preferences else [])
                  + [fmt_stnu(r.stnu_size),
-                    f"[graphml]({r.stnu_link})"])
+                    _link(r.stnu_link)])
         out.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     out.append("")
+    if data.truncated:
+        out += ["## All plans", "", f"Makespans of all {data.total:,} plans per class.", "",
+                "| " + " | ".join(STATS_HEADER) + " |", "|" + "|".join("---" for _ in STATS_HEADER) + "|"]
+        out += ["| " + " | ".join(_cell(c) for c in row) + " |" for row in stats_rows(data)]
+        out.append("")
+        if "makespans" in figures:
+            out += [f"![Worst-case makespans of all plans per class]({figures['makespans']})", ""]
 
     rows = {r.plan_id: r for r in data.rows}
     notes = dict(data.notes)
@@ -98,7 +116,8 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
         out += [f"- **Allocation:** `{r.allocation}`"]
         out += [f"- **{a}:** {fmt_sequence(seqs.get(a, ()))}" for a in agents]
         out += [f"- **Makespan:** {fmt_makespan(r.makespan)} s; **idle:** {idle}",
-                f"- **STNU:** [{r.stnu_link}]({r.stnu_link}) ({fmt_stnu(r.stnu_size)})", ""]
+                "- **STNU:** " + (f"[{r.stnu_link}]({r.stnu_link}) " if r.stnu_link else "not written ")
+                + f"({fmt_stnu(r.stnu_size)})", ""]
         if explanations.get(pid):
             out += _explanation(r.plan_class, explanations[pid])
         if f"gantt_{pid}" in figures:

@@ -14,16 +14,16 @@ from hrc.plans import agent_legs
 
 if TYPE_CHECKING:
     from hrc.compile.classify import Classification
-    from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+    from hrc.compile.compiler import ClassStats, CompiledPlan, CompiledPlanSet
     from hrc.compile.motion_pattern import MotionPattern, PassingOrder
     from hrc.model import Plan, Task
 
-__all__ = ["CLASS_MEANING", "FEATURED_TOP", "INLINE_LINKS", "MODEL_ASSUMPTIONS", "DetourNote", "PassingNote",
-           "ReportData", "Row",
-           "agent_letters", "allocation_legend", "binding_orders", "build_report_data", "empty_class_reason",
+__all__ = ["CLASS_MEANING", "FEATURED_TOP", "INLINE_LINKS", "MODEL_ASSUMPTIONS", "STATS_HEADER", "DetourNote",
+           "PassingNote", "ReportData", "Row", "agent_letters", "allocation_legend", "binding_orders",
+           "build_report_data", "empty_class_reason",
            "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks", "fmt_passing",
            "fmt_preference", "fmt_sequence",
-           "fmt_stnu", "motion_notes", "split_explanation"]
+           "fmt_stnu", "motion_notes", "split_explanation", "stats_rows", "table_scope"]
 
 INLINE_LINKS = 3
 """A "why consistent" naming at most this many human durations says them in its sentence, not in a list."""
@@ -119,6 +119,13 @@ class ReportData:
     explanations: tuple[tuple[str, str], ...]  # featured plan id -> explanation ("" for DC)
     options: tuple[tuple[str, str], ...] = ()  # compile options in words
     preferences: bool = False  # the task has preferences: the table shows each plan's value
+    total: int = 0  # plans compiled; more than the rows when the table holds only the best (a large set)
+    stats: tuple[ClassStats, ...] = ()  # makespans per class over all plans (only then)
+
+    @property
+    def truncated(self) -> bool:
+        """The ranked table shows only the best plans and the best of each class (`stats` says the rest)."""
+        return self.total > len(self.rows)
 
 
 def agent_letters(agents: tuple[str, ...]) -> dict[str, str]:
@@ -147,6 +154,7 @@ def empty_class_reason(cls: str, cps: CompiledPlanSet) -> str:
     """One sentence saying why no plan of `cps` is in class `cls` (a `PlanClass` value)."""
     plans = cps.plans
     deadline = cps.task.deadline
+    counts = cps.counts()
     if not plans:
         return f"no plan is {cls}: the task has no valid plan."
     if cls == "DC":
@@ -156,8 +164,8 @@ def empty_class_reason(cls: str, cps: CompiledPlanSet) -> str:
         return (f"no plan is DC: in every plan the robot depends on the human's timing (the best plan, "
                 f"{best.plan.id}: {detail}).")
     if cls == "consistent":
-        n_dc = sum(1 for p in plans if p.plan_class.value == "DC")
-        if n_dc == len(plans):
+        n_dc = counts["DC"]
+        if n_dc == cps.total:
             return ("no plan is merely consistent: every plan is DC, the robot alone can meet every "
                     "constraint whatever the human's timing within its bounds.")
         if n_dc == 0:
@@ -167,6 +175,8 @@ def empty_class_reason(cls: str, cps: CompiledPlanSet) -> str:
     if cls == "inconsistent":
         timed = [(p.classification.makespan[0], p.rank, p.plan.id) for p in plans
                  if p.classification.makespan is not None]
+        if cps.summary is not None:  # the plans held are the best only: the summary knows the slowest
+            timed = [(cps.summary.slowest[0], 0, cps.summary.slowest[1])] if cps.summary.slowest else []
         if deadline is not None and timed:
             slowest_ms, _, slowest_id = max(timed)
             return (f"no plan is inconsistent: even the slowest allocation ({slowest_id}, earliest "
@@ -229,6 +239,11 @@ def motion_notes(cps: CompiledPlanSet, cp: CompiledPlan) -> tuple[tuple[DetourNo
     return detours, tuple(passing)
 
 
+def _stnu_link(cps: CompiledPlanSet, plan_id: str) -> str:
+    """Where the plan's STNU is: its GraphML file, the archive that holds it, or "" (none written)."""
+    return {"graphml": f"stnu/{plan_id}.graphml", "archive": "stnu.zip", "none": ""}[cps.stnu_files]
+
+
 def build_report_data(cps: CompiledPlanSet) -> ReportData:
     """Collect what the reports show (see the module docstring)."""
     task = cps.task
@@ -240,7 +255,7 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         Row(rank=cp.rank, plan_id=cp.plan.id, plan_class=cp.plan_class.value,
             allocation=" ".join(letters[agent] for _, agent in cp.plan.allocation),
             sequences=cp.plan.sequences, makespan=cp.classification.makespan, idle=cp.classification.idle,
-            stnu_size=cp.stnu_size, stnu_link=f"stnu/{cp.plan.id}.graphml", featured=cp.plan.id in featured_ids,
+            stnu_size=cp.stnu_size, stnu_link=_stnu_link(cps, cp.plan.id), featured=cp.plan.id in featured_ids,
             detours=len(cp.pattern.detours), passing=len(cp.pattern.constrained), preference=cp.preference)
         for cp in cps.plans)
     return ReportData(
@@ -263,10 +278,30 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
                  ("rank within a class by", f"{cps.options.rank_by} makespan"
                   + (" to the second, then the preference value" if task.preferences else ""))),
         preferences=bool(task.preferences),
+        total=cps.total,
+        stats=cps.summary.stats if cps.summary is not None and cps.total > len(rows) else (),
     )
 
 
 # Text shared by both formats (plain Unicode; the writers escape it for their own syntax).
+
+def table_scope(data: ReportData) -> str:
+    """What the ranked table holds when it does not hold every plan."""
+    return (f"The {len(data.rows):,} best of the {data.total:,} plans (and the best plan of each class); "
+            "every plan is in compiled.json. Makespans over all plans are summarised below the table.")
+
+
+def stats_rows(data: ReportData) -> list[list[str]]:
+    """The all-plans statistics table: class, plans, without a schedule, earliest and worst-case makespan
+    (min / quartiles / max, s)."""
+    def q(v: tuple[float, ...] | None) -> str:
+        return "\u2014" if v is None else " / ".join(f"{x:.1f}" for x in v)
+    return [[st.plan_class, f"{st.plans:,}", f"{st.no_schedule:,}", q(st.earliest), q(st.worst)]
+            for st in data.stats]
+
+
+STATS_HEADER = ["Class", "Plans", "No schedule", "Earliest makespan (s): min / 25 % / median / 75 % / max",
+                "Worst-case makespan (s): min / 25 % / median / 75 % / max"]
 
 def fmt_makespan(makespan: tuple[float, float] | None) -> str:
     """``52.3–61.0`` (earliest–worst case, s), or ``—`` when the plan has no schedule."""

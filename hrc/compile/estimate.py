@@ -1,0 +1,94 @@
+"""What a compile will cost, said before it starts (issue 12): plans, disk, time.
+
+The plan count comes from `hrc.plans.estimate_plan_count` (exact, or an upper bound when counting would
+be slow). Disk and time are estimates from the size of one plan's network, calibrated on the bundled
+kitting and workshop tasks (`docs/benchmarks.md`); `hrc compile` replaces the time range by the time
+it measures on its first plans.
+
+Per plan, with ``L`` legs (one per phase of every action) and ``T = 1 + 4 L`` timepoints:
+
+- its ``compiled.json`` line: about ``JSON_BYTES * L`` bytes (measured: 5.6 kB for the 14 legs of
+  kitting_7picks, 9.3 kB for the workshop's 10, whose plans carry more passing orders and explanations);
+- its GraphML file: about ``GRAPHML_BYTES * T`` bytes (430-520 measured), rounded up to a file
+  system block (``--stnu graphml``); deflated in ``stnu.zip`` about `ZIP_RATIO` of that (``--stnu archive``);
+- its CPU time: `SECONDS_PER_PLAN`, the range of the mean time per plan and core on the bundled tasks (the
+  motion-pattern search dominates; it depends on how often the two agents' routes meet, so single plans
+  range from a few milliseconds to over a second).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hrc.model import Task
+from hrc.plans import PlanCount, estimate_plan_count
+
+__all__ = ["DEFAULT_MAX_PLANS", "GRAPHML_BYTES", "JSON_BYTES", "SECONDS_PER_PLAN", "ZIP_RATIO", "Estimate",
+           "estimate", "fmt_bytes", "fmt_seconds"]
+
+DEFAULT_MAX_PLANS = 50_000
+"""``hrc compile --max-plans`` default: the 40,320 plans of 7 independent picks pass, 8 picks
+(362,880) are refused up front."""
+
+JSON_BYTES = 600
+GRAPHML_BYTES = 480
+BLOCK = 4096
+ZIP_RATIO = 0.1
+SECONDS_PER_PLAN = (0.01, 0.15)
+
+
+@dataclass(frozen=True, slots=True)
+class Estimate:
+    """Plans (exact or a bound), bytes on disk per ``--stnu`` mode, CPU seconds (low, high)."""
+
+    plans: PlanCount
+    json_bytes: int
+    stnu_bytes: dict[str, int]
+    cpu_seconds: tuple[float, float]
+
+    def disk(self, stnu: str) -> int:
+        return self.json_bytes + self.stnu_bytes[stnu]
+
+    def wall(self, workers: int, per_plan: float | None = None) -> tuple[float, float]:
+        """Wall seconds on `workers` cores (`per_plan`: seconds measured per plan, if any)."""
+        if per_plan is not None:
+            t = self.plans.value * per_plan / max(workers, 1)
+            return t, t
+        lo, hi = self.cpu_seconds
+        return lo / max(workers, 1), hi / max(workers, 1)
+
+
+def estimate(task: Task, symmetry: bool = False) -> Estimate:
+    """The up-front estimate for `task` (see the module docstring); bounded time and memory."""
+    count = estimate_plan_count(task, symmetry=symmetry)
+    legs = sum(len(a.phases) for a in task.actions)
+    n = count.value
+    line = JSON_BYTES * legs
+    graphml = GRAPHML_BYTES * (1 + 4 * legs)
+    blocks = -(-graphml // BLOCK) * BLOCK
+    return Estimate(plans=count, json_bytes=n * line,
+                    stnu_bytes={"graphml": n * blocks, "archive": int(n * graphml * ZIP_RATIO), "none": 0},
+                    cpu_seconds=(n * SECONDS_PER_PLAN[0], n * SECONDS_PER_PLAN[1]))
+
+
+def fmt_bytes(n: float) -> str:
+    """``812 kB``, ``1.3 GB`` (decimal units, two significant figures at most)."""
+    if n >= 1e15:
+        return f"{n / 1e12:.2g} TB"
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            return f"{n / size:.2g} {unit}" if n / size < 10 else f"{n / size:,.0f} {unit}"
+    return f"{int(n)} B"
+
+
+def fmt_seconds(s: float) -> str:
+    """``45 s``, ``12 min``, ``3.5 h``, ``2.1 days``, ``3.4e+06 years``."""
+    if s < 90:
+        return f"{s:.0f} s"
+    if s < 90 * 60:
+        return f"{s / 60:.0f} min"
+    if s < 48 * 3600:
+        return f"{s / 3600:.1f} h"
+    if s < 365 * 86400:
+        return f"{s / 86400:.1f} days"
+    return f"{s / (365.25 * 86400):.2g} years"

@@ -1,0 +1,316 @@
+"""Streaming compile (issue 12): plans flow from generation through motion, STNU and classification to
+disk, and the memory held does not grow with the plans' full records.
+
+`compile_task` keeps every `CompiledPlan` (about 50 KB each) until it ranks them; this module is how
+``hrc compile`` runs instead. Each plan is compiled in an executor (`compile_records`, which also
+encodes its ``compiled.json`` line there, in parallel); the parent process hands it to a `PlanSink`,
+which
+
+- appends the plan's line to a spool file and its STNU to ``stnu/`` (or to a spool for ``stnu.zip``),
+- keeps its rank key as a compact record (eight numbers and the id, about 100 bytes per plan, in
+  typed arrays: 36 MB for 362,880 plans),
+- keeps the full `CompiledPlan` only for the `keep` best plans and the best plan of each class (what
+  the report shows),
+
+and at the end sorts the compact records by `rank_key` (the same total order as `compile_task`, so the
+same ranks) and writes ``compiled.json`` in rank order, one line per plan, straight from the spool. The
+bytes are those `write_compiled` writes for the same set (tested on the workshop).
+
+An interrupted run (SIGINT, or SIGTERM which the CLI turns into the same) still leaves a valid output:
+the plans compiled so far, ranked among themselves, with ``"partial": true`` in ``compiled.json``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import itertools
+import json
+import time
+import zipfile
+from array import array
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+
+from hrc.compile.classify import PlanClass
+from hrc.compile.compiler import (
+    ClassStats,
+    CompiledPlan,
+    CompiledPlanSet,
+    CompileOptions,
+    PlanSetSummary,
+    compile_plan,
+    rank_key,
+    task_digest,
+)
+from hrc.compile.executors import make_executor
+from hrc.compile.output import JSON_TAIL, STNU_ARCHIVE, STNU_MODES, header_dict, json_head, plan_dict, write_input
+from hrc.errors import HrcError
+from hrc.model import Plan, Task
+from hrc.motion import PathLibrary, plan_paths
+from hrc.plans import generate_plans, identical_actions
+
+__all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "StreamResult", "chunk_size", "compile_records",
+           "compile_stream"]
+
+REPORT_TOP = 100
+"""Plans the report's ranked table shows by default (plus the best of each class)."""
+
+HISTOGRAM_BINS = 24
+"""Bins of the worst-case makespan histogram over all plans."""
+
+Progress = Callable[[str, int, int], None]  # (stage, done, total)
+_KEY_COLUMNS = ("cls", "second", "pref", "first", "worst", "early", "idle")  # rank_key without the id
+
+
+def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
+                    plans: list[Plan]) -> list[tuple[CompiledPlan, str]]:
+    """The executor's unit of work: each plan compiled, with its ``compiled.json`` line after ``"rank":``
+    (`plan_dict` encoded where the plan was compiled, so that the parent only copies bytes)."""
+    out = []
+    for plan in plans:
+        cp = compile_plan(task, plan, paths, options, graphml=stnu != "none")
+        text = json.dumps(plan_dict(task, cp, stnu), separators=(",", ":"))
+        head = _line_head(plan.id, 0)
+        if not text.startswith(head):  # pragma: no cover - plan_dict puts id and rank first
+            raise HrcError(f"internal: plan {plan.id}'s line does not start with its id and rank")
+        out.append((cp, text[len(head):]))
+    return out
+
+
+def _line_head(plan_id: str, rank: int) -> str:
+    return f'{{"id":{json.dumps(plan_id)},"rank":{rank},'
+
+
+def chunk_size(total: int, jobs: int) -> int:
+    """Plans per unit of work: at least 8 units per worker, at most 16 plans (a plan takes 10-300 ms, so
+    a unit stays under a few seconds: progress stays live and an interrupt loses little)."""
+    return max(1, min(16, total // (8 * max(1, jobs))))
+
+
+class PlanSink:
+    """Where compiled plans go, in any order: spooled to `out_dir`, a compact rank record each, the full
+    record only for the `keep` best and the best of each class. A mutable builder (see the module
+    docstring); `finish` writes ``compiled.json`` and returns what the report needs."""
+
+    def __init__(self, task: Task, out_dir: Path, stnu: str = "graphml", keep: int = REPORT_TOP,
+                 rank_by: str = "worst", symmetric: tuple[tuple[str, ...], ...] = ()) -> None:
+        if stnu not in STNU_MODES:
+            raise ValueError(f"stnu must be one of {STNU_MODES}, got {stnu!r}")
+        self.task, self.out_dir, self.stnu, self.keep, self.rank_by = task, Path(out_dir), stnu, keep, rank_by
+        self.symmetric = symmetric
+        self._lines: IO[bytes] = open(self.out_dir / ".plans.spool", "w+b")  # noqa: SIM115 - closed in finish
+        self._graphml: IO[bytes] | None = None
+        if stnu == "graphml":
+            (self.out_dir / "stnu").mkdir(exist_ok=True)
+        elif stnu == "archive":
+            self._graphml = open(self.out_dir / ".stnu.spool", "w+b")  # noqa: SIM115
+        self._cols = {name: array("d") for name in _KEY_COLUMNS}
+        self._ids = bytearray()  # 16 bytes per plan: its id, padded with spaces
+        self._line_at, self._graphml_at = array("q"), array("q")
+        self._held: list[tuple[tuple, int, CompiledPlan]] = []
+        self._best: dict[str, tuple[tuple, int, CompiledPlan]] = {}
+
+    def __len__(self) -> int:
+        return len(self._line_at)
+
+    def add(self, cp: CompiledPlan, tail: str) -> None:
+        """Take one compiled plan and its line tail (`compile_records`)."""
+        i = len(self)
+        self._line_at.append(self._lines.tell())
+        self._lines.write(tail.encode("utf-8") + b"\n")
+        data = cp.graphml.encode("utf-8")
+        if self.stnu == "graphml":
+            with open(self.out_dir / "stnu" / f"{cp.plan.id}.graphml", "wb") as fh:
+                fh.write(data)
+        elif self._graphml is not None:
+            self._graphml_at.append(self._graphml.tell())
+            self._graphml.write(data)
+        key = rank_key(cp, self.rank_by)
+        for name, value in zip(_KEY_COLUMNS, key[:-1], strict=True):
+            self._cols[name].append(float(value))
+        self._ids += cp.plan.id.encode("ascii").ljust(16, b" ")[:16]
+        light = replace(cp, graphml="")
+        self._held.append((key, i, light))
+        if len(self._held) >= 2 * self.keep + 16:
+            self._held.sort(key=lambda h: h[0])
+            del self._held[self.keep:]
+        cls = cp.plan_class.value
+        if cls not in self._best or key < self._best[cls][0]:
+            self._best[cls] = (key, i, light)
+
+    def _order(self) -> np.ndarray:
+        """Plan indices in rank order (`rank_key`'s total order: its columns, then the id)."""
+        ids = np.frombuffer(bytes(self._ids), dtype="S16")
+        cols = [np.frombuffer(self._cols[name], dtype=np.float64) for name in _KEY_COLUMNS]
+        return np.lexsort([ids, *reversed(cols)])
+
+    def _plan_line(self, i: int, rank: int) -> bytes:
+        self._lines.seek(self._line_at[i])
+        tail = self._lines.readline()[:-1]
+        pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
+        return _line_head(pid, rank).encode("utf-8") + tail
+
+    def finish(self, seed: int, paths: PathLibrary, options: CompileOptions,
+               partial: int | None = None) -> CompiledPlanSet:
+        """Write ``compiled.json`` (and ``stnu.zip``) in rank order; remove the spools. `partial`: the
+        number of plans expected when the run was interrupted. Returns the best plans with their ranks
+        and a `PlanSetSummary` of all (for the report)."""
+        order = self._order()
+        n = len(order)
+        rank = np.empty(n, dtype=np.int64)
+        rank[order] = np.arange(1, n + 1)
+        cls_col = np.frombuffer(self._cols["cls"], dtype=np.float64)
+        counts = {c.value: int(np.count_nonzero(cls_col == c.order)) for c in PlanClass}
+        digest = task_digest(self.task)
+        header = header_dict(self.task, seed, digest, options, counts, self.stnu,
+                             None if partial is None else (n, partial), self.symmetric)
+        with open(self.out_dir / "compiled.json", "wb") as out:
+            out.write(json_head(header).encode("utf-8"))
+            for k, i in enumerate(order):
+                if k:
+                    out.write(b",\n")
+                out.write(self._plan_line(int(i), k + 1))
+            out.write(JSON_TAIL.encode("utf-8"))
+        if self._graphml is not None:
+            self._write_archive(order)
+        self._close()
+        self._held.sort(key=lambda h: h[0])
+        chosen = {h[1]: h[2] for h in self._held[:self.keep]}
+        chosen.update({i: cp for _, i, cp in self._best.values()})
+        plans = tuple(sorted((replace(cp, rank=int(rank[i])) for i, cp in chosen.items()), key=lambda cp: cp.rank))
+        return CompiledPlanSet(task=self.task, seed=seed, digest=digest, paths=paths, plans=plans, options=options,
+                               summary=self._summary(counts, n), stnu_files=self.stnu)
+
+    def _write_archive(self, order: np.ndarray) -> None:
+        """``stnu.zip``: the GraphML files in rank order, deflated, with fixed dates (deterministic bytes)."""
+        assert self._graphml is not None
+        ends = np.append(np.frombuffer(self._graphml_at, dtype=np.int64), self._graphml.tell())
+        with zipfile.ZipFile(self.out_dir / STNU_ARCHIVE, "w", zipfile.ZIP_DEFLATED) as zf:
+            for i in order:
+                pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
+                self._graphml.seek(int(ends[i]))
+                data = self._graphml.read(int(ends[i + 1] - ends[i]))
+                info = zipfile.ZipInfo(f"stnu/{pid}.graphml", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                info.external_attr = 0o644 << 16
+                zf.writestr(info, data)
+
+    def _close(self) -> None:
+        for fh, name in ((self._lines, ".plans.spool"), (self._graphml, ".stnu.spool")):
+            if fh is not None:
+                fh.close()
+                with contextlib.suppress(FileNotFoundError):
+                    (self.out_dir / name).unlink()
+
+    def abandon(self) -> None:
+        """Close and remove the spools (the caller removes the folder)."""
+        self._close()
+
+    def _summary(self, counts: dict[str, int], n: int) -> PlanSetSummary:
+        cls = np.frombuffer(self._cols["cls"], dtype=np.float64)
+        worst = np.frombuffer(self._cols["worst"], dtype=np.float64)
+        early = np.frombuffer(self._cols["early"], dtype=np.float64)
+        timed = np.isfinite(worst)
+        edges = (np.histogram_bin_edges(worst[timed], bins=HISTOGRAM_BINS) if timed.any()
+                 else np.array([0.0, 1.0]))
+        stats = []
+        for c in PlanClass:
+            mine = cls == c.order
+            ok = mine & timed
+            q = (0, 25, 50, 75, 100)
+            stats.append(ClassStats(
+                plan_class=c.value, plans=int(mine.sum()), no_schedule=int((mine & ~timed).sum()),
+                earliest=tuple(round(float(x), 3) for x in np.percentile(early[ok], q)) if ok.any() else None,
+                worst=tuple(round(float(x), 3) for x in np.percentile(worst[ok], q)) if ok.any() else None,
+                histogram=tuple(int(x) for x in np.histogram(worst[ok], bins=edges)[0])))
+        slowest = None
+        if np.isfinite(early).any():
+            j = int(np.argmax(np.where(np.isfinite(early), early, -np.inf)))
+            slowest = (float(early[j]), self._ids[16 * j:16 * j + 16].rstrip(b" ").decode("ascii"))
+        return PlanSetSummary(total=n, counts=tuple(counts.items()), stats=tuple(stats),
+                              bins=tuple(round(float(x), 3) for x in edges), slowest=slowest)
+
+
+@dataclass(frozen=True, slots=True)
+class StreamResult:
+    """What `compile_stream` did: the report's view of the set, the plans compiled, and whether the run
+    was interrupted (``compiled.json`` then says ``"partial": true``)."""
+
+    plan_set: CompiledPlanSet
+    compiled: int
+    partial: bool
+    seconds_per_plan: float | None  # measured on the first plans, in this process
+
+
+def _sample(task: Task, paths: PathLibrary, plans: Iterator[Plan], options: CompileOptions, stnu: str,
+            sink: PlanSink, budget: float) -> tuple[int, float]:
+    """Compile the first plans here until `budget` seconds pass (at least one, at most 16): the time per
+    plan for the up-front estimate; the plans are kept, not wasted."""
+    t0 = time.perf_counter()
+    n = 0
+    for plan in plans:
+        for cp, tail in compile_records(options, stnu, task, paths, [plan]):
+            sink.add(cp, tail)
+        n += 1
+        if time.perf_counter() - t0 >= budget or n >= 16:
+            break
+    return n, (time.perf_counter() - t0) / max(n, 1)
+
+
+def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs: int | None = None,
+                   executor: str | None = None, options: CompileOptions | None = None,
+                   stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
+                   estimate: Callable[[float], None] | None = None, sample_seconds: float = 1.0,
+                   symmetry: bool = False) -> StreamResult:
+    """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
+    the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
+    seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
+    goes to the executor. Interrupted (KeyboardInterrupt) after some plans: a partial output; before
+    any: re-raised. `symmetry`: one plan per class of plans that differ only by swapping identical actions
+    (`hrc.plans.identical_actions`; ``compiled.json`` names the groups). Raises `hrc.errors.HrcError`."""
+    options = options or CompileOptions()
+    out_dir = Path(out_dir)
+    write_input(task, out_dir)
+    sink = PlanSink(task, out_dir, stnu, keep, options.rank_by,
+                    identical_actions(task) if symmetry else ())
+    paths: PathLibrary | None = None
+    per_plan: float | None = None
+    partial = False
+    try:
+        with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
+            paths = plan_paths(task, seed=seed,
+                               progress=(lambda d, t: progress("motion", d, t)) if progress else None)
+            stream = generate_plans(task, symmetry=symmetry)
+            _, per_plan = _sample(task, paths, stream, options, stnu, sink, sample_seconds)
+            if estimate is not None:
+                estimate(per_plan)
+            if progress:
+                progress("plans", len(sink), total)
+            size = chunk_size(max(total - len(sink), 1), getattr(ex, "jobs", 2))
+            work = functools.partial(_records_with, options, stnu)
+            chunks = iter(lambda: list(itertools.islice(stream, size)), [])
+            for batch in ex.map_chunks(work, task, paths, chunks):
+                for cp, tail in batch:
+                    sink.add(cp, tail)
+                if progress:
+                    progress("plans", len(sink), total)
+    except KeyboardInterrupt:
+        if paths is None or not len(sink):
+            sink.abandon()
+            raise
+        partial = True
+    except BaseException:
+        sink.abandon()
+        raise
+    plan_set = sink.finish(seed, paths, options, partial=total if partial else None)
+    return StreamResult(plan_set=plan_set, compiled=plan_set.total, partial=partial, seconds_per_plan=per_plan)
+
+
+def _records_with(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
+                  plans: list[Plan]) -> list[tuple[CompiledPlan, str]]:
+    return compile_records(options, stnu, task, paths, plans)

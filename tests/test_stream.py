@@ -1,0 +1,210 @@
+"""Streaming compile (`hrc.compile.stream`): the same bytes as the in-memory compile, STNUs as files,
+archive or none, partial output on interrupt; plan counts in bounded time; pinning."""
+
+from __future__ import annotations
+
+import json
+import math
+import zipfile
+
+import pytest
+from conftest import ROOT, WORKSHOP_TASK
+
+from hrc.compile.compiler import CompileOptions, compile_task
+from hrc.compile.output import load_compiled_task, write_compiled
+from hrc.compile.stream import PlanSink, compile_stream
+from hrc.io.task_file import load_task
+from hrc.plans import (
+    _TooManyStates,
+    count_plans,
+    estimate_plan_count,
+    generate_plans,
+    pin_actions,
+    plan_count_bound,
+)
+
+
+@pytest.fixture
+def mini_task(mini, write_mini):
+    task, map_ = mini
+    return load_task(write_mini(task, map_))
+
+
+def _tree(folder):
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_stream_writes_the_bytes_of_the_in_memory_compile(mini_task, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    write_compiled(compile_task(mini_task, jobs=1), a)
+    result = compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0)
+    assert not result.partial and result.compiled == len(list(generate_plans(mini_task)))
+    assert _tree(a) == _tree(b)
+
+
+@pytest.mark.slow
+def test_stream_writes_the_workshop_bytes_of_the_in_memory_compile(tmp_path):
+    task = load_task(WORKSHOP_TASK)
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    write_compiled(compile_task(task, jobs=2), a)
+    compile_stream(task, b, 32, jobs=2)
+    assert _tree(a) == _tree(b)
+
+
+def test_a_small_report_top_keeps_the_best_plans_with_their_global_ranks(mini_task, tmp_path):
+    full = compile_task(mini_task, jobs=1)
+    result = compile_stream(mini_task, tmp_path, count_plans(mini_task), jobs=1, keep=1, sample_seconds=0.0)
+    held = result.plan_set
+    assert held.total == len(full.plans) and held.counts() == full.counts()
+    ranks = {cp.plan.id: cp.rank for cp in full.plans}
+    assert held.plans[0].plan.id == full.plans[0].plan.id
+    assert all(ranks[cp.plan.id] == cp.rank for cp in held.plans)
+    best_of = {}
+    for cp in full.plans:
+        best_of.setdefault(cp.plan_class, cp.plan.id)
+    assert set(best_of.values()) <= {cp.plan.id for cp in held.plans}
+    summary = held.summary
+    assert summary is not None and sum(st.plans for st in summary.stats) == held.total
+    assert sum(sum(st.histogram) for st in summary.stats) == sum(st.plans - st.no_schedule for st in summary.stats)
+
+
+def test_stnu_archive_is_deterministic_and_named_as_the_plans_say(mini_task, tmp_path):
+    outs = []
+    for jobs in (1, 2):
+        out = tmp_path / f"j{jobs}"
+        out.mkdir()
+        compile_stream(mini_task, out, count_plans(mini_task), jobs=jobs, stnu="archive", sample_seconds=0.0)
+        outs.append(out)
+    assert _tree(outs[0]) == _tree(outs[1])
+    data = json.loads((outs[0] / "compiled.json").read_text())
+    assert data["stnu_files"] == "archive" and data["stnu_archive"] == "stnu.zip"
+    assert not (outs[0] / "stnu").exists()
+    with zipfile.ZipFile(outs[0] / "stnu.zip") as zf:
+        assert zf.namelist() == [p["stnu"] for p in data["plans"]]
+        assert all(zf.read(p["stnu"]).startswith(b"<?xml") for p in data["plans"])
+
+
+def test_stnu_none_says_so(mini_task, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    compile_stream(mini_task, out, count_plans(mini_task), jobs=1, stnu="none", sample_seconds=0.0)
+    data = json.loads((out / "compiled.json").read_text())
+    assert data["stnu_files"] == "none" and all(p["stnu"] is None for p in data["plans"])
+    assert sorted(p.name for p in out.iterdir()) == ["compiled.json", "input"]
+
+
+def test_an_interrupted_stream_leaves_a_valid_partial_output(tmp_path):
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    seen = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if stage == "plans":
+            seen.append(done)
+            if len(seen) == 2:
+                raise KeyboardInterrupt
+
+    result = compile_stream(task, tmp_path, 2880, jobs=1, progress=progress, sample_seconds=0.0)
+    assert result.partial and 0 < result.compiled < 2880
+    data = json.loads((tmp_path / "compiled.json").read_text())
+    assert data["partial"] is True and data["plans_expected"] == 2880
+    assert len(data["plans"]) == result.compiled == sum(data["counts"].values())
+    assert [p["rank"] for p in data["plans"]] == list(range(1, result.compiled + 1))
+    assert not list(tmp_path.glob(".*.spool"))
+    assert load_compiled_task(tmp_path).name == "kitting"
+
+
+def test_the_sink_ranks_as_rank_key_does(mini_task, tmp_path):
+    """Plans added in any order come out in rank order (the compact records sort as `rank_key`)."""
+    full = compile_task(mini_task, jobs=1, options=CompileOptions(rank_by="earliest"))
+    sink = PlanSink(mini_task, tmp_path, "none", keep=2, rank_by="earliest")
+    from hrc.compile.stream import compile_records
+
+    for cp, tail in reversed(compile_records(full.options, "none", mini_task, full.paths,
+                                             [cp.plan for cp in full.plans])):
+        sink.add(cp, tail)
+    out = sink.finish(0, full.paths, full.options)
+    data = json.loads((tmp_path / "compiled.json").read_text())
+    assert [p["id"] for p in data["plans"]] == [cp.plan.id for cp in full.plans]
+    assert [cp.rank for cp in out.plans[:2]] == [1, 2]
+
+
+# --- counting ---------------------------------------------------------------------------------------
+
+def test_count_in_bounded_states_or_a_bound(mini_task):
+    assert estimate_plan_count(mini_task).exact
+    with pytest.raises(_TooManyStates):
+        count_plans(load_task(ROOT / "tasks" / "kitting.yaml"), max_states=10)
+    kitting = load_task(ROOT / "tasks" / "kitting.yaml")
+    bounded = estimate_plan_count(kitting, max_states=10)
+    assert not bounded.exact and bounded.value == plan_count_bound(kitting) >= count_plans(kitting) == 2880
+    assert str(bounded) == f"at most {bounded.value:,}"
+
+
+@pytest.mark.parametrize("n", [6, 7, 8])
+def test_independent_picks_count_as_factorials(n):
+    task = load_task(ROOT / "tasks" / f"kitting_{n}picks.yaml")
+    count = estimate_plan_count(task, max_states=10)  # the bound is exact without precedence
+    assert count.exact and count.value == math.factorial(n + 1) == plan_count_bound(task)
+
+
+def test_pinning_an_action_halves_the_plans_and_keeps_the_rest(mini_task):
+    pinned = pin_actions(mini_task, {"a2": "robot"})
+    plans = list(generate_plans(pinned))
+    assert count_plans(pinned) == len(plans) < count_plans(mini_task)
+    assert all(dict(p.allocation)["a2"] == "robot" for p in plans)
+    full = {p.id for p in generate_plans(mini_task) if dict(p.allocation)["a2"] == "robot"}
+    assert {p.id for p in plans} == full
+
+
+@pytest.mark.parametrize("pins", [{"nope": "robot"}, {"a2": "nobody"}])
+def test_pinning_names_what_is_wrong(mini_task, pins):
+    from hrc.errors import InputError
+
+    with pytest.raises(InputError, match="--pin"):
+        pin_actions(mini_task, pins)
+
+
+def test_symmetry_keeps_one_plan_per_relabelling():
+    """kitting_6picks: pick_f is pick_a's twin (rack A, same durations): every plan has exactly one
+    canonical twin, with the same class and makespans."""
+    from hrc.plans import identical_actions, is_canonical, symmetry_factor
+
+    task = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
+    groups = identical_actions(task)
+    assert groups == (("pick_a", "pick_f"),) and symmetry_factor(task) == 2
+    full = list(generate_plans(task))
+    kept = list(generate_plans(task, symmetry=True))
+    assert len(kept) * 2 == len(full) == 5040 and estimate_plan_count(task, symmetry=True).value == len(kept)
+
+    def swap(plan):
+        rename = {"pick_a": "pick_f", "pick_f": "pick_a"}
+        from hrc.model import Plan
+
+        alloc = dict(plan.allocation)
+        return Plan(allocation=tuple((a, alloc[rename.get(a, a)]) for a, _ in plan.allocation),
+                    sequences=tuple((ag, tuple(rename.get(x, x) for x in seq)) for ag, seq in plan.sequences))
+
+    kept_ids = {p.id for p in kept}
+    for plan in full:
+        assert (plan.id in kept_ids) != (swap(plan).id in kept_ids)
+        assert is_canonical(task, plan, groups) == (plan.id in kept_ids)
+
+
+@pytest.mark.slow
+def test_symmetric_twins_compile_to_the_same_class_and_makespans():
+    from hrc.compile.compiler import compile_plan
+    from hrc.motion import plan_paths
+
+    task = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
+    paths = plan_paths(task, seed=0)
+    plans = {p.id: p for p in generate_plans(task)}
+    for plan in list(generate_plans(task, symmetry=True))[::251]:
+        rename = {"pick_a": "pick_f", "pick_f": "pick_a"}
+        twin = next(p for p in plans.values() if p.sequences == tuple(
+            (ag, tuple(rename.get(x, x) for x in seq)) for ag, seq in plan.sequences))
+        a, b = compile_plan(task, plan, paths), compile_plan(task, twin, paths)
+        assert a.plan_class == b.plan_class and a.classification.makespan == b.classification.makespan
