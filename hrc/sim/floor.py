@@ -7,6 +7,8 @@ length) and how far along it is; `Floor.advance(h)` moves both for `h` seconds:
 - **the person walks on**, at their pace (their speed divided by the leg's pace factor), but never
   steps into the robot: a step that would bring the discs closer than `CONTACT` is cut short there
   (a person stops in front of a machine, the robot does not push);
+- **whoever stands in the way makes room**: the run loop (`hrc.sim.run`) sends an agent that waits at
+  a location to a spot nearby (`blocked_for`: how long the co-worker has been stopped by it);
 - **the robot keeps its safety distance**: while the free distance between the discs is within
   ``safety_margin + slowdown`` and shrinking, its speed scales down linearly to zero at
   ``safety_margin`` (the task's margin, the one motion acquisition keeps between the co-workers), and
@@ -58,6 +60,7 @@ class Mover:
     present: bool = True  # False while the person is away from the floor
     held: float = 0.0  # seconds held up by the co-worker (robot: slowed or stopped; person: stopped)
     travelled: float = 0.0  # seconds spent travelling (moving or held up on the way)
+    blocked_for: float = 0.0  # seconds it has been (mostly) stopped by the co-worker, in a row
 
     @property
     def length(self) -> float:
@@ -147,6 +150,7 @@ class Floor:
             hm.travelled += h
             if want > 0 and got < want - 1e-9:
                 hm.held += h * (1 - got / want)
+            hm.blocked_for = hm.blocked_for + h if want > 0 and got < want / 2 else 0.0
         if rm.moving:
             want = min(rm.speed * h, rm.remaining)
             before = self.free()
@@ -162,6 +166,7 @@ class Floor:
             full = min(rm.speed * h, rm.remaining + max(0.0, got))
             if full > 0 and got < full - 1e-9:
                 rm.held += h * (1 - max(0.0, got) / full)
+            rm.blocked_for = rm.blocked_for + h if full > 0 and got < full / 2 else 0.0
         self._sync(h)
 
     def _walk(self, m: Mover, want: float, ok) -> float:  # noqa: ANN001 - a predicate on points

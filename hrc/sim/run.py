@@ -16,7 +16,10 @@ The run loop is a discrete-event simulation with continuous motion in between (S
 
 Routes: the current plan's (its detours and waiting places) when the agent stands where the plan's leg
 starts, else the shortest route from where it stands. An agent with nothing to do (the plan gives it
-nothing now) goes back to its start, out of the way, as the plans assume ("steps out of the way").
+nothing now) goes back to its start, out of the way, as the plans assume ("steps out of the way"). An
+agent that stands at a location (waiting, not working) while the co-worker has been stopped by it for
+`ASIDE_AFTER` seconds makes room: it walks `ASIDE` metres along the route to another location, the one
+that ends farthest from the co-worker's way, and comes back once the co-worker is through.
 The robot acknowledges an event inside its window when it happened within 2 ms of it (its clock's
 resolution against the core's 1 ms ticks); `late` counts the ones outside.
 
@@ -28,7 +31,7 @@ left for good with actions only they may do, or the robot stopped), the two bloc
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,6 +57,8 @@ from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint
 __all__ = ["RunResult", "SimContext", "SimSettings", "simulate_run"]
 
 _EPS = 1e-9
+ASIDE = 1.5  # m: how far an agent in the co-worker's way steps aside, along a route to another location
+ASIDE_AFTER = 2.0  # s: after the co-worker has been stopped by it this long
 _ACK = 0.002  # s: the robot's acknowledgement snaps into its window when this close to it
 
 
@@ -169,6 +174,8 @@ class _Agent:
     duration: float = 0.0
     back_at: float | None = None
     order: Order | None = None  # the order being carried out (robot)
+    aside: tuple[tuple[float, float], ...] | None = None  # the way to a spot out of the co-worker's way
+    aside_mode: str = ""  # the mode to return to after making room
     predicted: float = 0.0  # predicted moving time of the current travel (robot)
     moved: float = 0.0  # moving time of the current travel so far, pauses excluded
 
@@ -231,6 +238,7 @@ class _Run:
         self.late = 0
         self.frames: list[tuple[float, float, float, float, float, bool]] = []
         self.excess = 0.0
+        self.reroutes = 0
         deadline = task.deadline if task.deadline is not None else 120.0
         self.cap = s.time_cap if s.time_cap is not None else 5 * deadline
 
@@ -307,6 +315,107 @@ class _Run:
         self.emit(agent, "arrive", agent.action, phase)
         return True
 
+    def make_room(self, agent: _Agent, other: _Agent) -> bool:
+        """If `agent` stands at a location and has held `other` up for a while, step aside (module docstring)."""
+        if agent.loc is None or other.mover.blocked_for < ASIDE_AFTER or agent.aside is not None:
+            return False
+        spot = self._aside_route(agent, other)
+        if spot is None:
+            return False
+        agent.aside, agent.aside_mode, agent.mode = spot, agent.mode, "aside"
+        agent.mover.set_route(spot, agent.mover.agent.speed)
+        other.mover.blocked_for = 0.0
+        return True
+
+    def _aside_route(self, agent: _Agent, other: _Agent) -> tuple[tuple[float, float], ...] | None:
+        """The first `ASIDE` metres of the route from here to some other location, the one whose end is
+        farthest from the rest of the co-worker's current route."""
+        assert agent.loc is not None
+        m = other.mover
+        ahead = [m.at(m.s + k * 0.25) for k in range(int(max(0.0, m.stop_at - m.s) / 0.25) + 1)] or [m.xy]
+        best: tuple[float, tuple[tuple[float, float], ...]] | None = None
+        for loc in sorted(self.ctx.paths.locations):
+            if loc == agent.loc:
+                continue
+            try:
+                path = self.ctx.paths.get(agent.id, agent.loc, loc)
+            except KeyError:
+                continue
+            prefix = _prefix(path.points, min(ASIDE, path.length * 0.8))
+            end = prefix[-1]
+            score = min(math.dist(end, p) for p in ahead)
+            if best is None or score > best[0]:
+                best = (score, prefix)
+        return None if best is None else best[1]
+
+    def reroute(self, agent: _Agent, other: _Agent) -> bool:
+        """`agent` has been stopped by the standing co-worker for a while on its way: go round it (the
+        roadmap without the edges the co-worker's disc blocks, `hrc.motion.detours`). False if there is no
+        way round or the co-worker stands at the agent's goal (then it is the co-worker's turn to make room)."""
+        m, o = agent.mover, other.mover
+        goal = m.at(m.length)
+        if m.blocked_for < ASIDE_AFTER or o.moving or not m.moving or agent.mode != "travel":
+            return False
+        reach = m.agent.radius + o.agent.radius + self.task.safety_margin
+        if math.dist(o.xy, goal) < reach:
+            return False
+        points = None
+        for back in (0.0, 0.4, 0.8, 1.2):  # from where it stands, or from a little back along its way
+            if back > m.s:
+                break
+            start = m.at(m.s - back)
+            points = _round(self.task, self.ctx.paths, m.agent.radius + self.task.safety_margin, o.agent.radius,
+                            o.xy, start, goal)
+            if points is not None:
+                if back > 0:
+                    points = [m.at(m.s - x) for x in np.linspace(0.0, back, 4)[:-1]] + points
+                break
+        m.blocked_for = 0.0
+        if points is None:
+            return False
+        stop = None if agent.route is None or agent.route.park_s is None or agent.parked else len(points)
+        speed = m.speed
+        m.set_route(tuple(points), speed)
+        if stop is not None and agent.route is not None:
+            agent.route = SimRoute(tuple(points), agent.route.park, _length(points))
+        self.reroutes += 1
+        return True
+
+    def come_back(self, agent: _Agent, other: _Agent) -> bool:
+        """After making room: back to the location once the co-worker is through (or not coming)."""
+        if agent.mode == "aside":
+            if not agent.mover.moving:
+                agent.mode = "aside_wait"
+                return True
+            return False
+        assert agent.aside is not None and agent.loc is not None
+        here = self.ctx.paths.locations[agent.loc]
+        m = other.mover
+        coming = m.moving and math.dist(m.at(m.stop_at), here) < 1e-6
+        reach = agent.mover.agent.radius + m.agent.radius + self.task.safety_margin + 0.3
+        if coming or math.dist(m.xy, here) < reach:
+            return False
+        agent.mover.set_route(agent.aside[::-1], agent.mover.agent.speed)
+        agent.mode = "returning"
+        return True
+
+    def _aside_step(self, a: _Agent, other: _Agent) -> bool:
+        if a.mode == "travel" and self.reroute(a, other):
+            return True
+        if a.mode in ("aside", "aside_wait"):
+            return self.come_back(a, other)
+        if a.mode == "returning":
+            if a.mover.moving:
+                return False
+            a.mode, a.aside = a.aside_mode, None
+            return True
+        if a.mode in ("free", "arrived") and not (a.mode == "arrived" and self._may_start(a)):
+            return self.make_room(a, other)
+        return False
+
+    def _may_start(self, a: _Agent) -> bool:
+        return a.action is not None and self.ready(a.action, self.phases[a.action][a.pi])
+
     def go_home(self, agent: _Agent) -> bool:
         if agent.loc is None or agent.loc == agent.home:
             return False
@@ -366,6 +475,10 @@ class _Run:
             if not a.mover.moving:
                 a.mode, a.loc = "free", a.home
                 return True
+            return False
+        if self._aside_step(a, self.r):
+            return True
+        if a.mode in ("aside", "aside_wait", "returning"):
             return False
         if a.mode == "free":
             if a.action is None:
@@ -434,6 +547,10 @@ class _Run:
             if not a.mover.moving:
                 a.mode, a.loc = "free", a.home
                 return True
+            return False
+        if self._aside_step(a, self.h):
+            return True
+        if a.mode in ("aside", "aside_wait", "returning"):
             return False
         if a.mode == "free":
             if o is None:
@@ -653,3 +770,53 @@ class _Run:
                     busy[agent] -= times[base + ".unpark"] - times[base + ".park"]
         return busy[self.h.id], busy[self.r.id]
 
+
+def _prefix(points: tuple[tuple[float, float], ...], length: float) -> tuple[tuple[float, float], ...]:
+    """The polyline `points` cut after `length` metres."""
+    out = [points[0]]
+    left = length
+    for p, q in zip(points, points[1:], strict=False):
+        d = math.dist(p, q)
+        if d >= left:
+            f = left / d if d > 0 else 0.0
+            out.append((p[0] + f * (q[0] - p[0]), p[1] + f * (q[1] - p[1])))
+            return tuple(out)
+        out.append(q)
+        left -= d
+    return tuple(out)
+
+
+def _length(points: Sequence[tuple[float, float]]) -> float:
+    return sum(math.dist(p, q) for p, q in zip(points, points[1:], strict=False))
+
+
+def _round(task: Task, paths: PathLibrary, clearance: float, other_radius: float, other: tuple[float, float],
+           here: tuple[float, float], goal: tuple[float, float]) -> list[tuple[float, float]] | None:
+    """A route from `here` to `goal` keeping `clearance` from obstacles and from a standing disc at `other`."""
+    import shapely
+
+    from hrc.model import Obstacle, Workspace
+    from hrc.motion.detours import blocked_region
+    from hrc.motion.planner import Roadmap
+    from hrc.motion.world import World
+
+    roadmap = paths.roadmaps.get(clearance)
+    if roadmap is None:
+        return None
+    region = blocked_region([(other,)], other_radius + 0.02)
+    zone = shapely.union_all([p.buffer(clearance) for p in region])
+    if zone.intersects(shapely.Point(here)) or zone.intersects(shapely.Point(goal)):
+        return None
+    ws = task.workspace
+    extra = tuple(Obstacle(f"co-worker{i}", tuple((float(x), float(y)) for x, y in p.exterior.coords[:-1]))
+                  for i, p in enumerate(region))
+    world = World(Workspace(ws.name, ws.bounds, ws.obstacles + extra, ws.locations))
+    pts = np.asarray(roadmap.points)
+    ij = np.array([(i, j) for i, j, _ in roadmap.edges])
+    lines = shapely.linestrings(np.stack([pts[ij[:, 0]], pts[ij[:, 1]]], axis=1))
+    hit = shapely.intersects(lines, zone)
+    pruned = Roadmap(roadmap.clearance, roadmap.points, [e for e, h in zip(roadmap.edges, hit, strict=True) if not h])
+    if not (world.point_clear(*here, clearance) and world.point_clear(*goal, clearance)):
+        return None
+    found = pruned.routes(world, [here, goal])[(0, 1)]
+    return None if found is None else [(float(x), float(y)) for x, y in found]
