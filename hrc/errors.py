@@ -12,8 +12,8 @@ and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit stat
     ├── UnreachableLocationError   no collision-free path between two locations
     ├── ExecutorError              a parallel or distributed executor failed or cannot be reached
     ├── SimulationError            a simulation asked for something impossible (bad model parameter, policy)
-    └── ApaError                   an STPP built wrong through the API, or its QP could not be solved
-        └── DispatchError          the APA dispatcher refused a message (it changed nothing)
+    ├── ApaError                   an STPP built wrong through the API, or its QP could not be solved
+    └── DispatchError              a dispatcher (hrc.dispatch, or APA's) refused a message (it changed nothing)
 """
 
 from __future__ import annotations
@@ -88,6 +88,7 @@ class ApaError(HrcError):
     its quadratic program could not be solved. Bad files raise `StppFileError` instead."""
 
 
-class DispatchError(ApaError):
-    """The APA dispatcher refused a message (unknown or repeated event, time going backwards); its
-    state is unchanged."""
+class DispatchError(HrcError):
+    """A dispatcher refused a message (`hrc.dispatch.Dispatcher`: an observation no remaining plan allows,
+    a duplicate, time going backwards, ...; `hrc.apa.dispatch.STPPDispatcher`: an unknown or repeated
+    event); its state is unchanged. The message is one line."""

@@ -25,6 +25,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "check": ("hrc.cli.check", "check an STNU file: DC, not DC or inconsistent"),
     "compile": ("hrc.cli.compile", "compile a task into its ranked set of HRC schedules (STNUs)"),
     "apa": ("hrc.cli.apa", "compile an STPP (JSON) into its dispatchably optimal form (APA)"),
+    "dispatch": ("hrc.cli.dispatch", "dispatch a compiled plan set online (JSON lines in and out)"),
 }
 
 

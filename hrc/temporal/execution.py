@@ -47,8 +47,10 @@ Two weaker readings serve plans that are no longer DC (`ExecutionMode`): ``STN``
 requirements (the team controls every duration, as when a human keeps to the plan: Muscettola, Morris &
 Tsamardinos 1998 dispatching with full propagation), with the same bounds computed on the residual
 network's distance graph, upper bounds of links in progress included (so a window ends where a
-co-worker keeping to the plan would be overdue); ``EARLIEST`` keeps lower bounds only (finish as early as
-possible when no schedule meets every bound): a window of one tick, its earliest.
+co-worker keeping to the plan would be overdue); ``EARLIEST`` keeps only the orderings and lower bounds
+(edges of weight <= 0, whichever way a file wrote the link; deadlines and other upper bounds go) that
+still bind what is to come (finish as early as possible when no schedule meets every bound; an ordering
+history already broke says nothing about what to do next): a window of one tick, its earliest.
 
 The windows are exact: tests/test_temporal_execution.py checks on random small STNUs and random partial
 executions that a tick is in X's window iff a brute-force DC check of the residual network at that tick,
@@ -269,10 +271,17 @@ class RealTimeState:
         edges: list[tuple[str, str, int, str]] = []
         for r in res.requirements:
             pin = r.source == origin and r.target in self.executed
-            if r.ub is not None and (mode is not ExecutionMode.EARLIEST or pin):
-                edges.append((r.source, r.target, r.ub, ""))
-            if r.lb is not None:
-                edges.append((r.target, r.source, -r.lb, ""))
+            for u, v, w in ((r.source, r.target, r.ub), (r.target, r.source, None if r.lb is None else -r.lb)):
+                if w is None:
+                    continue
+                if mode is ExecutionMode.EARLIEST and not pin and (w > 0 or (u in self.executed and
+                                                                             v not in self.executed)):
+                    # EARLIEST keeps orderings and lower bounds (edges of weight <= 0: "v no later than u
+                    # minus something"), whichever way the file wrote the link, and drops deadlines
+                    # (positive weights); an ordering that history already broke (an executed u) says
+                    # nothing about what to do next and would only close a negative cycle
+                    continue
+                edges.append((u, v, w, ""))
         for c in res.contingents:
             edges.append((c.target, c.source, -c.lb, ""))
             # DC: no upper bound for a link in progress, its C may overrun (its lower bound says C >= now)

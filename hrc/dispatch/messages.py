@@ -1,0 +1,179 @@
+"""What the dispatcher is told and what it answers: observations, decisions, and their JSON shapes.
+
+An `Observation` is one thing seen at time ``t`` (seconds from the task's start): an agent's event on a
+phase of an action (``depart``, ``park``, ``unpark``, ``arrive``, ``start``, ``end``; the robot's are its
+controller's acknowledgements, the human's come from a human action detector), the human leaving
+(``away``) or coming back (``back``), time passing with nothing seen (``tick``), or the withdrawal of the
+last human observation (``undo``). A `Decision` tells the robot its next step (`RobotStep`: an event
+and the window ``[earliest, latest]`` in which to do it), or to wait for a named event of the human
+(`WaitFor`), or nothing (None: its part is done, or the dispatcher has stopped). docs/dispatch.md
+describes the JSON-lines protocol these shapes make.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from hrc.errors import DispatchError
+
+__all__ = ["EVENTS", "LEG_EVENTS", "SIGNALS", "Candidate", "Decision", "HumanOption", "Observation", "RobotStep",
+           "WaitFor", "observation_from_json"]
+
+LEG_EVENTS = ("depart", "park", "unpark", "arrive", "start", "end")
+"""An agent's events on one leg, in the order they happen (park/unpark only where the plan stops at a
+waiting place on the way; depart, park, unpark and arrive may go unreported)."""
+SIGNALS = ("away", "back", "tick", "undo")
+EVENTS = LEG_EVENTS + SIGNALS
+
+_MAX_T = 1e9  # seconds; ~31 years: beyond it a time is a mistake, and ticks stay exact integers
+
+
+@dataclass(frozen=True, slots=True)
+class Observation:
+    """Something seen at `t` seconds: a leg event of `agent` on `action`.`phase`, or a signal (then only
+    `agent` may be set: the human for away/back). `next`: the human's announced next action."""
+
+    t: float
+    event: str
+    agent: str | None = None
+    action: str | None = None
+    phase: str | None = None
+    next: str | None = None
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        """``(agent, action, phase, event)`` of a leg event."""
+        return (self.agent or "", self.action or "", self.phase or "", self.event)
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"t": self.t}
+        for name in ("agent", "action", "phase"):
+            value = getattr(self, name)
+            if value is not None:
+                out[name] = value
+        out["event"] = self.event
+        if self.next is not None:
+            out["next"] = self.next
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class RobotStep:
+    """Do `event` of `action`.`phase` at a time in ``[earliest, latest]`` (seconds; latest None: no bound).
+    (Also the shape of the human's hint in `Decision.human`.)"""
+
+    action: str
+    phase: str
+    event: str
+    earliest: float
+    latest: float | None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"action": self.action, "phase": self.phase, "event": self.event, "earliest": self.earliest,
+                "latest": self.latest}
+
+
+@dataclass(frozen=True, slots=True)
+class WaitFor:
+    """Wait until `agent`'s `event` of `action`.`phase` has been seen (``str``: ``human.cube2.put.end``)."""
+
+    agent: str
+    action: str
+    phase: str
+    event: str
+
+    def __str__(self) -> str:
+        return f"{self.agent}.{self.action}.{self.phase}.{self.event}"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"wait_for": str(self)}
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """The dispatcher's answer at `t`: the best plan and its class, the number of candidate plans per
+    class, and the robot's next step (None: nothing left for it, or `stopped`). `human_away`: the human
+    has left and the candidates are the plans in which the robot finishes alone. `stopped`: no plan is
+    left that the dispatcher may follow (only with ``feasible_only``). `human`: a hint, the human's next
+    departure or start in the best plan and the window in which it keeps the plan's promise (the paper's
+    model lets the robot's strategy time them: the human waits when asked), or the robot event it has to
+    wait for; None while the human is busy (a walk or a manipulation under way), away, or done."""
+
+    t: float
+    plan: str | None
+    plan_class: str | None
+    candidates: Mapping[str, int]
+    robot: RobotStep | WaitFor | None
+    human_away: bool = False
+    stopped: bool = False
+    human: RobotStep | WaitFor | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
+                "candidates": dict(self.candidates),
+                "robot": None if self.robot is None else self.robot.to_json(),
+                "human": None if self.human is None else self.human.to_json(),
+                "human_away": self.human_away, "stopped": self.stopped}
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """A plan still in the set, as ranked now: its class given what was seen, its remaining makespan
+    (seconds from the task's start to its last end, as the compile's ``rank_by`` reads durations; None
+    when it has no schedule), total idle time of both agents, APA preference value (None: none)."""
+
+    plan: str
+    plan_class: str
+    makespan: float | None
+    idle: float
+    preference: float | None
+    allocation: Mapping[str, str] = field(default_factory=dict)
+    sequences: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class HumanOption:
+    """An event the human may report now that some remaining plan allows (a console button)."""
+
+    action: str
+    phase: str
+    event: str
+
+
+def _text(obj: Mapping[str, Any], key: str) -> str | None:
+    value = obj.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value or len(value) > 200:
+        raise DispatchError(f"{key!r} must be a non-empty string of at most 200 characters")
+    return value
+
+
+def observation_from_json(obj: Any) -> Observation:
+    """An `Observation` from a decoded JSON message; `DispatchError` saying what is wrong in one line.
+
+    Checks only the message's shape (types, known event names, a finite time); whether the task and the
+    remaining plans allow it is the dispatcher's to say.
+    """
+    if not isinstance(obj, dict):
+        raise DispatchError(f"a message must be a JSON object, found {type(obj).__name__}")
+    unknown = sorted(set(obj) - {"t", "event", "agent", "action", "phase", "next"})
+    if unknown:
+        raise DispatchError(f"unknown key {unknown[0][:40]!r} (keys: t, event, agent, action, phase, next)")
+    t = obj.get("t")
+    if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t) or not 0 <= t <= _MAX_T:
+        raise DispatchError("'t' must be a number of seconds from the task's start (0 to 1e9)")
+    event = obj.get("event")
+    if event not in EVENTS:
+        raise DispatchError(f"'event' must be one of {', '.join(EVENTS)}")
+    agent, action, phase, nxt = (_text(obj, k) for k in ("agent", "action", "phase", "next"))
+    if event in LEG_EVENTS:
+        missing = [k for k, v in (("agent", agent), ("action", action), ("phase", phase)) if v is None]
+        if missing:
+            raise DispatchError(f"a {event!r} message needs {', '.join(missing)}")
+    elif action is not None or phase is not None or nxt is not None:
+        raise DispatchError(f"a {event!r} message takes no action, phase or next")
+    return Observation(float(t), event, agent, action, phase, nxt)

@@ -1,0 +1,192 @@
+"""Set validation (Strassmair & Taylor 2014, section V.B): what was seen, and which plans still agree.
+
+`History` is what the dispatcher has accepted so far: each agent's legs in the order they were seen,
+the time of every reported event, the legs ended, the human's announced next action, whether the human
+is away. `History.add` checks an observation against the *task* (known names, time never going
+backwards, no duplicate, an agent's events in order, no end without a start, one leg at a time, an
+action's phases in order, the task graph's precedence) and raises `DispatchError` with a one-line reason
+otherwise, changing nothing. `agrees` checks it against one *plan*: a plan stays a candidate exactly
+while its allocation and each agent's order of legs extend what was seen (and, when the human is away,
+it gives the robot every action the human has not started). Timing never drops a plan: a plan whose
+timing history broke is still an instruction for finishing the task (section V.B); ranking deals with it.
+
+`executed` turns a history into one plan's executed timepoints (ticks): each seen event pins its
+timepoint; an unreported earlier event of the same leg (a depart, an arrival, a stop at a waiting place
+that the detector does not report) is pinned at the time of the next reported one, which is when it is
+known to have happened at the latest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+
+from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND
+from hrc.errors import DispatchError
+from hrc.model import Task
+
+from .messages import LEG_EVENTS, Observation
+from .plan_set import EventKey, PlanEntry
+
+__all__ = ["History", "agrees", "executed", "ticks"]
+
+_ORDER = {e: i for i, e in enumerate(LEG_EVENTS)}
+_EMPTY: Mapping = MappingProxyType({})
+
+
+def ticks(seconds: float) -> int:
+    """Seconds to the temporal core's ticks (milliseconds), to the nearest."""
+    return round(seconds * TICKS_PER_SECOND)
+
+
+@dataclass(frozen=True, slots=True)
+class History:
+    """What was seen (see the module docstring); build with `History.start`, extend with `add`."""
+
+    task: Task
+    human: str
+    now: float = 0.0
+    times: Mapping[EventKey, float] = field(default_factory=lambda: _EMPTY)
+    legs: Mapping[str, tuple[tuple[str, str], ...]] = field(default_factory=lambda: _EMPTY)
+    ended: frozenset[tuple[str, str]] = frozenset()
+    doer: Mapping[str, str] = field(default_factory=lambda: _EMPTY)  # action -> agent that began it
+    announced: Mapping[str, str] = field(default_factory=lambda: _EMPTY)  # agent -> next action
+    away: bool = False
+
+    @classmethod
+    def start(cls, task: Task) -> History:
+        human = next((a.id for a in task.agents if a.is_human), "")
+        return cls(task, human, legs=MappingProxyType({a.id: () for a in task.agents}))
+
+    def current(self, agent: str) -> tuple[str, str] | None:
+        """The leg `agent` is on (seen, not ended), or None."""
+        legs = self.legs.get(agent, ())
+        return legs[-1] if legs and legs[-1] not in self.ended else None
+
+    def actions_seen(self, agent: str) -> tuple[str, ...]:
+        out: list[str] = []
+        for action, _ in self.legs.get(agent, ()):
+            if action not in out:
+                out.append(action)
+        return tuple(out)
+
+    def last_event(self, agent: str, action: str, phase: str) -> str | None:
+        seen = [e for e in LEG_EVENTS if (agent, action, phase, e) in self.times]
+        return seen[-1] if seen else None
+
+    def add(self, obs: Observation) -> History:
+        """This history with `obs` (a leg event, away, back or tick); `DispatchError` if the task forbids it."""
+        if obs.t < self.now:
+            raise DispatchError(f"time goes backwards: t = {obs.t:g} s is before the last message ({self.now:g} s)")
+        if obs.event == "tick":
+            return replace(self, now=obs.t)
+        if obs.event in ("away", "back"):
+            if obs.agent is not None and obs.agent != self.human:
+                raise DispatchError(f"only the human ({self.human}) can be away or back, not {obs.agent!r}")
+            if obs.event == "away" and self.away:
+                raise DispatchError("the human is already away")
+            if obs.event == "back" and not self.away:
+                raise DispatchError("the human is not away")
+            return replace(self, now=obs.t, away=obs.event == "away")
+        return self._leg_event(obs)
+
+    def _leg_event(self, obs: Observation) -> History:
+        task = self.task
+        agent, action, phase, event = obs.key
+        if agent not in task.agent_ids:
+            raise DispatchError(f"unknown agent {agent!r} (agents: {', '.join(task.agent_ids)})")
+        if action not in task.action_ids:
+            raise DispatchError(f"unknown action {action!r}")
+        act = task.action(action)
+        phases = [p.id for p in act.phases]
+        if phase not in phases:
+            raise DispatchError(f"action {action!r} has no phase {phase!r} (phases: {', '.join(phases)})")
+        if agent not in act.agents:
+            raise DispatchError(f"{agent} cannot do {action} (the task gives it to {', '.join(act.agents)})")
+        if agent == self.human and self.away:
+            raise DispatchError(f"the human is away: send 'back' before {action}.{phase} {event}")
+        what = f"{agent} {action}.{phase} {event}"
+        if obs.key in self.times:
+            raise DispatchError(f"duplicate: {what} was seen at {self.times[obs.key]:g} s")
+        other = self.doer.get(action)
+        if other is not None and other != agent:
+            raise DispatchError(f"{action} is being done by the {other}, not the {agent}")
+        leg = (action, phase)
+        current = self.current(agent)
+        if leg in self.ended:
+            raise DispatchError(f"{what}: {action}.{phase} has ended already")
+        if leg == current:
+            last = self.last_event(agent, action, phase)
+            if last is not None and _ORDER[event] <= _ORDER[last]:
+                raise DispatchError(f"{what} comes after its {last}, which was seen already")
+        else:
+            if current is not None:
+                raise DispatchError(f"{what}: the {agent} has not ended {current[0]}.{current[1]} yet")
+            earlier = phases[:phases.index(phase)]
+            open_ = [p for p in earlier if (action, p) not in self.ended]
+            if open_:
+                raise DispatchError(f"{what}: {action}.{open_[0]} comes first and has not ended")
+        if event == "end" and (agent, action, phase, "start") not in self.times:
+            raise DispatchError(f"{what} without a start")
+        if _ORDER[event] >= _ORDER["start"]:
+            for p in task.precedence:
+                before = (p.before.action, p.before.phase)
+                if (p.after.action, p.after.phase) == leg and before not in self.ended:
+                    raise DispatchError(f"{what}: the task graph wants {before[0]}.{before[1]} to end first")
+        announced = dict(self.announced)
+        if obs.next is not None:
+            if obs.next not in task.action_ids:
+                raise DispatchError(f"unknown next action {obs.next!r}")
+            if obs.next in self.doer or obs.next == action:
+                raise DispatchError(f"next action {obs.next!r} has begun already")
+            if agent not in task.action(obs.next).agents:
+                raise DispatchError(f"{agent} cannot do the next action {obs.next!r}")
+            announced[agent] = obs.next
+        elif agent in announced and action == announced[agent]:
+            del announced[agent]  # the announced action has begun
+        times = dict(self.times)
+        times[obs.key] = obs.t
+        legs = dict(self.legs)
+        if leg != current:
+            legs[agent] = (*legs.get(agent, ()), leg)
+        ended = self.ended | {leg} if event == "end" else self.ended
+        doer = dict(self.doer)
+        doer.setdefault(action, agent)
+        return replace(self, now=obs.t, times=MappingProxyType(times), legs=MappingProxyType(legs), ended=ended,
+                       doer=MappingProxyType(doer), announced=MappingProxyType(announced))
+
+
+def agrees(entry: PlanEntry, history: History) -> bool:
+    """Whether the plan's allocation and per-agent order extend what was seen (set validation)."""
+    for agent, seen in history.legs.items():
+        if entry.legs[agent][:len(seen)] != seen:
+            return False
+    for agent, nxt in history.announced.items():
+        seen_actions = history.actions_seen(agent)
+        rest = [a for a in entry.plan.sequence(agent) if a not in seen_actions]
+        if not rest or rest[0] != nxt:
+            return False
+    if history.away and history.human:
+        return len(entry.plan.sequence(history.human)) == len(history.actions_seen(history.human))
+    return True
+
+
+def executed(entry: PlanEntry, history: History) -> dict[str, int]:
+    """The plan's executed timepoints (ticks) under `history`: the origin at 0, every reported event, and
+    every unreported earlier event of a reported leg at the time of the next reported one."""
+    out = {ORIGIN: 0}
+    for agent, seen in history.legs.items():
+        for action, phase in seen:
+            pending: list[str] = []
+            for event, node in entry.leg_points[(agent, action, phase)]:
+                t = history.times.get((agent, action, phase, event))
+                if t is None:
+                    pending.append(node)
+                    continue
+                tick = ticks(t)
+                for p in pending:
+                    out[p] = tick
+                pending.clear()
+                out[node] = tick
+    return out

@@ -1,0 +1,211 @@
+"""The dispatcher (issue 9): driven by a client that plays the human and the robot controller.
+
+On the workshop compile: (a) a human who follows the first best plan's allocation and order, timed as the
+dispatcher's hints say, ends with every constraint of the plan that was carried out kept (that plan DC at
+every step); (b) whatever order the human picks, every action is done exactly once by one agent and every
+robot event falls in the window it was last given; (c) a human who leaves for good: the robot finishes.
+Replay is byte-identical; malformed or impossible messages are refused and change nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT
+from dispatch_client import Run, broken_links
+
+from hrc.cli import main
+from hrc.dispatch import Dispatcher, Observation
+from hrc.dispatch.plan_set import load_plan_set
+from hrc.dispatch.protocol import handle_line
+from hrc.errors import DispatchError
+
+WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dispatch") / "ws"
+    assert main(["compile", str(WORKSHOP), "--out", str(out), "--no-report", "-q"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def plan_set(folder):
+    return load_plan_set(folder)
+
+
+def _in_process(plan_set, **options):
+    d = Dispatcher(plan_set, **options)
+    return d, (lambda line: handle_line(d, line))
+
+
+def _all_done(task, out) -> None:
+    for action in task.actions:
+        for phase in action.phases:
+            agent = out.doer[action.id]
+            assert (agent, action.id, phase.id, "end") in out.times, f"{action.id}.{phase.id} never ended"
+    for key in out.times:  # no action by two agents
+        assert out.doer[key[1]] == key[0], key
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_human_who_follows_the_first_plan_gets_its_promise(plan_set, seed):
+    d, send = _in_process(plan_set)
+    out = Run(plan_set, send, seed, human_choice="plan", timing="hinted").play()
+    assert out.first["class"] == "DC"
+    assert not out.refused, out.refused
+    final = out.answers[-1]["plan"]
+    assert all(a["class"] == "DC" for a in out.answers), [a["class"] for a in out.answers]
+    entry = next(e for e in plan_set.plans if e.id == final)
+    assert broken_links(entry.stnu, out.times) == []
+    human = dict(entry.plan.sequences)["human"]
+    assert human == dict(next(e for e in plan_set.plans if e.id == out.first["plan"]).plan.sequences)["human"]
+    _all_done(plan_set.task, out)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_any_order_the_human_picks_ends_with_every_action_done_once(plan_set, seed):
+    d, send = _in_process(plan_set)
+    out = Run(plan_set, send, seed, human_choice="random", timing="eager").play()
+    _all_done(plan_set.task, out)
+    for t, lo, hi in out.windows:
+        assert lo - 1e-9 <= t and (hi is None or t <= hi + 1e-9), (t, lo, hi)
+    assert out.answers[-1]["robot"] is None
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_human_who_leaves_for_good_leaves_the_robot_to_finish(plan_set, seed):
+    d, send = _in_process(plan_set)
+    out = Run(plan_set, send, seed, human_choice="random", timing="eager", away_after=1).play()
+    _all_done(plan_set.task, out)
+    left = [a for a in out.answers if a["human_away"]]
+    assert left and left[-1]["robot"] is None
+    human_actions = {a for a, agent in out.doer.items() if agent == "human"}
+    assert len(human_actions) == 1
+
+
+def test_through_the_cli_with_a_log_that_replays_byte_for_byte(plan_set, folder, tmp_path):
+    log = tmp_path / "run.log"
+    with subprocess.Popen([sys.executable, "-m", "hrc", "dispatch", str(folder), "--log", str(log)],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          bufsize=1) as proc:
+        assert proc.stdin and proc.stdout and proc.stderr
+
+        def send(line: str) -> str:
+            proc.stdin.write(line + "\n")
+            proc.stdin.flush()
+            return proc.stdout.readline().rstrip("\n")
+
+        out = Run(plan_set, send, 3, human_choice="plan", timing="hinted").play()
+        for bad in ("{", "[]", '{"t": 1e99, "event": "tick"}', '{"t": 5, "agent": "human", "event": "start"}'):
+            answer = json.loads(send(bad))
+            assert answer["ok"] is False and "\n" not in answer["error"]
+        proc.stdin.close()
+        assert proc.wait(timeout=60) == 0
+        assert proc.stderr.read() == ""
+    _all_done(plan_set.task, out)
+    replayed = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(folder), "--replay", str(log)],
+                              capture_output=True, text=True, timeout=120)
+    assert replayed.returncode == 0, replayed.stderr
+    logged = [json.loads(line)["out"] for line in log.read_text().splitlines() if '"out"' in line[:8]]
+    assert replayed.stdout.splitlines() == logged
+    assert len(logged) == len(out.answers) + len(out.refused) + 4
+
+
+def _snapshot(d: Dispatcher):
+    return (d.decision, d.history, d.candidates, d.now, d.human_options())
+
+
+BAD = [
+    ("not json", "not JSON"),
+    ('{"t": -1, "event": "tick"}', "'t' must be"),
+    ('{"t": "soon", "event": "tick"}', "'t' must be"),
+    ('{"t": 1, "event": "jump"}', "'event' must be one of"),
+    ('{"t": 1, "event": "start", "agent": "human", "action": "cube1"}', "needs phase"),
+    ('{"t": 1, "event": "start", "agent": "dog", "action": "cube1", "phase": "fetch"}', "unknown agent"),
+    ('{"t": 1, "event": "start", "agent": "human", "action": "cube9", "phase": "fetch"}', "unknown action"),
+    ('{"t": 1, "event": "start", "agent": "human", "action": "cube1", "phase": "lift"}', "has no phase"),
+    ('{"t": 1, "event": "end", "agent": "robot", "action": "cube2", "phase": "fetch"}', "without a start"),
+    ('{"t": 1, "event": "start", "agent": "robot", "action": "cube2", "phase": "put"}', "comes first"),
+    ('{"t": 1, "event": "start", "agent": "human", "action": "cube2", "phase": "fetch"}', "not ended cube1.fetch"),
+    ('{"t": 1, "event": "depart", "agent": "human", "action": "cube1", "phase": "fetch"}', "comes after its start"),
+    ('{"t": 1, "event": "start", "agent": "robot", "action": "cube1", "phase": "fetch"}', "being done by the human"),
+    ('{"t": 1, "event": "start", "agent": "human", "action": "cube1", "phase": "fetch"}', "duplicate"),
+    ('{"t": 0.5, "event": "tick"}', "time goes backwards"),
+    ('{"t": 1, "event": "back", "agent": "human"}', "not away"),
+    ('{"t": 1, "event": "tick", "action": "cube1"}', "takes no action"),
+    ('{"t": 1, "event": "tick", "extra": 1}', "unknown key"),
+    ('{"t": 30, "event": "undo"}', "too late to undo"),
+]
+
+
+def test_every_bad_message_is_refused_and_changes_nothing(plan_set):
+    d, send = _in_process(plan_set)
+    assert json.loads(send('{"t": 1, "event": "start", "agent": "human", "action": "cube1", "phase": "fetch"}'))["ok"]
+    for line, reason in BAD:
+        before = _snapshot(d)
+        answer = json.loads(send(line))
+        assert answer["ok"] is False and reason in answer["error"], (line, answer)
+        assert _snapshot(d) == before, line
+
+
+def test_an_event_no_remaining_plan_allows_is_refused(plan_set):
+    """The workshop's pile: cube 3 cannot be put before cube 2, whoever does it."""
+    d, send = _in_process(plan_set)
+    for line in ('{"t": 0, "agent": "human", "action": "cube3", "phase": "fetch", "event": "start"}',
+                 '{"t": 5, "agent": "human", "action": "cube3", "phase": "fetch", "event": "end"}'):
+        assert json.loads(send(line))["ok"]
+    answer = json.loads(send('{"t": 9, "agent": "human", "action": "cube3", "phase": "put", "event": "start"}'))
+    assert not answer["ok"] and "task graph" in answer["error"]
+    # the robot has cube1 in every remaining plan where the human does cube3 first and then ...
+    with pytest.raises(DispatchError, match="no remaining plan allows"):
+        d.observe(Observation(9, "start", "human", "triangle", "fetch"))
+
+
+def test_undo_withdraws_the_last_human_observation(plan_set):
+    d, _ = _in_process(plan_set)
+    first = d.decision
+    d.observe(Observation(1.0, "start", "human", "cube1", "fetch"))
+    assert len(d.candidates) < 32
+    d.observe(Observation(3.0, "undo"))
+    assert d.history == () and len(d.candidates) == 32 and d.now == 3.0
+    assert d.decision.plan == first.plan
+    with pytest.raises(DispatchError, match="nothing to undo"):
+        d.observe(Observation(3.5, "undo"))
+
+
+def test_overrun_and_missed_deadline_still_give_a_decision(plan_set):
+    """A human who takes far longer than the bounds: the plan is never dropped for its timing, the set is
+    still ranked and the robot still told what to do, past the deadline too."""
+    d, _ = _in_process(plan_set)
+    d.observe(Observation(0.0, "start", "human", "cube1", "fetch"))
+    dec = d.observe(Observation(200.0, "tick"))  # the fetch has overrun its bound by far
+    assert sum(dec.candidates.values()) == len(d.candidates) > 0 and dec.robot is not None
+    dec = d.observe(Observation(201.0, "end", "human", "cube1", "fetch"))
+    assert dec.plan is not None and dec.robot is not None
+    assert dec.plan_class in ("DC", "consistent", "inconsistent")
+
+
+def test_feasible_only_stops_when_nothing_feasible_is_left(plan_set):
+    d, _ = _in_process(plan_set, feasible_only=True)
+    assert d.decision.candidates["inconsistent"] == 0
+    d.observe(Observation(0.0, "start", "human", "cube1", "fetch"))
+    dec = d.observe(Observation(500.0, "tick"))
+    assert dec.stopped and dec.robot is None and dec.plan is None
+
+
+def test_human_options_are_what_the_dispatcher_accepts(plan_set):
+    d, _ = _in_process(plan_set)
+    options = d.human_options()
+    assert options and all(o.event in ("depart", "start") for o in options)
+    for o in options:
+        Dispatcher(plan_set).observe(Observation(0.0, o.event, "human", o.action, o.phase))  # accepted
+    actions = {o.action for o in options}
+    for action in plan_set.task.action_ids:
+        if action not in actions:
+            with pytest.raises(DispatchError):
+                Dispatcher(plan_set).observe(Observation(0.0, "start", "human", action, "fetch"))
