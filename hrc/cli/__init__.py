@@ -26,6 +26,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compile": ("hrc.cli.compile", "compile a task into its ranked set of HRC schedules (STNUs)"),
     "apa": ("hrc.cli.apa", "compile an STPP (JSON) into its dispatchably optimal form (APA)"),
     "dispatch": ("hrc.cli.dispatch", "dispatch a compiled plan set online (JSON lines in and out)"),
+    "simulate": ("hrc.cli.simulate", "simulate a person and the robot doing a task, many times; compare policies"),
 }
 
 

@@ -191,14 +191,26 @@ class DispatchedController(Controller):
         return self.by_id.get(self.plan_id) if self.plan_id is not None else None
 
     def human_next(self, started: Mapping[str, str]) -> str | None:
+        hint = self.d.decision.human
+        if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
+                and hint.action not in started:
+            return str(hint.action)  # the dispatcher's hint: the human's next departure in the best plan
         cp = self.current()
         if cp is None:
             return None
         return next((a for a in cp.plan.sequence(_human(self.cps.task)) if a not in started), None)
 
     def guide_time(self, action: str, phase: str, event: str) -> float | None:
+        """The hint's earliest time when it is about this event (`Decision.human`), inf when the hint says
+        to wait for a robot event, else the best plan's planned time (`Dispatcher.planned_times`)."""
         if self.plan_id is None:
             return None
+        hint = self.d.decision.human
+        if hint is not None:
+            if not hasattr(hint, "earliest"):
+                return math.inf  # WaitFor: the person waits for the robot's event
+            if (hint.action, hint.phase, hint.event) == (action, phase, event):
+                return float(hint.earliest)
         if self._times is None:
             self._times = dict(self.d.planned_times())
         t = self._times.get((_human(self.cps.task), action, phase, event))
