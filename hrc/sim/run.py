@@ -54,7 +54,7 @@ from hrc.sim.policies import (
 )
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
 
-__all__ = ["RunResult", "SimContext", "SimSettings", "simulate_run"]
+__all__ = ["ASIDE", "ASIDE_AFTER", "RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
 
 _EPS = 1e-9
 ASIDE = 1.5  # m: how far an agent in the co-worker's way steps aside, along a route to another location
