@@ -258,7 +258,7 @@ class _Run:
             self.detector.see(h)
             return
         t = self.t
-        o = agent.order
+        o = self.ctl.order()  # the window the robot was given for this event (arrive, park: the travel's end)
         if o is not None and (o.action, o.phase, o.event) == (action, phase, event):
             if t < o.earliest - _EPS:
                 t = o.earliest if o.earliest - t <= _ACK else t
