@@ -63,7 +63,7 @@ def makespan_figure(sim: Simulation) -> Figure:
         runs = sim.results[name]
         met = sum(r.deadline_met for r in runs) / len(runs) if runs else 0.0
         left = sum(not r.finished for r in runs)
-        note = f"{100 * met:.0f} % on time" + (f", {left} unfinished" if left else "")
+        note = f"{100 * met:.1f} % on time" + (f", {left} unfinished" if left else "")
         ax.annotate(note, (1.01, y), xycoords=("axes fraction", "data"), va="center", fontsize=8)
     ax.set_yticks(ys, labels=names)
     ax.set_ylim(-0.6, len(names) - 0.4)
