@@ -352,12 +352,13 @@ class _Run:
         return None if best is None else best[1]
 
     def reroute(self, agent: _Agent, other: _Agent) -> bool:
-        """`agent` has been stopped by the standing co-worker for a while on its way: go round it (the
+        """`agent` has been stopped by the standing (or as stuck) co-worker for a while: go round it (the
         roadmap without the edges the co-worker's disc blocks, `hrc.motion.detours`). False if there is no
         way round or the co-worker stands at the agent's goal (then it is the co-worker's turn to make room)."""
         m, o = agent.mover, other.mover
         goal = m.at(m.length)
-        if m.blocked_for < ASIDE_AFTER or o.moving or not m.moving or agent.mode != "travel":
+        stands = not o.moving or o.blocked_for >= ASIDE_AFTER  # standing, or as stuck as this agent
+        if m.blocked_for < ASIDE_AFTER or not stands or not m.moving or agent.mode != "travel":
             return False
         reach = m.agent.radius + o.agent.radius + self.task.safety_margin
         if math.dist(o.xy, goal) < reach:
