@@ -19,7 +19,8 @@ starts, else the shortest route from where it stands. An agent with nothing to d
 nothing now) goes back to its start, out of the way, as the plans assume ("steps out of the way"). An
 agent that stands at a location (waiting, not working) while the co-worker has been stopped by it for
 `ASIDE_AFTER` seconds makes room: it walks `ASIDE` metres along the route to another location, the one
-that ends farthest from the co-worker's way, and comes back once the co-worker is through.
+that ends farthest from the co-worker's way (and, if it is still in the way there, goes to its start),
+and comes back once the co-worker is through.
 The robot acknowledges an event inside its window when it happened within 2 ms of it (its clock's
 resolution against the core's 1 ms ticks); `late` counts the ones outside.
 
@@ -395,6 +396,15 @@ class _Run:
         assert agent.aside is not None and agent.loc is not None
         here = self.ctx.paths.locations[agent.loc]
         m = other.mover
+        if m.blocked_for >= ASIDE_AFTER and agent.home != agent.loc:  # still in the way: wait at home instead
+            way = _round(self.task, self.ctx.paths, agent.mover.agent.radius + self.task.safety_margin,
+                         m.agent.radius, m.xy, agent.mover.xy, self.ctx.paths.locations[agent.home])
+            m.blocked_for = 0.0
+            if way is not None:
+                agent.mover.set_route(tuple(way), agent.mover.agent.speed)
+                agent.aside = self.ctx.paths.get(agent.id, agent.loc, agent.home).points  # back: home -> loc
+                agent.mode = "aside"
+                return True
         coming = m.moving and math.dist(m.at(m.stop_at), here) < 1e-6
         reach = agent.mover.agent.radius + m.agent.radius + self.task.safety_margin + 0.3
         if coming or math.dist(m.xy, here) < reach:
