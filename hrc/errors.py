@@ -11,6 +11,7 @@ and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit stat
     │   └── StppFileError          STPP JSON file (APA)
     ├── UnreachableLocationError   no collision-free path between two locations
     ├── ExecutorError              a parallel or distributed executor failed or cannot be reached
+    ├── SimulationError            a simulation asked for something impossible (bad model parameter, policy)
     ├── ApaError                   an STPP built wrong through the API, or its QP could not be solved
     └── DispatchError              a dispatcher (hrc.dispatch, or APA's) refused a message (it changed nothing)
 """
@@ -25,6 +26,7 @@ __all__ = [
     "InputError",
     "MapFileError",
     "NetworkFileError",
+    "SimulationError",
     "StppFileError",
     "TaskFileError",
     "UnreachableLocationError",
@@ -70,6 +72,11 @@ class UnreachableLocationError(HrcError):
 
 class ExecutorError(HrcError):
     """A parallel or distributed executor failed or could not be reached."""
+
+
+class SimulationError(HrcError):
+    """`hrc simulate` / `hrc.sim` was asked for something impossible: an unknown policy or human model,
+    a rate outside [0, 1], a preferred order naming an unknown action."""
 
 
 class StppFileError(InputError):

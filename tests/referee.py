@@ -39,6 +39,7 @@ class _Track:
     can_wait: np.ndarray  # (cells,) bool
     work_start: dict[tuple[str, str], int]  # (action, phase) -> first cell of its manipulation
     work_end: dict[tuple[str, str], int]  # (action, phase) -> the cell right after it
+    done_from: int = 0  # the first cell after the last phase's "standing there" cell (clearing, then gone)
 
 
 def _track(task: Task, plan: Plan, paths: PathLibrary, agent_id: str, dt: float) -> _Track:
@@ -74,9 +75,16 @@ def _track(task: Task, plan: Plan, paths: PathLibrary, agent_id: str, dt: float)
         ends[(leg.action, leg.phase)] = len(xy)
         xy.append(here)  # done with this phase, standing there: may wait before leaving
         wait.append(True)
-    xy.append((math.nan, math.nan))  # steps out of the way
+    # then it clears the spot (it needs reach / speed to be out of reach of it: hrc.motion.conflicts) and
+    # steps out of the way
+    reach = sum(a.radius for a in task.agents) + task.safety_margin
+    done_from = len(xy)
+    for _ in range(math.ceil(reach / agent.speed / dt - 1e-9)):
+        xy.append(here)
+        wait.append(False)
+    xy.append((math.nan, math.nan))
     wait.append(True)
-    return _Track(np.array(xy), np.array(wait), starts, ends)
+    return _Track(np.array(xy), np.array(wait), starts, ends, done_from)
 
 
 def schedule_exists(task: Task, plan: Plan, paths: PathLibrary, *, dt: float = 0.02, tolerance: float = 0.05,
@@ -116,8 +124,9 @@ def earliest_completion(task: Task, plan: Plan, paths: PathLibrary, *, dt: float
     now[0, 0] = free[0, 0]
     wr, wh = tr.can_wait[:, None], th.can_wait[None, :]
     for step in range(4 * (nr + nh) + 1):
-        if now[nr - 1, nh - 1]:
-            # the last cell of each track is "stepped out": the work ended one cell earlier
+        if now[tr.done_from:, th.done_from:].any():
+            # past its last "standing there" cell each agent is clearing the spot or gone: the work ended
+            # one cell earlier
             return (step - 1) * dt
         nxt = now & wr & wh  # both wait
         nxt[1:, :] |= (now & gate_r & wh)[:-1, :]  # the robot moves on, the human waits

@@ -161,8 +161,8 @@ def rank_key(cp: CompiledPlan, rank_by: str = "worst") -> tuple:
     Why the second: makespans are exact to the millisecond, so a preference after them would only ever
     break exact ties, and a production engineer does not tell 61.2 s from 61.4 s; before them it would
     let a plan seconds slower win on the worker's taste. On the workshop (whose one preference is a
-    breather of about 3 s between cube 1 and cube 2) it swaps two consistent plans, ranks 17 and 18:
-    35ee4c9d65 (worst case 82.87 s, value 9.0: the breather kept) before 1874730eee (82.71 s, -8.27).
+    breather of about 3 s between cube 1 and cube 2) it swaps two consistent plans, ranks 18 and 19:
+    42f378b79a (worst case 85.27 s, value 9.0: the breather kept) before 94ba6ad056 (85.04 s, -9.90).
     """
     c = cp.classification
     idle = sum(s for _, s in c.idle) if c.idle else float("inf")

@@ -33,6 +33,11 @@ This module turns that into constraints the temporal net can carry, for every hu
 
    and for stays the same with the stay's bounding timepoints (robot first: the robot is through before
    the human arrives, or has left before the human can reach the place; human first: the other way).
+   An agent's *final* stay ends at the end of its last phase, but the agent does not vanish there: it
+   leaves, and needs ``reach / speed`` to be `reach` away from the spot, so a separation whose earlier
+   timepoint ends a final stay has that clearing time added (measured by `hrc simulate`: without it a
+   person who follows a DC plan walked up to within 3 cm of the robot leaving the table after its last
+   put, and had to stop).
    If either holds the discs never overlap (proof: an overlap at time t would put ``(s(t), u(t))`` in C
    at a time both before and after itself). Which one a plan uses is the plan's choice
    (`hrc.compile.motion_pattern`); the temporal net creator adds it as a requirement link.
@@ -282,6 +287,7 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
 def _pair(r: Occupancy, h: Occupancy, route, locs, reach: float, vr: float, vh: float,  # noqa: ANN001
           paths: PathLibrary) -> list[Conflict]:
     out: list[Conflict] = []
+    r_clear, h_clear = _clearing(r, reach, vr), _clearing(h, reach, vh)
     if r.kind == "travel" and h.kind == "travel":
         rp, hp = route(r), route(h)
         for k, (rf, hf, point, shape) in enumerate(_travel_travel(paths, rp, hp, reach, vr, vh)):
@@ -292,19 +298,26 @@ def _pair(r: Occupancy, h: Occupancy, route, locs, reach: float, vr: float, vh: 
         for k, (s0, s1) in enumerate(_travel_stay(paths, rp, locs[h.location], reach)):
             # robot first: through before the human arrives; human first: enters after the human left
             out.append(Conflict(r, h, k, Separation(r.begin, h.begin, s1 / vr),
-                                Separation(h.finish, r.begin, -s0 / vr), _point_at(paths, rp, s0),
+                                Separation(h.finish, r.begin, -s0 / vr + h_clear), _point_at(paths, rp, s0),
                                 (locs[h.location],), rp.via))
     elif h.kind == "travel":  # the robot stays at r.location from r.begin to r.finish
         hp = route(h)
         length = hp.length
         for k, (u0, u1) in enumerate(_travel_stay(paths, hp, locs[r.location], reach)):
-            out.append(Conflict(r, h, k, Separation(r.finish, h.begin, -u0 / vh),
+            out.append(Conflict(r, h, k, Separation(r.finish, h.begin, -u0 / vh + r_clear),
                                 Separation(h.finish, r.begin, -(length - u1) / vh), locs[r.location],
                                 (_point_at(paths, hp, u0), _point_at(paths, hp, u1))))
     elif math.dist(locs[r.location], locs[h.location]) < reach:
-        out.append(Conflict(r, h, 0, Separation(r.finish, h.begin, 0.0), Separation(h.finish, r.begin, 0.0),
+        out.append(Conflict(r, h, 0, Separation(r.finish, h.begin, r_clear), Separation(h.finish, r.begin, h_clear),
                             locs[r.location], (locs[h.location],)))
     return out
+
+
+def _clearing(occ: Occupancy, reach: float, speed: float) -> float:
+    """Seconds an agent needs to clear a place after its last phase there: ``reach / speed`` for its final
+    stay (it drives or walks away, at its speed, until it is `reach` from the spot), 0 for any other
+    occupancy (whose end is the departure itself)."""
+    return reach / speed if occ.kind == "stay" and occ.finish.what == "end" else 0.0
 
 
 def _point_at(paths: PathLibrary, path: Path, s: float) -> tuple[float, float]:

@@ -1,0 +1,149 @@
+"""`hrc simulate TASK.yaml --runs N --seed S [--policy P ...] [--out DIR]`: many simulated runs per policy.
+
+Compiles the task (as `hrc compile`, seed ``--compile-seed``), runs ``--runs`` simulations per policy on
+the same seeded people (`hrc.sim`), prints a table (per policy: deadline met, makespan median / p90,
+idle times, robot yield time, closest approach, plan switches, the dispatcher's latency p99, unfinished
+runs) and writes ``simulation.json`` (deterministic for a seed) and ``figures/`` into the output folder,
+atomically. A progress bar on a terminal. See docs/simulate.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from hrc.cli.compile import _Progress
+from hrc.errors import InputError, SimulationError
+from hrc.io.atomic import atomic_dir
+from hrc.io.task_file import load_task
+
+__all__ = ["add_parser", "format_table", "run"]
+
+POLICY_NAMES = ("hrc", "motion-blind", "feasible-only", "fixed")  # hrc.sim.policies.POLICIES, not imported here
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser("simulate", help="simulate a person and the robot carrying out a task, many times over")
+    p.add_argument("task", help="task YAML file")
+    p.add_argument("--runs", type=int, default=100, help="runs per policy (default 100)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulated people (default 0)")
+    p.add_argument("--policy", action="append", metavar="NAME", default=None,
+                   help=f"a policy to run (repeat or comma-separate; default all: {', '.join(POLICY_NAMES)})")
+    p.add_argument("--out", default=None, help="output folder (default: out/TASK_NAME-simulation)")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: one per core; 1 = serial)")
+    p.add_argument("--executor", default=None, metavar="URL",
+                   help="run on a Dask scheduler instead, e.g. dask://127.0.0.1:8786")
+    p.add_argument("--compile-seed", type=int, default=0, help="seed for motion planning (default 0)")
+    g = p.add_argument_group("the simulated person")
+    g.add_argument("--human", choices=("follow", "preferred", "free"), default="follow",
+                   help="how the person chooses the next action (default: follow the robot's current plan)")
+    g.add_argument("--prefer", default="", metavar="A,B,...", help="preferred order of actions for --human preferred")
+    g.add_argument("--durations", choices=("triangular", "uniform"), default="triangular",
+                   help="distribution of manipulation durations inside their bounds (default triangular)")
+    g.add_argument("--overrun-rate", type=float, default=0.0, help="probability a manipulation overruns its bound")
+    g.add_argument("--overrun-max", type=float, default=0.5, help="overrun of up to this fraction of the bound")
+    g.add_argument("--absence-rate", type=float, default=0.0, help="probability the person leaves once in a run")
+    g.add_argument("--absence-seconds", type=float, nargs=2, default=(10.0, 30.0), metavar=("LO", "HI"),
+                   help="how long an absence lasts (uniform, default 10 30)")
+    g.add_argument("--leave-for-good-rate", type=float, default=0.0,
+                   help="probability that an absence is for good")
+    g = p.add_argument_group("the floor and the detector")
+    g.add_argument("--detection-delay", type=float, default=0.0, help="seconds before the detector reports")
+    g.add_argument("--slowdown", type=float, default=0.0,
+                   help="m beyond the safety margin in which the robot slows down (default 0: stops at it)")
+    g.add_argument("--tick", type=float, default=0.0,
+                   help="report time passing to the dispatcher every S s while the robot waits (default 0: no)")
+    p.add_argument("--no-figures", action="store_true", help="write simulation.json only")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
+    p.set_defaults(run=run)
+
+
+def _check_out(out: str) -> None:
+    """The output folder is replaced whole: it must be new, empty, or an earlier simulation's output."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise InputError(out, "--out", "exists and is not a folder")
+    if path.is_dir() and any(path.iterdir()) and not (path / "simulation.json").is_file():
+        raise InputError(out, "--out", "refusing to replace a folder that is not empty and holds no "
+                                       "simulation.json (not an earlier hrc simulate output)")
+
+
+def _policies(values: list[str] | None) -> list[str]:
+    if not values:
+        return list(POLICY_NAMES)
+    out = [v.strip() for value in values for v in value.split(",") if v.strip()]
+    for name in out:
+        if name not in POLICY_NAMES:
+            raise SimulationError(f"unknown policy {name!r} (expected some of: {', '.join(POLICY_NAMES)})")
+    return out
+
+
+def format_table(sim: Any) -> str:
+    """The terminal table: one row per policy (see the module docstring)."""
+    from hrc.sim.metrics import aggregate, latency_p99
+
+    head = ("policy", "deadline met", "makespan med", "p90", "human idle", "robot idle", "robot yield",
+            "min dist", "switches", "latency p99", "unfinished")
+    rows = [head]
+    for name in sim.policies:
+        runs = sim.results[name]
+        a = aggregate(runs)
+        lat = latency_p99(runs)
+
+        def s(x: float | None, unit: str = " s", fmt: str = "{:.1f}") -> str:
+            return "-" if x is None else fmt.format(x) + unit
+
+        rows.append((name, f"{100 * (a['deadline_met_rate'] or 0):.1f} %", s(a["makespan"]["median"]),
+                     s(a["makespan"]["p90"]), s(a["human_idle_median"]), s(a["robot_idle_median"]),
+                     s(a["robot_yield_mean"]), s(a["min_distance"], " m", "{:.2f}"),
+                     s(a["plan_switches_mean"], "", "{:.2f}"), "-" if lat is None else f"{1000 * lat:.0f} ms",
+                     f"{a['unfinished']}/{a['runs']}"))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(head))]
+    lines = ["  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths, strict=True)))
+             for r in rows]
+    return "\n".join([lines[0], "  ".join("-" * w for w in widths), *lines[1:]])
+
+
+def run(args: argparse.Namespace) -> int:
+    from hrc.sim.human import HumanModel
+    from hrc.sim.montecarlo import simulate, simulation_json
+    from hrc.sim.run import SimSettings, simulate_run
+
+    task = load_task(args.task)
+    out = args.out or f"out/{task.name}-simulation"
+    _check_out(out)
+    policies = _policies(args.policy)
+    for name, value in (("--detection-delay", args.detection_delay), ("--slowdown", args.slowdown),
+                        ("--tick", args.tick)):
+        if not value >= 0:
+            raise SimulationError(f"{name} must be a number >= 0, found {value:g}")
+    human = HumanModel(choice=args.human, preferred=tuple(a for a in args.prefer.split(",") if a),
+                       durations=args.durations, overrun_rate=args.overrun_rate, overrun_max=args.overrun_max,
+                       absence_rate=args.absence_rate, absence_seconds=tuple(args.absence_seconds),
+                       leave_for_good_rate=args.leave_for_good_rate)
+    settings = SimSettings(human=human, detection_delay=args.detection_delay, slowdown=args.slowdown,
+                           tick=args.tick)
+    bar = _Progress(tty=sys.stderr.isatty(), quiet=args.quiet)
+    t0 = time.perf_counter()
+    try:
+        sim = simulate(task, args.runs, args.seed, policies, settings, jobs=args.jobs, executor=args.executor,
+                       progress=bar, compile_seed=args.compile_seed)
+    finally:
+        bar.close()
+    elapsed = time.perf_counter() - t0
+    with atomic_dir(out) as stage:
+        (stage / "simulation.json").write_text(simulation_json(sim), encoding="utf-8")
+        if not args.no_figures:
+            from hrc.report.simulation import write_simulation_figures
+
+            featured = {p: simulate_run(sim.context, p, 0, record=True) for p in sim.policies}
+            write_simulation_figures(sim, featured, stage)
+    if not args.quiet:
+        print(f"simulated {args.runs} runs x {len(sim.policies)} policies of {task.name} in {elapsed:.1f} s "
+              f"(seed {args.seed}, person: {human.choice})")
+        print(format_table(sim))
+        print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/"))
+    return 0

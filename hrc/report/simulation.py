@@ -1,0 +1,280 @@
+"""Figures of a simulation (`hrc simulate`): makespans per policy, one run's Gantt, its trajectories, a GIF.
+
+- ``makespans.png``: per policy, the distribution of the makespan over finished runs (box: quartiles,
+  whiskers: 5th-95th percentile, dots: every run), the deadline as a dashed red line and, beside each
+  box, the deadline-met rate and the unfinished runs;
+- ``gantt_run.png``: one run, for each agent the *planned* bars (the first plan's earliest schedule,
+  `hrc.report.gantt.gantt_bars`) above what *happened* (travel, manipulation, waiting, from the run's
+  happenings), so that where the run fell behind its plan shows;
+- ``trajectories.png``: the workspace (`hrc.report.maps.draw_workspace`) with the path each agent's
+  disc actually took, and the place where they came closest;
+- ``run.gif``: the run animated, both discs at every half second of simulated time, with the time and
+  what each agent is doing.
+
+Deterministic: PNGs as the report writes them (`hrc.report.figures.save_png`), the GIF from Agg
+frames quantized by Pillow (no timestamps in either). Only this layer plots (house style).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch
+
+from hrc.report.figures import agent_color, new_figure, save_png
+from hrc.report.gantt import gantt_bars
+from hrc.report.maps import draw_workspace
+
+if TYPE_CHECKING:
+    from hrc.compile.compiler import CompiledPlan
+    from hrc.model import Task
+    from hrc.sim.montecarlo import Simulation
+    from hrc.sim.run import RunResult
+
+__all__ = ["actual_bars", "animation_gif", "makespan_figure", "run_gantt_figure", "trajectories_figure",
+           "write_simulation_figures"]
+
+GIF_STEP = 0.5  # s of simulated time per GIF frame
+GIF_MS = 100  # ms per GIF frame on screen (5x real time)
+
+
+def makespan_figure(sim: Simulation) -> Figure:
+    """Box and dots of the makespan per policy, the deadline, deadline-met rates (module docstring)."""
+    task = sim.context.task
+    names = list(sim.policies)
+    fig = new_figure(7.5, 0.9 + 0.65 * len(names))
+    ax = fig.add_axes((0.17, 0.75 / (0.9 + 0.65 * len(names)), 0.62, 1 - 0.95 / (0.9 + 0.65 * len(names))))
+    data = [[r.makespan for r in sim.results[n] if r.makespan is not None] for n in names]
+    ys = list(range(len(names)))[::-1]
+    rng = np.random.default_rng(0)  # jitter of the dots only (fixed: the same figure for the same runs)
+    for y, values, name in zip(ys, data, names, strict=True):
+        if values:
+            ax.bxp([_box(values)], positions=[y], vert=False, widths=0.5, showfliers=False,
+                   boxprops={"color": "#444444"}, medianprops={"color": "#c62828", "linewidth": 1.6})
+            ax.scatter(values, y + rng.uniform(-0.18, 0.18, len(values)), s=4, color="#1f5fa8", alpha=0.35,
+                       linewidths=0, zorder=3)
+        runs = sim.results[name]
+        met = sum(r.deadline_met for r in runs) / len(runs) if runs else 0.0
+        left = sum(not r.finished for r in runs)
+        note = f"{100 * met:.1f} % on time" + (f", {left} unfinished" if left else "")
+        ax.annotate(note, (1.01, y), xycoords=("axes fraction", "data"), va="center", fontsize=8)
+    ax.set_yticks(ys, labels=names)
+    ax.set_ylim(-0.6, len(names) - 0.4)
+    if task.deadline is not None:
+        ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2)
+    ax.set_xlabel("makespan (s) of finished runs")
+    ax.set_title(f"{task.name}: {sim.runs} runs per policy", fontsize=10)
+    ax.grid(axis="x", color="#dddddd", linewidth=0.6)
+    ax.set_axisbelow(True)
+    ax.spines[["top", "right"]].set_visible(False)
+    return fig
+
+
+def _box(values: Sequence[float]) -> dict:
+    q = np.percentile(values, [5, 25, 50, 75, 95])
+    return {"whislo": q[0], "q1": q[1], "med": q[2], "q3": q[3], "whishi": q[4], "fliers": []}
+
+
+def actual_bars(result: RunResult, agent: str) -> list[tuple[str, float, float]]:
+    """What `agent` did in the run: ``(kind, start, end)`` with kind travel / work / wait / away."""
+    out: list[tuple[str, float, float]] = []
+    since = 0.0  # when the agent last finished something (or started moving)
+    moving_since: float | None = None
+    for h in result.happenings:
+        if h.agent != agent:
+            continue
+        if h.event in ("depart", "unpark", "start", "away"):
+            if h.t > since + 1e-6:
+                out.append(("wait", since, h.t))
+            since = h.t
+            moving_since = h.t if h.event in ("depart", "unpark") else None
+        elif h.event in ("park", "arrive") and moving_since is not None:
+            out.append(("travel", moving_since, h.t))
+            since, moving_since = h.t, None
+        elif h.event in ("end", "back"):
+            out.append(("work" if h.event == "end" else "away", since, h.t))
+            since = h.t
+    return out
+
+
+def run_gantt_figure(task: Task, cp: CompiledPlan | None, result: RunResult) -> Figure:
+    """Planned (the first plan's earliest schedule) above actual, per agent (module docstring)."""
+    agents = task.agent_ids
+    rows = [(a, kind) for a in agents for kind in ("planned", "actual")]
+    fig = new_figure(10.0, 0.9 + 0.55 * len(rows))
+    ax = fig.add_axes((0.13, 0.6 / (0.9 + 0.55 * len(rows)), 0.85, 1 - 1.0 / (0.9 + 0.55 * len(rows))))
+    planned = gantt_bars(task, cp) if cp is not None and cp.classification.schedule else {}
+    colors = {"travel": 0.3, "work": 1.0, "wait": 0.0, "away": 0.0}
+    horizon = 1.0
+    for i, (agent, kind) in enumerate(rows):
+        y = len(rows) - 1 - i
+        color = agent_color(agents.index(agent))
+        if kind == "planned":
+            bars = [(k, s, e) for k, s, e, _ in planned.get(agent, [])]
+        else:
+            bars = actual_bars(result, agent)
+        for k, s, e in bars:
+            horizon = max(horizon, e)
+            if k == "wait":
+                ax.broken_barh([(s, e - s)], (y - 0.05, 0.1), facecolor="#9e9e9e", linewidth=0)
+            elif k == "away":
+                ax.broken_barh([(s, e - s)], (y - 0.3, 0.6), facecolor="none", edgecolor="#c62828", hatch="xx",
+                               linewidth=0.6)
+            else:
+                ax.broken_barh([(s, max(e - s, 0.1))], (y - 0.3, 0.6), facecolor=color, alpha=colors[k],
+                               edgecolor=color if k == "travel" else "white", hatch="///" if k == "travel" else None,
+                               linewidth=0.0 if k == "travel" else 0.5)
+    if task.deadline is not None:
+        ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2)
+        horizon = max(horizon, task.deadline)
+    if result.makespan is not None:
+        ax.axvline(result.makespan, color="#222222", linestyle=":", linewidth=1.0)
+    ax.set_xlim(0, horizon * 1.03)
+    ax.set_yticks(range(len(rows)), labels=[f"{a} {k}" for a, k in reversed(rows)])
+    ax.set_ylim(-0.6, len(rows) - 0.4)
+    ax.set_xlabel("time (s)")
+    made = f"makespan {result.makespan:.1f} s" if result.makespan is not None else f"unfinished ({result.reason})"
+    plan = f"plan {cp.plan.id} ({cp.plan_class.value})" if cp is not None else "no plan"
+    ax.set_title(f"{result.policy}, run {result.run}: {plan} planned vs what happened; {made}", fontsize=9)
+    ax.grid(axis="x", color="#dddddd", linewidth=0.6)
+    ax.set_axisbelow(True)
+    ax.spines[["top", "right"]].set_visible(False)
+    ax.legend(handles=[Patch(facecolor="#888888", label="manipulation"),
+                       Patch(facecolor="#888888", alpha=0.3, hatch="///", label="travel"),
+                       Patch(facecolor="#9e9e9e", label="waiting"),
+                       Line2D([], [], color="#c62828", linestyle="--", label="deadline")],
+              loc="lower left", bbox_to_anchor=(0.0, 1.04), ncol=4, fontsize=8, frameon=False, borderaxespad=0.0)
+    return fig
+
+
+def _map_figure(task: Task) -> tuple[Figure, object]:
+    ws = task.workspace
+    xmin, ymin, xmax, ymax = ws.bounds
+    width = 6.4
+    height = min(9.0, max(3.0, (width - 0.9) * (ymax - ymin + 0.4) / (xmax - xmin + 0.4) + 1.0))
+    fig = new_figure(width, height)
+    ax = fig.add_axes((0.1, 0.7 / height, 0.86, 1.0 - 1.0 / height))
+    draw_workspace(ax, ws)
+    return fig, ax
+
+
+def trajectories_figure(task: Task, result: RunResult) -> Figure:
+    """Where each disc went in the run, and where they came closest (module docstring)."""
+    fig, ax = _map_figure(task)
+    frames = result.frames
+    handles = []
+    names = [a.id for a in task.agents]
+    human = next(a for a in task.agents if a.is_human)
+    robot = next(a for a in task.agents if not a.is_human)
+    for agent, cols in ((human, (1, 2)), (robot, (3, 4))):
+        color = agent_color(names.index(agent.id))
+        xs = [f[cols[0]] for f in frames]
+        ys = [f[cols[1]] for f in frames]
+        ax.plot(xs, ys, color=color, linewidth=1.4, alpha=0.8, zorder=3)  # type: ignore[attr-defined]
+        handles.append(Line2D([], [], color=color, linewidth=1.4, label=f"{agent.id}"))
+    close = [(math.hypot(f[1] - f[3], f[2] - f[4]) - human.radius - robot.radius, f) for f in frames if f[5]]
+    if close:
+        d, f = min(close, key=lambda c: c[0])
+        for (x, y), agent in (((f[1], f[2]), human), ((f[3], f[4]), robot)):
+            ax.add_patch(Circle((x, y), agent.radius, fill=False, edgecolor=agent_color(names.index(agent.id)),  # type: ignore[attr-defined]
+                                linewidth=1.2, linestyle="--", zorder=6))
+        handles.append(Line2D([], [], color="#555555", linestyle="--",
+                              label=f"closest: {d:.2f} m apart at {f[0]:.1f} s"))
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, fontsize=8,  # type: ignore[attr-defined]
+              frameon=False, borderaxespad=0.2)
+    return fig
+
+
+def _doing(result: RunResult, agent: str, t: float) -> str:
+    last = ""
+    for h in result.happenings:
+        if h.t > t:
+            break
+        if h.agent == agent:
+            last = {"depart": f"to {h.action} {h.phase}", "arrive": f"at {h.action} {h.phase}",
+                    "start": f"{h.action} {h.phase}", "end": "", "park": "waiting out of the way",
+                    "unpark": f"to {h.action} {h.phase}", "away": "away", "back": ""}.get(h.event, "")
+    return last
+
+
+def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_STEP) -> None:
+    """Write the run as an animated GIF (a frame every `step` s of simulated time) to `path`.
+
+    The map is drawn once by matplotlib; each frame is that picture with the two discs and a caption
+    drawn on it by Pillow (a few ms a frame instead of a full matplotlib redraw)."""
+    from PIL import Image, ImageDraw
+
+    frames = result.frames
+    if not frames:
+        return
+    fig, ax = _map_figure(task)
+    fig.canvas.draw()
+    base = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[:, :, :3].copy())  # type: ignore[attr-defined]
+    height = base.height
+    to_px = ax.transData.transform  # type: ignore[attr-defined]
+    scale = float(to_px((1.0, 0.0))[0] - to_px((0.0, 0.0))[0])  # pixels per metre
+    human = next(a for a in task.agents if a.is_human)
+    robot = next(a for a in task.agents if not a.is_human)
+    names = [a.id for a in task.agents]
+    colors = {a.id: agent_color(names.index(a.id)) for a in (human, robot)}
+    ft = np.array([f[0] for f in frames])
+    swatch = base.copy()  # one palette for every frame: the map plus the discs' colours
+    sd = ImageDraw.Draw(swatch)
+    for k, c in enumerate(list(colors.values()) + ["#222222", "#ffffff"]):
+        sd.rectangle((k * 12, 0, k * 12 + 11, 11), fill=c)
+    palette = swatch.quantize(colors=48, dither=Image.Dither.NONE)
+    images = []
+    for t in np.arange(0.0, frames[-1][0] + step / 2, step):
+        i = int(np.searchsorted(ft, t, side="right")) - 1
+        f = frames[i] if i >= 0 else (0.0, *task.workspace.location(human.start).xy,
+                                      *task.workspace.location(robot.start).xy, True)
+        img = base.copy()
+        draw = ImageDraw.Draw(img)
+        for agent, (x, y), shown in ((human, (f[1], f[2]), f[5]), (robot, (f[3], f[4]), True)):
+            if not shown:
+                continue
+            px, py = to_px((x, y))
+            r = agent.radius * scale
+            py = height - py
+            draw.ellipse((px - r, py - r, px + r, py + r), fill=colors[agent.id], outline="white")
+        draw.text((8, 6), f"t = {t:5.1f} s   {human.id}: {_doing(result, human.id, t) or '-'}   "
+                          f"{robot.id}: {_doing(result, robot.id, t) or '-'}", fill="#222222")
+        images.append(img.quantize(palette=palette, dither=Image.Dither.NONE))
+    fig.clear()
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=GIF_MS, loop=0,
+                   optimize=False)
+    path.write_bytes(buf.getvalue())
+
+
+def write_simulation_figures(sim: Simulation, featured: dict[str, RunResult], out_dir: Path,
+                             gif: bool = True) -> dict[str, str]:
+    """Write the figures into ``out_dir/figures`` (and ``run.gif``); `featured` maps a policy to a
+    recorded run of it. Returns figure key -> path relative to `out_dir`."""
+    fig_dir = out_dir / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    written: dict[str, str] = {}
+    task = sim.context.task
+    save_png(makespan_figure(sim), fig_dir / "makespans.png")
+    written["makespans"] = "figures/makespans.png"
+    for policy, result in featured.items():
+        from hrc.sim.policies import POLICIES
+
+        cps = sim.context.compiles[POLICIES[policy].compile]
+        cp = next((c for c in cps.plans if c.plan.id == result.first_plan), None)
+        save_png(run_gantt_figure(task, cp, result), fig_dir / f"gantt_{policy}_run{result.run}.png")
+        written[f"gantt_{policy}"] = f"figures/gantt_{policy}_run{result.run}.png"
+        save_png(trajectories_figure(task, result), fig_dir / f"trajectories_{policy}_run{result.run}.png")
+        written[f"trajectories_{policy}"] = f"figures/trajectories_{policy}_run{result.run}.png"
+    if gif and featured:
+        policy, result = next(iter(featured.items()))
+        animation_gif(task, result, fig_dir / f"run_{policy}_run{result.run}.gif")
+        written["gif"] = f"figures/run_{policy}_run{result.run}.gif"
+    return dict(sorted(written.items()))

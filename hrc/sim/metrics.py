@@ -1,0 +1,76 @@
+"""Aggregate measures over many runs of one policy: what `hrc simulate` prints and writes.
+
+Per policy, over its runs (`RunResult`): deadline met (% of all runs; an unfinished run misses it),
+every task limit met (deadline and temporal constraints), makespan median / p90 / mean over finished
+runs, median idle time of each agent, mean robot yield time (seconds the robot was slowed or stopped by
+the person), the smallest human-robot free distance of all runs and its median per run, disc overlaps
+(pymunk contacts; 0 expected), mean plan switches, unfinished runs, and the check of the guarantee:
+among runs whose first plan was DC and carried out as planned, how many kept every constraint of that
+plan. Percentiles use numpy's linear interpolation. Wall-clock latencies of the dispatcher are measured
+too (`latency_p99`), but kept out of `simulation.json`, which is deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from hrc.sim.run import RunResult
+
+__all__ = ["aggregate", "latency_p99"]
+
+
+def _r(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(float(x), 3)
+
+
+def _pct(values: Sequence[float], q: float) -> float | None:
+    return _r(float(np.percentile(values, q))) if values else None
+
+
+def aggregate(runs: Sequence[RunResult]) -> dict:
+    """The policy's aggregate measures (JSON-ready, rounded to the millisecond)."""
+    n = len(runs)
+    done = [r for r in runs if r.finished]
+    spans = [r.makespan for r in done if r.makespan is not None]
+    mins = [r.min_distance for r in runs if r.min_distance is not None]
+    dc = [r for r in runs if r.first_class == "DC"]
+    dc_kept = [r for r in dc if r.first_kept]
+    reasons: dict[str, int] = {}
+    for r in runs:
+        if not r.finished:
+            key = r.reason.split(":", 1)[0]
+            reasons[key] = reasons.get(key, 0) + 1
+    return {
+        "runs": n,
+        "deadline_met": sum(r.deadline_met for r in runs),
+        "deadline_met_rate": _r(sum(r.deadline_met for r in runs) / n) if n else None,
+        "limits_met_rate": _r(sum(r.limits_met for r in runs) / n) if n else None,
+        "makespan": {"median": _pct(spans, 50), "p90": _pct(spans, 90), "mean": _r(float(np.mean(spans)))
+                     if spans else None, "min": _r(min(spans)) if spans else None,
+                     "max": _r(max(spans)) if spans else None},
+        "human_idle_median": _pct([r.human_idle for r in done], 50),
+        "robot_idle_median": _pct([r.robot_idle for r in done], 50),
+        "robot_yield_mean": _r(float(np.mean([r.robot_yield for r in runs]))) if runs else None,
+        "human_held_mean": _r(float(np.mean([r.human_held for r in runs]))) if runs else None,
+        "min_distance": _r(min(mins)) if mins else None,
+        "min_distance_median": _pct(mins, 50),
+        "overlaps": sum(r.overlaps for r in runs),
+        "plan_switches_mean": _r(float(np.mean([r.plan_switches for r in runs]))) if runs else None,
+        "unfinished": n - len(done),
+        "unfinished_reasons": dict(sorted(reasons.items())),
+        "refused_observations": sum(len(r.refused) for r in runs),
+        "late_robot_events": sum(r.late for r in runs),
+        "robot_travel_excess_mean": _r(float(np.mean([r.robot_travel_excess for r in runs]))) if runs else None,
+        "first_plan_dc": len(dc),
+        "first_plan_dc_kept": len(dc_kept),
+        "first_plan_dc_kept_all_constraints": sum(1 for r in dc_kept if not r.first_broken),
+    }
+
+
+def latency_p99(runs: Sequence[RunResult]) -> float | None:
+    """The 99th percentile (s) of the dispatcher's wall time per observation over `runs` (None: none)."""
+    values = [x for r in runs for x in r.latencies]
+    return float(np.percentile(values, 99)) if values else None

@@ -1,0 +1,285 @@
+"""The robot's policies compared by the simulator, and the controllers that carry them out.
+
+`POLICIES` is the registry `hrc simulate --policy` offers (in this order):
+
+- ``hrc``: the dispatcher (`hrc.dispatch.Dispatcher`, the same code as ``hrc dispatch``) on the
+  motion-aware compile: set validation, set ranking and the robot's next step at every observation
+  (Strassmair & Taylor 2014, section V.B);
+- ``motion-blind``: the same dispatcher on a compile whose travel times are straight-line distance over
+  speed, with no interference between the co-workers (`hrc.sim.blind`), as systems that ignore motion;
+- ``feasible-only``: the dispatcher on the motion-aware compile keeping only DC or consistent plans
+  (Chaski's behaviour, ``feasible_only=True``): when none is left, the robot stops;
+- ``fixed``: the compile's best plan, no adaptation: the robot does its part of it, in its order, at
+  the times of the plan's earliest schedule (or as soon as the task graph lets it), whatever the person
+  does; it skips an action the person has already started.
+
+A controller turns the policy into orders for the simulated robot (`Order`: an event of one of its
+legs and the window for it, or wait) and, for a person who follows the plan, says which action the
+current plan gives them next and when each of their events is planned (`guide_time`). Routes are the
+current plan's: its motion pattern's route per leg (shortest, a detour, a stop at a waiting place);
+for the motion-blind compile, whose routes are straight lines through the furniture, the real shortest
+routes of the motion-aware compile (the floor is the same for every policy).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+from hrc.compile.temporal_net_creator import leg_timepoint
+from hrc.errors import HrcError
+from hrc.model import Task
+from hrc.motion import PathLibrary
+from hrc.plans import agent_legs
+from hrc.sim.detector import Happening
+
+__all__ = ["POLICIES", "Controller", "DispatchedController", "FixedController", "Order", "Policy", "SimRoute",
+           "leg_route"]
+
+
+@dataclass(frozen=True, slots=True)
+class Policy:
+    """A policy: which compile it reads (`compile`: "motion" or "blind"), whether the dispatcher drops
+    plans that are not DC or consistent, whether it adapts at all (`dispatched`), and what it is."""
+
+    name: str
+    compile: str
+    feasible_only: bool
+    dispatched: bool
+    description: str
+
+
+POLICIES: dict[str, Policy] = {p.name: p for p in (
+    Policy("hrc", "motion", False, True, "the dispatcher on the motion-aware compile"),
+    Policy("motion-blind", "blind", False, True,
+           "the dispatcher on a compile with straight-line travel times and no interference"),
+    Policy("feasible-only", "motion", True, True,
+           "the dispatcher keeping only DC or consistent plans (Chaski); the robot stops when none is left"),
+    Policy("fixed", "motion", False, False, "the compile's best plan, no adaptation"),
+)}
+
+
+@dataclass(frozen=True, slots=True)
+class Order:
+    """What the robot is told: do `event` of `action.phase` within ``[earliest, latest]`` (`latest`
+    None: no upper bound), or, with `event` "wait", wait for `action.phase` of the person."""
+
+    action: str
+    phase: str
+    event: str
+    earliest: float = 0.0
+    latest: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class SimRoute:
+    """A leg's route on the floor: `points` from the leg's origin to its location, and the arc length at
+    which the agent stops at the waiting place `park` (None: no stop)."""
+
+    points: tuple[tuple[float, float], ...]
+    park: str = ""
+    park_s: float | None = None
+
+
+def leg_route(task: Task, cp: CompiledPlan, real: PathLibrary, agent: str, action: str, phase: str,
+              blind: bool) -> SimRoute | None:
+    """The route of `agent` for `action.phase` in plan `cp` (None when the plan does not give it the phase)."""
+    legs = agent_legs(task, cp.plan, agent) if cp.plan.agent_of(action) == agent else ()
+    leg = next((lg for lg in legs if (lg.action, lg.phase) == (action, phase)), None)
+    if leg is None:
+        return None
+    if blind:
+        return SimRoute(real.get(agent, leg.origin, leg.location).points)
+    motion = next(m for m in cp.motions if m.agent == agent and m.leg == leg.index)
+    if not motion.points:
+        return SimRoute(real.get(agent, leg.origin, leg.location).points)
+    if motion.park:
+        speed = task.agent(agent).speed
+        return SimRoute(motion.points, motion.park, motion.park_time * speed)
+    return SimRoute(motion.points)
+
+
+class Controller:
+    """The interface the run loop drives (see the module docstring); `log` collects what it refused."""
+
+    name: str = ""
+    stopped: bool = False
+    plan_id: str | None = None
+    plan_class: str | None = None
+    first_plan: str | None = None
+    first_class: str | None = None
+    switches: int = 0
+    latencies: list[float]
+    refused: list[str]
+    late: int = 0
+
+    def observe(self, h: Happening) -> None:
+        raise NotImplementedError
+
+    def order(self) -> Order | None:
+        raise NotImplementedError
+
+    def human_next(self, started: Mapping[str, str]) -> str | None:
+        raise NotImplementedError
+
+    def guide_time(self, action: str, phase: str, event: str) -> float | None:
+        raise NotImplementedError
+
+    def route(self, agent: str, action: str, phase: str) -> SimRoute | None:
+        raise NotImplementedError
+
+    def current(self) -> CompiledPlan | None:
+        raise NotImplementedError
+
+
+class DispatchedController(Controller):
+    """The dispatcher in charge: observations in, the decision's robot step out (``hrc.dispatch``)."""
+
+    def __init__(self, dispatcher: Any, cps: CompiledPlanSet, real: PathLibrary, blind: bool) -> None:
+        self.d = dispatcher
+        self.cps = cps
+        self.real = real
+        self.blind = blind
+        self.by_id = {cp.plan.id: cp for cp in cps.plans}
+        self.latencies = []
+        self.refused = []
+        self._times: dict | None = None
+        dec = dispatcher.decision
+        self.first_plan = self.plan_id = dec.plan
+        self.first_class = self.plan_class = dec.plan_class
+        self.stopped = bool(dec.stopped)
+
+    def observe(self, h: Happening) -> None:
+        from hrc.dispatch import Observation
+
+        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase)
+        t0 = time.perf_counter()
+        try:
+            dec = self.d.observe(obs)
+        except HrcError as err:  # DispatchError: refused, state unchanged
+            self.latencies.append(time.perf_counter() - t0)
+            self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
+            return
+        self.latencies.append(time.perf_counter() - t0)
+        self._times = None
+        if dec.plan != self.plan_id and dec.plan is not None:
+            if self.plan_id is not None:
+                self.switches += 1
+            if self.first_plan is None:
+                self.first_plan, self.first_class = dec.plan, dec.plan_class
+        self.plan_id, self.plan_class = dec.plan, dec.plan_class
+        self.stopped = bool(dec.stopped)
+
+    def tick(self, t: float) -> None:
+        """Tell the dispatcher that time has passed (when it has nothing else to hear)."""
+        self.observe(Happening(t, "", "tick"))
+
+    def order(self) -> Order | None:
+        robot = self.d.decision.robot
+        if robot is None:
+            return None
+        if hasattr(robot, "earliest"):
+            return Order(robot.action, robot.phase, robot.event, float(robot.earliest),
+                         None if robot.latest is None else float(robot.latest))
+        return Order(robot.action, robot.phase, "wait")
+
+    def current(self) -> CompiledPlan | None:
+        return self.by_id.get(self.plan_id) if self.plan_id is not None else None
+
+    def human_next(self, started: Mapping[str, str]) -> str | None:
+        hint = self.d.decision.human
+        if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
+                and hint.action not in started:
+            return str(hint.action)  # the dispatcher's hint: the human's next departure in the best plan
+        cp = self.current()
+        if cp is None:
+            return None
+        return next((a for a in cp.plan.sequence(_human(self.cps.task)) if a not in started), None)
+
+    def guide_time(self, action: str, phase: str, event: str) -> float | None:
+        """The hint's earliest time when it is about this event (`Decision.human`), inf when the hint says
+        to wait for a robot event, else the best plan's planned time (`Dispatcher.planned_times`)."""
+        if self.plan_id is None:
+            return None
+        hint = self.d.decision.human
+        if hint is not None:
+            if not hasattr(hint, "earliest"):
+                return math.inf  # WaitFor: the person waits for the robot's event
+            if (hint.action, hint.phase, hint.event) == (action, phase, event):
+                return float(hint.earliest)
+        if self._times is None:
+            self._times = dict(self.d.planned_times())
+        t = self._times.get((_human(self.cps.task), action, phase, event))
+        return None if t is None or not math.isfinite(t) else float(t)
+
+    def route(self, agent: str, action: str, phase: str) -> SimRoute | None:
+        cp = self.current()
+        return None if cp is None else leg_route(self.cps.task, cp, self.real, agent, action, phase, self.blind)
+
+
+class FixedController(Controller):
+    """The compile's best plan carried out as planned (no dispatcher)."""
+
+    def __init__(self, cps: CompiledPlanSet) -> None:
+        self.cps = cps
+        self.task = cps.task
+        cp = cps.plans[0]
+        self.cp = cp
+        self.first_plan = self.plan_id = cp.plan.id
+        self.first_class = self.plan_class = cp.plan_class.value
+        self.schedule = dict(cp.classification.schedule)
+        self.robot = next(a.id for a in self.task.agents if not a.is_human)
+        self.legs = agent_legs(self.task, cp.plan, self.robot)
+        self.latencies = []
+        self.refused = []
+        self.seen: dict[str, str] = {}  # action -> agent, as the robot has seen them started
+        self.done: set[tuple[str, str, str]] = set()  # (action, phase, event) of the robot's own legs
+        self._order: tuple[Order | None] | None = None
+
+    def observe(self, h: Happening) -> None:
+        if h.action is not None and h.event in ("depart", "start"):
+            self.seen.setdefault(h.action, h.agent)
+        if h.agent == self.robot and h.action is not None and h.phase is not None:
+            self.done.add((h.action, h.phase, h.event))
+        self._order = None
+
+    def order(self) -> Order | None:
+        if self._order is None:
+            self._order = (self._next_order(),)
+        return self._order[0]
+
+    def _next_order(self) -> Order | None:
+        for leg in self.legs:
+            if self.seen.get(leg.action, self.robot) != self.robot:
+                continue  # the person took it: skip
+            motion = next(m for m in self.cp.motions if m.agent == self.robot and m.leg == leg.index)
+            events = ["depart"] + (["park", "unpark"] if motion.park else []) + ["arrive", "start", "end"]
+            for ev in events:
+                if (leg.action, leg.phase, ev) not in self.done:
+                    at = self.schedule.get(leg_timepoint(leg, ev), 0.0)
+                    return Order(leg.action, leg.phase, ev, at, None)
+        return None
+
+    def current(self) -> CompiledPlan | None:
+        return self.cp
+
+    def human_next(self, started: Mapping[str, str]) -> str | None:
+        return next((a for a in self.cp.plan.sequence(_human(self.task)) if a not in started), None)
+
+    def guide_time(self, action: str, phase: str, event: str) -> float | None:
+        human = _human(self.task)
+        if self.cp.plan.agent_of(action) != human:
+            return None
+        leg = next(lg for lg in agent_legs(self.task, self.cp.plan, human) if (lg.action, lg.phase) == (action, phase))
+        return self.schedule.get(leg_timepoint(leg, event))
+
+    def route(self, agent: str, action: str, phase: str) -> SimRoute | None:
+        return leg_route(self.task, self.cp, self.cps.paths, agent, action, phase, False)
+
+
+def _human(task: Task) -> str:
+    return next(a.id for a in task.agents if a.is_human)
