@@ -238,3 +238,10 @@ def test_preferences_narrow_the_robot_window_to_apas(tmp_path):
     assert pref is not None and plain is not None and pref.event == plain.event == "depart"
     assert plain.earliest <= pref.earliest and pref.latest is not None and plain.latest is not None
     assert pref.latest < plain.latest - 1.0
+
+
+def test_a_fork_is_independent(plan_set):
+    d = Dispatcher(plan_set)
+    f = d.fork()
+    f.observe(Observation(1.0, "start", "human", "cube1", "fetch"))
+    assert d.history == () and len(d.candidates) == 32 and f.history != ()

@@ -30,6 +30,7 @@ decisions. A refused message raises `DispatchError` and leaves the dispatcher as
 
 from __future__ import annotations
 
+import copy
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -95,6 +96,12 @@ class Dispatcher:
     def from_compiled(cls, cps: Any, **options: Any) -> Dispatcher:
         """From an in-memory `hrc.compile.compiler.CompiledPlanSet`."""
         return cls(plan_set_from_compiled(cps), **options)
+
+    def fork(self) -> Dispatcher:
+        """An independent dispatcher in this one's state, sharing the loaded plan set (read-only): a
+        message to one never reaches the other, since each message replaces the state whole. O(1): the
+        simulator forks a fresh dispatcher per run instead of loading the plans again."""
+        return copy.copy(self)
 
     # ------------------------------------------------------------------ read-only views
     @property
