@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
     from hrc.model import Task, Workspace
 
-__all__ = ["draw_map", "draw_workspace", "map_base", "map_figure", "route_points"]
+__all__ = ["draw_map", "draw_workspace", "map_base", "map_figure", "route_points", "workspace_figure"]
 
 _OFFSET = 0.06  # m, how far apart the agents' routes are drawn
 
@@ -80,8 +80,8 @@ def _midpoint_arrow(ax: Axes, pts: list[tuple[float, float]], color: str) -> lis
     return []
 
 
-def map_base(task: Task) -> tuple[Figure, Axes]:
-    """The plan-independent part: the workspace and the agents' start markers (reused for every plan)."""
+def workspace_figure(task: Task) -> tuple[Figure, Axes]:
+    """A figure sized to the task's floor, with the workspace drawn on its one axes."""
     ws = task.workspace
     xmin, ymin, xmax, ymax = ws.bounds
     width = 6.4
@@ -89,6 +89,13 @@ def map_base(task: Task) -> tuple[Figure, Axes]:
     fig = new_figure(width, height)
     ax = fig.add_axes((0.1, 0.7 / height, 0.86, 1.0 - 1.0 / height))
     draw_workspace(ax, ws)
+    return fig, ax
+
+
+def map_base(task: Task) -> tuple[Figure, Axes]:
+    """The plan-independent part: the workspace and the agents' start markers (reused for every plan)."""
+    ws = task.workspace
+    fig, ax = workspace_figure(task)
     for i, agent in enumerate(task.agents):
         start = ws.location(agent.start)
         ax.plot([start.x], [start.y], marker="s", markersize=9, markerfacecolor="none",

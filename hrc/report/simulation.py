@@ -30,7 +30,7 @@ from matplotlib.patches import Circle, Patch
 
 from hrc.report.figures import agent_color, new_figure, save_png
 from hrc.report.gantt import gantt_bars
-from hrc.report.maps import draw_workspace
+from hrc.report.maps import workspace_figure
 
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan
@@ -155,14 +155,7 @@ def run_gantt_figure(task: Task, cp: CompiledPlan | None, result: RunResult) -> 
 
 
 def _map_figure(task: Task) -> tuple[Figure, object]:
-    ws = task.workspace
-    xmin, ymin, xmax, ymax = ws.bounds
-    width = 6.4
-    height = min(9.0, max(3.0, (width - 0.9) * (ymax - ymin + 0.4) / (xmax - xmin + 0.4) + 1.0))
-    fig = new_figure(width, height)
-    ax = fig.add_axes((0.1, 0.7 / height, 0.86, 1.0 - 1.0 / height))
-    draw_workspace(ax, ws)
-    return fig, ax
+    return workspace_figure(task)
 
 
 def trajectories_figure(task: Task, result: RunResult) -> Figure:
