@@ -64,17 +64,19 @@ class PlanNet:
                     [(t, s, -lb, s, t) for s, t, lb, _ub in self.req if lb is not None]
         # (u, v, length, j, sign, a, b) in that order: a requirement edge has j = -1 and its length; the edge
         # of contingent link j has length sign * (its duration, fixed at evaluation); a, b: the link's ends
-        self.lp_all: list[tuple[int, int, int, int, int, int, int]] = []
+        # back: v comes no later than u in that order, so a move of v needs another sweep
+        self.lp_all: list[tuple[int, int, int, int, int, int, int, bool]] = []
         for u, v, sign, k, which in lp:
+            back = order[v] <= order[u]
             if k >= 0:
                 s, t, lb, ub = self.req[k]
                 bound = lb if which == 0 else ub
                 if bound is not None:
-                    self.lp_all.append((u, v, bound * sign, -1, sign, s, t))
+                    self.lp_all.append((u, v, bound * sign, -1, sign, s, t, back))
             else:
                 j = -1 - k
                 a, c = self.cont[j][:2]
-                self.lp_all.append((u, v, 0, j, sign, a, c))
+                self.lp_all.append((u, v, 0, j, sign, a, c, back))
 
     def _order(self, lp: list[tuple[int, int, int, int, int]]) -> list[int]:
         """Position of each node in a topological order of the orderings (edges whose length is >= 0
@@ -167,25 +169,22 @@ class PlanNet:
         # links history closed go; an edge into history is a check (strict) or nothing (the fallback: an
         # ordering history broke says nothing about what comes next, and it keeps lengths >= 0 only)
         if strict:
-            edges = [(u, v, length if j < 0 else fwd[j] if sign > 0 else -bwd[j])
-                     for u, v, length, j, sign, a, b in self.lp_all if ex[a] is None or ex[b] is None]
+            edges = [(u, v, length if j < 0 else fwd[j] if sign > 0 else -bwd[j], back)
+                     for u, v, length, j, sign, a, b, back in self.lp_all if ex[a] is None or ex[b] is None]
         else:
-            edges = [(u, v, length if j < 0 else fwd[j]) for u, v, length, j, sign, a, b in self.lp_all
+            edges = [(u, v, length if j < 0 else fwd[j], back) for u, v, length, j, sign, a, b, back in self.lp_all
                      if (ex[a] is None or ex[b] is None) and ex[v] is None and (length >= 0 if j < 0 else sign > 0)]
-        # Bellman-Ford in the orderings' topological order: one pass settles it unless an upper bound moved
-        # a timepoint whose outgoing edges were already visited in that pass
-        stamp = [-1] * n
-        for sweep in range(n + 1):
+        # Bellman-Ford in the orderings' topological order: one sweep settles it unless an edge moved a
+        # timepoint whose outgoing edges that sweep had already visited (a "back" edge)
+        for _sweep in range(n + 1):
             again = False
-            for u, v, length in edges:
-                stamp[u] = sweep
+            for u, v, length, back in edges:
                 w = t[u] + length
                 if w > t[v]:
                     if ex[v] is not None or v == z:
                         return None  # a pinned timepoint would have to move: no schedule
                     t[v] = w
-                    if stamp[v] == sweep:
-                        again = True
+                    again = again or back
             if not again:
                 return t
         return None
