@@ -18,7 +18,7 @@ from conftest import ROOT
 from dispatch_client import Run, broken_links
 
 from hrc.cli import main
-from hrc.dispatch import Dispatcher, Observation
+from hrc.dispatch import Dispatcher, Observation, RobotStep
 from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.protocol import handle_line
 from hrc.errors import DispatchError
@@ -176,6 +176,12 @@ def test_undo_withdraws_the_last_human_observation(plan_set):
     assert d.decision.plan == first.plan
     with pytest.raises(DispatchError, match="nothing to undo"):
         d.observe(Observation(3.5, "undo"))
+    d.observe(Observation(4.0, "start", "human", "cube1", "fetch"))
+    step = d.decision.robot
+    assert isinstance(step, RobotStep)
+    d.observe(Observation(max(4.0, step.earliest), step.event, "robot", step.action, step.phase))
+    with pytest.raises(DispatchError, match="nothing to undo"):  # the robot has acted on it since
+        d.observe(Observation(d.now + 1, "undo"))
 
 
 def test_overrun_and_missed_deadline_still_give_a_decision(plan_set):

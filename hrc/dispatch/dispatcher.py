@@ -211,10 +211,9 @@ class Dispatcher:
             raise DispatchError(f"time goes backwards: t = {obs.t:g} s is before the last message "
                                 f"({state.history.now:g} s)")
         human = state.history.human
-        last = next((k for k in range(len(state.effective) - 1, -1, -1)
-                     if state.effective[k].event not in ("tick",)), None)
-        if last is None or state.effective[last].agent not in (human, None) or \
-                state.effective[last].event in ("tick",):
+        last = next((k for k in range(len(state.effective) - 1, -1, -1) if state.effective[k].event != "tick"),
+                    None)  # the last observation that is not a tick: only ticks may follow the one withdrawn
+        if last is None or state.effective[last].agent not in (human, None):
             raise DispatchError("nothing to undo: the last observation is not the human's")
         target = state.effective[last]
         if obs.t - target.t > UNDO_SECONDS:
