@@ -470,6 +470,21 @@ class _Run:
         g = self.ctl.guide_time(action, phase, event)
         return self.t if g is None else g
 
+    def _home_or_aside(self, a: _Agent, other: _Agent) -> bool | None:
+        """The steps both agents share: going home, and making room for `other`. True or False when one
+        of them decided this step (something happened, or nothing may), None when the agent's own rules
+        decide."""
+        if a.mode == "home":
+            if not a.mover.moving:
+                a.mode, a.loc = "free", a.home
+                return True
+            return False
+        if self._aside_step(a, other):
+            return True
+        if a.mode in ("aside", "aside_wait", "returning"):
+            return False
+        return None
+
     def human(self) -> bool:
         a, t = self.h, self.t
         if a.mode == "gone":
@@ -484,15 +499,9 @@ class _Run:
                 self.emit(a, "back")
                 return True
             return False
-        if a.mode == "home":
-            if not a.mover.moving:
-                a.mode, a.loc = "free", a.home
-                return True
-            return False
-        if self._aside_step(a, self.r):
-            return True
-        if a.mode in ("aside", "aside_wait", "returning"):
-            return False
+        moved = self._home_or_aside(a, self.r)
+        if moved is not None:
+            return moved
         if a.mode == "free":
             if a.action is None:
                 absence = self.draws.absence
@@ -556,15 +565,9 @@ class _Run:
     def robot(self) -> bool:
         a, t = self.r, self.t
         o = self.ctl.order()
-        if a.mode == "home":
-            if not a.mover.moving:
-                a.mode, a.loc = "free", a.home
-                return True
-            return False
-        if self._aside_step(a, self.h):
-            return True
-        if a.mode in ("aside", "aside_wait", "returning"):
-            return False
+        moved = self._home_or_aside(a, self.h)
+        if moved is not None:
+            return moved
         if a.mode == "free":
             if o is None:
                 return False if self.ctl.stopped else self.go_home(a)
