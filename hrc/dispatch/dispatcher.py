@@ -240,7 +240,7 @@ class Dispatcher:
             done = executed(plans[i], history)
             done_of[i] = done
             finished = len(done) == len(plans[i].stnu.timepoints)
-            key = (tuple(sorted(done.items())), None if finished else now)  # what enters its residual network
+            key = (done, None if finished else now)  # what enters its residual network
             old = previous.get(i)
             if old is not None and old[0] == key:
                 evaluations[i] = old
