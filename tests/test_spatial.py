@@ -184,3 +184,25 @@ def test_workshop_inconsistent_plans_have_no_schedule(workshop) -> None:  # noqa
         if cp.plan_class is PlanClass.INCONSISTENT:
             done = earliest_completion(workshop.task, cp.plan, workshop.paths, dt=0.05, tolerance=0.0)
             assert done is None or done > workshop.task.deadline - 0.1, (cp.plan.id, done)
+
+
+@pytest.mark.parametrize("human_waits", [True, False])
+def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool) -> None:
+    """The search reads each leaf's class and makespans off its own matrices and the C core
+    (`motion_pattern._search`); `classify` on the leaf's built STNU is the independent truth: the same
+    key for every leaf of every route choice of a sample of workshop and kitting plans."""
+    from hrc.compile.motion_pattern import _route_trials, _search, pattern_key
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+
+    leaves = 0
+    for name, step in (("cube_stacking", 3), ("kitting", 149)):
+        task = load_task(ROOT / "tasks" / f"{name}.yaml")
+        paths = plan_paths(task, seed=0)
+        for plan in list(generate_plans(task))[::step]:
+            for routes in [{}, *_route_trials(task, plan, paths, human_waits)[:2]]:
+                results, _ = _search(task, plan, paths, routes, human_waits, "worst", None)
+                for key, build in results:
+                    assert pattern_key(build().classification, "worst") == key
+                    leaves += 1
+    assert leaves >= 20  # not vacuous (about 200 leaves when the human waits, 21 when not)

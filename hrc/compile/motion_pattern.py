@@ -48,10 +48,11 @@ from hrc.model import Plan, Task
 from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detour, find_conflicts, plan_motions
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs
-from hrc.temporal import STNU, ContingentLink, RequirementLink, check_consistency
+from hrc.temporal import STNU, RequirementLink, Verdict, check_consistency, check_dc
+from hrc.temporal.rul import core_verdict
 
 __all__ = ["LEAF_CAP", "NODE_CAP", "RANK_BY", "TRIAL_CAP", "MotionPattern", "PassingOrder", "PlanChoice",
-           "choose_pattern", "pattern_key"]
+           "apply_pattern", "choose_pattern", "pattern_key"]
 
 LEAF_CAP = 24
 NODE_CAP = 4000
@@ -115,20 +116,31 @@ def pattern_key(c: Classification, rank_by: str = "worst") -> tuple:
     return (c.plan_class.order, round(first, 6), round(worst, 6), round(early, 6))
 
 
-def _apsp(stnu: STNU) -> np.ndarray | None:
-    """Dense shortest distances (ticks as float64, exact below 2**52); None if the STN is inconsistent."""
+def _apsp(stnu: STNU, fix: str = "", after_origin: bool = False) -> np.ndarray | None:
+    """Dense shortest distances (ticks as float64, exact below 2**52); None if the STN is inconsistent.
+
+    Contingent links are read as requirements (``fix=""``) or fixed at their upper bound (``"ub"``);
+    `after_origin` adds ``T(x) >= T(origin)`` for every timepoint (the reading of `classify`'s earliest
+    schedules)."""
     n = len(stnu.timepoints)
     index = {v: i for i, v in enumerate(stnu.timepoints)}
     mat = np.full((n, n), np.inf)
-    edges: list[tuple[int, int, int]] = []  # the distance graph, contingents read as requirements
-    links: tuple[RequirementLink | ContingentLink, ...] = (*stnu.requirements, *stnu.contingents)
-    for r in links:
+    edges: list[tuple[int, int, int]] = []  # the distance graph
+    for r in stnu.requirements:
         i, j = index[r.source], index[r.target]
         if i != j:
             if r.ub is not None:
                 edges.append((i, j, r.ub))
             if r.lb is not None:
                 edges.append((j, i, -r.lb))
+    for c in stnu.contingents:
+        i, j = index[c.source], index[c.target]
+        lb = c.ub if fix == "ub" else c.lb
+        if i != j:
+            edges += [(i, j, c.ub), (j, i, -lb)]
+    if after_origin:
+        z = index[ORIGIN]
+        edges += [(i, z, 0) for i in range(n) if i != z]
     if edges:
         e = np.array(edges, dtype=np.int64)
         np.minimum.at(mat, (e[:, 0], e[:, 1]), e[:, 2].astype(np.float64))
@@ -151,17 +163,22 @@ def _text(order: PassingOrder) -> str:
     return f"passing order: {order.describe()}"
 
 
-def _evaluate(task: Task, base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[PassingOrder],
-              rank_by: str, start: EarliestStart | None = None) -> tuple[PlanNetwork, Classification]:
-    """The pattern's network and its class and makespans, without the passing orders' words (a search
-    classifies many patterns and explains one: `_worded` adds them to the one it keeps)."""
+def _network(base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[PassingOrder]) -> PlanNetwork:
+    """`base` with the passing orders that are not implied as requirement links (before the limits)."""
     s = base.stnu
     cut = len(s.requirements) - base.n_limits
     added = tuple(RequirementLink(namer(o.separation.earlier), namer(o.separation.later),
                                   math.ceil(o.separation.gap * TICKS_PER_SECOND - 1e-9), None)
                   for o in orders if o.how != "implied")
-    net = PlanNetwork(stnu=STNU(s.timepoints, s.requirements[:cut] + added + s.requirements[cut:], s.contingents,
-                                s.name), meaning=base.meaning, last_ends=base.last_ends, n_limits=base.n_limits)
+    return PlanNetwork(stnu=STNU(s.timepoints, s.requirements[:cut] + added + s.requirements[cut:], s.contingents,
+                                 s.name), meaning=base.meaning, last_ends=base.last_ends, n_limits=base.n_limits)
+
+
+def _evaluate(task: Task, base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[PassingOrder],
+              rank_by: str, start: EarliestStart | None = None) -> tuple[PlanNetwork, Classification]:
+    """The pattern's network and its class and makespans, without the passing orders' words (a search
+    classifies many patterns and explains one: `_worded` adds them to the one it keeps)."""
+    net = _network(base, namer, orders)
     return net, classify(task, net, explained=False, full=rank_by == "nominal", start=start)
 
 
@@ -177,13 +194,59 @@ def _worded(task: Task, plan: Plan, net: PlanNetwork, orders: tuple[PassingOrder
                        n_limits=net.n_limits)
 
 
+_CLASS_OF = {"DC": PlanClass.DC, "not DC": PlanClass.CONSISTENT, "inconsistent": PlanClass.INCONSISTENT}
+_VERDICT_CLASS = {Verdict.DC: PlanClass.DC, Verdict.NOT_DC: PlanClass.CONSISTENT,
+                  Verdict.INCONSISTENT: PlanClass.INCONSISTENT}
+
+Leaf = Callable[[], PlanChoice]  # builds a classified pattern's choice (only the kept one is ever built)
+
+
+class _Edges:
+    """`base`'s network as index arrays for the C core's DC verdict (`hrc.temporal.rul.core_verdict`), to
+    which a leaf's passing orders are appended without building an `STNU` per leaf."""
+
+    def __init__(self, stnu: STNU, index: dict[str, int]) -> None:
+        self.n = len(stnu.timepoints)
+        self.src: list[int] = []
+        self.dst: list[int] = []
+        self.wt: list[int] = []
+        for r in stnu.requirements:
+            i, j = index[r.source], index[r.target]
+            if r.ub is not None:
+                self.src.append(i)
+                self.dst.append(j)
+                self.wt.append(r.ub)
+            if r.lb is not None:
+                self.src.append(j)
+                self.dst.append(i)
+                self.wt.append(-r.lb)
+        c = stnu.contingents
+        self.act = [index[x.source] for x in c]
+        self.ctg = [index[x.target] for x in c]
+        self.xs = [x.lb for x in c]
+        self.ys = [x.ub for x in c]
+
+    def verdict(self, later: list[int], earlier: list[int], gaps: list[int]) -> str | None:
+        """The verdict with ``T(later) - T(earlier) >= gap`` added per order (None: no C core here)."""
+        return core_verdict(self.n, self.src + later, self.dst + earlier, self.wt + [-g for g in gaps],
+                            self.act, self.ctg, self.xs, self.ys)
+
+
 def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_waits: bool,
-            rank_by: str, bound: tuple | None) -> tuple[list[tuple[tuple, PlanChoice]], bool]:
-    """Classified complete patterns for one choice of routes (best first), and whether it was exhaustive.
+            rank_by: str, bound: tuple | None) -> tuple[list[tuple[tuple, Leaf]], bool]:
+    """Classified complete patterns for one choice of routes (best first; each with the function that
+    builds its `PlanChoice`), and whether the search was exhaustive.
 
     Depth-first with propagation: at every node the conflicts whose order the network already implies
     are settled, those with one order left get it (and its edge), repeatedly, and a conflict with no
     order left ends the branch; only then does the search branch, on the first open conflict.
+
+    A leaf is measured from the search's own matrices: beside the all-pairs distances of the network
+    with the task's limits (which prune), it carries those of the network without them, with the human's
+    durations free and fixed at their upper bounds (`classify`'s earliest and worst-case readings), each
+    updated per added edge; the makespans are read off them and the class comes from the C core on index
+    arrays. The same numbers as `classify` on the leaf's `STNU` (which ``rank_by="nominal"`` still uses,
+    for its third reading), without building one per leaf.
     """
     motions = plan_motions(task, plan, paths, routes)
     conflicts = find_conflicts(task, plan, paths, routes)
@@ -194,7 +257,11 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
     assert robust is not None  # lower bounds and the robot's own durations along an acyclic phase graph
     z = index[ORIGIN]
     namer = ref_namer(task, plan)
-    warm = earliest_start(base.without_limits())  # each leaf's makespans: from here, incrementally
+    fast = rank_by != "nominal"
+    free = base.without_limits()
+    warm = None if fast else earliest_start(free)  # each leaf's makespans: from here, incrementally
+    edges = _Edges(base.stnu, index) if fast else None
+    ends = np.array([index[t] for t in base.last_ends], dtype=int)
     k = len(conflicts)
     # per conflict and order (0: robot first, 1: human first): T(later) - T(earlier) >= gap, in ticks
     earlier = np.zeros((k, 2), dtype=int)
@@ -207,24 +274,66 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
     implied = np.asarray(robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)  # holds in every execution
     settled = [bool(row.any()) for row in implied]
     first_of = [0 if row[0] else 1 for row in implied]
-    results: list[tuple[tuple, PlanChoice]] = []
+    results: list[tuple[tuple, Leaf]] = []
     state = {"nodes": 0, "leaves": 0, "stop": False, "exhaustive": True}
+    # a node's matrices: with the limits (prunes), then without them, human durations free / at their
+    # upper bounds (None once that reading has no schedule: more edges never give it one)
+    Mats = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
 
-    def add(mat: np.ndarray, j: int, o: int) -> np.ndarray:
-        e, lt = earlier[j, o], later[j, o]
-        return np.minimum(mat, mat[:, lt:lt + 1] - gap[j, o] + mat[e:e + 1, :])
+    def add_one(mat: np.ndarray | None, e: int, lt: int, g: float, check: bool) -> np.ndarray | None:
+        if mat is None or (check and mat[e, lt] - g < 0):
+            return None  # the edge lt -> e of weight -g closes a negative cycle
+        return np.minimum(mat, mat[:, lt:lt + 1] - g + mat[e:e + 1, :])
 
-    def leaf(how: dict[int, tuple[int, str]]) -> None:
+    def add(mats: Mats, j: int, o: int) -> Mats:
+        e, lt, g = earlier[j, o], later[j, o], gap[j, o]
+        top = add_one(mats[0], e, lt, g, False)
+        assert top is not None
+        if not fast:
+            return top, None, None
+        return top, add_one(mats[1], e, lt, g, True), add_one(mats[2], e, lt, g, True)
+
+    def orders_of(how: dict[int, tuple[int, str]]) -> list[PassingOrder]:
+        return [PassingOrder(c, ("robot", "human")[first_of[j] if settled[j] else how[j][0]],
+                             "implied" if settled[j] else how[j][1]) for j, c in enumerate(conflicts)]
+
+    def choice(how: dict[int, tuple[int, str]], cls: Classification | None) -> Leaf:
+        def build() -> PlanChoice:
+            orders = orders_of(how)
+            net = _network(base, namer, orders)
+            return PlanChoice(MotionPattern(motions, tuple(orders), 0, True), net,
+                              cls if cls is not None else classify(task, net, explained=False, full=False))
+        return build
+
+    def span(mat: np.ndarray | None) -> int | None:
+        if mat is None:
+            return None
+        return int(-mat[ends, z].min()) if len(ends) else 0
+
+    def leaf(mats: Mats, how: dict[int, tuple[int, str]]) -> None:
         state["leaves"] += 1
-        orders = [PassingOrder(c, ("robot", "human")[first_of[j] if settled[j] else how[j][0]],
-                               "implied" if settled[j] else how[j][1]) for j, c in enumerate(conflicts)]
-        net, cls = _evaluate(task, base, namer, orders, rank_by, warm)
+        if fast:
+            chosen = [(j, o) for j, (o, _) in how.items()]
+            verdict = edges.verdict([int(later[j, o]) for j, o in chosen],  # type: ignore[union-attr]
+                                    [int(earlier[j, o]) for j, o in chosen], [int(gap[j, o]) for j, o in chosen])
+            if verdict is None:  # no C core: the whole check on the leaf's STNU
+                plan_class = _VERDICT_CLASS[check_dc(_network(base, namer, orders_of(how)).stnu).verdict]
+            else:
+                plan_class = _CLASS_OF[verdict]
+            early, late = span(mats[1]), span(mats[2])
+            makespan = None if early is None else (early / TICKS_PER_SECOND,
+                                                   (early if late is None else late) / TICKS_PER_SECOND)
+            cls = Classification(plan_class, "", makespan, (), ())
+            build = choice(how, None)
+        else:
+            net, cls = _evaluate(task, base, namer, orders_of(how), rank_by, warm)
+            build = choice(how, cls)
         key = pattern_key(cls, rank_by)
-        results.append((key, PlanChoice(MotionPattern(motions, tuple(orders), 0, True), net, cls)))
+        results.append((key, build))
         if bound is not None and key <= bound:
             state["stop"] = True  # nothing can beat the network without passing orders
 
-    def dfs(mat: np.ndarray, how: dict[int, tuple[int, str]]) -> None:
+    def dfs(mats: Mats, how: dict[int, tuple[int, str]]) -> None:
         if state["stop"]:
             return
         if state["nodes"] >= NODE_CAP or state["leaves"] >= LEAF_CAP:
@@ -233,9 +342,10 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
         state["nodes"] += 1
         how = dict(how)
         while True:
+            mat = mats[0]
             open_ = [j for j in range(k) if not settled[j] and j not in how]
             if not open_:
-                leaf(how)
+                leaf(mats, how)
                 return
             idx = np.array(open_)
             holds = mat[later[idx], earlier[idx]] <= -gap[idx]  # (m, 2): already implied by what is decided
@@ -248,25 +358,28 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
             unit = [(open_[pos], int(np.argmax(fits[pos]))) for pos in np.flatnonzero(~held & (n_fit == 1))]
             if unit:
                 j, o = unit[0]  # one at a time: each edge may settle or forbid others
-                mat = add(mat, j, o)
+                mats = add(mats, j, o)
                 how[j] = (o, "forced")
                 continue
             rest = [j for j in open_ if j not in how]
             if rest:
                 break
         j = rest[0]
-        early = -mat[:, z]
+        early = -mats[0][:, z]
         options = sorted((0, 1), key=lambda o: -(early[later[j, o]] - early[earlier[j, o]] - gap[j, o]))
         for o in options:  # first the order the earliest schedule is closer to
-            dfs(add(mat, j, o), how | {j: (o, "chosen")})
+            dfs(add(mats, j, o), how | {j: (o, "chosen")})
             if state["stop"]:
                 return
 
     # first among the patterns that meet the task's limits (pruned by them: a consistent plan is never
     # missed for a cap); only if there is none, among those that keep the two apart at all (inconsistent)
-    for start in (_apsp(base.stnu), _apsp(base.without_limits())):
+    readings: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+    if fast:
+        readings = (_apsp(free, "", after_origin=True), _apsp(free, "ub", after_origin=True))
+    for start in (_apsp(base.stnu), _apsp(free)):
         if start is not None:
-            dfs(start, {})
+            dfs((start, *readings), {})
         if results or state["stop"] or not state["exhaustive"]:
             break
     results.sort(key=lambda r: r[0])
@@ -369,6 +482,10 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool)
     return trials
 
 
+_BLOCKED = Classification(PlanClass.INCONSISTENT, "the co-workers would block each other: no order of passing "
+                          "keeps them apart", None, (), ())
+
+
 def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool = True,
                    rank_by: str = "worst") -> PlanChoice:
     """The plan's best motion pattern, its STNU and its classification (see the module docstring)."""
@@ -377,7 +494,7 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
     bound = _bound(task, plan, paths, {}, human_waits, rank_by)
     results, exhaustive = _search(task, plan, paths, {}, human_waits, rank_by, bound)
     count = len(results)
-    best_key, best = results[0] if results else ((math.inf,), None)
+    best_key, best = results[0] if results else ((math.inf,), None)  # best: builds the kept choice
     if best_key > bound:  # a detour or a waiting place may do better than waiting in the way
         bounded = [(_bound(task, plan, paths, routes, human_waits, rank_by, best_key), i, routes)
                    for i, routes in enumerate(_route_trials(task, plan, paths, human_waits))]
@@ -395,12 +512,21 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
                 best_key, best = more[0]
     if best is None:
         # the co-workers block each other whatever the order and route: no schedule keeps them apart
-        motions = plan_motions(task, plan, paths)
-        net = create_stnu(task, plan, motions, (), human_waits)
-        cls = Classification(PlanClass.INCONSISTENT, "the co-workers would block each other: no order of passing "
-                             "keeps them apart", None, (), ())
-        return PlanChoice(MotionPattern(motions, (), count, exhaustive), net, cls)
-    pattern = best.pattern
-    net = _worded(task, plan, best.net, pattern.orders)
+        pattern = MotionPattern(plan_motions(task, plan, paths), (), count, exhaustive)
+        return PlanChoice(pattern, create_stnu(task, plan, pattern.motions, (), human_waits), _BLOCKED)
+    kept = best()
+    pattern = kept.pattern
+    net = _worded(task, plan, kept.net, pattern.orders)
     return PlanChoice(MotionPattern(pattern.motions, pattern.orders, count, exhaustive), net,
                       classify(task, net))  # again, in full, with its explanation
+
+
+def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: bool = True) -> PlanChoice:
+    """`plan` carried out with another plan's `pattern`, classified in full: for a plan of the same family
+    (`hrc.plans.plan_families`: the same up to the names of identical actions), whose search would find
+    that very pattern, since motion patterns name legs and places, never actions."""
+    base = create_stnu(task, plan, pattern.motions, (), human_waits)
+    if pattern.candidates == 0:  # no pattern at all: the co-workers block each other (`choose_pattern`)
+        return PlanChoice(pattern, base, _BLOCKED)
+    net = _worded(task, plan, _network(base, ref_namer(task, plan), list(pattern.orders)), pattern.orders)
+    return PlanChoice(pattern, net, classify(task, net))
