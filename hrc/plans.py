@@ -25,7 +25,7 @@ from hrc.model import PhaseRef, Plan, Task
 
 __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocations", "count_plans", "estimate_plan_count",
            "generate_plans", "identical_actions", "is_canonical", "must_precede", "phase_graph", "pin_actions",
-           "plan_count_bound", "symmetry_factor"]
+           "plan_count_bound", "plan_families", "relabellings", "symmetry_factor"]
 
 COUNT_STATES = 100_000
 """Most run states `estimate_plan_count` memoizes before it falls back to `plan_count_bound` (about
@@ -306,3 +306,30 @@ def pin_actions(task: Task, pins: dict[str, str]) -> Task:
                                                                                    if x == ag)) for p in a.phases))
         new.append(a)
     return replace(task, actions=tuple(new))
+
+
+def relabellings(task: Task, plan: Plan, groups: tuple[tuple[str, ...], ...]) -> tuple[Plan, ...]:
+    """`plan` and every other plan obtained by permuting the actions within each group of
+    `identical_actions` (`plan` first, then in the order of the permutations; ``prod(m!)`` plans when
+    `plan` is canonical). Each is valid when `plan` is: the actions swapped are told apart by nothing."""
+    out = [plan]
+    seen = {plan}
+    for combo in itertools.product(*(itertools.permutations(g) for g in groups)):
+        rename = {a: b for g, p in zip(groups, combo, strict=True) for a, b in zip(g, p, strict=True)}
+        agent = {rename.get(a, a): ag for a, ag in plan.allocation}
+        other = Plan(allocation=tuple((a, agent[a]) for a, _ in plan.allocation),
+                     sequences=tuple((ag, tuple(rename.get(x, x) for x in seq)) for ag, seq in plan.sequences))
+        if other not in seen:
+            seen.add(other)
+            out.append(other)
+    return tuple(out)
+
+
+def plan_families(task: Task) -> Iterator[tuple[Plan, ...]]:
+    """Every plan of `generate_plans`, grouped: each canonical plan (`is_canonical`) followed by its
+    `relabellings`. A family's plans have the same STNU up to the names of identical actions, so
+    motion acquisition's search (`hrc.compile.motion_pattern`) runs once per family, not once per plan.
+    The same set of plans as `generate_plans`, in another order (the compile ranks them anyway)."""
+    groups = identical_actions(task)
+    for plan in generate_plans(task, symmetry=bool(groups)):
+        yield relabellings(task, plan, groups) if groups else (plan,)

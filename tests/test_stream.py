@@ -3,6 +3,7 @@ archive or none, partial output on interrupt; plan counts in bounded time; pinni
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import zipfile
@@ -124,7 +125,7 @@ def test_the_sink_ranks_as_rank_key_does(mini_task, tmp_path):
     from hrc.compile.stream import compile_records
 
     for cp, tail in reversed(compile_records(full.options, "none", mini_task, full.paths,
-                                             [cp.plan for cp in full.plans])):
+                                             [(cp.plan,) for cp in full.plans])):
         sink.add(cp, tail)
     out = sink.finish(0, full.paths, full.options)
     data = json.loads((tmp_path / "compiled.json").read_text())
@@ -208,3 +209,38 @@ def test_symmetric_twins_compile_to_the_same_class_and_makespans():
             (ag, tuple(rename.get(x, x) for x in seq)) for ag, seq in plan.sequences))
         a, b = compile_plan(task, plan, paths), compile_plan(task, twin, paths)
         assert a.plan_class == b.plan_class and a.classification.makespan == b.classification.makespan
+
+
+def test_plan_families_are_the_plans_grouped_by_relabelling():
+    """`plan_families` yields every plan of `generate_plans` exactly once, in families of
+    `symmetry_factor` plans, each headed by its canonical plan and closed under swapping twins."""
+    from hrc.plans import identical_actions, is_canonical, plan_families, symmetry_factor
+
+    task = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
+    groups = identical_actions(task)
+    families = list(plan_families(task))
+    flat = [p for f in families for p in f]
+    assert len(flat) == len(set(flat)) == 5040 and set(flat) == set(generate_plans(task))
+    assert {len(f) for f in families} == {symmetry_factor(task)} == {2}
+    for family in families:
+        assert is_canonical(task, family[0], groups) and not any(is_canonical(task, p, groups) for p in family[1:])
+        a, b = family
+        swap = {"pick_a": "pick_f", "pick_f": "pick_a"}
+        assert b.sequences == tuple((ag, tuple(swap.get(x, x) for x in seq)) for ag, seq in a.sequences)
+
+
+@pytest.mark.parametrize("options", [CompileOptions(), CompileOptions(human_waits=False, rank_by="nominal")])
+def test_a_family_compiles_as_each_of_its_plans_does(options):
+    """One motion search per family (`compile_family`) gives each plan the very record its own search
+    gives (`compile_plan`): kitting_7picks, families of 4 (two pairs of twins)."""
+    from hrc.compile.compiler import compile_family, compile_plan
+    from hrc.motion import plan_paths
+    from hrc.plans import plan_families
+
+    task = load_task(ROOT / "tasks" / "kitting_7picks.yaml")
+    paths = plan_paths(task, seed=0)
+    families = list(itertools.islice(plan_families(task), 0, 4000, 997))
+    assert len(families) == 5 and {len(f) for f in families} == {4}
+    for family in families:
+        got = compile_family(task, family, paths, options)
+        assert [repr(cp) for cp in got] == [repr(compile_plan(task, p, paths, options)) for p in family]

@@ -20,17 +20,17 @@ from dataclasses import dataclass, replace
 
 from hrc.compile.classify import Classification, PlanClass
 from hrc.compile.executors import make_executor
-from hrc.compile.motion_pattern import RANK_BY, MotionPattern, choose_pattern, pattern_key
+from hrc.compile.motion_pattern import RANK_BY, MotionPattern, apply_pattern, choose_pattern, pattern_key
 from hrc.compile.preferences import plan_preference
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import task_to_dict
 from hrc.model import Plan, Task
 from hrc.motion import Motion, PathLibrary, plan_paths
-from hrc.plans import count_plans, generate_plans
+from hrc.plans import count_plans, plan_families, symmetry_factor
 from hrc.temporal.graphml import write_graphml
 
 __all__ = ["ClassStats", "CompileOptions", "CompiledPlan", "CompiledPlanSet", "PlanSetSummary", "compile_chunk",
-           "compile_plan", "compile_task",
+           "compile_family", "compile_plan", "compile_task",
            "rank_key", "task_digest"]
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
@@ -135,10 +135,14 @@ def task_digest(task: Task) -> str:
 
 
 def compile_plan(task: Task, plan: Plan, paths: PathLibrary, options: CompileOptions = CompileOptions(),
-                 graphml: bool = True) -> CompiledPlan:
+                 graphml: bool = True, pattern: MotionPattern | None = None) -> CompiledPlan:
     """Motion acquisition (routes, conflicts, passing orders), temporal net creator and classification
-    for one plan (rank left at 0; `graphml` False leaves its GraphML text empty)."""
-    choice = choose_pattern(task, plan, paths, human_waits=options.human_waits, rank_by=options.rank_by)
+    for one plan (rank left at 0; `graphml` False leaves its GraphML text empty). With `pattern` (the
+    motion pattern of a plan of the same family, `compile_family`) motion acquisition's search is skipped."""
+    if pattern is None:
+        choice = choose_pattern(task, plan, paths, human_waits=options.human_waits, rank_by=options.rank_by)
+    else:
+        choice = apply_pattern(task, plan, pattern, human_waits=options.human_waits)
     stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
     return CompiledPlan(plan=plan, pattern=choice.pattern, classification=choice.classification, stnu_size=size,
@@ -146,10 +150,20 @@ def compile_plan(task: Task, plan: Plan, paths: PathLibrary, options: CompileOpt
                         preference=plan_preference(task, plan, choice.net))
 
 
-def compile_chunk(task: Task, paths: PathLibrary, plans: list[Plan],
+def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
+                   options: CompileOptions = CompileOptions(), graphml: bool = True) -> list[CompiledPlan]:
+    """The plans of one family (`hrc.plans.plan_families`: the same up to the names of identical actions):
+    the first compiled in full, the others with its motion pattern (their searches would find the same
+    one), each classified on its own STNU. The same records as `compile_plan` on each."""
+    first = compile_plan(task, family[0], paths, options, graphml)
+    return [first, *(compile_plan(task, plan, paths, options, graphml, first.pattern) for plan in family[1:])]
+
+
+def compile_chunk(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]],
                   options: CompileOptions = CompileOptions()) -> list[CompiledPlan]:
-    """The unit of work sent to an executor (a module-level function, so it pickles by name)."""
-    return [compile_plan(task, plan, paths, options) for plan in plans]
+    """The unit of work sent to an executor (a module-level function, so it pickles by name): whole
+    families of plans."""
+    return [cp for family in families for cp in compile_family(task, family, paths, options)]
 
 
 def rank_key(cp: CompiledPlan, rank_by: str = "worst") -> tuple:
@@ -172,7 +186,7 @@ def rank_key(cp: CompiledPlan, rank_by: str = "worst") -> tuple:
     return (key[0], second, round(pref, 6), *key[1:], round(idle, 6), cp.plan.id)
 
 
-def _chunks(items: Iterable[Plan], size: int) -> Iterator[list[Plan]]:
+def _chunks(items: Iterable[tuple[Plan, ...]], size: int) -> Iterator[list[tuple[Plan, ...]]]:
     it = iter(items)
     while chunk := list(itertools.islice(it, size)):
         yield chunk
@@ -182,13 +196,14 @@ def compile_task(task: Task, seed: int = 0, jobs: int | None = None, executor: s
                  progress: Progress | None = None, options: CompileOptions = CompileOptions()) -> CompiledPlanSet:
     """Compile every plan of `task`; see the module docstring. Raises `hrc.errors.HrcError` subclasses."""
     total = count_plans(task)
-    chunk_size = max(1, min(64, total // (4 * max(1, jobs or 2)) or 1))
+    families = total // symmetry_factor(task)
+    chunk_size = max(1, min(64, families // (4 * max(1, jobs or 2)) or 1))
     compiled: list[CompiledPlan] = []
     with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
         paths = plan_paths(task, seed=seed,
                            progress=(lambda d, t: progress("motion", d, t)) if progress else None)
         work = functools.partial(_chunk_with, options)
-        for batch in ex.map_chunks(work, task, paths, _chunks(generate_plans(task), chunk_size)):
+        for batch in ex.map_chunks(work, task, paths, _chunks(plan_families(task), chunk_size)):
             compiled.extend(batch)
             if progress:
                 progress("plans", len(compiled), total)
@@ -198,5 +213,6 @@ def compile_task(task: Task, seed: int = 0, jobs: int | None = None, executor: s
                            options=options)
 
 
-def _chunk_with(options: CompileOptions, task: Task, paths: PathLibrary, plans: list[Plan]) -> list[CompiledPlan]:
-    return compile_chunk(task, paths, plans, options)
+def _chunk_with(options: CompileOptions, task: Task, paths: PathLibrary,
+                families: list[tuple[Plan, ...]]) -> list[CompiledPlan]:
+    return compile_chunk(task, paths, families, options)

@@ -43,7 +43,7 @@ from hrc.compile.compiler import (
     CompiledPlanSet,
     CompileOptions,
     PlanSetSummary,
-    compile_plan,
+    compile_family,
     rank_key,
     task_digest,
 )
@@ -52,7 +52,7 @@ from hrc.compile.output import JSON_TAIL, STNU_ARCHIVE, STNU_MODES, header_dict,
 from hrc.errors import HrcError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
-from hrc.plans import generate_plans, identical_actions
+from hrc.plans import generate_plans, identical_actions, plan_families, symmetry_factor
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "StreamResult", "chunk_size", "compile_records",
            "compile_stream"]
@@ -68,16 +68,16 @@ _KEY_COLUMNS = ("cls", "second", "pref", "first", "worst", "early", "idle")  # r
 
 
 def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
-                    plans: list[Plan]) -> list[tuple[CompiledPlan, str]]:
-    """The executor's unit of work: each plan compiled, with its ``compiled.json`` line after ``"rank":``
+                    families: list[tuple[Plan, ...]]) -> list[tuple[CompiledPlan, str]]:
+    """The executor's unit of work: whole families of plans (`hrc.plans.plan_families`, one motion
+    search each, `compile_family`), each plan with its ``compiled.json`` line after ``"rank":``
     (`plan_dict` encoded where the plan was compiled, so that the parent only copies bytes)."""
     out = []
-    for plan in plans:
-        cp = compile_plan(task, plan, paths, options, graphml=stnu != "none")
+    for cp in (cp for family in families for cp in compile_family(task, family, paths, options, stnu != "none")):
         text = json.dumps(plan_dict(task, cp, stnu), separators=(",", ":"))
-        head = _line_head(plan.id, 0)
+        head = _line_head(cp.plan.id, 0)
         if not text.startswith(head):  # pragma: no cover - plan_dict puts id and rank first
-            raise HrcError(f"internal: plan {plan.id}'s line does not start with its id and rank")
+            raise HrcError(f"internal: plan {cp.plan.id}'s line does not start with its id and rank")
         out.append((cp, text[len(head):]))
     return out
 
@@ -247,16 +247,16 @@ class StreamResult:
     seconds_per_plan: float | None  # measured on the first plans, in this process
 
 
-def _sample(task: Task, paths: PathLibrary, plans: Iterator[Plan], options: CompileOptions, stnu: str,
-            sink: PlanSink, budget: float) -> tuple[int, float]:
-    """Compile the first plans here until `budget` seconds pass (at least one, at most 16): the time per
-    plan for the up-front estimate; the plans are kept, not wasted."""
+def _sample(task: Task, paths: PathLibrary, families: Iterator[tuple[Plan, ...]], options: CompileOptions,
+            stnu: str, sink: PlanSink, budget: float) -> tuple[int, float]:
+    """Compile the first families here until `budget` seconds pass (at least one, at most 16 plans): the
+    time per plan for the up-front estimate; the plans are kept, not wasted."""
     t0 = time.perf_counter()
     n = 0
-    for plan in plans:
-        for cp, tail in compile_records(options, stnu, task, paths, [plan]):
+    for family in families:
+        for cp, tail in compile_records(options, stnu, task, paths, [family]):
             sink.add(cp, tail)
-        n += 1
+        n += len(family)
         if time.perf_counter() - t0 >= budget or n >= 16:
             break
     return n, (time.perf_counter() - t0) / max(n, 1)
@@ -285,13 +285,15 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
         with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
             paths = plan_paths(task, seed=seed,
                                progress=(lambda d, t: progress("motion", d, t)) if progress else None)
-            stream = generate_plans(task, symmetry=symmetry)
+            stream = (((plan,) for plan in generate_plans(task, symmetry=True)) if symmetry
+                      else plan_families(task))
             _, per_plan = _sample(task, paths, stream, options, stnu, sink, sample_seconds)
             if estimate is not None:
                 estimate(per_plan)
             if progress:
                 progress("plans", len(sink), total)
-            size = chunk_size(max(total - len(sink), 1), getattr(ex, "jobs", 2))
+            family = 1 if symmetry else symmetry_factor(task)
+            size = max(1, chunk_size(max(total - len(sink), 1), getattr(ex, "jobs", 2)) // family)
             work = functools.partial(_records_with, options, stnu)
             chunks = iter(lambda: list(itertools.islice(stream, size)), [])
             for batch in ex.map_chunks(work, task, paths, chunks):
@@ -312,5 +314,5 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
 
 
 def _records_with(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
-                  plans: list[Plan]) -> list[tuple[CompiledPlan, str]]:
-    return compile_records(options, stnu, task, paths, plans)
+                  families: list[tuple[Plan, ...]]) -> list[tuple[CompiledPlan, str]]:
+    return compile_records(options, stnu, task, paths, families)
