@@ -191,7 +191,7 @@ def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool)
     """The search reads each leaf's class and makespans off its own matrices and the C core
     (`motion_pattern._search`); `classify` on the leaf's built STNU is the independent truth: the same
     key for every leaf of every route choice of a sample of workshop and kitting plans."""
-    from hrc.compile.motion_pattern import _route_trials, _search, pattern_key
+    from hrc.compile.motion_pattern import _route_trials, _Routing, _search, pattern_key
     from hrc.motion import plan_paths
     from hrc.plans import generate_plans
 
@@ -201,7 +201,8 @@ def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool)
         paths = plan_paths(task, seed=0)
         for plan in list(generate_plans(task))[::step]:
             for routes in [{}, *_route_trials(task, plan, paths, human_waits)[:2]]:
-                results, _ = _search(task, plan, paths, routes, human_waits, "worst", None)
+                routing = _Routing(task, plan, paths, routes, human_waits)
+                results, _ = _search(task, plan, routing, "worst", None)
                 for key, build in results:
                     assert pattern_key(build().classification, "worst") == key
                     leaves += 1

@@ -29,6 +29,7 @@ best pattern so far, at most `TRIAL_CAP` of them.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -194,6 +195,35 @@ def _worded(task: Task, plan: Plan, net: PlanNetwork, orders: tuple[PassingOrder
                        n_limits=net.n_limits)
 
 
+class _Routing:
+    """One choice of routes for a plan, with what the search and the bound read of it, each built once
+    when first asked for (a plan's shortest routes are read by the bound, the search and the route
+    trials alike)."""
+
+    def __init__(self, task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_waits: bool) -> None:
+        self.task, self.plan, self.paths, self.routes, self.human_waits = task, plan, paths, routes, human_waits
+
+    @functools.cached_property
+    def motions(self) -> tuple[Motion, ...]:
+        return plan_motions(self.task, self.plan, self.paths, self.routes)
+
+    @functools.cached_property
+    def base(self) -> PlanNetwork:
+        """The plan's network with these routes and no passing order."""
+        return create_stnu(self.task, self.plan, self.motions, (), self.human_waits)
+
+    @functools.cached_property
+    def conflicts(self) -> tuple[Conflict, ...]:
+        return find_conflicts(self.task, self.plan, self.paths, self.routes)
+
+    @functools.cached_property
+    def robust(self) -> np.ndarray:
+        """`_apsp` of `_robust`: what holds in every execution."""
+        robust = _apsp(_robust(self.base))
+        assert robust is not None  # lower bounds and the robot's own durations along an acyclic phase graph
+        return robust
+
+
 _CLASS_OF = {"DC": PlanClass.DC, "not DC": PlanClass.CONSISTENT, "inconsistent": PlanClass.INCONSISTENT}
 _VERDICT_CLASS = {Verdict.DC: PlanClass.DC, Verdict.NOT_DC: PlanClass.CONSISTENT,
                   Verdict.INCONSISTENT: PlanClass.INCONSISTENT}
@@ -232,8 +262,8 @@ class _Edges:
                             self.act, self.ctg, self.xs, self.ys)
 
 
-def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_waits: bool,
-            rank_by: str, bound: tuple | None) -> tuple[list[tuple[tuple, Leaf]], bool]:
+def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
+            bound: tuple | None) -> tuple[list[tuple[tuple, Leaf]], bool]:
     """Classified complete patterns for one choice of routes (best first; each with the function that
     builds its `PlanChoice`), and whether the search was exhaustive.
 
@@ -248,13 +278,9 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
     arrays. The same numbers as `classify` on the leaf's `STNU` (which ``rank_by="nominal"`` still uses,
     for its third reading), without building one per leaf.
     """
-    motions = plan_motions(task, plan, paths, routes)
-    conflicts = find_conflicts(task, plan, paths, routes)
-    base = create_stnu(task, plan, motions, (), human_waits)
+    motions, conflicts, base, robust = routing.motions, routing.conflicts, routing.base, routing.robust
     names = base.stnu.timepoints
     index = {v: i for i, v in enumerate(names)}
-    robust = _apsp(_robust(base))
-    assert robust is not None  # lower bounds and the robot's own durations along an acyclic phase graph
     z = index[ORIGIN]
     namer = ref_namer(task, plan)
     fast = rank_by != "nominal"
@@ -386,13 +412,12 @@ def _search(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_wa
     return results, bool(state["exhaustive"] or state["stop"])  # reaching the bound is as good as exhaustive
 
 
-def _bound(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, human_waits: bool,
-           rank_by: str, beat: tuple | None = None) -> tuple:
+def _bound(task: Task, routing: _Routing, rank_by: str, beat: tuple | None = None) -> tuple:
     """The key of the plan with these routes and no passing order at all: no pattern does better.
 
     With `beat`, the DC check is skipped when the makespans alone already show that the bound cannot
     beat that key (the class part of the returned key is then the best possible, 0)."""
-    net = create_stnu(task, plan, plan_motions(task, plan, paths, routes), (), human_waits)
+    net = routing.base
     full = rank_by == "nominal"
     if beat is not None:
         best_class = PlanClass.DC if check_consistency(net.stnu).consistent else PlanClass.INCONSISTENT
@@ -408,7 +433,8 @@ def _separation_ticks(namer: Callable[[TimeRef], str], index: dict[str, int],
     return index[namer(sep.earlier)], index[namer(sep.later)], float(math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9))
 
 
-def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool) -> list[Routes]:
+def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
+                  shortest: _Routing | None = None) -> list[Routes]:
     """Route choices to try besides the shortest routes, from the conflicts the plan does not settle
     anyway (those of the "robust" network):
 
@@ -420,14 +446,12 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool)
       may time the human's steps, ``human_waits``); then every such leg of that agent together.
     """
     robot = next(a for a in task.agents if not a.is_human)
-    motions = plan_motions(task, plan, paths)
-    base = create_stnu(task, plan, motions, (), human_waits)
-    index = {v: i for i, v in enumerate(base.stnu.timepoints)}
-    robust = _apsp(_robust(base))
-    assert robust is not None
+    shortest = shortest or _Routing(task, plan, paths, {}, human_waits)
+    motions, robust = shortest.motions, shortest.robust
+    index = {v: i for i, v in enumerate(shortest.base.stnu.timepoints)}
     namer = ref_namer(task, plan)
     open_conflicts = []
-    for c in find_conflicts(task, plan, paths):
+    for c in shortest.conflicts:
         implied = False
         for sep in (c.robot_first, c.human_first):
             e, lt, g = _separation_ticks(namer, index, sep)
@@ -491,29 +515,30 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
     """The plan's best motion pattern, its STNU and its classification (see the module docstring)."""
     if rank_by not in RANK_BY:
         raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
-    bound = _bound(task, plan, paths, {}, human_waits, rank_by)
-    results, exhaustive = _search(task, plan, paths, {}, human_waits, rank_by, bound)
+    shortest = _Routing(task, plan, paths, {}, human_waits)
+    bound = _bound(task, shortest, rank_by)
+    results, exhaustive = _search(task, plan, shortest, rank_by, bound)
     count = len(results)
     best_key, best = results[0] if results else ((math.inf,), None)  # best: builds the kept choice
     if best_key > bound:  # a detour or a waiting place may do better than waiting in the way
-        bounded = [(_bound(task, plan, paths, routes, human_waits, rank_by, best_key), i, routes)
-                   for i, routes in enumerate(_route_trials(task, plan, paths, human_waits))]
+        trials = [_Routing(task, plan, paths, routes, human_waits)
+                  for routes in _route_trials(task, plan, paths, human_waits, shortest)]
+        bounded = [(_bound(task, routing, rank_by, best_key), i, routing) for i, routing in enumerate(trials)]
         bounded.sort(key=lambda b: (b[0], b[1]))  # the most promising first
-        for tried, (bound, _, routes) in enumerate(bounded):
+        for tried, (bound, _, routing) in enumerate(bounded):
             if bound >= best_key:
                 break  # neither this nor any later one can beat what we have
             if tried >= TRIAL_CAP:
                 exhaustive = False
                 break
-            more, full = _search(task, plan, paths, routes, human_waits, rank_by, bound)
+            more, full = _search(task, plan, routing, rank_by, bound)
             count += len(more)
             exhaustive = exhaustive and full
             if more and more[0][0] < best_key:
                 best_key, best = more[0]
     if best is None:
         # the co-workers block each other whatever the order and route: no schedule keeps them apart
-        pattern = MotionPattern(plan_motions(task, plan, paths), (), count, exhaustive)
-        return PlanChoice(pattern, create_stnu(task, plan, pattern.motions, (), human_waits), _BLOCKED)
+        return PlanChoice(MotionPattern(shortest.motions, (), count, exhaustive), shortest.base, _BLOCKED)
     kept = best()
     pattern = kept.pattern
     net = _worded(task, plan, kept.net, pattern.orders)
