@@ -333,3 +333,34 @@ def plan_families(task: Task) -> Iterator[tuple[Plan, ...]]:
     groups = identical_actions(task)
     for plan in generate_plans(task, symmetry=bool(groups)):
         yield relabellings(task, plan, groups) if groups else (plan,)
+
+
+def spread_families(task: Task, count: int, symmetry: bool = False) -> list[tuple[Plan, ...]]:
+    """Up to `count` families of `plan_families` (with `symmetry`, canonical plans alone) from allocations
+    spread evenly over the allocation space: the first family of each. A sample of the plans that is not
+    all of one corner of the space, as the stream's first plans are (allocations come in lexicographic
+    order: the first ones give the human everything), for `hrc compile`'s up-front estimate."""
+    choices = [[ag for ag in task.agent_ids if ag in action.agents] for action in task.actions]
+    total = math.prod(len(c) for c in choices)
+    before = must_precede(task)
+    groups = identical_actions(task)
+    # a stride near total / golden ratio, coprime with total, visits every allocation once, spread out
+    stride = max(1, round(total / 1.618033988749895))
+    while math.gcd(stride, total) != 1:
+        stride += 1
+    out: list[tuple[Plan, ...]] = []
+    for k in range(min(total, 50 * count)):  # allocations without a canonical plan are passed over
+        if len(out) >= count:
+            break
+        i = k * stride % total
+        combo = []
+        for c in reversed(choices):  # mixed radix, the last action fastest, as itertools.product
+            i, digit = divmod(i, len(c))
+            combo.append(c[digit])
+        allocation = tuple(zip(task.action_ids, reversed(combo), strict=True))
+        for sequences in _sequences(task, allocation, before):
+            plan = Plan(allocation=allocation, sequences=sequences)
+            if not groups or is_canonical(task, plan, groups):
+                out.append((plan,) if symmetry or not groups else relabellings(task, plan, groups))
+                break
+    return out

@@ -244,3 +244,20 @@ def test_a_family_compiles_as_each_of_its_plans_does(options):
     for family in families:
         got = compile_family(task, family, paths, options)
         assert [repr(cp) for cp in got] == [repr(compile_plan(task, p, paths, options)) for p in family]
+
+
+def test_the_estimate_samples_plans_from_across_the_task():
+    """`spread_families` draws its sample from allocations all over the space (the stream's first plans
+    all give the human everything), each a family `plan_families` yields, none twice."""
+    from hrc.plans import allocations, plan_families, spread_families
+
+    task = load_task(ROOT / "tasks" / "kitting_7picks.yaml")
+    sample = spread_families(task, 16)
+    assert len(sample) == len(set(sample)) == 16
+    families = set(plan_families(task))
+    assert all(f in families for f in sample)
+    order = {a: i for i, a in enumerate(allocations(task))}
+    where = sorted(order[f[0].allocation] for f in sample)
+    assert where[0] < 16 and where[-1] > 100  # of 128 allocations
+    assert len({sum(ag == "robot" for _, ag in f[0].allocation) for f in sample}) >= 4  # 0..7 picks to the robot
+    assert {len(f) for f in spread_families(task, 4, symmetry=True)} == {1}

@@ -162,6 +162,7 @@ def run(args: argparse.Namespace) -> int:
     from hrc.compile.compiler import CompileOptions
     from hrc.compile.estimate import estimate, fmt_bytes, fmt_seconds
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
+    from hrc.compile.stream import Sample
     from hrc.plans import pin_actions
 
     task = load_task(args.task)
@@ -187,9 +188,11 @@ def run(args: argparse.Namespace) -> int:
         f"{fmt_seconds(lo)}-{fmt_seconds(hi)} on {jobs or workers} worker{'s' * ((jobs or workers) > 1)} "
         "until measured")
 
-    def on_estimate(per_plan: float) -> None:
-        t = est.wall(jobs or workers, per_plan)[0]
-        say(f"the first plans took {per_plan:.3f} s each: about {fmt_seconds(t)} for all {total:,} at that pace "
+    def on_estimate(sample: Sample) -> None:
+        t = est.wall(jobs or workers, sample.seconds_per_plan)[0]
+        disk = fmt_bytes(sample.bytes_per_plan * total)
+        say(f"{sample.plans} sample plans (from allocations across the task) took {sample.seconds_per_plan:.3f} s "
+            f"each: about {fmt_seconds(t)} for all {total:,} at that pace, and {disk} on disk "
             "(plans differ a lot: the progress line's estimate follows the real pace)")
 
     progress = _Progress(tty=sys.stderr.isatty(), quiet=quiet)

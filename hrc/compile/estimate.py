@@ -7,13 +7,17 @@ it measures on its first plans.
 
 Per plan, with ``L`` legs (one per phase of every action) and ``T = 1 + 4 L`` timepoints:
 
-- its ``compiled.json`` line: about ``JSON_BYTES * L`` bytes (measured: 5.6 kB for the 14 legs of
-  kitting_7picks, 9.3 kB for the workshop's 10, whose plans carry more passing orders and explanations);
+- its ``compiled.json`` line: about ``JSON_BYTES * L`` bytes (measured: 17 kB for the 14 legs of
+  kitting_7picks, 9.3 kB for the workshop's 10; most of it is the plan's passing orders, about 90 per
+  kitting plan);
 - its GraphML file: about ``GRAPHML_BYTES * T`` bytes (430-520 measured), rounded up to a file
   system block (``--stnu graphml``); deflated in ``stnu.zip`` about `ZIP_RATIO` of that (``--stnu archive``);
 - its CPU time: `SECONDS_PER_PLAN`, the range of the mean time per plan and core on the bundled tasks (the
   motion-pattern search dominates; it depends on how often the two agents' routes meet, so single plans
   range from a few milliseconds to over a second).
+
+`hrc compile` then says what it measured on a sample of plans from allocations spread over the task
+(`hrc.plans.spread_families`, `hrc.compile.stream.Sample`): time and disk per plan.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ DEFAULT_MAX_PLANS = 50_000
 """``hrc compile --max-plans`` default: the 40,320 plans of 7 independent picks pass, 8 picks
 (362,880) are refused up front."""
 
-JSON_BYTES = 600
+JSON_BYTES = 1100
 GRAPHML_BYTES = 480
 BLOCK = 4096
 ZIP_RATIO = 0.1

@@ -28,8 +28,9 @@ import itertools
 import json
 import time
 import zipfile
+import zlib
 from array import array
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO
@@ -52,9 +53,9 @@ from hrc.compile.output import JSON_TAIL, STNU_ARCHIVE, STNU_MODES, header_dict,
 from hrc.errors import HrcError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
-from hrc.plans import generate_plans, identical_actions, plan_families, symmetry_factor
+from hrc.plans import generate_plans, identical_actions, plan_families, spread_families, symmetry_factor
 
-__all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "StreamResult", "chunk_size", "compile_records",
+__all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "Sample", "StreamResult", "chunk_size", "compile_records",
            "compile_stream"]
 
 REPORT_TOP = 100
@@ -247,25 +248,43 @@ class StreamResult:
     seconds_per_plan: float | None  # measured on the first plans, in this process
 
 
-def _sample(task: Task, paths: PathLibrary, families: Iterator[tuple[Plan, ...]], options: CompileOptions,
-            stnu: str, sink: PlanSink, budget: float) -> tuple[int, float]:
-    """Compile the first families here until `budget` seconds pass (at least one, at most 16 plans): the
-    time per plan for the up-front estimate; the plans are kept, not wasted."""
+@dataclass(frozen=True, slots=True)
+class Sample:
+    """What the plans compiled for the up-front estimate cost: wall seconds per plan in this process, and
+    bytes per plan on disk for the run's ``--stnu`` mode (its ``compiled.json`` line and its STNU)."""
+
+    families: int  # the first this many of the sample's families were compiled
+    plans: int
+    seconds_per_plan: float
+    bytes_per_plan: float
+
+
+def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], options: CompileOptions,
+            stnu: str, sink: PlanSink, budget: float) -> Sample:
+    """Compile sample families here until `budget` seconds pass (at least one family, at most 16 plans):
+    the time and disk per plan for the up-front estimate; the plans are kept, not wasted."""
     t0 = time.perf_counter()
-    n = 0
+    n = done = 0
+    size = 0.0
     for family in families:
         for cp, tail in compile_records(options, stnu, task, paths, [family]):
             sink.add(cp, tail)
+            size += len(tail.encode()) + 32
+            if stnu == "graphml":
+                size += -(-len(cp.graphml.encode()) // 4096) * 4096
+            elif stnu == "archive":
+                size += len(zlib.compress(cp.graphml.encode(), 6))
         n += len(family)
+        done += 1
         if time.perf_counter() - t0 >= budget or n >= 16:
             break
-    return n, (time.perf_counter() - t0) / max(n, 1)
+    return Sample(done, n, (time.perf_counter() - t0) / max(n, 1), size / max(n, 1))
 
 
 def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs: int | None = None,
                    executor: str | None = None, options: CompileOptions | None = None,
                    stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
-                   estimate: Callable[[float], None] | None = None, sample_seconds: float = 1.0,
+                   estimate: Callable[[Sample], None] | None = None, sample_seconds: float = 1.0,
                    symmetry: bool = False) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
@@ -285,11 +304,17 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
         with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
             paths = plan_paths(task, seed=seed,
                                progress=(lambda d, t: progress("motion", d, t)) if progress else None)
+            # the estimate's sample comes from allocations spread over the whole space (the stream's first
+            # plans are all of one corner: the human doing everything), and is left out of the stream
+            spread = spread_families(task, 16, symmetry)
+            sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds)
+            per_plan = sample.seconds_per_plan
+            done = {f[0] for f in spread[:sample.families]}
+            if estimate is not None:
+                estimate(sample)
             stream = (((plan,) for plan in generate_plans(task, symmetry=True)) if symmetry
                       else plan_families(task))
-            _, per_plan = _sample(task, paths, stream, options, stnu, sink, sample_seconds)
-            if estimate is not None:
-                estimate(per_plan)
+            stream = (f for f in stream if f[0] not in done)
             if progress:
                 progress("plans", len(sink), total)
             family = 1 if symmetry else symmetry_factor(task)

@@ -45,6 +45,7 @@ The output has one edge per finite bound in a fixed order, so equal networks giv
 
 from __future__ import annotations
 
+import functools
 import re
 import unicodedata
 from pathlib import Path
@@ -271,6 +272,7 @@ def _contingent_link(edges: list[tuple[str, str, int, str, str, int]], file: str
     return _make(ContingentLink, file, where, line, ac[0], c, lb, ub)
 
 
+@functools.lru_cache(maxsize=1 << 14)
 def tool_name(name: str) -> str:
     """The node id `write_graphml` gives timepoint ``name`` (the one place that decides it): the name with
     accents dropped and every character outside ``[A-Za-z0-9_ωΩ? ]`` replaced by ``_``.
@@ -345,13 +347,14 @@ def write_graphml(stnu: STNU) -> str:
     out.append(f'<data key="nEdges">{len(edges)}</data>')
     out.append(f'<data key="nVertices">{len(stnu.timepoints)}</data>')
     out.append(f'<data key="Name">{_escape(stnu.name)}</data>')
+    quoted = {nid: _quoteattr(nid) for nid in ids.values()}  # once per node, not per edge end
     for i, v in enumerate(stnu.timepoints):
-        out.append(f"<node id={_quoteattr(ids[v])}>")
+        out.append(f"<node id={quoted[ids[v]]}>")
         out.append(f'<data key="x">{150.0 * (i % 10):.1f}</data>')
         out.append(f'<data key="y">{150.0 * (i // 10):.1f}</data>')
         out.append("</node>")
     for i, (s, t, etype, key, value) in enumerate(edges):
-        out.append(f'<edge id="e{i}" source={_quoteattr(s)} target={_quoteattr(t)}>')
+        out.append(f'<edge id="e{i}" source={quoted[s]} target={quoted[t]}>')
         out.append(f'<data key="Type">{etype}</data>')
         out.append(f'<data key="{key}">{_escape(value)}</data>')
         out.append("</edge>")
