@@ -207,3 +207,36 @@ def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool)
                     assert pattern_key(build().classification, "worst") == key
                     leaves += 1
     assert leaves >= 20  # not vacuous (about 200 leaves when the human waits, 21 when not)
+
+
+def test_the_native_search_is_the_python_search() -> None:
+    """`hrc/compile/_patterncore.c` runs `_search`'s depth-first search in C; the Python search is the
+    reference: the same leaves, in the same order, with the same keys and passing orders, and the same
+    exhaustiveness, with and without a bound, for both readings and both human models."""
+    import hrc.compile.motion_pattern as mp
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+
+    if mp._NATIVE is None:
+        pytest.skip("the native core is not built (pip install -e . with a C compiler builds it)")
+    searches = 0
+    for name, step in (("cube_stacking", 5), ("kitting", 421), ("kitting_7picks", 4001)):
+        task = load_task(ROOT / "tasks" / f"{name}.yaml")
+        paths = plan_paths(task, seed=0)
+        for plan in list(generate_plans(task))[::step]:
+            for human_waits, rank_by in ((True, "worst"), (False, "earliest")):
+                for routes in [{}, *mp._route_trials(task, plan, paths, human_waits)[:2]]:
+                    bound = mp._bound(task, mp._Routing(task, plan, paths, routes, human_waits), rank_by)
+                    for b in (None, bound):
+                        native = mp._search(task, plan, mp._Routing(task, plan, paths, routes, human_waits), rank_by, b)
+                        saved, mp._NATIVE = mp._NATIVE, None
+                        try:
+                            python = mp._search(task, plan, mp._Routing(task, plan, paths, routes, human_waits),
+                                                rank_by, b)
+                        finally:
+                            mp._NATIVE = saved
+                        assert native[1] == python[1]
+                        assert [(k, f().pattern.orders) for k, f in native[0]] == \
+                            [(k, f().pattern.orders) for k, f in python[0]]
+                        searches += 1
+    assert searches > 100

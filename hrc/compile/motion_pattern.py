@@ -29,6 +29,7 @@ best pattern so far, at most `TRIAL_CAP` of them.
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import math
 from collections.abc import Callable
@@ -50,7 +51,7 @@ from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detou
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs
 from hrc.temporal import STNU, RequirementLink, Verdict, check_consistency, check_dc
-from hrc.temporal.rul import core_verdict
+from hrc.temporal.rul import core_verdict, native_library
 
 __all__ = ["LEAF_CAP", "NODE_CAP", "RANK_BY", "TRIAL_CAP", "MotionPattern", "PassingOrder", "PlanChoice",
            "apply_pattern", "choose_pattern", "pattern_key"]
@@ -262,6 +263,100 @@ class _Edges:
                             self.act, self.ctg, self.xs, self.ys)
 
 
+def _native_search() -> Callable[..., int] | None:
+    lib = native_library()
+    fn = getattr(lib, "hrc_pattern_search", None) if lib is not None else None
+    if fn is not None:
+        p = ctypes.c_void_p
+        fn.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int, p,
+                       ctypes.c_int, p, p, p, ctypes.c_int, p, p, p, p,
+                       ctypes.c_int, ctypes.c_int, ctypes.c_int, p, ctypes.c_int, p, p, p, p]
+        fn.restype = ctypes.c_int
+    return fn
+
+
+_NATIVE = _native_search()
+_INF_TICKS = np.iinfo(np.int64).max
+
+
+class _NativeSearch:
+    """`_search`'s depth-first search in C (``hrc/compile/_patterncore.c``): the same steps, leaves and
+    keys as the Python `dfs` (tested leaf for leaf), for the ``worst`` and ``earliest`` readings."""
+
+    def __init__(self, fn: Callable[..., int], k: int, z: int, earlier: np.ndarray, later: np.ndarray,
+                 gap: np.ndarray, settled: list[bool], ends: np.ndarray, edges: _Edges, bound: tuple | None,
+                 rank_by: str) -> None:
+        self.fn, self.k, self.z, self.n, self.rank_by = fn, k, z, edges.n, rank_by
+        self.arrays: dict[str, np.ndarray] = {
+            "earlier": np.ascontiguousarray(earlier, dtype=np.int32),
+            "later": np.ascontiguousarray(later, dtype=np.int32),
+            "gap": np.ascontiguousarray(gap, dtype=np.float64),
+            "settled": np.asarray(settled, dtype=np.uint8),
+            "ends": np.ascontiguousarray(ends, dtype=np.int32),
+            "src": np.asarray(edges.src, dtype=np.int32), "dst": np.asarray(edges.dst, dtype=np.int32),
+            "wt": np.asarray(edges.wt, dtype=np.int64), "act": np.asarray(edges.act, dtype=np.int32),
+            "ctg": np.asarray(edges.ctg, dtype=np.int32), "xs": np.asarray(edges.xs, dtype=np.int64),
+            "ys": np.asarray(edges.ys, dtype=np.int64),
+            "bound": np.array([_ticks_key(bound) if bound is not None else (0, 0, 0, 0)], dtype=np.int64).reshape(4),
+        }
+        self.has_bound = bound is not None
+        self.leaves: list[tuple[np.ndarray, np.ndarray, tuple]] = []
+
+    @classmethod
+    def make(cls, k: int, z: int, earlier: np.ndarray, later: np.ndarray, gap: np.ndarray, settled: list[bool],
+             ends: np.ndarray, edges: _Edges | None, bound: tuple | None, rank_by: str) -> _NativeSearch | None:
+        """The native search, or None when the library is not built or the numbers are too large for it."""
+        if _NATIVE is None or edges is None or rank_by not in ("worst", "earliest"):
+            return None
+        biggest = max([abs(w) for w in edges.wt] + edges.ys + [int(abs(g)) for g in gap.ravel()] + [0])
+        if biggest >= 1 << 40 or (bound is not None and any(math.isnan(b) for b in bound)):
+            return None
+        return cls(_NATIVE, k, z, earlier, later, gap, settled, ends, edges, bound, rank_by)
+
+    def run(self, start: np.ndarray, readings: tuple[np.ndarray | None, np.ndarray | None], state: dict) -> bool:
+        """One pass from `start` (`state` read and updated as the Python search does); its leaves in
+        `leaves`. False if the C search failed (out of memory): the caller searches in Python instead."""
+        n, k, a = self.n, self.k, self.arrays
+        mats = np.empty((3, n, n))
+        mats[0] = start
+        alive = np.array([readings[0] is not None, readings[1] is not None], dtype=np.int32)
+        for r, m in enumerate(readings):
+            if m is not None:
+                mats[r + 1] = m
+        st = np.array([state["nodes"], state["leaves"], int(state["stop"]), int(state["exhaustive"])], dtype=np.int32)
+        before = st.copy()
+        cap = LEAF_CAP
+        dec = np.full((cap, max(k, 1)), -1, dtype=np.int8)
+        how = np.zeros((cap, max(k, 1)), dtype=np.uint8)
+        keys = np.zeros((cap, 4), dtype=np.int64)
+
+        def ptr(x: np.ndarray) -> int:
+            return int(x.ctypes.data)
+
+        rc = self.fn(n, k, self.z, ptr(mats), ptr(alive), ptr(a["earlier"]), ptr(a["later"]), ptr(a["gap"]),
+                     ptr(a["settled"]), len(a["ends"]), ptr(a["ends"]), len(a["src"]), ptr(a["src"]), ptr(a["dst"]),
+                     ptr(a["wt"]), len(a["act"]), ptr(a["act"]), ptr(a["ctg"]), ptr(a["xs"]), ptr(a["ys"]),
+                     NODE_CAP, LEAF_CAP, int(self.has_bound), ptr(a["bound"]), int(self.rank_by == "worst"),
+                     ptr(st), ptr(dec), ptr(how), ptr(keys))
+        if rc != 0:
+            return False
+        state.update(nodes=int(st[0]), leaves=int(st[1]), stop=bool(st[2]), exhaustive=bool(st[3]))
+        self.leaves = [(dec[i], how[i], _key_of_ticks(keys[i], self.rank_by))
+                       for i in range(int(before[1]), int(st[1]))]
+        return True
+
+
+def _ticks_key(key: tuple) -> tuple[int, ...]:
+    """A `pattern_key` in integer ticks (infinite: the largest int64), as the C search compares keys."""
+    return (int(key[0]), *(int(_INF_TICKS) if math.isinf(v) else round(v * TICKS_PER_SECOND) for v in key[1:4]))
+
+
+def _key_of_ticks(row: np.ndarray, rank_by: str) -> tuple:
+    """The `pattern_key` of a C leaf: the key the Python leaf computes from the same class and makespans."""
+    makespan = None if int(row[1]) == _INF_TICKS else (int(row[3]) / TICKS_PER_SECOND, int(row[2]) / TICKS_PER_SECOND)
+    return pattern_key(Classification(list(PlanClass)[int(row[0])], "", makespan, (), ()), rank_by)
+
+
 def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
             bound: tuple | None) -> tuple[list[tuple[tuple, Leaf]], bool]:
     """Classified complete patterns for one choice of routes (best first; each with the function that
@@ -329,6 +424,12 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
             net = _network(base, namer, orders)
             return PlanChoice(MotionPattern(motions, tuple(orders), 0, True), net,
                               cls if cls is not None else classify(task, net, explained=False, full=False))
+        return build
+
+    def native_choice(dec: np.ndarray, codes: np.ndarray) -> Leaf:
+        def build() -> PlanChoice:
+            how = {int(j): (int(dec[j]), ("", "forced", "chosen")[codes[j]]) for j in np.flatnonzero(dec >= 0)}
+            return choice(how, None)()
         return build
 
     def span(mat: np.ndarray | None) -> int | None:
@@ -403,9 +504,14 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
     readings: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
     if fast:
         readings = (_apsp(free, "", after_origin=True), _apsp(free, "ub", after_origin=True))
+    native = _NativeSearch.make(k, z, earlier, later, gap, settled, ends, edges, bound, rank_by) if fast else None
     for start in (_apsp(base.stnu), _apsp(free)):
         if start is not None:
-            dfs((start, *readings), {})
+            if native is not None and native.run(start, readings, state):
+                results += [(key, native_choice(dec, codes)) for dec, codes, key in native.leaves]
+            else:
+                native = None  # not built, or it failed: the Python search, from the same state
+                dfs((start, *readings), {})
         if results or state["stop"] or not state["exhaustive"]:
             break
     results.sort(key=lambda r: r[0])

@@ -63,7 +63,7 @@ from hrc.temporal.graph import Edge, EdgeKind
 from hrc.temporal.network import STNU
 from hrc.temporal.potential import feasible_potential
 
-__all__ = ["RulOutcome", "core_verdict", "rul2021", "rul2021_check"]
+__all__ = ["RulOutcome", "core_verdict", "native_library", "rul2021", "rul2021_check"]
 
 _INF = float("inf")
 _UNSTARTED, _STARTED, _DONE = 0, 1, 2
@@ -431,22 +431,36 @@ def _python_check(stnu: STNU) -> tuple[str, tuple[Edge, ...], _Rul]:
     return "DC", (), run
 
 
+def native_library() -> ctypes.CDLL | None:
+    """The native core (``_rulcore.c`` and ``hrc/compile/_patterncore.c``, built into ``_native/`` by
+    ``pip install`` when a C compiler is there), or None. Loaded once."""
+    if not _LIBRARY:
+        here = Path(__file__).resolve().parent / "_native"
+        found = None
+        for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+            path = here / f"_rulcore{suffix}"
+            if path.is_file():
+                try:
+                    found = ctypes.CDLL(str(path))
+                except OSError:
+                    found = None
+                break
+        _LIBRARY.append(found)
+    return _LIBRARY[0]
+
+
+_LIBRARY: list[ctypes.CDLL | None] = []  # filled once by `native_library`
+
+
 def _load_core() -> Callable[..., int] | None:
-    """The C verdict (``_rulcore.c``, built into ``_native/`` by ``pip install`` when a C compiler is
-    there), or None."""
-    here = Path(__file__).resolve().parent / "_native"
-    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
-        path = here / f"_rulcore{suffix}"
-        if path.is_file():
-            try:
-                lib = ctypes.CDLL(str(path))
-            except OSError:
-                return None
-            fn = lib.hrc_rul_verdict
-            fn.argtypes = [ctypes.c_int, ctypes.c_int, *[ctypes.c_void_p] * 4, ctypes.c_int, *[ctypes.c_void_p] * 6]
-            fn.restype = ctypes.c_int
-            return fn  # type: ignore[no-any-return]
-    return None
+    """The C verdict (`native_library`'s ``hrc_rul_verdict``), or None."""
+    lib = native_library()
+    if lib is None:
+        return None
+    fn = lib.hrc_rul_verdict
+    fn.argtypes = [ctypes.c_int, ctypes.c_int, *[ctypes.c_void_p] * 4, ctypes.c_int, *[ctypes.c_void_p] * 6]
+    fn.restype = ctypes.c_int
+    return fn  # type: ignore[no-any-return]
 
 
 _CORE = _load_core()
