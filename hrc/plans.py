@@ -25,7 +25,7 @@ from hrc.model import PhaseRef, Plan, Task
 
 __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocations", "count_plans", "estimate_plan_count",
            "generate_plans", "identical_actions", "is_canonical", "must_precede", "phase_graph", "pin_actions",
-           "plan_count_bound", "plan_families", "relabellings", "symmetry_factor"]
+           "plan_count_bound", "plan_families", "relabellings", "spread_families", "symmetry_factor"]
 
 COUNT_STATES = 100_000
 """Most run states `estimate_plan_count` memoizes before it falls back to `plan_count_bound` (about
