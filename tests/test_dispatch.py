@@ -22,6 +22,7 @@ from hrc.dispatch import Dispatcher, Observation, RobotStep
 from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.protocol import handle_line
 from hrc.errors import DispatchError
+from hrc.io.task_file import load_task
 
 WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
 
@@ -251,3 +252,35 @@ def test_a_fork_is_independent(plan_set):
     f = d.fork()
     f.observe(Observation(1.0, "start", "human", "cube1", "fetch"))
     assert d.history == () and len(d.candidates) == 32 and f.history != ()
+
+
+def test_a_plan_the_compile_found_blocked_is_never_promised():
+    """Found by `hrc simulate` on kitting: a plan for which motion acquisition found no pattern ("the
+    co-workers would block each other") is written with an STNU that carries none of its conflicts, and
+    a check of that STNU alone says DC; the dispatcher used to start every kitting run on one. It must
+    rank such a plan inconsistent, after every other plan, whatever its STNU's check says."""
+    from dataclasses import replace as dc_replace
+
+    from hrc.compile.compiler import CompiledPlanSet, CompileOptions, compile_plan, rank_key, task_digest
+    from hrc.dispatch.ranking import evaluate, reference_evaluate
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+    from hrc.temporal import check_dc
+
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    paths = plan_paths(task, seed=0)
+    compiled = sorted((compile_plan(task, p, paths) for p in list(generate_plans(task))[::45]), key=rank_key)
+    cps = CompiledPlanSet(task=task, seed=0, digest=task_digest(task), paths=paths,
+                          plans=tuple(dc_replace(cp, rank=i + 1) for i, cp in enumerate(compiled)),
+                          options=CompileOptions())
+    d = Dispatcher.from_compiled(cps)
+    blocked = [e for e in d.plan_set.plans if e.blocked]
+    assert blocked and all(e.compiled_class == "inconsistent" for e in blocked)
+    assert any(check_dc(e.stnu).is_dc for e in blocked)  # what the STNU alone would promise
+    for e in blocked:
+        assert evaluate(e, {}, 0).plan_class == reference_evaluate(e, {}, 0).plan_class == "inconsistent"
+    ranked = [c.plan for c in d.candidates]
+    ids = {e.id for e in blocked}
+    assert d.decision.plan not in ids and d.decision.plan_class == "DC"
+    first_blocked = min(i for i, p in enumerate(ranked) if p in ids)
+    assert all(p in ids for p in ranked[first_blocked:])  # blocked plans come last

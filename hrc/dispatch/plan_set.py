@@ -39,7 +39,9 @@ class PlanEntry:
     """One compiled plan: `plan`, its compile-time `rank` and `compiled_class`, APA `preference` value,
     its `stnu`, each agent's legs as ``(action, phase)`` in order (`legs`), each leg's timepoints in the
     order they happen (`leg_points`: ``(event, timepoint)``), and the event each timepoint stands for
-    (`events`)."""
+    (`events`). `blocked`: the compile found no motion pattern at all for it ("the co-workers would block
+    each other"), so its STNU carries none of its passing orders and a check of it says nothing about the
+    plan: it stays inconsistent whatever the check says (`hrc.dispatch.ranking`)."""
 
     plan: Plan
     rank: int
@@ -50,6 +52,7 @@ class PlanEntry:
     leg_points: Mapping[LegKey, tuple[tuple[str, str], ...]]
     events: Mapping[str, EventKey]
     net: PlanNet  # the same network as index arrays, for re-checking it at every message
+    blocked: bool = False
 
     @property
     def id(self) -> str:
@@ -67,7 +70,7 @@ class PlanSet:
 
 
 def _entry(task: Task, plan: Plan, rank: int, compiled_class: str, preference: float | None,
-           stnu: STNU, where: str) -> PlanEntry:
+           stnu: STNU, where: str, blocked: bool = False) -> PlanEntry:
     known = set(stnu.timepoints)
     if ORIGIN not in known:
         raise InputError(where, "", f"the STNU has no origin timepoint {ORIGIN!r}")
@@ -98,7 +101,7 @@ def _entry(task: Task, plan: Plan, rank: int, compiled_class: str, preference: f
     for agent_id in legs:  # in each agent's order (points were filled agent by agent)
         net_legs.setdefault(agent_id, [])
     net = PlanNet(stnu.timepoints, stnu.requirements, stnu.contingents, ORIGIN, net_legs)
-    return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events, net)
+    return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events, net, blocked)
 
 
 def plan_set_from_compiled(cps: Any) -> PlanSet:
@@ -108,7 +111,8 @@ def plan_set_from_compiled(cps: Any) -> PlanSet:
     for cp in cps.plans:
         where = f"<compiled plan {cp.plan.id}>"
         stnu = read_graphml(cp.graphml.encode(), where)
-        entries.append(_entry(cps.task, cp.plan, cp.rank, cp.plan_class.value, cp.preference, stnu, where))
+        entries.append(_entry(cps.task, cp.plan, cp.rank, cp.plan_class.value, cp.preference, stnu, where,
+                              blocked=cp.pattern.candidates == 0))
     return PlanSet(cps.task, tuple(entries), cps.options.rank_by, "<memory>")
 
 
@@ -156,8 +160,10 @@ def load_plan_set(out_dir: str | os.PathLike[str]) -> PlanSet:
         except HrcError:
             raise
         pref = p.get("preference")
+        pattern = p.get("pattern")
+        blocked = isinstance(pattern, dict) and pattern.get("candidates") == 0  # no motion pattern was found
         entries.append(_entry(task, plan, int(p.get("rank", i + 1)), str(_need(p, "class", str, file, path)),
-                              float(pref) if isinstance(pref, int | float) else None, stnu, str(stnu_path)))
+                              float(pref) if isinstance(pref, int | float) else None, stnu, str(stnu_path), blocked))
     if not entries:
         raise InputError(file, "plans", "no plans: nothing to dispatch")
     return PlanSet(task, tuple(entries), rank_by if isinstance(rank_by, str) else "worst", str(folder))

@@ -13,6 +13,12 @@ refusing); its *idle time* is the time both agents stand still in that schedule.
 Plans rank by class (DC, consistent, inconsistent), then remaining makespan, then idle time, then APA
 preference value (higher first; the compile's value, `hrc.compile.preferences`), then plan id.
 
+A plan for which the compile found no motion pattern at all (`PlanEntry.blocked`: the two would block
+each other whatever the passing orders) is inconsistent whatever its STNU's check says, since that STNU
+carries none of its conflicts, and comes after every other inconsistent plan: kept, so that the robot
+can still finish when nothing else is left, but never promised (found by `hrc simulate` on kitting,
+whose dispatcher used to start every run on such a plan, re-checked as DC).
+
 What an observation can change. Only the plans still in the set are looked at, and their number falls
 fast as the human's choices come in. A plan is re-checked only when something that enters its residual
 network changed: the executed timepoints of *that* plan, or ``now`` for a plan with something still to
@@ -107,7 +113,7 @@ def evaluate(entry: PlanEntry, executed: Mapping[str, int], now: int, rank_by: s
     ex: list[int | None] = [None] * net.n
     for name, t in executed.items():
         ex[net.index[name]] = t
-    plan_class = net.verdict(ex, now)
+    plan_class = "inconsistent" if entry.blocked else net.verdict(ex, now)
     if plan_class is None:  # no C core: the residual network's DC check
         plan_class = CLASS_NAMES[check_dc(residual_network(entry.stnu, executed, now)).verdict]
     times = net.schedule(ex, now, rank_by)
@@ -121,17 +127,18 @@ def reference_evaluate(entry: PlanEntry, executed: Mapping[str, int], now: int,
     """`evaluate` from the residual network (`residual_network`, `check_dc`, `schedule`): slower, and
     the definition the fast path is tested against."""
     residual = residual_network(entry.stnu, executed, now)
-    verdict = check_dc(residual).verdict
+    plan_class = "inconsistent" if entry.blocked else CLASS_NAMES[check_dc(residual).verdict]
     found = schedule(residual, rank_by)
     if found is None:
-        return Evaluation(CLASS_NAMES[verdict], None, 0)
+        return Evaluation(plan_class, None, 0)
     origin = residual.timepoints[0]
     times = {v: t - found[origin] for v, t in found.items() if v != origin}
-    return Evaluation(CLASS_NAMES[verdict], max(times.values()), _idle(entry, times))
+    return Evaluation(plan_class, max(times.values()), _idle(entry, times))
 
 
 def rank_key(entry: PlanEntry, ev: Evaluation) -> tuple:
-    """Class, remaining makespan, idle time, preference (higher first), plan id."""
+    """Class, blocked last (see the module docstring), remaining makespan, idle time, preference (higher
+    first), plan id."""
     finish = ev.finish if ev.finish is not None else float("inf")
     pref = -entry.preference if entry.preference is not None else float("inf")
-    return (_CLASS_ORDER[ev.plan_class], finish, ev.idle, pref, entry.id)
+    return (_CLASS_ORDER[ev.plan_class], entry.blocked, finish, ev.idle, pref, entry.id)
