@@ -258,7 +258,9 @@ def test_a_plan_the_compile_found_blocked_is_never_promised():
     """Found by `hrc simulate` on kitting: a plan for which motion acquisition found no pattern ("the
     co-workers would block each other") is written with an STNU that carries none of its conflicts, and
     a check of that STNU alone says DC; the dispatcher used to start every kitting run on one. It must
-    rank such a plan inconsistent, after every other plan, whatever its STNU's check says."""
+    rank such a plan inconsistent, after every other plan, whatever its STNU's check says. With the
+    person never waiting for the robot's sake (``human_waits=False``, no waiting place for the person),
+    a person whose inspect and deliver at Q enclose the robot's label there blocks it in most plans."""
     from dataclasses import replace as dc_replace
 
     from hrc.compile.compiler import CompiledPlanSet, CompileOptions, compile_plan, rank_key, task_digest
@@ -269,10 +271,10 @@ def test_a_plan_the_compile_found_blocked_is_never_promised():
 
     task = load_task(ROOT / "tasks" / "kitting.yaml")
     paths = plan_paths(task, seed=0)
-    compiled = sorted((compile_plan(task, p, paths) for p in list(generate_plans(task))[::45]), key=rank_key)
+    options = CompileOptions(human_waits=False)
+    compiled = sorted((compile_plan(task, p, paths, options) for p in list(generate_plans(task))[::45]), key=rank_key)
     cps = CompiledPlanSet(task=task, seed=0, digest=task_digest(task), paths=paths,
-                          plans=tuple(dc_replace(cp, rank=i + 1) for i, cp in enumerate(compiled)),
-                          options=CompileOptions())
+                          plans=tuple(dc_replace(cp, rank=i + 1) for i, cp in enumerate(compiled)), options=options)
     d = Dispatcher.from_compiled(cps)
     blocked = [e for e in d.plan_set.plans if e.blocked]
     assert blocked and all(e.compiled_class == "inconsistent" for e in blocked)

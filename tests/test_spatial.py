@@ -240,3 +240,23 @@ def test_the_native_search_is_the_python_search() -> None:
                             [(k, f().pattern.orders) for k, f in python[0]]
                         searches += 1
     assert searches > 100
+
+
+def test_a_plan_with_no_pattern_on_its_first_routes_tries_every_route() -> None:
+    """Kitting: a person whose inspect and deliver at Q enclose the robot's label at Q blocks it unless
+    the person steps back to a waiting place between the two; the bound ranks that route choice behind
+    six detours, so with `TRIAL_CAP` applied while nothing was found, 648 of the 2,880 plans were declared
+    blocked ("the co-workers would block each other"). Every route choice is tried while there is no
+    pattern at all: none of a sample is blocked, and some keep the person waiting aside."""
+    from hrc.compile.motion_pattern import choose_pattern
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    paths = plan_paths(task, seed=0)
+    aside = 0
+    for plan in list(generate_plans(task))[7::97]:
+        choice = choose_pattern(task, plan, paths)
+        assert choice.pattern.candidates > 0, plan.id
+        aside += any(m.park and m.agent == "human" for m in choice.pattern.motions)
+    assert aside > 0
