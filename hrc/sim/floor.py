@@ -73,13 +73,14 @@ class Mover:
         for p, q in zip(pts, pts[1:], strict=False):
             cum.append(cum[-1] + math.dist(p, q))
         self.points, self.cum = pts, cum
-        self.s, self.speed, self.moving = 0.0, speed, True
+        self.s, self.speed = 0.0, speed
         self.stop_at = self.length if stop_at is None else min(stop_at, self.length)
+        self.moving = self.stop_at > 1e-9  # a leg to where it stands (the next phase at the same place) is over
 
     def resume(self, stop_at: float | None = None) -> None:
         """Go on along the current route (after a pause at a waiting place)."""
         self.stop_at = self.length if stop_at is None else min(stop_at, self.length)
-        self.moving = True
+        self.moving = self.stop_at > self.s + 1e-9
 
     def at(self, s: float) -> Point:
         """The point at arc length `s` of the current route."""
