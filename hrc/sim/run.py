@@ -225,6 +225,7 @@ class _Run(Standoffs):
         self.frames: list[tuple[float, float, float, float, float, bool]] = []
         self.excess = 0.0
         self.standoffs = 0
+        self.room_for: AgentState | None = None
         self.ways = Ways(self.floor.world, ctx.paths, ctx.cache)
         deadline = task.deadline if task.deadline is not None else 120.0
         self.cap = s.time_cap if s.time_cap is not None else 5 * deadline

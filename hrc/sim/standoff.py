@@ -19,15 +19,18 @@ An agent is *held up* when the co-worker keeps it from going on (the floor cuts 
   the person, else (no spot for it) the person for the robot, else the held-up agent goes round.
 
 Making room (`hrc.sim.giveway.Ways.spot`): the agent goes to the nearest roadmap milestone at least
-``reach + AWAY`` from every point of the co-worker's way (its position, the rest of its route, its
-goal), and waits there until the co-worker is clear of its way back or on (farther than ``reach +
-CLEAR`` from it, and not about to cross it); then an agent that stood goes back to where it stood and
-is as it was (arrived, parked, ...), one that was on its way goes on to where it was going, one that had
-nothing under way stays. When both wait to move and their ways cross, the one whose next phase may start
-goes first (else the person). An agent waiting to go back may ask the co-worker in its way to make
-room only when it has business there (its phase may start, or it was on its way or at a waiting
-place), and a robot that stopped never does, so two idle agents do not chase each other round. Every
-resolution counts in `standoffs`; the time each agent spends making room in `robot_aside` /
+``reach + CLEAR`` (in a tight place ``reach + AWAY``) from every point of the co-worker's way (its
+position, the rest of its route, its goal), and waits there until the co-worker is clear of its way
+back or on (farther than ``reach + CLEAR`` from it, and not about to cross it); then an agent that stood
+goes back to where it stood and is as it was (arrived, parked, ...), one that was on its way goes on to
+where it was going, one that had nothing under way stays. When both wait to move and their ways cross,
+the one whose next phase may start goes first, else the one room was last made for, else the person.
+An agent waiting to go back or on asks the co-worker standing in its way to make room only when it has
+business there (its phase may start, or it was on its way or at a waiting place) and is not simply
+waiting for that co-worker's phase (the co-worker's next phase may start and its own may not); a robot
+that stopped never asks. So two agents with nothing to do there do not chase each other round.
+
+Every resolution counts in `standoffs`; the time each agent spends making room in `robot_aside` /
 `human_aside`; the robot's slowed or stopped time in `robot_yield` as before. The floor's rule (the
 person stops 2 cm short of the robot, the robot at the safety margin) holds throughout, so the discs
 never overlap whatever the routes.
@@ -53,8 +56,9 @@ __all__ = ["ASIDE_AFTER", "AWAY", "CLEAR", "WAIT_STEP", "WALK_ROUND", "AgentStat
 
 ASIDE_AFTER = 2.0  # s: held up by the co-worker this long (or waiting this long to go on) is a standoff
 WALK_ROUND = 3.0  # m: a way round a standing co-worker at most this much longer is taken before asking it to move
-AWAY = 0.05  # m: beyond reach, how far a spot to make room at lies from every point of the co-worker's way
-CLEAR = 0.3  # m: beyond reach, how far the co-worker must be from an agent's way back before it goes back
+CLEAR = 0.3  # m: beyond reach, how far a spot to make room at lies from every point of the co-worker's way,
+# and how far the co-worker must be from an agent's way back before it goes back
+AWAY = 0.05  # m: the same for a spot in a tight place (no spot CLEAR away), and for two ways that cross
 WAIT_STEP = 0.25  # s: how often an agent that made room and is held up looks again
 
 
@@ -124,8 +128,12 @@ class Standoffs:
     ctl: Controller
     phases: dict[str, tuple[str, ...]]
     standoffs: int
+    room_for: AgentState | None  # the agent room was last made for
 
     def ready(self, action: str, phase: str) -> bool:
+        raise NotImplementedError
+
+    def guide(self, action: str, phase: str, event: str) -> float:
         raise NotImplementedError
 
     def _clearance(self, a: AgentState) -> float:
@@ -180,7 +188,9 @@ class Standoffs:
         if g.mode in ("work", "away", "gone"):
             return False
         reach = g.mover.agent.radius + o.mover.agent.radius + self.task.safety_margin
-        spot = self.ways.spot(self._clearance(g), g.mover.xy, Disc(o.mover.xy, reach), self._way(o), reach + AWAY)
+        way, disc = self._way(o), Disc(o.mover.xy, reach)
+        spot = self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + CLEAR) \
+            or self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + AWAY)  # a tight place
         if spot is None or len(spot) < 2:
             return False
         if g.aside is None:
@@ -188,6 +198,7 @@ class Standoffs:
         g.mode, g.loc, g.next_way = "aside", None, None
         g.mover.set_route(spot, g.mover.agent.speed)
         self.standoffs += 1
+        self.room_for = o
         return True
 
     def _walk_round(self, x: AgentState, y: AgentState, extra: float) -> bool:
@@ -229,7 +240,7 @@ class Standoffs:
             waits = other.mode == "aside_wait" and other.next_way is not None
             first = waits and self._first(other, a)  # the co-worker waits to go too, and goes first
             if near < reach + CLEAR:
-                a.held_up = not o.moving and not first and self._needs_way(a)
+                a.held_up = not o.moving and not first and self._needs_way(a, other)
                 return False
             if o.moving or first:
                 theirs = self._way(other)
@@ -242,20 +253,33 @@ class Standoffs:
 
     def _first(self, a: AgentState, b: AgentState) -> bool:
         """When both wait to go back or on and their ways cross: `a` goes before `b` if its next phase may
-        start (the task graph's predecessors have ended) and `b`'s may not; else the person goes first."""
+        start (the task graph's predecessors have ended) and `b`'s may not; else the one room was last
+        made for; else the person."""
         ra, rb = self._startable(a), self._startable(b)
-        return ra if ra != rb else a is self.h
+        if ra != rb:
+            return ra
+        if self.room_for is not None:
+            return self.room_for is a
+        return a is self.h
 
-    def _needs_way(self, a: AgentState) -> bool:
-        """Whether `a`, waiting to go back or on, may ask the co-worker in its way to move: it was on its
-        way, or waited at a waiting place, or its phase there may start now; never a robot that stopped."""
+    def _needs_way(self, a: AgentState, other: AgentState) -> bool:
+        """Whether `a`, waiting to go back or on, may ask `other`, standing in its way, to move: it was on
+        its way, or waited at a waiting place, or its phase there may start now; and it is not waiting
+        for `other` anyway (`other`'s next phase may start and `a`'s may not: `other` goes on first).
+        Never a robot that stopped."""
         if a is self.r and self.ctl.stopped:
             return False
         assert a.aside is not None
-        return not a.aside.standing or a.aside.mode == "parked" or self._startable(a)
+        mine = self._startable(a)
+        return (not a.aside.standing or a.aside.mode == "parked" or mine) and (mine or not self._startable(other))
 
     def _startable(self, a: AgentState) -> bool:
-        return a.action is not None and self.ready(a.action, self.phases[a.action][a.pi])
+        """`a`'s next phase may start as far as the task graph goes (and, for a person who follows the
+        plan, the plan does not have them wait for the robot)."""
+        if a.action is None:
+            return False
+        phase = self.phases[a.action][a.pi]
+        return self.ready(a.action, phase) and (a is not self.h or math.isfinite(self.guide(a.action, phase, "start")))
 
     def _go(self, a: AgentState, way: tuple[tuple[float, float], ...]) -> None:
         assert a.aside is not None
