@@ -12,14 +12,15 @@ import math
 
 import numpy as np
 import pytest
-from conftest import WORKSHOP_TASK
+from conftest import ROOT, WORKSHOP_TASK
 
 from hrc.cli import main
 from hrc.compile.compiler import compile_task
 from hrc.errors import SimulationError
 from hrc.io.task_file import load_task
 from hrc.model import Interval
-from hrc.sim.blind import straight_paths
+from hrc.plans import pin_actions
+from hrc.sim.blind import blind_compile, straight_paths
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import CONTACT, Floor
 from hrc.sim.human import HumanModel, draw_human, sample_duration
@@ -35,6 +36,18 @@ def workshop():
 @pytest.fixture(scope="module")
 def compiled(workshop):
     return compile_task(workshop, seed=0, jobs=1)
+
+
+@pytest.fixture(scope="module")
+def kitting():
+    """Kitting with the allocation the full compile's dispatcher starts on (plan 50951c4477: the robot
+    picks E and A and labels, the person the rest), pinned to 12 plans so that it compiles in seconds. The
+    person's place at K is followed by inspect's take at K, inspect's check at Q by deliver's take at Q,
+    and the robot labels at Q in between: the compile finds no passing order for any of the 12 plans."""
+    pins = {"pick_a": "robot", "pick_b": "human", "pick_c": "human", "pick_d": "human", "pick_e": "robot",
+            "label": "robot", "deliver": "human"}
+    task = pin_actions(load_task(ROOT / "tasks" / "kitting.yaml"), pins)
+    return task, {"motion": compile_task(task, seed=0, jobs=1), "blind": blind_compile(task, jobs=1)}
 
 
 def test_human_model_refuses_bad_parameters(workshop):
@@ -88,6 +101,47 @@ def test_the_person_stops_short_of_the_robot_and_the_robot_keeps_its_margin(work
         floor.advance(0.05)
     assert floor.free() >= workshop.safety_margin - 1e-9 and floor.overlaps == 0
     assert robot.held > 0
+
+
+def test_a_leg_to_where_the_agent_stands_is_over_at_once(workshop):
+    floor = Floor(workshop)
+    floor.human.set_route(((1.0, 1.0),), 1.2)
+    assert not floor.human.moving and floor.human.remaining == 0
+    floor.human.set_route(((1.0, 1.0), (2.0, 1.0)), 1.2, stop_at=0.0)  # a waiting place at the origin
+    assert not floor.human.moving
+    floor.human.resume()
+    assert floor.human.moving
+
+
+def test_motion_blind_standoffs_are_resolved_on_the_floor(workshop, compiled):
+    """Runs 20 and 29 of seed 1 used to end in a floor deadlock: the blind plan sends the robot with the
+    triangle head-on into the person going home. Now one of them makes room; the run finishes, the cost
+    shows as standoffs and time spent aside, and the discs never overlap."""
+    ctx = SimContext(workshop, {"motion": compiled, "blind": blind_compile(workshop, jobs=1)}, SimSettings(), seed=1)
+    for i in (20, 29):
+        r = simulate_run(ctx, "motion-blind", i)
+        assert r.finished and r.overlaps == 0, r.reason
+        assert r.standoffs >= 1 and r.robot_aside + r.human_aside > 0
+        assert r.min_distance is not None and r.min_distance >= CONTACT - 1e-6
+
+
+def test_kitting_runs_finish_and_report_the_blocked_plan(kitting):
+    """Every kitting run used to end in a deadlock (a leg to the place where the person stood never
+    arrived). Now the co-workers make room for each other at K and Q and every run finishes under every
+    policy that keeps a plan; the dispatcher starts on a plan the compile found blocked (no passing
+    order), and the run says so (`first_blocked`)."""
+    task, compiles = kitting
+    ctx = SimContext(task, compiles, SimSettings(), seed=1)
+    for policy in ("hrc", "motion-blind", "fixed"):
+        for i in range(3):
+            r = simulate_run(ctx, policy, i)
+            assert r.finished and r.overlaps == 0, (policy, i, r.reason)
+            assert r.min_distance is not None and r.min_distance >= CONTACT - 1e-6
+            assert r.standoffs >= 1 and r.human_aside > 0  # the person steps aside at K or Q
+            assert r.first_blocked == (policy != "motion-blind"), policy
+    hrc = simulate_run(ctx, "hrc", 0)
+    assert hrc.first_class == "DC"  # what the dispatcher, re-checking the written STNU, believes
+    assert compiles["motion"].counts() == {"DC": 0, "consistent": 0, "inconsistent": 12}
 
 
 def test_straight_line_library_is_distance_over_speed(workshop):
@@ -150,6 +204,8 @@ def test_must_show_200_runs(tmp_path, workshop):
         assert len(pol["runs"]) == 200
         assert agg["unfinished"] == 0, name
         assert agg["overlaps"] == 0, name
+    assert doc["policies"]["hrc"]["aggregate"]["standoff_runs"] == 0  # the plan keeps them apart
+    assert doc["policies"]["motion-blind"]["aggregate"]["standoff_runs"] > 0  # motion-blind's cost, in numbers
     hrc = doc["policies"]["hrc"]
     for run in hrc["runs"]:
         if run["first_class"] == "DC":

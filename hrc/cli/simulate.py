@@ -2,9 +2,10 @@
 
 Compiles the task (as `hrc compile`, seed ``--compile-seed``), runs ``--runs`` simulations per policy on
 the same seeded people (`hrc.sim`), prints a table (per policy: deadline met, makespan median / p90,
-idle times, robot yield time, closest approach, plan switches, the dispatcher's latency p99, unfinished
-runs) and writes ``simulation.json`` (deterministic for a seed) and ``figures/`` into the output folder,
-atomically. A progress bar on a terminal. See docs/simulate.md.
+idle times, robot yield time, standoffs per run and time spent making room (robot / person), closest
+approach, plan switches, the dispatcher's latency p99, unfinished runs) and writes ``simulation.json``
+(deterministic for a seed) and ``figures/`` into the output folder, atomically. A progress bar on a
+terminal. See docs/simulate.md.
 """
 
 from __future__ import annotations
@@ -86,7 +87,7 @@ def format_table(sim: Any) -> str:
     from hrc.sim.metrics import aggregate, latency_p99
 
     head = ("policy", "deadline met", "makespan med", "p90", "human idle", "robot idle", "robot yield",
-            "min dist", "switches", "latency p99", "unfinished")
+            "standoffs", "aside r/h", "min dist", "switches", "latency p99", "unfinished")
     rows = [head]
     for name in sim.policies:
         runs = sim.results[name]
@@ -98,7 +99,9 @@ def format_table(sim: Any) -> str:
 
         rows.append((name, f"{100 * (a['deadline_met_rate'] or 0):.1f} %", s(a["makespan"]["median"]),
                      s(a["makespan"]["p90"]), s(a["human_idle_median"]), s(a["robot_idle_median"]),
-                     s(a["robot_yield_mean"]), s(a["min_distance"], " m", "{:.2f}"),
+                     s(a["robot_yield_mean"]), s(a["standoffs_mean"], "", "{:.2f}"),
+                     f"{a['robot_aside_mean'] or 0:.1f}/{a['human_aside_mean'] or 0:.1f} s",
+                     s(a["min_distance"], " m", "{:.2f}"),
                      s(a["plan_switches_mean"], "", "{:.2f}"), "-" if lat is None else f"{1000 * lat:.0f} ms",
                      f"{a['unfinished']}/{a['runs']}"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(head))]

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -31,6 +32,10 @@ from matplotlib.patches import Circle, Patch
 from hrc.report.figures import agent_color, new_figure, save_png
 from hrc.report.gantt import gantt_bars
 from hrc.report.maps import workspace_figure
+
+# `vert` is deprecated from Matplotlib 3.11 (warnings are errors in the tests); `orientation` exists from 3.10
+_HORIZONTAL: dict = ({"orientation": "horizontal"} if tuple(int(x) for x in matplotlib.__version__.split(".")[:2])
+                     >= (3, 10) else {"vert": False})
 
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan
@@ -56,7 +61,7 @@ def makespan_figure(sim: Simulation) -> Figure:
     rng = np.random.default_rng(0)  # jitter of the dots only (fixed: the same figure for the same runs)
     for y, values, name in zip(ys, data, names, strict=True):
         if values:
-            ax.bxp([_box(values)], positions=[y], vert=False, widths=0.5, showfliers=False,
+            ax.bxp([_box(values)], positions=[y], **_HORIZONTAL, widths=0.5, showfliers=False,
                    boxprops={"color": "#444444"}, medianprops={"color": "#c62828", "linewidth": 1.6})
             ax.scatter(values, y + rng.uniform(-0.18, 0.18, len(values)), s=4, color="#1f5fa8", alpha=0.35,
                        linewidths=0, zorder=3)

@@ -9,6 +9,7 @@ seeded people.
     human       HumanModel, draw_human: the simulated person's choice and duration model (seeded)
     detector    Detector: what the dispatcher learns of the person, and when (detection delay)
     floor       Floor: the two discs in the pymunk world, moving along routes; the robot's safety rule
+    giveway     Ways: where to make room for the co-worker, and the way round it (on the roadmap)
     policies    POLICIES (hrc, motion-blind, feasible-only, fixed) and the controllers that carry them out
     blind       blind_compile: the motion-blind compile (straight lines, no interference)
     run         simulate_run: one run, and what it measured (RunResult)

@@ -7,8 +7,8 @@ length) and how far along it is; `Floor.advance(h)` moves both for `h` seconds:
 - **the person walks on**, at their pace (their speed divided by the leg's pace factor), but never
   steps into the robot: a step that would bring the discs closer than `CONTACT` is cut short there
   (a person stops in front of a machine, the robot does not push);
-- **whoever stands in the way makes room**: the run loop (`hrc.sim.run`) sends an agent that waits at
-  a location to a spot nearby (`blocked_for`: how long the co-worker has been stopped by it);
+- **standoffs are the run loop's**: `blocked_for` says how long an agent has been (mostly) stopped by
+  the co-worker; `hrc.sim.run` then has one of them make room or go round (`hrc.sim.giveway`);
 - **the robot keeps its safety distance**: while the free distance between the discs is within
   ``safety_margin + slowdown`` and shrinking, its speed scales down linearly to zero at
   ``safety_margin`` (the task's margin, the one motion acquisition keeps between the co-workers), and
@@ -16,6 +16,8 @@ length) and how far along it is; `Floor.advance(h)` moves both for `h` seconds:
   closer than the margin, the robot backs off along the route it came (never past the leg's origin).
   The default ``slowdown`` is 0: the robot stops right at the margin, exactly the model motion
   acquisition assumes (`hrc.motion.conflicts`: discs closer than ``r_h + r_r + margin`` meet).
+
+A route that ends where it starts (the next phase at the same place) is over at once (`moving` False).
 
 Each step moves the bodies in the pymunk space (velocity set, ``space.step``, position set exactly
 on the route) and asks pymunk for contacts between the two discs: `overlaps` counts the steps in which
@@ -73,13 +75,14 @@ class Mover:
         for p, q in zip(pts, pts[1:], strict=False):
             cum.append(cum[-1] + math.dist(p, q))
         self.points, self.cum = pts, cum
-        self.s, self.speed, self.moving = 0.0, speed, True
+        self.s, self.speed = 0.0, speed
         self.stop_at = self.length if stop_at is None else min(stop_at, self.length)
+        self.moving = self.stop_at > 1e-9  # a leg to where it stands (the next phase at the same place) is over
 
     def resume(self, stop_at: float | None = None) -> None:
         """Go on along the current route (after a pause at a waiting place)."""
         self.stop_at = self.length if stop_at is None else min(stop_at, self.length)
-        self.moving = True
+        self.moving = self.stop_at > self.s + 1e-9
 
     def at(self, s: float) -> Point:
         """The point at arc length `s` of the current route."""

@@ -3,8 +3,10 @@
 Per policy, over its runs (`RunResult`): deadline met (% of all runs; an unfinished run misses it),
 every task limit met (deadline and temporal constraints), makespan median / p90 / mean over finished
 runs, median idle time of each agent, mean robot yield time (seconds the robot was slowed or stopped by
-the person), the smallest human-robot free distance of all runs and its median per run, disc overlaps
-(pymunk contacts; 0 expected), mean plan switches, unfinished runs, and the check of the guarantee:
+the person), standoffs (runs with one, resolutions per run) and the mean time each agent spent making
+room, the smallest human-robot free distance of all runs and its median per run, disc overlaps
+(pymunk contacts; 0 expected), mean plan switches, unfinished runs, runs whose first plan the compile
+found blocked (no passing order; `RunResult.first_blocked`), and the check of the guarantee:
 among runs whose first plan was DC and carried out as planned, how many kept every constraint of that
 plan. Percentiles use numpy's linear interpolation. Wall-clock latencies of the dispatcher are measured
 too (`latency_p99`), but kept out of `simulation.json`, which is deterministic.
@@ -55,6 +57,10 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         "robot_idle_median": _pct([r.robot_idle for r in done], 50),
         "robot_yield_mean": _r(float(np.mean([r.robot_yield for r in runs]))) if runs else None,
         "human_held_mean": _r(float(np.mean([r.human_held for r in runs]))) if runs else None,
+        "standoff_runs": sum(1 for r in runs if r.standoffs),
+        "standoffs_mean": _r(float(np.mean([r.standoffs for r in runs]))) if runs else None,
+        "robot_aside_mean": _r(float(np.mean([r.robot_aside for r in runs]))) if runs else None,
+        "human_aside_mean": _r(float(np.mean([r.human_aside for r in runs]))) if runs else None,
         "min_distance": _r(min(mins)) if mins else None,
         "min_distance_median": _pct(mins, 50),
         "overlaps": sum(r.overlaps for r in runs),
@@ -64,6 +70,7 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         "refused_observations": sum(len(r.refused) for r in runs),
         "late_robot_events": sum(r.late for r in runs),
         "robot_travel_excess_mean": _r(float(np.mean([r.robot_travel_excess for r in runs]))) if runs else None,
+        "first_plan_blocked": sum(r.first_blocked for r in runs),
         "first_plan_dc": len(dc),
         "first_plan_dc_kept": len(dc_kept),
         "first_plan_dc_kept_all_constraints": sum(1 for r in dc_kept if not r.first_broken),

@@ -15,51 +15,52 @@ The run loop is a discrete-event simulation with continuous motion in between (S
    near the co-worker (`hrc.sim.floor.Floor.safe_step`), the discs moving on the floor meanwhile.
 
 Routes: the current plan's (its detours and waiting places) when the agent stands where the plan's leg
-starts, else the shortest route from where it stands. An agent with nothing to do (the plan gives it
-nothing now) goes back to its start, out of the way, as the plans assume ("steps out of the way"). An
-agent that stands at a location (waiting, not working) while the co-worker has been stopped by it for
-`ASIDE_AFTER` seconds makes room: it walks `ASIDE` metres along the route to another location, the one
-that ends farthest from the co-worker's way (and, if it is still in the way there, goes to its start),
-and comes back once the co-worker is through.
+starts, else the shortest route from where it stands (the roadmap's, `hrc.sim.giveway`, from a spot
+off the locations). An agent with nothing to do (the plan gives it nothing now) goes back to its start,
+out of the way, as the plans assume ("steps out of the way"). A leg to where the agent already stands
+(two phases at one place) arrives at once.
+
+**Standoffs** (the two keep each other from going on) are resolved as co-workers on a real floor do:
+one makes room or goes round the other (`hrc.sim.standoff`).
 The robot acknowledges an event inside its window when it happened within 2 ms of it (its clock's
 resolution against the core's 1 ms ticks); `late` counts the ones outside.
 
-Ends: when every phase has ended (finished), or unfinished: nobody can go on (`stuck`, e.g. the person
-left for good with actions only they may do, or the robot stopped), the two block each other for
-`stall` seconds (`deadlock`), or the time cap. What a run measures is `RunResult`.
+Ends: when every phase has ended (finished), or unfinished: nobody can go on (`stuck`: nothing is due
+any more, e.g. the person left for good with actions only they may do, or the robot stopped), nobody
+has moved for `stall` seconds while someone wanted to (`deadlock`: a standoff the rules above did not
+resolve), or the time cap. What a run measures is `RunResult`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from hrc.compile.compiler import CompiledPlanSet
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 from hrc.model import Task
 from hrc.motion import PathLibrary
 from hrc.plans import must_precede
 from hrc.sim.detector import Detector, Happening
-from hrc.sim.floor import CONTACT, Floor, Mover
+from hrc.sim.floor import CONTACT, Floor
+from hrc.sim.giveway import Ways
 from hrc.sim.human import HumanDraws, HumanModel, draw_human
 from hrc.sim.policies import (
     POLICIES,
     Controller,
     DispatchedController,
     FixedController,
-    Order,
     Policy,
     SimRoute,
 )
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
+from hrc.sim.standoff import WAIT_STEP, AgentState, Standoffs
 
-__all__ = ["ASIDE", "ASIDE_AFTER", "RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
+__all__ = ["RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
 
 _EPS = 1e-9
-ASIDE = 1.5  # m: how far an agent in the co-worker's way steps aside, along a route to another location
-ASIDE_AFTER = 2.0  # s: after the co-worker has been stopped by it this long
 _ACK = 0.002  # s: the robot's acknowledgement snaps into its window when this close to it
 
 
@@ -123,11 +124,15 @@ class RunResult:
     robot_idle: float
     robot_yield: float
     human_held: float
+    standoffs: int
+    robot_aside: float
+    human_aside: float
     min_distance: float | None
     overlaps: int
     plan_switches: int
     first_plan: str | None
     first_class: str | None
+    first_blocked: bool
     final_plan: str | None
     first_kept: bool
     first_broken: tuple[str, ...]
@@ -149,37 +154,15 @@ class RunResult:
         return {"run": self.run, "finished": self.finished, "reason": self.reason, "makespan": r(self.makespan),
                 "deadline_met": self.deadline_met, "limits_met": self.limits_met,
                 "human_idle": r(self.human_idle), "robot_idle": r(self.robot_idle),
-                "robot_yield": r(self.robot_yield), "human_held": r(self.human_held),
+                "robot_yield": r(self.robot_yield), "human_held": r(self.human_held), "standoffs": self.standoffs,
+                "robot_aside": r(self.robot_aside), "human_aside": r(self.human_aside),
                 "min_distance": r(self.min_distance), "overlaps": self.overlaps,
                 "plan_switches": self.plan_switches, "first_plan": self.first_plan, "first_class": self.first_class,
-                "final_plan": self.final_plan, "first_kept": self.first_kept, "first_broken": list(self.first_broken),
+                "first_blocked": self.first_blocked, "final_plan": self.final_plan, "first_kept": self.first_kept,
+                "first_broken": list(self.first_broken),
                 "refused": list(self.refused), "late_robot_events": self.late,
                 "robot_travel_excess": r(self.robot_travel_excess), "human_sequence": list(self.human_sequence),
                 "robot_sequence": list(self.robot_sequence), "overruns": self.overruns, "absent": r(self.absent)}
-
-
-@dataclass(slots=True)
-class _Agent:
-    """One agent's state in the run loop (a mutable builder)."""
-
-    id: str
-    mover: Mover
-    home: str
-    loc: str | None
-    mode: str = "free"  # free, travel, parked, arrived, work, home, away, gone
-    action: str | None = None
-    pi: int = 0  # index of the next phase of `action`
-    route: SimRoute | None = None
-    parked: bool = False
-    work_end: float = 0.0
-    work_start: float = 0.0
-    duration: float = 0.0
-    back_at: float | None = None
-    order: Order | None = None  # the order being carried out (robot)
-    aside: tuple[tuple[float, float], ...] | None = None  # the way to a spot out of the co-worker's way
-    aside_mode: str = ""  # the mode to return to after making room
-    predicted: float = 0.0  # predicted moving time of the current travel (robot)
-    moved: float = 0.0  # moving time of the current travel so far, pauses excluded
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -209,7 +192,7 @@ def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
     return _Run(ctx, POLICIES[policy], draws, controller(ctx, POLICIES[policy]), record).run(index)
 
 
-class _Run:
+class _Run(Standoffs):
     def __init__(self, ctx: SimContext, policy: Policy, draws: HumanDraws, ctl: Controller, record: bool) -> None:
         self.ctx, self.policy, self.draws, self.ctl, self.record = ctx, policy, draws, ctl, record
         task = self.task = ctx.task
@@ -219,8 +202,8 @@ class _Run:
         self.detector = Detector(s.detection_delay)
         hum = next(a for a in task.agents if a.is_human)
         rob = next(a for a in task.agents if not a.is_human)
-        self.h = _Agent(hum.id, self.floor.human, hum.start, hum.start)
-        self.r = _Agent(rob.id, self.floor.robot, rob.start, rob.start)
+        self.h = AgentState(hum.id, self.floor.human, hum.start, hum.start)
+        self.r = AgentState(rob.id, self.floor.robot, rob.start, rob.start)
         self.t = 0.0
         self.happenings: list[Happening] = []
         self.started: dict[str, str] = {}  # action -> agent that started it (first depart)
@@ -241,13 +224,15 @@ class _Run:
         self.late = 0
         self.frames: list[tuple[float, float, float, float, float, bool]] = []
         self.excess = 0.0
-        self.reroutes = 0
+        self.standoffs = 0
+        self.room_for: AgentState | None = None
+        self.ways = Ways(self.floor.world, ctx.paths, ctx.cache)
         deadline = task.deadline if task.deadline is not None else 120.0
         self.cap = s.time_cap if s.time_cap is not None else 5 * deadline
 
     # -- bookkeeping ---------------------------------------------------------------------------------
 
-    def emit(self, agent: _Agent, event: str, action: str | None = None, phase: str | None = None) -> None:
+    def emit(self, agent: AgentState, event: str, action: str | None = None, phase: str | None = None) -> None:
         h = Happening(self.t, agent.id, event, action, phase)
         self.happenings.append(h)
         if action is not None and event == "depart":
@@ -278,7 +263,7 @@ class _Run:
     def done(self) -> bool:
         return len(self.ended) == self.total
 
-    def route_for(self, agent: _Agent, action: str, phase: str, planned: bool) -> SimRoute:
+    def route_for(self, agent: AgentState, action: str, phase: str, planned: bool) -> SimRoute:
         """The plan's route for the leg if the agent stands where it starts, else the shortest one."""
         target = self.task.action(action).phase(phase).location
         if planned:
@@ -286,11 +271,12 @@ class _Run:
             if route is not None and math.dist(route.points[0], agent.mover.xy) < 1e-6 \
                     and math.dist(route.points[-1], self.ctx.paths.locations[target]) < 1e-6:
                 return route
-        if agent.loc is None:  # somewhere on the floor (backed off): go straight to the nearest route start
-            return SimRoute((agent.mover.xy, self.ctx.paths.locations[target]))
+        if agent.loc is None:  # somewhere on the floor (it made room): the roadmap's way from there
+            goal = self.ctx.paths.locations[target]
+            return SimRoute(self.ways.route(self._clearance(agent), agent.mover.xy, goal) or (agent.mover.xy, goal))
         return SimRoute(self.ctx.paths.get(agent.id, agent.loc, target).points)
 
-    def depart(self, agent: _Agent, action: str, phase: str, speed: float, planned: bool) -> None:
+    def depart(self, agent: AgentState, action: str, phase: str, speed: float, planned: bool) -> None:
         route = self.route_for(agent, action, phase, planned)
         agent.route, agent.parked, agent.mode, agent.moved = route, False, "travel", 0.0
         length = sum(math.dist(p, q) for p, q in zip(route.points, route.points[1:], strict=False))
@@ -300,7 +286,7 @@ class _Run:
         self.emit(agent, "depart", action, phase)
         self._arrival_check(agent)
 
-    def _arrival_check(self, agent: _Agent) -> bool:
+    def _arrival_check(self, agent: AgentState) -> bool:
         """After a travel stopped: the waiting place or the arrival."""
         if agent.mode != "travel" or agent.mover.moving:
             return False
@@ -318,122 +304,18 @@ class _Run:
         self.emit(agent, "arrive", agent.action, phase)
         return True
 
-    def make_room(self, agent: _Agent, other: _Agent) -> bool:
-        """If `agent` stands at a location and has held `other` up for a while, step aside (module docstring)."""
-        if agent.loc is None or other.mover.blocked_for < ASIDE_AFTER or agent.aside is not None:
+    def go_home(self, agent: AgentState) -> bool:
+        if agent.loc == agent.home:
             return False
-        spot = self._aside_route(agent, other)
-        if spot is None:
-            return False
-        agent.aside, agent.aside_mode, agent.mode = spot, agent.mode, "aside"
-        agent.mover.set_route(spot, agent.mover.agent.speed)
-        other.mover.blocked_for = 0.0
-        return True
-
-    def _aside_route(self, agent: _Agent, other: _Agent) -> tuple[tuple[float, float], ...] | None:
-        """The first `ASIDE` metres of the route from here to some other location, the one whose end is
-        farthest from the rest of the co-worker's current route."""
-        assert agent.loc is not None
-        m = other.mover
-        ahead = [m.at(m.s + k * 0.25) for k in range(int(max(0.0, m.stop_at - m.s) / 0.25) + 1)] or [m.xy]
-        best: tuple[float, tuple[tuple[float, float], ...]] | None = None
-        for loc in sorted(self.ctx.paths.locations):
-            if loc == agent.loc:
-                continue
-            try:
-                path = self.ctx.paths.get(agent.id, agent.loc, loc)
-            except KeyError:
-                continue
-            prefix = _prefix(path.points, min(ASIDE, path.length * 0.8))
-            end = prefix[-1]
-            score = min(math.dist(end, p) for p in ahead)
-            if best is None or score > best[0]:
-                best = (score, prefix)
-        return None if best is None else best[1]
-
-    def reroute(self, agent: _Agent, other: _Agent) -> bool:
-        """`agent` has been stopped by the standing (or as stuck) co-worker for a while: go round it (the
-        roadmap without the edges the co-worker's disc blocks, `hrc.motion.detours`). False if there is no
-        way round or the co-worker stands at the agent's goal (then it is the co-worker's turn to make room)."""
-        m, o = agent.mover, other.mover
-        goal = m.at(m.length)
-        stands = not o.moving or o.blocked_for >= ASIDE_AFTER  # standing, or as stuck as this agent
-        if m.blocked_for < ASIDE_AFTER or not stands or not m.moving or agent.mode != "travel":
-            return False
-        reach = m.agent.radius + o.agent.radius + self.task.safety_margin
-        if math.dist(o.xy, goal) < reach:
-            return False
-        points = None
-        for back in (0.0, 0.4, 0.8, 1.2):  # from where it stands, or from a little back along its way
-            if back > m.s:
-                break
-            start = m.at(m.s - back)
-            points = _round(self.task, self.ctx.paths, m.agent.radius + self.task.safety_margin, o.agent.radius,
-                            o.xy, start, goal)
-            if points is not None:
-                if back > 0:
-                    points = [m.at(m.s - x) for x in np.linspace(0.0, back, 4)[:-1]] + points
-                break
-        m.blocked_for = 0.0
-        if points is None:
-            return False
-        stop = None if agent.route is None or agent.route.park_s is None or agent.parked else len(points)
-        speed = m.speed
-        m.set_route(tuple(points), speed)
-        if stop is not None and agent.route is not None:
-            agent.route = SimRoute(tuple(points), agent.route.park, _length(points))
-        self.reroutes += 1
-        return True
-
-    def come_back(self, agent: _Agent, other: _Agent) -> bool:
-        """After making room: back to the location once the co-worker is through (or not coming)."""
-        if agent.mode == "aside":
-            if not agent.mover.moving:
-                agent.mode = "aside_wait"
-                return True
-            return False
-        assert agent.aside is not None and agent.loc is not None
-        here = self.ctx.paths.locations[agent.loc]
-        m = other.mover
-        if m.blocked_for >= ASIDE_AFTER and agent.home != agent.loc:  # still in the way: wait at home instead
-            way = _round(self.task, self.ctx.paths, agent.mover.agent.radius + self.task.safety_margin,
-                         m.agent.radius, m.xy, agent.mover.xy, self.ctx.paths.locations[agent.home])
-            m.blocked_for = 0.0
-            if way is not None:
-                agent.mover.set_route(tuple(way), agent.mover.agent.speed)
-                agent.aside = self.ctx.paths.get(agent.id, agent.loc, agent.home).points  # back: home -> loc
-                agent.mode = "aside"
-                return True
-        coming = m.moving and math.dist(m.at(m.stop_at), here) < 1e-6
-        reach = agent.mover.agent.radius + m.agent.radius + self.task.safety_margin + 0.3
-        if coming or math.dist(m.xy, here) < reach:
-            return False
-        agent.mover.set_route(agent.aside[::-1], agent.mover.agent.speed)
-        agent.mode = "returning"
-        return True
-
-    def _aside_step(self, a: _Agent, other: _Agent) -> bool:
-        if a.mode == "travel" and self.reroute(a, other):
-            return True
-        if a.mode in ("aside", "aside_wait"):
-            return self.come_back(a, other)
-        if a.mode == "returning":
-            if a.mover.moving:
+        home = self.ctx.paths.locations[agent.home]
+        if agent.loc is None:  # somewhere on the floor (made room): the roadmap's way home
+            if math.dist(agent.mover.xy, home) < 1e-6:
+                agent.loc = agent.home
                 return False
-            a.mode, a.aside = a.aside_mode, None
-            return True
-        if a.mode in ("free", "arrived") and not (a.mode == "arrived" and self._may_start(a)):
-            return self.make_room(a, other)
-        return False
-
-    def _may_start(self, a: _Agent) -> bool:
-        return a.action is not None and self.ready(a.action, self.phases[a.action][a.pi])
-
-    def go_home(self, agent: _Agent) -> bool:
-        if agent.loc is None or agent.loc == agent.home:
-            return False
-        path = self.ctx.paths.get(agent.id, agent.loc, agent.home)
-        agent.mover.set_route(path.points, agent.mover.agent.speed)
+            points = self.ways.route(self._clearance(agent), agent.mover.xy, home) or (agent.mover.xy, home)
+        else:
+            points = self.ctx.paths.get(agent.id, agent.loc, agent.home).points
+        agent.mover.set_route(points, agent.mover.agent.speed)
         agent.mode, agent.loc = "home", None
         return True
 
@@ -470,18 +352,16 @@ class _Run:
         g = self.ctl.guide_time(action, phase, event)
         return self.t if g is None else g
 
-    def _home_or_aside(self, a: _Agent, other: _Agent) -> bool | None:
-        """The steps both agents share: going home, and making room for `other`. True or False when one
-        of them decided this step (something happened, or nothing may), None when the agent's own rules
+    def _home_or_aside(self, a: AgentState, other: AgentState) -> bool | None:
+        """The steps both agents share: going home, and giving way to `other`. True or False when one of
+        them decided this step (something happened, or nothing may), None when the agent's own rules
         decide."""
-        if a.mode == "home":
-            if not a.mover.moving:
-                a.mode, a.loc = "free", a.home
-                return True
-            return False
-        if self._aside_step(a, other):
+        if a.mode == "home" and not a.mover.moving:
+            a.mode, a.loc = "free", a.home
             return True
-        if a.mode in ("aside", "aside_wait", "returning"):
+        if self._give_way(a, other):
+            return True
+        if a.mode in ("home", "aside", "aside_wait", "returning"):
             return False
         return None
 
@@ -490,15 +370,20 @@ class _Run:
         if a.mode == "gone":
             return False
         if a.mode == "away":
-            free = math.hypot(a.mover.xy[0] - self.r.mover.xy[0], a.mover.xy[1] - self.r.mover.xy[1]) \
-                - a.mover.agent.radius - self.r.mover.agent.radius
-            if a.back_at is not None and t >= a.back_at - _EPS and free >= CONTACT:
-                a.mover.present = True
-                a.mode = "free"
-                self.absent += t - (self.away_since or t)
-                self.emit(a, "back")
-                return True
-            return False
+            if a.back_at is None or t < a.back_at - _EPS:
+                return False
+            reach = a.mover.agent.radius + self.r.mover.agent.radius
+            if math.dist(a.mover.xy, self.r.mover.xy) - reach < CONTACT:  # the robot stands where they left:
+                home = self.ctx.paths.locations[a.home]  # they come back in at their start
+                if math.dist(home, self.r.mover.xy) - reach < self.task.safety_margin:
+                    return False
+                self.floor.place(a.mover, home)
+                a.loc = a.home
+            a.mover.present = True
+            a.mode = "free"
+            self.absent += t - (self.away_since or t)
+            self.emit(a, "back")
+            return True
         moved = self._home_or_aside(a, self.r)
         if moved is not None:
             return moved
@@ -553,7 +438,7 @@ class _Run:
             return True
         return False
 
-    def _next_phase(self, a: _Agent) -> None:
+    def _next_phase(self, a: AgentState) -> None:
         assert a.action is not None
         a.pi += 1
         if a.pi >= len(self.phases[a.action]):
@@ -621,7 +506,7 @@ class _Run:
 
     def next_time(self) -> float:
         t = self.t
-        cands = [self.cap, self.detector.next_due()]
+        cands = [self.detector.next_due()]
         for ag in (self.h, self.r):
             if ag.mover.moving:
                 cands.append(t + self.floor.time_to_stop(ag.mover))
@@ -635,14 +520,16 @@ class _Run:
             cands.append(absence[0])
         if self.h.mode in ("free", "parked", "arrived") and self.model.choice == "follow" and not self.ctl.stopped:
             cands += self._guide_times()
+        if any(ag.mode == "aside_wait" and ag.held_up for ag in (self.h, self.r)):
+            cands.append(t + WAIT_STEP)  # an agent that made room looks again whether it may go back or on
         o = self.ctl.order()
         if o is not None and o.event in ("depart", "unpark", "start"):
             cands.append(o.earliest)
         if isinstance(self.ctl, DispatchedController) and self.ctx.settings.tick > 0 and not self.done():
             if o is None or o.event == "wait" or self.h.mode in ("free", "parked", "arrived"):
                 cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
-        future = [c for c in cands if c > t + _EPS]
-        return min(future) if future else math.inf
+        future = [c for c in cands if c > t + _EPS and math.isfinite(c)]
+        return min(min(future), self.cap) if future else math.inf  # nothing due: nobody can go on (stuck)
 
     def _guide_times(self) -> list[float]:
         a = self.h
@@ -680,18 +567,22 @@ class _Run:
                 reason = "stuck: " + self._why_stuck()
                 break
             tick_due = max(self.last_obs, self.last_tick) + self.ctx.settings.tick
-            before = (self.h.mover.s, self.r.mover.s, len(self.happenings))
+            before = (self.h.mover.xy, self.r.mover.xy, len(self.happenings))
             self.advance(nt - self.t)
             for ag in (self.h, self.r):
                 if ag.mode == "travel" and ag.mover.moving:
                     ag.moved += nt - self.t
+                if ag.mode in ("aside", "aside_wait", "returning"):
+                    ag.aside_time += nt - self.t
+                if ag.mode == "aside_wait" and ag.held_up:
+                    ag.wait_for += nt - self.t
             self.t = nt
             if isinstance(self.ctl, DispatchedController) and self.ctx.settings.tick > 0 and abs(nt - tick_due) < _EPS:
                 self.last_tick = nt
                 self.ctl.tick(max(nt, self.last_obs))
                 self.last_obs = max(nt, self.last_obs)
-            held = (self.h.mover.moving or self.r.mover.moving) and before[:2] == (self.h.mover.s, self.r.mover.s)
-            if held:
+            waiting = any(ag.mover.moving or ag.mode == "aside_wait" for ag in (self.h, self.r))
+            if waiting and before == (self.h.mover.xy, self.r.mover.xy, len(self.happenings)):
                 stall_since = self.t if stall_since is None else stall_since
                 if self.t - stall_since > self.ctx.settings.stall:
                     reason = "deadlock: the two block each other"
@@ -748,9 +639,11 @@ class _Run:
             policy=self.policy.name, run=index, finished=finished, reason="" if finished else reason,
             makespan=makespan, deadline_met=bool(deadline_met), limits_met=bool(limits_met),
             human_idle=max(0.0, span - human_busy - self.absent), robot_idle=max(0.0, span - robot_busy),
-            robot_yield=self.floor.robot.held, human_held=self.floor.human.held,
+            robot_yield=self.floor.robot.held, human_held=self.floor.human.held, standoffs=self.standoffs,
+            robot_aside=self.r.aside_time, human_aside=self.h.aside_time,
             min_distance=None if not math.isfinite(min_free) else min_free, overlaps=self.floor.overlaps,
-            plan_switches=ctl.switches, first_plan=first, first_class=ctl.first_class, final_plan=ctl.plan_id,
+            plan_switches=ctl.switches, first_plan=first, first_class=ctl.first_class,
+            first_blocked=first_cp is not None and _blocked(first_cp), final_plan=ctl.plan_id,
             first_kept=bool(kept), first_broken=broken, refused=tuple(ctl.refused), late=self.late,
             robot_travel_excess=self.excess, human_sequence=human_seq, robot_sequence=robot_seq,
             overruns=sum(1 for k in self.draws.overrun if times.get(f"{self.h.id}.{k[1]}.{k[0]}.end") is not None),
@@ -787,52 +680,9 @@ class _Run:
         return busy[self.h.id], busy[self.r.id]
 
 
-def _prefix(points: tuple[tuple[float, float], ...], length: float) -> tuple[tuple[float, float], ...]:
-    """The polyline `points` cut after `length` metres."""
-    out = [points[0]]
-    left = length
-    for p, q in zip(points, points[1:], strict=False):
-        d = math.dist(p, q)
-        if d >= left:
-            f = left / d if d > 0 else 0.0
-            out.append((p[0] + f * (q[0] - p[0]), p[1] + f * (q[1] - p[1])))
-            return tuple(out)
-        out.append(q)
-        left -= d
-    return tuple(out)
-
-
-def _length(points: Sequence[tuple[float, float]]) -> float:
-    return sum(math.dist(p, q) for p, q in zip(points, points[1:], strict=False))
-
-
-def _round(task: Task, paths: PathLibrary, clearance: float, other_radius: float, other: tuple[float, float],
-           here: tuple[float, float], goal: tuple[float, float]) -> list[tuple[float, float]] | None:
-    """A route from `here` to `goal` keeping `clearance` from obstacles and from a standing disc at `other`."""
-    import shapely
-
-    from hrc.model import Obstacle, Workspace
-    from hrc.motion.detours import blocked_region
-    from hrc.motion.planner import Roadmap
-    from hrc.motion.world import World
-
-    roadmap = paths.roadmaps.get(clearance)
-    if roadmap is None:
-        return None
-    region = blocked_region([(other,)], other_radius + 0.02)
-    zone = shapely.union_all([p.buffer(clearance) for p in region])
-    if zone.intersects(shapely.Point(here)) or zone.intersects(shapely.Point(goal)):
-        return None
-    ws = task.workspace
-    extra = tuple(Obstacle(f"co-worker{i}", tuple((float(x), float(y)) for x, y in p.exterior.coords[:-1]))
-                  for i, p in enumerate(region))
-    world = World(Workspace(ws.name, ws.bounds, ws.obstacles + extra, ws.locations))
-    pts = np.asarray(roadmap.points)
-    ij = np.array([(i, j) for i, j, _ in roadmap.edges])
-    lines = shapely.linestrings(np.stack([pts[ij[:, 0]], pts[ij[:, 1]]], axis=1))
-    hit = shapely.intersects(lines, zone)
-    pruned = Roadmap(roadmap.clearance, roadmap.points, [e for e, h in zip(roadmap.edges, hit, strict=True) if not h])
-    if not (world.point_clear(*here, clearance) and world.point_clear(*goal, clearance)):
-        return None
-    found = pruned.routes(world, [here, goal])[(0, 1)]
-    return None if found is None else [(float(x), float(y)) for x, y in found]
+def _blocked(cp: CompiledPlan) -> bool:
+    """The compile found no passing order that keeps the co-workers apart in this plan (its class is
+    inconsistent for that reason, but the STNU it wrote carries none of the plan's conflicts, so a
+    dispatcher re-checking that STNU sees the plan as if the two never met: see docs/simulate.md)."""
+    return cp.plan_class.value == "inconsistent" \
+        and (cp.classification.explanation or "").startswith("the co-workers would block each other: no order")
