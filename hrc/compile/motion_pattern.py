@@ -61,7 +61,7 @@ from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detou
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs
 from hrc.temporal import STNU, RequirementLink, Verdict, check_consistency, check_dc
-from hrc.temporal.rul import core_verdict, native_library
+from hrc.temporal.rul import core_verdict, edge_arrays, native_library
 
 __all__ = ["LEAF_CAP", "NODE_CAP", "RANK_BY", "TRIAL_CAP", "MotionPattern", "PassingOrder", "PlanChoice",
            "apply_pattern", "choose_pattern", "pattern_key"]
@@ -246,26 +246,9 @@ class _Edges:
     """`base`'s network as index arrays for the C core's DC verdict (`hrc.temporal.rul.core_verdict`), to
     which a leaf's passing orders are appended without building an `STNU` per leaf."""
 
-    def __init__(self, stnu: STNU, index: dict[str, int]) -> None:
+    def __init__(self, stnu: STNU) -> None:
         self.n = len(stnu.timepoints)
-        self.src: list[int] = []
-        self.dst: list[int] = []
-        self.wt: list[int] = []
-        for r in stnu.requirements:
-            i, j = index[r.source], index[r.target]
-            if r.ub is not None:
-                self.src.append(i)
-                self.dst.append(j)
-                self.wt.append(r.ub)
-            if r.lb is not None:
-                self.src.append(j)
-                self.dst.append(i)
-                self.wt.append(-r.lb)
-        c = stnu.contingents
-        self.act = [index[x.source] for x in c]
-        self.ctg = [index[x.target] for x in c]
-        self.xs = [x.lb for x in c]
-        self.ys = [x.ub for x in c]
+        self.src, self.dst, self.wt, self.act, self.ctg, self.xs, self.ys = edge_arrays(stnu)
 
     def verdict(self, later: list[int], earlier: list[int], gaps: list[int]) -> str | None:
         """The verdict with ``T(later) - T(earlier) >= gap`` added per order (None: no C core here)."""
@@ -391,7 +374,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
     fast = rank_by != "nominal"
     free = base.without_limits()
     warm = None if fast else earliest_start(free)  # each leaf's makespans: from here, incrementally
-    edges = _Edges(base.stnu, index) if fast else None
+    edges = _Edges(base.stnu) if fast else None
     ends = np.array([index[t] for t in base.last_ends], dtype=int)
     k = len(conflicts)
     # per conflict and order (0: robot first, 1: human first): T(later) - T(earlier) >= gap, in ticks

@@ -63,7 +63,7 @@ from hrc.temporal.graph import Edge, EdgeKind
 from hrc.temporal.network import STNU
 from hrc.temporal.potential import feasible_potential
 
-__all__ = ["RulOutcome", "core_verdict", "native_library", "rul2021", "rul2021_check"]
+__all__ = ["RulOutcome", "core_verdict", "edge_arrays", "native_library", "rul2021", "rul2021_check"]
 
 _INF = float("inf")
 _UNSTARTED, _STARTED, _DONE = 0, 1, 2
@@ -468,12 +468,10 @@ _VERDICTS = {0: "DC", 1: "not DC", 2: "inconsistent"}
 _LOW = (1 << 64) - 1
 
 
-def _core_verdict(stnu: STNU) -> str | None:
-    """The verdict from the C core, or None when it is not built or the numbers are too large for it."""
-    if _CORE is None:
-        return None
-    names = stnu.timepoints
-    index = {v: i for i, v in enumerate(names)}
+def edge_arrays(stnu: STNU) -> tuple[list[int], list[int], list[int], list[int], list[int], list[int], list[int]]:
+    """`stnu` as `core_verdict`'s index arrays (timepoints by position): the ordinary edges ``src, dst,
+    wt`` of its requirement links, then its contingent links ``act, ctg, xs, ys``."""
+    index = {v: i for i, v in enumerate(stnu.timepoints)}
     src: list[int] = []
     dst: list[int] = []
     wt: list[int] = []
@@ -488,8 +486,15 @@ def _core_verdict(stnu: STNU) -> str | None:
             dst.append(s)
             wt.append(-r.lb)
     conts = stnu.contingents
-    return core_verdict(len(names), src, dst, wt, [index[c.source] for c in conts], [index[c.target] for c in conts],
-                        [c.lb for c in conts], [c.ub for c in conts])
+    return (src, dst, wt, [index[c.source] for c in conts], [index[c.target] for c in conts],
+            [c.lb for c in conts], [c.ub for c in conts])
+
+
+def _core_verdict(stnu: STNU) -> str | None:
+    """The verdict from the C core, or None when it is not built or the numbers are too large for it."""
+    if _CORE is None:
+        return None
+    return core_verdict(len(stnu.timepoints), *edge_arrays(stnu))
 
 
 def core_verdict(n: int, src: list[int], dst: list[int], wt: list[int], act: list[int], ctg: list[int],
