@@ -202,7 +202,7 @@ def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool)
         for plan in list(generate_plans(task))[::step]:
             for routes in [{}, *_route_trials(task, plan, paths, human_waits)[:2]]:
                 routing = _Routing(task, plan, paths, routes, human_waits)
-                results, _ = _search(task, plan, routing, "worst", None)
+                results, _ = _search(task, plan, routing, "worst", None, prune=False)
                 for key, build in results:
                     assert pattern_key(build().classification, "worst") == key
                     leaves += 1
@@ -212,7 +212,7 @@ def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool)
 def test_the_native_search_is_the_python_search() -> None:
     """`hrc/compile/_patterncore.c` runs `_search`'s depth-first search in C; the Python search is the
     reference: the same leaves, in the same order, with the same keys and passing orders, and the same
-    exhaustiveness, with and without a bound, for both readings and both human models."""
+    exhaustiveness, with and without a bound and pruning, for both readings and both human models."""
     import hrc.compile.motion_pattern as mp
     from hrc.motion import plan_paths
     from hrc.plans import generate_plans
@@ -227,12 +227,13 @@ def test_the_native_search_is_the_python_search() -> None:
             for human_waits, rank_by in ((True, "worst"), (False, "earliest")):
                 for routes in [{}, *mp._route_trials(task, plan, paths, human_waits)[:2]]:
                     bound = mp._bound(task, mp._Routing(task, plan, paths, routes, human_waits), rank_by)
-                    for b in (None, bound):
-                        native = mp._search(task, plan, mp._Routing(task, plan, paths, routes, human_waits), rank_by, b)
+                    for b, prune in ((None, False), (bound, False), (None, True), (bound, True)):
+                        native = mp._search(task, plan, mp._Routing(task, plan, paths, routes, human_waits), rank_by,
+                                            b, prune=prune)
                         saved, mp._NATIVE = mp._NATIVE, None
                         try:
                             python = mp._search(task, plan, mp._Routing(task, plan, paths, routes, human_waits),
-                                                rank_by, b)
+                                                rank_by, b, prune=prune)
                         finally:
                             mp._NATIVE = saved
                         assert native[1] == python[1]
@@ -240,6 +241,47 @@ def test_the_native_search_is_the_python_search() -> None:
                             [(k, f().pattern.orders) for k, f in python[0]]
                         searches += 1
     assert searches > 100
+
+
+def test_branch_and_bound_keeps_the_best_pattern() -> None:
+    """Pruning by the best leaf so far (`motion_pattern._node_bound`) must not change which pattern wins:
+    with the caps lifted, the search without pruning visits every leaf and is the oracle. The same best
+    key and passing orders on every route choice of a sample of plans, for both readings and both human
+    models; with an incumbent (a key to beat), the oracle's best when it beats that key."""
+    import hrc.compile.motion_pattern as mp
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+
+    saved = mp.LEAF_CAP, mp.NODE_CAP
+    mp.LEAF_CAP, mp.NODE_CAP = 10**6, 10**6
+    compared = cut = 0
+    try:
+        for name, step in (("cube_stacking", 4), ("kitting", 233), ("kitting_7picks", 5003)):
+            task = load_task(ROOT / "tasks" / f"{name}.yaml")
+            paths = plan_paths(task, seed=0)
+            for plan in list(generate_plans(task))[::step]:
+                for human_waits, rank_by in ((True, "worst"), (False, "earliest")):
+                    for routes in [{}, *mp._route_trials(task, plan, paths, human_waits)[:2]]:
+                        def run(prune: bool, incumbent: tuple | None = None) -> tuple:
+                            routing = mp._Routing(task, plan, paths, routes, human_waits)  # noqa: B023
+                            return mp._search(task, plan, routing, rank_by, None, incumbent, prune)  # noqa: B023
+                        full, pruned = run(False), run(True)
+                        assert full[1] and pruned[1]  # no cap: both exhaustive
+                        assert bool(full[0]) == bool(pruned[0])
+                        if full[0]:
+                            assert full[0][0][0] == pruned[0][0][0]
+                            assert full[0][0][1]().pattern.orders == pruned[0][0][1]().pattern.orders
+                            cut += len(full[0]) - len(pruned[0])
+                            keys = sorted(k for k, _ in full[0])
+                            beat = keys[len(keys) // 2]  # an incumbent half the leaves do not beat
+                            more = run(True, beat)[0]
+                            if keys[0] < beat:
+                                assert more[0][0] == keys[0]
+                            assert len(more) <= len(pruned[0])
+                        compared += 1
+    finally:
+        mp.LEAF_CAP, mp.NODE_CAP = saved
+    assert compared > 50 and cut > 0  # not vacuous: pruning did cut leaves
 
 
 def test_a_plan_with_no_pattern_on_its_first_routes_tries_every_route() -> None:

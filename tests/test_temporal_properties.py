@@ -284,3 +284,37 @@ def test_earliest_times_agree_with_all_pairs_windows(stnu: STNU) -> None:
         return
     windows = time_windows(anchored, origin)
     assert got == {t: windows[t].lo for t in stnu.timepoints}
+
+
+@pytest.mark.skipif(rul.native_library() is None, reason="the native core is not built (no C compiler at install time)")
+@FAST
+@given(stnus(max_nodes=7, max_contingent=3, max_requirements=10), st.sampled_from(["", "ub", "mid"]))
+def test_native_earliest_times_are_the_python_ones(stnu: STNU, fix: str) -> None:
+    """`hrc.compile.classify._earliest` reads the compiler's schedules off the native core
+    (``_stncore.c``); its Python reference must give the same times, or None on the same networks. The
+    first timepoint plays the origin; networks where some timepoint must come before it included."""
+    from hrc.compile import classify
+    from hrc.compile.temporal_net_creator import ORIGIN
+
+    named = STNU(tuple(ORIGIN if t == stnu.timepoints[0] else t for t in stnu.timepoints),
+                 tuple(RequirementLink(ORIGIN if r.source == "T0" else r.source, ORIGIN if r.target == "T0"
+                                       else r.target, r.lb, r.ub) for r in stnu.requirements),
+                 tuple(ContingentLink(ORIGIN if c.source == "T0" else c.source, ORIGIN if c.target == "T0"
+                                      else c.target, c.lb, c.ub) for c in stnu.contingents))
+    assert classify._earliest(named, fix) == classify._earliest_python(named, fix)  # type: ignore[arg-type]
+
+
+@pytest.mark.skipif(rul.native_library() is None, reason="the native core is not built (no C compiler at install time)")
+@FAST
+@given(stnus(max_nodes=7, max_contingent=3, max_requirements=10), st.sampled_from(["", "ub"]))
+def test_native_shortest_distances_are_scipy_and_the_lp(stnu: STNU, fix: str) -> None:
+    """The native Floyd-Warshall (`motion_pattern._apsp`) against scipy's on the same edges, and the
+    native consistency check (`motion_pattern._consistent`) against the LP oracle."""
+    from hrc.compile import motion_pattern as mp
+
+    src, dst, wt = mp._distance_graph(stnu, fix, False)
+    native, reference = mp._apsp(stnu, fix), mp._apsp_scipy(len(stnu.timepoints), src, dst, wt)
+    assert (native is None) == (reference is None)
+    if native is not None and reference is not None:
+        assert np.array_equal(native, reference)
+    assert mp._consistent(stnu) == lp_consistent(stnu)

@@ -9,7 +9,8 @@
    each updated per added edge in O(n^2). A leaf's class comes from rul2021's C verdict
    (`hrc_rul_verdict`, `hrc/temporal/_rulcore.c`, linked into the same library) on the base network's
    index arrays plus the leaf's orders. Keys are compared in integer ticks, which orders them as the
-   Python search's `pattern_key` does.
+   Python search's `pattern_key` does. Branch and bound as in Python: a node (after its edge is added)
+   or a leaf whose bound is no better than the best key so far is cut, and not counted.
 
    Strassmair & Taylor 2014, section V.A (motion pattern); the search itself is documented in
    hrc/compile/motion_pattern.py. No Python headers: loaded with ctypes. */
@@ -38,8 +39,9 @@ typedef struct {
     int nc;
     const int *act, *ctg;
     const int64_t *xs, *ys;
-    int node_cap, leaf_cap, has_bound, rank_worst;
+    int node_cap, leaf_cap, has_bound, rank_worst, prune;
     const int64_t *bound; /* 4 */
+    int64_t best[4];      /* the best key so far (or the incumbent's): branch and bound */
     /* state, shared by both passes of the Python caller */
     int nodes, leaves, stop, exhaustive, failed;
     /* out */
@@ -90,8 +92,34 @@ static int64_t span(Search *s, const double *f) {
     return (int64_t)best;
 }
 
+static int key_less(const int64_t *a, const int64_t *b) {
+    for (int i = 0; i < 4; i++)
+        if (a[i] != b[i]) return a[i] < b[i];
+    return 0;
+}
+
+/* `_node_bound`: a key no leaf below this node beats; 1 if it is no better than the best so far */
+static int cut(Search *s, const double *mats, const int *alive) {
+    if (!s->prune) return 0;
+    size_t nn = (size_t)s->n * s->n;
+    int64_t lb[4];
+    if (!alive[1]) {
+        lb[0] = 0; lb[1] = lb[2] = lb[3] = KEY_INF;
+    } else {
+        int64_t early = span(s, mats + nn);
+        if (!alive[2]) {
+            lb[0] = 1; lb[1] = lb[2] = lb[3] = early;
+        } else {
+            int64_t late = span(s, mats + 2 * nn);
+            lb[0] = 0; lb[1] = s->rank_worst ? late : early; lb[2] = late; lb[3] = early;
+        }
+    }
+    return !key_less(lb, s->best);
+}
+
 static void leaf(Search *s, const double *mats, const int *alive, const signed char *dec, const unsigned char *how) {
     size_t nn = (size_t)s->n * s->n;
+    if (cut(s, mats, alive)) return;
     int slot = s->leaves++;
     int m = s->m;
     for (int j = 0; j < s->k; j++) {
@@ -115,6 +143,7 @@ static void leaf(Search *s, const double *mats, const int *alive, const signed c
         key[2] = late;
         key[3] = early;
     }
+    if (key_less(key, s->best)) memcpy(s->best, key, sizeof s->best);
     memcpy(s->leaf_dec + (size_t)slot * s->k, dec, (size_t)s->k);
     memcpy(s->leaf_how + (size_t)slot * s->k, how, (size_t)s->k);
     if (s->has_bound) {
@@ -131,7 +160,6 @@ static void dfs(Search *s, const double *parent, const int *parent_alive, const 
                 const unsigned char *parent_how, int j0, int o0) {
     if (s->stop) return;
     if (s->nodes >= s->node_cap || s->leaves >= s->leaf_cap) { s->exhaustive = 0; return; }
-    s->nodes++;
     int n = s->n, k = s->k;
     size_t nn = (size_t)n * n;
     double *mats = malloc(3 * nn * sizeof(double));
@@ -150,6 +178,8 @@ static void dfs(Search *s, const double *parent, const int *parent_alive, const 
         dec[j0] = (signed char)o0;
         how[j0] = 2;
     }
+    if (cut(s, mats, alive)) goto done; /* not counted towards the node cap, as in Python */
+    s->nodes++;
     int branch = -1;
     for (;;) {
         int n_open = 0;
@@ -219,7 +249,7 @@ int hrc_pattern_search(int n, int k, int z, const double *start, const int *star
                        int m, const int *src, const int *dst, const int64_t *wt,
                        int nc, const int *act, const int *ctg, const int64_t *xs, const int64_t *ys,
                        int node_cap, int leaf_cap, int has_bound, const int64_t *bound, int rank_worst,
-                       int *state, signed char *leaf_dec, unsigned char *leaf_how, int64_t *leaf_key) {
+                       int prune, const int64_t *best, int *state, signed char *leaf_dec, unsigned char *leaf_how, int64_t *leaf_key) {
     Search s;
     memset(&s, 0, sizeof s);
     s.n = n; s.k = k; s.z = z;
@@ -228,6 +258,8 @@ int hrc_pattern_search(int n, int k, int z, const double *start, const int *star
     s.m = m; s.nc = nc; s.act = act; s.ctg = ctg; s.xs = xs; s.ys = ys;
     s.node_cap = node_cap; s.leaf_cap = leaf_cap; s.has_bound = has_bound; s.bound = bound;
     s.rank_worst = rank_worst;
+    s.prune = prune;
+    memcpy(s.best, best, sizeof s.best);
     s.nodes = state[0]; s.leaves = state[1]; s.stop = state[2]; s.exhaustive = state[3];
     s.leaf_dec = leaf_dec; s.leaf_how = leaf_how; s.leaf_key = leaf_key;
     s.src = malloc(((size_t)m + k + 1) * sizeof(int));

@@ -44,6 +44,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.sparse.csgraph import NegativeCycleError, csgraph_from_dense, floyd_warshall
@@ -61,6 +62,7 @@ from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detou
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs
 from hrc.temporal import STNU, RequirementLink, Verdict, check_consistency, check_dc
+from hrc.temporal.native_stn import native_apsp, native_distances
 from hrc.temporal.rul import core_verdict, edge_arrays, native_library
 
 __all__ = ["LEAF_CAP", "NODE_CAP", "RANK_BY", "TRIAL_CAP", "MotionPattern", "PassingOrder", "PlanChoice",
@@ -133,29 +135,36 @@ def _apsp(stnu: STNU, fix: str = "", after_origin: bool = False) -> np.ndarray |
 
     Contingent links are read as requirements (``fix=""``) or fixed at their upper bound (``"ub"``);
     `after_origin` adds ``T(x) >= T(origin)`` for every timepoint (the reading of `classify`'s earliest
-    schedules)."""
-    n = len(stnu.timepoints)
-    index = {v: i for i, v in enumerate(stnu.timepoints)}
-    mat = np.full((n, n), np.inf)
-    edges: list[tuple[int, int, int]] = []  # the distance graph
-    for r in stnu.requirements:
-        i, j = index[r.source], index[r.target]
-        if i != j:
-            if r.ub is not None:
-                edges.append((i, j, r.ub))
-            if r.lb is not None:
-                edges.append((j, i, -r.lb))
-    for c in stnu.contingents:
-        i, j = index[c.source], index[c.target]
-        lb = c.ub if fix == "ub" else c.lb
-        if i != j:
-            edges += [(i, j, c.ub), (j, i, -lb)]
+    schedules). Floyd-Warshall in the native core (`hrc.temporal.native_stn`); without it, scipy's
+    (`_apsp_scipy`, the reference: a test compares them)."""
+    src, dst, wt = _distance_graph(stnu, fix, after_origin)
+    found = native_apsp(len(stnu.timepoints), src, dst, wt)
+    if found is None:
+        return _apsp_scipy(len(stnu.timepoints), src, dst, wt)
+    ok, mat = found
+    return mat if ok else None
+
+
+def _distance_graph(stnu: STNU, fix: str, after_origin: bool) -> tuple[list[int], list[int], list[int]]:
+    """`_apsp`'s edges as index arrays, self-loops left out (a node's distance to itself starts at 0)."""
+    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
+    lows = ys if fix == "ub" else xs
+    src, dst, wt = src + act + ctg, dst + ctg + act, wt + ys + [-x for x in lows]
     if after_origin:
-        z = index[ORIGIN]
-        edges += [(i, z, 0) for i in range(n) if i != z]
-    if edges:
-        e = np.array(edges, dtype=np.int64)
-        np.minimum.at(mat, (e[:, 0], e[:, 1]), e[:, 2].astype(np.float64))
+        z = stnu.timepoints.index(ORIGIN)
+        n = len(stnu.timepoints)
+        src, dst, wt = src + list(range(n)), dst + [z] * n, wt + [0] * n
+    keep = [e for e in range(len(src)) if src[e] != dst[e]]
+    if len(keep) < len(src):
+        src, dst, wt = [src[e] for e in keep], [dst[e] for e in keep], [wt[e] for e in keep]
+    return src, dst, wt
+
+
+def _apsp_scipy(n: int, src: list[int], dst: list[int], wt: list[int]) -> np.ndarray | None:
+    """`_apsp` by scipy's Floyd-Warshall."""
+    mat = np.full((n, n), np.inf)
+    if src:
+        np.minimum.at(mat, (np.asarray(src), np.asarray(dst)), np.asarray(wt, dtype=np.float64))
     # a dense 0 means "no edge" to scipy: go through csgraph_from_dense with inf as the null value
     try:
         return floyd_warshall(csgraph_from_dense(mat, null_value=np.inf), directed=True)
@@ -263,7 +272,7 @@ def _native_search() -> Callable[..., int] | None:
         p = ctypes.c_void_p
         fn.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int, p,
                        ctypes.c_int, p, p, p, ctypes.c_int, p, p, p, p,
-                       ctypes.c_int, ctypes.c_int, ctypes.c_int, p, ctypes.c_int, p, p, p, p]
+                       ctypes.c_int, ctypes.c_int, ctypes.c_int, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p]
         fn.restype = ctypes.c_int
     return fn
 
@@ -306,7 +315,8 @@ class _NativeSearch:
             return None
         return cls(_NATIVE, k, z, earlier, later, gap, settled, ends, edges, bound, rank_by)
 
-    def run(self, start: np.ndarray, readings: tuple[np.ndarray | None, np.ndarray | None], state: dict) -> bool:
+    def run(self, start: np.ndarray, readings: tuple[np.ndarray | None, np.ndarray | None], state: dict,
+            prune: bool) -> bool:
         """One pass from `start` (`state` read and updated as the Python search does); its leaves in
         `leaves`. False if the C search failed (out of memory): the caller searches in Python instead."""
         n, k, a = self.n, self.k, self.arrays
@@ -322,6 +332,7 @@ class _NativeSearch:
         dec = np.full((cap, max(k, 1)), -1, dtype=np.int8)
         how = np.zeros((cap, max(k, 1)), dtype=np.uint8)
         keys = np.zeros((cap, 4), dtype=np.int64)
+        best = np.array(_ticks_key(state["best"]) if state["best"] != _NO_KEY else (_INF_TICKS,) * 4, dtype=np.int64)
 
         def ptr(x: np.ndarray) -> int:
             return int(x.ctypes.data)
@@ -330,12 +341,13 @@ class _NativeSearch:
                      ptr(a["settled"]), len(a["ends"]), ptr(a["ends"]), len(a["src"]), ptr(a["src"]), ptr(a["dst"]),
                      ptr(a["wt"]), len(a["act"]), ptr(a["act"]), ptr(a["ctg"]), ptr(a["xs"]), ptr(a["ys"]),
                      NODE_CAP, LEAF_CAP, int(self.has_bound), ptr(a["bound"]), int(self.rank_by == "worst"),
-                     ptr(st), ptr(dec), ptr(how), ptr(keys))
+                     int(prune), ptr(best), ptr(st), ptr(dec), ptr(how), ptr(keys))
         if rc != 0:
             return False
         state.update(nodes=int(st[0]), leaves=int(st[1]), stop=bool(st[2]), exhaustive=bool(st[3]))
         self.leaves = [(dec[i], how[i], _key_of_ticks(keys[i], self.rank_by))
                        for i in range(int(before[1]), int(st[1]))]
+        state["best"] = min([state["best"], *(key for _, _, key in self.leaves)])
         return True
 
 
@@ -350,8 +362,8 @@ def _key_of_ticks(row: np.ndarray, rank_by: str) -> tuple:
     return pattern_key(Classification(list(PlanClass)[int(row[0])], "", makespan, (), ()), rank_by)
 
 
-def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
-            bound: tuple | None) -> tuple[list[tuple[tuple, Leaf]], bool]:
+def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tuple | None,
+            incumbent: tuple | None = None, prune: bool = True) -> tuple[list[tuple[tuple, Leaf]], bool]:
     """Classified complete patterns for one choice of routes (best first; each with the function that
     builds its `PlanChoice`), and whether the search was exhaustive.
 
@@ -365,6 +377,13 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
     updated per added edge; the makespans are read off them and the class comes from the C core on index
     arrays. The same numbers as `classify` on the leaf's `STNU` (which ``rank_by="nominal"`` still uses,
     for its third reading), without building one per leaf.
+
+    Branch and bound (`prune`): a node's matrices bound every leaf below it (adding edges only lengthens
+    distances, and a DC leaf has a schedule with every human duration at its maximum), so a node whose
+    bound (`_node_bound`) is no better than the best leaf so far, or than `incumbent` (the best pattern
+    of another route choice), is cut without counting it towards the caps, and such a leaf is not
+    classified. The best pattern is the one the search without pruning finds (ties keep the first
+    found, which pruning never passes over); with the caps, it is reached within them more often.
     """
     motions, conflicts, base, robust = routing.motions, routing.conflicts, routing.base, routing.robust
     names = base.stnu.timepoints
@@ -389,7 +408,8 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
     settled = [bool(row.any()) for row in implied]
     first_of = [0 if row[0] else 1 for row in implied]
     results: list[tuple[tuple, Leaf]] = []
-    state = {"nodes": 0, "leaves": 0, "stop": False, "exhaustive": True}
+    state: dict[str, Any] = {"nodes": 0, "leaves": 0, "stop": False, "exhaustive": True,
+             "best": incumbent if incumbent is not None and prune and fast else _NO_KEY}
     # a node's matrices: with the limits (prunes), then without them, human durations free / at their
     # upper bounds (None once that reading has no schedule: more edges never give it one)
     Mats = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
@@ -430,7 +450,13 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
             return None
         return int(-mat[ends, z].min()) if len(ends) else 0
 
+    def cut(mats: Mats) -> bool:
+        """Whether no leaf below this node can beat the best so far (`_node_bound`)."""
+        return prune and fast and _node_bound(span(mats[1]), span(mats[2]), rank_by) >= state["best"]
+
     def leaf(mats: Mats, how: dict[int, tuple[int, str]]) -> None:
+        if cut(mats):
+            return
         state["leaves"] += 1
         if fast:
             chosen = [(j, o) for j, (o, _) in how.items()]
@@ -450,6 +476,8 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
             build = choice(how, cls)
         key = pattern_key(cls, rank_by)
         results.append((key, build))
+        if fast and key < state["best"]:
+            state["best"] = key
         if bound is not None and key <= bound:
             state["stop"] = True  # nothing can beat the network without passing orders
 
@@ -458,6 +486,8 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
             return
         if state["nodes"] >= NODE_CAP or state["leaves"] >= LEAF_CAP:
             state["exhaustive"] = False
+            return
+        if cut(mats):
             return
         state["nodes"] += 1
         how = dict(how)
@@ -500,7 +530,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
     native = _NativeSearch.make(k, z, earlier, later, gap, settled, ends, edges, bound, rank_by) if fast else None
     for start in (_apsp(base.stnu), _apsp(free)):
         if start is not None:
-            if native is not None and native.run(start, readings, state):
+            if native is not None and native.run(start, readings, state, prune):
                 results += [(key, native_choice(dec, codes)) for dec, codes, key in native.leaves]
             else:
                 native = None  # not built, or it failed: the Python search, from the same state
@@ -511,6 +541,24 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str,
     return results, bool(state["exhaustive"] or state["stop"])  # reaching the bound is as good as exhaustive
 
 
+_NO_KEY = (math.inf,)  # worse than every key
+
+
+def _node_bound(early: int | None, late: int | None, rank_by: str) -> tuple:
+    """A key no leaf below a search node beats, from the node's spans (ticks) of the network without the
+    task's limits with the human's durations free (`early`) and at their maxima (`late`; None once that
+    reading has no schedule). Edges only lengthen distances, so a leaf's spans are at least the node's;
+    a leaf whose upper-bound reading has no schedule is not DC (the human at maximum would break it) and
+    measures its worst case as its earliest (`measure`), so it is bounded by class 1 and `early`."""
+    if early is None:
+        return (0, math.inf, math.inf, math.inf)
+    e = round(early / TICKS_PER_SECOND, 6)
+    if late is None:
+        return (1, e, e, e)
+    w = round(late / TICKS_PER_SECOND, 6)
+    return (0, w if rank_by == "worst" else e, w, e)
+
+
 def _bound(task: Task, routing: _Routing, rank_by: str, beat: tuple | None = None) -> tuple:
     """The key of the plan with these routes and no passing order at all: no pattern does better.
 
@@ -519,11 +567,18 @@ def _bound(task: Task, routing: _Routing, rank_by: str, beat: tuple | None = Non
     net = routing.base
     full = rank_by == "nominal"
     if beat is not None:
-        best_class = PlanClass.DC if check_consistency(net.stnu).consistent else PlanClass.INCONSISTENT
+        best_class = PlanClass.DC if _consistent(net.stnu) else PlanClass.INCONSISTENT
         cheap = pattern_key(measure(task, net, best_class, full=full), rank_by)
         if cheap >= beat:
             return cheap
     return pattern_key(classify(task, net, explained=False, full=full), rank_by)
+
+
+def _consistent(stnu: STNU) -> bool:
+    """`check_consistency(stnu).consistent`, from the native core when it is built."""
+    src, dst, wt = _distance_graph(stnu, "", False)
+    found = native_distances(len(stnu.timepoints), src, dst, wt, None)
+    return check_consistency(stnu).consistent if found is None else found[0]
 
 
 def _separation_ticks(namer: Callable[[TimeRef], str], index: dict[str, int],
@@ -630,7 +685,7 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
             if tried >= TRIAL_CAP and best is not None:  # the cap bounds the search for a better pattern;
                 exhaustive = False                      # while there is none at all, every route is tried
                 break
-            more, full = _search(task, plan, routing, rank_by, bound)
+            more, full = _search(task, plan, routing, rank_by, bound, best_key if best is not None else None)
             count += len(more)
             exhaustive = exhaustive and full
             if more and more[0][0] < best_key:
