@@ -113,19 +113,16 @@ def _relax(into: dict[str, list[tuple[str, int]]], extra: dict[str, list[tuple[s
     return True
 
 
-Arrays = tuple[list[int], list[int], list[int], list[int], list[int], list[int], list[int]]
-
-
-def _earliest(stnu: STNU, fix: Fix = "", arrays: Arrays | None = None) -> dict[str, int] | None:
+def _earliest(stnu: STNU, fix: Fix = "") -> dict[str, int] | None:
     """Earliest time (ticks) of every timepoint of `stnu` after its origin, or None if inconsistent, with
     every contingent duration free (``fix=""``) or fixed at its upper bound or midpoint (``//2``).
 
     ``-d(x, origin)`` by a queue-based Bellman-Ford, every timepoint at or after the origin (the algorithm
     of `hrc.temporal.stn.earliest_times`), in the native core (`hrc.temporal.native_stn`) on the network's
-    index arrays (`arrays`: its `edge_arrays`, when the caller reads it more than once); without the core,
-    `_earliest_python`. The distances are unique, so both give the same numbers (a test compares them).
+    index arrays (`edge_arrays`); without the core, `_earliest_python`. The distances are unique, so both
+    give the same numbers (a test compares them).
     """
-    src, dst, wt, act, ctg, xs, ys = arrays if arrays is not None else edge_arrays(stnu)
+    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
     if fix:
         xs = ys = ys if fix == "ub" else [(x + y) // 2 for x, y in zip(xs, ys, strict=True)]
     n = len(stnu.timepoints)
@@ -309,13 +306,12 @@ def measure(task: Task, net: PlanNetwork, plan_class: PlanClass, explanation: st
     at its end (the same numbers, found incrementally).
     """
     free = net.without_limits() if start is None or full else None  # not needed for a search's leaf
-    arrays = edge_arrays(free) if free is not None and start is None else None
-    early = start.earliest(net, "") if start is not None else _earliest(free, "", arrays)  # type: ignore[arg-type]
+    early = start.earliest(net, "") if start is not None else _earliest(free, "")  # type: ignore[arg-type]
     if early is None:
         return Classification(plan_class, explanation, None, (), ())
     # with the human's durations fixed the rest may not fit (a passing order that a slow person breaks):
     # the worst case then falls back to the earliest schedule, and the explanation says so
-    late = start.earliest(net, "ub") if start is not None else _earliest(free, "ub", arrays)  # type: ignore[arg-type]
+    late = start.earliest(net, "ub") if start is not None else _earliest(free, "ub")  # type: ignore[arg-type]
     if late is None:
         late = early
         if explanation:
@@ -328,7 +324,7 @@ def measure(task: Task, net: PlanNetwork, plan_class: PlanClass, explanation: st
     makespan = (end / TICKS_PER_SECOND, span(late) / TICKS_PER_SECOND)
     if not full:
         return Classification(plan_class, explanation, makespan, (), ())
-    middle = _earliest(free, "mid", arrays) if free is not None else None
+    middle = _earliest(free, "mid") if free is not None else None
     middle = middle or early
     idle = tuple((agent.id, _idle(early, agent.id, end) / TICKS_PER_SECOND) for agent in task.agents)
     names = net.stnu.timepoints

@@ -61,7 +61,7 @@ import yaml
 
 from hrc import __version__
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, task_digest
-from hrc.compile.temporal_net_creator import ref_timepoint
+from hrc.compile.temporal_net_creator import ref_namer
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import load_task, task_to_dict
@@ -112,13 +112,14 @@ def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dic
             "park": {"at": m.park, "time": _s(m.park_time)} if m.park else None,
         })
     passing = []
+    name = ref_namer(task, plan)
     for o in cp.pattern.constrained:
         sep = o.separation
         passing.append({
             "robot": _occupancy(o.conflict.robot), "human": _occupancy(o.conflict.human),
             "first": o.first, "how": o.how, "point": _xy(o.conflict.point),
-            "constraint": {"from": tool_name(ref_timepoint(task, plan, sep.earlier)),
-                           "to": tool_name(ref_timepoint(task, plan, sep.later)), "min": _s(sep.gap)},
+            "constraint": {"from": tool_name(name(sep.earlier)), "to": tool_name(name(sep.later)),
+                           "min": _s(sep.gap)},
         })
     pattern = cp.pattern
     return {

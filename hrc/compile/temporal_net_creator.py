@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from hrc.model import Agent, Event, Plan, Task
 from hrc.motion import Motion, Separation, TimeRef
@@ -114,12 +114,17 @@ class PlanNetwork:
     meaning: tuple[tuple[tuple[str, str], tuple[str, str]], ...]  # (source, target) -> (kind, text)
     last_ends: tuple[str, ...]
     n_limits: int = 0
+    _free: list[STNU] = field(default_factory=list, repr=False, compare=False)  # `without_limits`, once built
 
     def without_limits(self) -> STNU:
-        """The STNU without the task's temporal constraints and deadline."""
-        s = self.stnu
-        keep = s.requirements[:len(s.requirements) - self.n_limits]
-        return STNU(s.timepoints, keep, s.contingents, s.name)
+        """The STNU without the task's temporal constraints and deadline (built once: the classification,
+        the bound and the search each read it, and the native core's index arrays of it are cached by
+        identity, `hrc.temporal.rul.edge_arrays`)."""
+        if not self._free:
+            s = self.stnu
+            keep = s.requirements[:len(s.requirements) - self.n_limits]
+            self._free.append(STNU(s.timepoints, keep, s.contingents, s.name) if self.n_limits else s)
+        return self._free[0]
 
 
 def create_stnu(task: Task, plan: Plan, motions: Sequence[Motion],

@@ -468,9 +468,27 @@ _VERDICTS = {0: "DC", 1: "not DC", 2: "inconsistent"}
 _LOW = (1 << 64) - 1
 
 
-def edge_arrays(stnu: STNU) -> tuple[list[int], list[int], list[int], list[int], list[int], list[int], list[int]]:
+EdgeArrays = tuple[list[int], list[int], list[int], list[int], list[int], list[int], list[int]]
+_EDGE_ARRAYS: dict[int, tuple[STNU, EdgeArrays]] = {}  # by identity, the last few (each kept alive here)
+
+
+def edge_arrays(stnu: STNU) -> EdgeArrays:
     """`stnu` as `core_verdict`'s index arrays (timepoints by position): the ordinary edges ``src, dst,
-    wt`` of its requirement links, then its contingent links ``act, ctg, xs, ys``."""
+    wt`` of its requirement links, then its contingent links ``act, ctg, xs, ys``.
+
+    The compiler reads one network several times over (DC verdict, consistency, schedules, distance
+    matrices), so the last few results are kept, by identity (callers must not change the lists)."""
+    hit = _EDGE_ARRAYS.get(id(stnu))
+    if hit is not None and hit[0] is stnu:
+        return hit[1]
+    arrays = _edge_arrays(stnu)
+    if len(_EDGE_ARRAYS) >= 8:
+        del _EDGE_ARRAYS[next(iter(_EDGE_ARRAYS))]
+    _EDGE_ARRAYS[id(stnu)] = (stnu, arrays)
+    return arrays
+
+
+def _edge_arrays(stnu: STNU) -> EdgeArrays:
     index = {v: i for i, v in enumerate(stnu.timepoints)}
     src: list[int] = []
     dst: list[int] = []
