@@ -276,12 +276,31 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
             return chosen.path
         return paths.get(occ.agent, occ.origin, occ.location)
 
+    def path_key(occ: Occupancy) -> tuple | None:
+        if occ.kind != "travel":
+            return None
+        p = route(occ)
+        return (p.origin, p.target, p.via, p.length)
+
+    # the conflicts of an occupancy pair depend on the two occupancies and their routes only, and the
+    # same pairs recur across the plans of a task: kept per process, like the geometry they come from
+    cache = paths.samples.setdefault(("pairs", reach, robot.speed, human.speed), {})
+    if len(cache) > _PAIR_CACHE:
+        cache.clear()
     out: list[Conflict] = []
-    h_occ = occupancies(task, plan, human, routes)
+    h_occ = [(h, path_key(h)) for h in occupancies(task, plan, human, routes)]
     for r in occupancies(task, plan, robot, routes):
-        for h in h_occ:
-            out.extend(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
+        rk = path_key(r)
+        for h, hk in h_occ:
+            key = (r, h, rk, hk)
+            found = cache.get(key)
+            if found is None:
+                found = cache[key] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
+            out.extend(found)
     return tuple(out)
+
+
+_PAIR_CACHE = 200_000  # occupancy pairs kept per process (a few tens of MB at most)
 
 
 def _pair(r: Occupancy, h: Occupancy, route, locs, reach: float, vr: float, vh: float,  # noqa: ANN001

@@ -348,16 +348,12 @@ def write_graphml(stnu: STNU) -> str:
     out.append(f'<data key="nVertices">{len(stnu.timepoints)}</data>')
     out.append(f'<data key="Name">{_escape(stnu.name)}</data>')
     quoted = {nid: _quoteattr(nid) for nid in ids.values()}  # once per node, not per edge end
-    for i, v in enumerate(stnu.timepoints):
-        out.append(f"<node id={quoted[ids[v]]}>")
-        out.append(f'<data key="x">{150.0 * (i % 10):.1f}</data>')
-        out.append(f'<data key="y">{150.0 * (i // 10):.1f}</data>')
-        out.append("</node>")
-    for i, (s, t, etype, key, value) in enumerate(edges):
-        out.append(f'<edge id="e{i}" source={quoted[s]} target={quoted[t]}>')
-        out.append(f'<data key="Type">{etype}</data>')
-        out.append(f'<data key="{key}">{_escape(value)}</data>')
-        out.append("</edge>")
+    out += [f'<node id={quoted[ids[v]]}>\n<data key="x">{150.0 * (i % 10):.1f}</data>\n'
+            f'<data key="y">{150.0 * (i // 10):.1f}</data>\n</node>' for i, v in enumerate(stnu.timepoints)]
+    # one string per edge (four lines): values are integers or LC/UC labels of node ids, which the tool's
+    # name rule keeps free of XML's special characters, so they need no escaping
+    out += [f'<edge id="e{i}" source={quoted[s]} target={quoted[t]}>\n<data key="Type">{etype}</data>\n'
+            f'<data key="{key}">{value}</data>\n</edge>' for i, (s, t, etype, key, value) in enumerate(edges)]
     out.append("</graph>")
     out.append("</graphml>")
     return "\n".join(out) + "\n"
