@@ -195,12 +195,15 @@ class Dispatcher:
         else:  # "back" brings back every plan that agrees with the history
             pool: Sequence[int] = range(len(plans)) if obs.event == "back" else state.ranked
             kept = tuple(i for i in pool if agrees(plans[i], history))
+            if not kept and history.away:
+                # no plan lets the robot finish alone from here (say it is on its way to a leg that needs
+                # the person's work first): "away" is a fact, not a request, and so is what the robot does
+                # meanwhile; it goes on with the plans that agree with what was seen, and waits for the
+                # person where they need them (refusing its own arrival left it standing for good)
+                kept = tuple(i for i in pool if agrees(plans[i], _present(history)))
         if not kept:
-            if obs.event == "away":  # a fact, not a request: the robot does what it can without the human
-                kept = tuple(i for i in state.ranked if agrees(plans[i], _present(history)))
-            else:
-                raise DispatchError(f"no remaining plan allows {_describe(obs)} "
-                                    f"({len(state.ranked)} plans agreed with what was seen before)")
+            raise DispatchError(f"no remaining plan allows {_describe(obs)} "
+                                f"({len(state.ranked)} plans agreed with what was seen before)")
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept,
                                    state.evaluations, state.do_forms)
         return self._state.decision
