@@ -96,13 +96,9 @@ def ref_timepoint(task: Task, plan: Plan, ref: TimeRef) -> str:
 def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
     """`ref_timepoint` for many references of one plan (the legs are looked up once)."""
     legs = {a.id: agent_legs(task, plan, a.id) for a in task.agents}
-    named: dict[TimeRef, str] = {}  # a search names the same few dozen references thousands of times
 
     def name(ref: TimeRef) -> str:
-        found = named.get(ref)
-        if found is None:
-            found = named[ref] = ORIGIN if ref.agent == "" else leg_timepoint(legs[ref.agent][ref.leg], ref.what)
-        return found
+        return ORIGIN if ref.agent == "" else leg_timepoint(legs[ref.agent][ref.leg], ref.what)
 
     return name
 

@@ -276,11 +276,15 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
             return chosen.path
         return paths.get(occ.agent, occ.origin, occ.location)
 
-    def path_key(occ: Occupancy) -> tuple | None:
+    def signature(occ: Occupancy) -> tuple:
+        """What `_pair` reads of an occupancy, as a flat tuple (hashed in C, unlike the dataclass)."""
+        b, f = occ.begin, occ.finish
+        sig = (occ.agent, occ.kind, occ.leg, occ.part, occ.location, occ.origin, b.agent, b.leg, b.what, f.agent,
+               f.leg, f.what)
         if occ.kind != "travel":
-            return None
+            return sig
         p = route(occ)
-        return (p.origin, p.target, p.via, p.length)
+        return (*sig, p.origin, p.target, p.via, p.length)
 
     # the conflicts of an occupancy pair depend on the two occupancies and their routes only, and the
     # same pairs recur across the plans of a task: kept per process, like the geometry they come from
@@ -288,14 +292,13 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
     if len(cache) > _PAIR_CACHE:
         cache.clear()
     out: list[Conflict] = []
-    h_occ = [(h, path_key(h)) for h in occupancies(task, plan, human, routes)]
+    h_occ = [(h, signature(h)) for h in occupancies(task, plan, human, routes)]
     for r in occupancies(task, plan, robot, routes):
-        rk = path_key(r)
+        rk = signature(r)
         for h, hk in h_occ:
-            key = (r, h, rk, hk)
-            found = cache.get(key)
+            found = cache.get((rk, hk))
             if found is None:
-                found = cache[key] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
+                found = cache[(rk, hk)] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
             out.extend(found)
     return tuple(out)
 
