@@ -133,6 +133,45 @@ def test_the_sink_ranks_as_rank_key_does(mini_task, tmp_path):
     assert [cp.rank for cp in out.plans[:2]] == [1, 2]
 
 
+@pytest.fixture(scope="module")
+def workshop_set():
+    return compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), jobs=1)
+
+
+@pytest.mark.parametrize("order", ["ranked", "shuffled"])
+def test_compact_records_keep_what_full_records_keep(workshop_set, tmp_path, order):
+    """Workers send a plan's full record only when it beats the parent's bar (`compact_records`,
+    `PlanSink.bar`); fed chunk by chunk with the bar of the moment, the sink must keep exactly the plans,
+    ranks and bytes that full records give it, in any arrival order (keep=3: most plans fall below)."""
+    import random
+
+    from hrc.compile.stream import compact_records, compile_records
+
+    full = workshop_set
+    task = full.task
+    families = [(cp.plan,) for cp in full.plans]
+    if order == "shuffled":
+        random.Random(5).shuffle(families)
+    sinks = []
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        sinks.append(PlanSink(task, tmp_path / name, "archive", keep=3))
+    a, b = sinks
+    for cp, tail in compile_records(full.options, "archive", task, full.paths, families):
+        a.add(cp, tail)
+    sent = 0
+    for k in range(0, len(families), 2):
+        for record in compact_records(full.options, "archive", task, full.paths, (b.bar(), families[k:k + 2])):
+            sent += record[5] is not None
+            b.add_record(record)
+    assert 0 < sent < len(families) // 2, (sent, len(families))  # the bar held most plans back
+    out_a, out_b = a.finish(0, full.paths, full.options), b.finish(0, full.paths, full.options)
+    assert out_a.plans == out_b.plans and len(out_a.plans) >= 3
+    assert out_a.summary == out_b.summary
+    for name in ("compiled.json", "stnu.zip"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
 # --- counting ---------------------------------------------------------------------------------------
 
 def test_count_in_bounded_states_or_a_bound(mini_task):

@@ -10,7 +10,8 @@ which
 - keeps its rank key as a compact record (eight numbers and the id, about 100 bytes per plan, in
   typed arrays: 36 MB for 362,880 plans),
 - keeps the full `CompiledPlan` only for the `keep` best plans and the best plan of each class (what
-  the report shows),
+  the report shows); workers send it only for a plan that beats the bar of the moment
+  (`compact_records`, `PlanSink.bar`), the rest as a few strings,
 
 and at the end sorts the compact records by `rank_key` (the same total order as `compile_task`, so the
 same ranks) and writes ``compiled.json`` in rank order, one line per plan, straight from the spool. The
@@ -83,6 +84,28 @@ def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     return out
 
 
+Bar = tuple[tuple | None, dict[str, tuple]]  # the keep-th best rank key so far, the best key per class
+Record = tuple[tuple, str, str, str, str, CompiledPlan | None]  # key, id, class, GraphML, line tail, full?
+
+
+def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
+                    work: tuple[Bar, list[tuple[Plan, ...]]]) -> list[Record]:
+    """`compile_records` as the parent needs it (`PlanSink.add_record`): each plan's rank key, id, class,
+    GraphML and line tail, and the full record (without its GraphML) only when the plan beats `bar`,
+    the parent's `PlanSink.bar` when it sent the work: the keep-th best key so far, or the best of the
+    plan's class. Bars only ever fall, so every plan that ends among the kept ones is sent in full; the
+    rest (most of a large task) cross the process boundary as a few strings instead of thousands of
+    small objects (pickling full records was a quarter of kitting_7picks' CPU time)."""
+    (top, best), families = work
+    out: list[Record] = []
+    for cp, tail in compile_records(options, stnu, task, paths, families):
+        key = rank_key(cp, options.rank_by)
+        cls = cp.plan_class.value
+        full = (top is None or key < top) or cls not in best or key < best[cls]
+        out.append((key, cp.plan.id, cls, cp.graphml, tail, replace(cp, graphml="") if full else None))
+    return out
+
+
 def _line_head(plan_id: str, rank: int) -> str:
     return f'{{"id":{json.dumps(plan_id)},"rank":{rank},'
 
@@ -121,26 +144,41 @@ class PlanSink:
 
     def add(self, cp: CompiledPlan, tail: str) -> None:
         """Take one compiled plan and its line tail (`compile_records`)."""
+        self.add_record((rank_key(cp, self.rank_by), cp.plan.id, cp.plan_class.value, cp.graphml, tail,
+                         replace(cp, graphml="")))
+
+    def bar(self) -> Bar:
+        """What a plan must beat to be kept in full (`compact_records`): the keep-th best key so far (None
+        while fewer are held), and the best key of each class so far."""
+        top = None
+        if len(self._held) >= self.keep:
+            self._held.sort(key=lambda h: h[0])
+            del self._held[self.keep:]
+            top = self._held[-1][0]
+        return top, {cls: b[0] for cls, b in self._best.items()}
+
+    def add_record(self, record: Record) -> None:
+        """Take one plan as `compact_records` sends it (its full record only if it beat the bar)."""
+        key, pid, cls, graphml, tail, light = record
         i = len(self)
         self._line_at.append(self._lines.tell())
         self._lines.write(tail.encode("utf-8") + b"\n")
-        data = cp.graphml.encode("utf-8")
+        data = graphml.encode("utf-8")
         if self.stnu == "graphml":
-            with open(self.out_dir / "stnu" / f"{cp.plan.id}.graphml", "wb") as fh:
+            with open(self.out_dir / "stnu" / f"{pid}.graphml", "wb") as fh:
                 fh.write(data)
         elif self._graphml is not None:
             self._graphml_at.append(self._graphml.tell())
             self._graphml.write(data)
-        key = rank_key(cp, self.rank_by)
         for name, value in zip(_KEY_COLUMNS, key[:-1], strict=True):
             self._cols[name].append(float(value))
-        self._ids += cp.plan.id.encode("ascii").ljust(16, b" ")[:16]
-        light = replace(cp, graphml="")
+        self._ids += pid.encode("ascii").ljust(16, b" ")[:16]
+        if light is None:  # below both bars when it was sent: it cannot be among the kept
+            return
         self._held.append((key, i, light))
         if len(self._held) >= 2 * self.keep + 16:
             self._held.sort(key=lambda h: h[0])
             del self._held[self.keep:]
-        cls = cp.plan_class.value
         if cls not in self._best or key < self._best[cls][0]:
             self._best[cls] = (key, i, light)
 
@@ -321,9 +359,9 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             size = max(1, chunk_size(max(total - len(sink), 1), getattr(ex, "jobs", 2)) // family)
             work = functools.partial(_records_with, options, stnu)
             chunks = iter(lambda: list(itertools.islice(stream, size)), [])
-            for batch in ex.map_chunks(work, task, paths, chunks):
-                for cp, tail in batch:
-                    sink.add(cp, tail)
+            for batch in ex.map_chunks(work, task, paths, ((sink.bar(), chunk) for chunk in chunks)):
+                for record in batch:
+                    sink.add_record(record)
                 if progress:
                     progress("plans", len(sink), total)
     except KeyboardInterrupt:
@@ -339,5 +377,5 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
 
 
 def _records_with(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
-                  families: list[tuple[Plan, ...]]) -> list[tuple[CompiledPlan, str]]:
-    return compile_records(options, stnu, task, paths, families)
+                  work: tuple[Bar, list[tuple[Plan, ...]]]) -> list[Record]:
+    return compact_records(options, stnu, task, paths, work)
