@@ -21,6 +21,8 @@ network without the task's limits updated incrementally per added edge (O(n^2) e
 classified (`classify`); the best by (class, makespan as ranked, the other makespan, detours used) wins.
 Bounds stop the search early: adding constraints never improves a class or a makespan, so the network
 with no passing order at all bounds every pattern; a pattern that reaches that bound ends the search.
+The same holds at every node (branch and bound, `_node_bound`): a node that cannot beat the best
+pattern so far, of this route choice or an earlier one, is cut.
 At most `LEAF_CAP` complete patterns per route choice and `NODE_CAP` search nodes are visited (the
 result says whether the search was exhaustive). Other routes (`_route_trials`: detours, stops at a
 waiting place) are tried most promising first by their bound, each only while its bound can beat the
