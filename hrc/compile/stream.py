@@ -57,8 +57,7 @@ from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import generate_plans, identical_actions, plan_families, spread_families, symmetry_factor
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "Sample", "StreamResult", "chunk_size", "compact_records",
-           "compile_records",
-           "compile_stream"]
+           "compile_records", "compile_stream"]
 
 REPORT_TOP = 100
 """Plans the report's ranked table shows by default (plus the best of each class)."""
