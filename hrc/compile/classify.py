@@ -37,7 +37,8 @@ from hrc.temporal import STNU, RequirementLink, Verdict, check_dc
 from hrc.temporal.native_stn import native_distances
 from hrc.temporal.rul import edge_arrays
 
-__all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "earliest_start", "explain", "measure"]
+__all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start", "explain",
+           "measure"]
 
 
 class PlanClass(enum.Enum):
@@ -122,17 +123,27 @@ def _earliest(stnu: STNU, fix: Fix = "") -> dict[str, int] | None:
     index arrays (`edge_arrays`); without the core, `_earliest_python`. The distances are unique, so both
     give the same numbers (a test compares them).
     """
-    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
-    if fix:
-        xs = ys = ys if fix == "ub" else [(x + y) // 2 for x, y in zip(xs, ys, strict=True)]
-    n = len(stnu.timepoints)
-    z = stnu.timepoints.index(ORIGIN)
-    found = native_distances(n, src + act + ctg + list(range(n)), dst + ctg + act + [z] * n,
-                             wt + ys + [-x for x in xs] + [0] * n, z)
+    found = native_distances(len(stnu.timepoints), *distance_graph(stnu, fix, after_origin=True),
+                             stnu.timepoints.index(ORIGIN))
     if found is None:
         return _earliest_python(stnu, fix)
     ok, dist = found
     return {t: -d for t, d in zip(stnu.timepoints, dist, strict=True)} if ok else None
+
+
+def distance_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple[list[int], list[int], list[int]]:
+    """`stnu`'s distance graph as index arrays (``T(dst[i]) - T(src[i]) <= wt[i]``, timepoints by position,
+    from `edge_arrays`), contingent durations free (``fix=""``) or fixed at their upper bound or midpoint;
+    with `after_origin` an edge ``x -> origin`` of weight 0 for every timepoint (each comes at or after
+    it). What the native core's shortest paths take (`hrc.temporal.native_stn`)."""
+    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
+    if fix:
+        xs = ys = ys if fix == "ub" else [(x + y) // 2 for x, y in zip(xs, ys, strict=True)]
+    src, dst, wt = src + act + ctg, dst + ctg + act, wt + ys + [-x for x in xs]
+    if after_origin:
+        n = len(stnu.timepoints)
+        src, dst, wt = src + list(range(n)), dst + [stnu.timepoints.index(ORIGIN)] * n, wt + [0] * n
+    return src, dst, wt
 
 
 def _earliest_python(stnu: STNU, fix: Fix = "") -> dict[str, int] | None:
@@ -306,12 +317,12 @@ def measure(task: Task, net: PlanNetwork, plan_class: PlanClass, explanation: st
     at its end (the same numbers, found incrementally).
     """
     free = net.without_limits() if start is None or full else None  # not needed for a search's leaf
-    early = start.earliest(net, "") if start is not None else _earliest(free, "")  # type: ignore[arg-type]
+    early = start.earliest(net, "") if start is not None else _earliest(net.without_limits(), "")
     if early is None:
         return Classification(plan_class, explanation, None, (), ())
     # with the human's durations fixed the rest may not fit (a passing order that a slow person breaks):
     # the worst case then falls back to the earliest schedule, and the explanation says so
-    late = start.earliest(net, "ub") if start is not None else _earliest(free, "ub")  # type: ignore[arg-type]
+    late = start.earliest(net, "ub") if start is not None else _earliest(net.without_limits(), "ub")
     if late is None:
         late = early
         if explanation:

@@ -51,7 +51,16 @@ from typing import Any
 import numpy as np
 from scipy.sparse.csgraph import NegativeCycleError, csgraph_from_dense, floyd_warshall
 
-from hrc.compile.classify import Classification, EarliestStart, PlanClass, classify, earliest_start, measure
+from hrc.compile.classify import (
+    Classification,
+    EarliestStart,
+    Fix,
+    PlanClass,
+    classify,
+    distance_graph,
+    earliest_start,
+    measure,
+)
 from hrc.compile.temporal_net_creator import (
     ORIGIN,
     TICKS_PER_SECOND,
@@ -132,7 +141,7 @@ def pattern_key(c: Classification, rank_by: str = "worst") -> tuple:
     return (c.plan_class.order, round(first, 6), round(worst, 6), round(early, 6))
 
 
-def _apsp(stnu: STNU, fix: str = "", after_origin: bool = False) -> np.ndarray | None:
+def _apsp(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> np.ndarray | None:
     """Dense shortest distances (ticks as float64, exact below 2**52); None if the STN is inconsistent.
 
     Contingent links are read as requirements (``fix=""``) or fixed at their upper bound (``"ub"``);
@@ -147,15 +156,9 @@ def _apsp(stnu: STNU, fix: str = "", after_origin: bool = False) -> np.ndarray |
     return mat if ok else None
 
 
-def _distance_graph(stnu: STNU, fix: str, after_origin: bool) -> tuple[list[int], list[int], list[int]]:
-    """`_apsp`'s edges as index arrays, self-loops left out (a node's distance to itself starts at 0)."""
-    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
-    lows = ys if fix == "ub" else xs
-    src, dst, wt = src + act + ctg, dst + ctg + act, wt + ys + [-x for x in lows]
-    if after_origin:
-        z = stnu.timepoints.index(ORIGIN)
-        n = len(stnu.timepoints)
-        src, dst, wt = src + list(range(n)), dst + [z] * n, wt + [0] * n
+def _distance_graph(stnu: STNU, fix: Fix, after_origin: bool) -> tuple[list[int], list[int], list[int]]:
+    """`_apsp`'s edges: `distance_graph` without self-loops (a node's distance to itself starts at 0)."""
+    src, dst, wt = distance_graph(stnu, fix, after_origin)
     keep = [e for e in range(len(src)) if src[e] != dst[e]]
     if len(keep) < len(src):
         src, dst, wt = [src[e] for e in keep], [dst[e] for e in keep], [wt[e] for e in keep]
@@ -578,8 +581,7 @@ def _bound(task: Task, routing: _Routing, rank_by: str, beat: tuple | None = Non
 
 def _consistent(stnu: STNU) -> bool:
     """`check_consistency(stnu).consistent`, from the native core when it is built."""
-    src, dst, wt = _distance_graph(stnu, "", False)
-    found = native_distances(len(stnu.timepoints), src, dst, wt, None)
+    found = native_distances(len(stnu.timepoints), *distance_graph(stnu), None)
     return check_consistency(stnu).consistent if found is None else found[0]
 
 

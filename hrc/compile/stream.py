@@ -152,10 +152,14 @@ class PlanSink:
         while fewer are held), and the best key of each class so far."""
         top = None
         if len(self._held) >= self.keep:
-            self._held.sort(key=lambda h: h[0])
-            del self._held[self.keep:]
+            self._trim()
             top = self._held[-1][0]
         return top, {cls: b[0] for cls, b in self._best.items()}
+
+    def _trim(self) -> None:
+        """Keep only the `keep` best held plans, best first."""
+        self._held.sort(key=lambda h: h[0])
+        del self._held[self.keep:]
 
     def add_record(self, record: Record) -> None:
         """Take one plan as `compact_records` sends it (its full record only if it beat the bar)."""
@@ -177,8 +181,7 @@ class PlanSink:
             return
         self._held.append((key, i, light))
         if len(self._held) >= 2 * self.keep + 16:
-            self._held.sort(key=lambda h: h[0])
-            del self._held[self.keep:]
+            self._trim()
         if cls not in self._best or key < self._best[cls][0]:
             self._best[cls] = (key, i, light)
 
@@ -218,8 +221,8 @@ class PlanSink:
         if self._graphml is not None:
             self._write_archive(order)
         self._close()
-        self._held.sort(key=lambda h: h[0])
-        chosen = {h[1]: h[2] for h in self._held[:self.keep]}
+        self._trim()
+        chosen = {h[1]: h[2] for h in self._held}
         chosen.update({i: cp for _, i, cp in self._best.values()})
         plans = tuple(sorted((replace(cp, rank=int(rank[i])) for i, cp in chosen.items()), key=lambda cp: cp.rank))
         return CompiledPlanSet(task=self.task, seed=seed, digest=digest, paths=paths, plans=plans, options=options,

@@ -432,8 +432,8 @@ def _python_check(stnu: STNU) -> tuple[str, tuple[Edge, ...], _Rul]:
 
 
 def native_library() -> ctypes.CDLL | None:
-    """The native core (``_rulcore.c`` and ``hrc/compile/_patterncore.c``, built into ``_native/`` by
-    ``pip install`` when a C compiler is there), or None. Loaded once."""
+    """The native core (``_rulcore.c``, ``_stncore.c`` and ``hrc/compile/_patterncore.c``, built into
+    ``_native/`` by ``pip install`` when a C compiler is there), or None. Loaded once."""
     if not _LIBRARY:
         here = Path(__file__).resolve().parent / "_native"
         found = None
