@@ -322,3 +322,24 @@ def test_the_robot_goes_on_while_the_person_is_away_even_with_work_left_for_them
                             (62.413, "put", "start"), (65.907, "put", "end")):
         last = d.observe(Observation(t, event, "human", "cube4", phase))
     assert isinstance(last.robot, RobotStep) and last.robot.action == "triangle"
+
+
+def test_a_compile_with_packed_stnus_dispatches_as_one_with_files(plan_set, tmp_path, capsys):
+    """``hrc compile --stnu archive`` (the option for large tasks) packs the STNUs into stnu.zip; the
+    dispatcher reads them from there and decides exactly as from one GraphML file per plan. With
+    ``--stnu none`` there is nothing to dispatch with: one error line that says how to go on."""
+    packed = tmp_path / "packed"
+    assert main(["compile", str(WORKSHOP), "--out", str(packed), "--stnu", "archive", "--no-report", "-q"]) == 0
+    assert not (packed / "stnu").exists() and (packed / "stnu.zip").is_file()
+    a, b = Dispatcher(plan_set), Dispatcher(load_plan_set(packed))
+    assert a.decision == b.decision
+    for obs in (Observation(0, "depart", "human", "cube1", "fetch"),
+                Observation(2.86, "depart", "robot", "cube2", "fetch"),
+                Observation(8.3, "arrive", "human", "cube1", "fetch")):
+        assert a.observe(obs) == b.observe(obs)
+    bare = tmp_path / "bare"
+    assert main(["compile", str(WORKSHOP), "--out", str(bare), "--stnu", "none", "--no-report", "-q"]) == 0
+    capsys.readouterr()
+    assert main(["dispatch", str(bare)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "--stnu graphml or --stnu archive" in err[0]

@@ -13,17 +13,19 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from hrc.compile.temporal_net_creator import ORIGIN
-from hrc.errors import HrcError, InputError
+from hrc.errors import InputError
 from hrc.model import Plan, Task
 from hrc.plans import agent_legs
 from hrc.temporal import STNU
 from hrc.temporal.graphml import read_graphml, read_network, tool_name
+from hrc.temporal.limits import MAX_FILE_BYTES
 
 from .fastnet import PlanNet
 from .messages import LEG_EVENTS
@@ -122,9 +124,37 @@ def _need(obj: Any, key: str, kind: type | tuple[type, ...], file: str, path: st
     return obj[key]
 
 
+class _Archive:
+    """``stnu.zip`` of a compile made with ``--stnu archive``: each plan's GraphML is a member named as
+    the plan's ``stnu`` path (`hrc.compile.stream.PlanSink`)."""
+
+    def __init__(self, folder: Path, file: str, name: str) -> None:
+        self.path = folder / name
+        self.file = file
+        if folder.resolve() not in self.path.resolve().parents:
+            raise InputError(file, "stnu_archive", "must name a file inside the output folder")
+        try:
+            self.zip = zipfile.ZipFile(self.path)
+        except (OSError, zipfile.BadZipFile) as err:
+            raise InputError(str(self.path), "", f"cannot read the STNU archive: {err}") from err
+
+    def read(self, member: str, where: str) -> STNU:
+        try:
+            info = self.zip.getinfo(member)
+        except KeyError:
+            raise InputError(self.file, where, f"{member!r} is not in {self.path.name}") from None
+        if info.file_size > MAX_FILE_BYTES:
+            raise InputError(str(self.path), member, f"larger than {MAX_FILE_BYTES} bytes")
+        try:
+            data = self.zip.read(info)
+        except (OSError, zipfile.BadZipFile, ValueError) as err:
+            raise InputError(str(self.path), member, f"cannot read: {err}") from err
+        return read_graphml(data, f"{self.path}:{member}")
+
+
 def load_plan_set(out_dir: str | os.PathLike[str]) -> PlanSet:
     """Read an `hrc compile` output folder. Raises `InputError` naming the file and key at fault."""
-    from hrc.compile.output import load_compiled_task  # the compiler's own reader of input/
+    from hrc.compile.output import STNU_ARCHIVE, load_compiled_task  # the compiler's own reader of input/
 
     folder = Path(out_dir)
     if not folder.is_dir():
@@ -138,6 +168,11 @@ def load_plan_set(out_dir: str | os.PathLike[str]) -> PlanSet:
     options = data.get("options") if isinstance(data, dict) else None
     rank_by = options.get("rank_by", "worst") if isinstance(options, dict) else "worst"
     plans = _need(data, "plans", list, file, "")
+    mode = data.get("stnu_files", "graphml")
+    if mode == "none":
+        raise InputError(file, "stnu_files", "compiled with --stnu none: no STNUs to dispatch with (compile "
+                                             "again with --stnu graphml or --stnu archive)")
+    archive = _Archive(folder, file, str(data.get("stnu_archive", STNU_ARCHIVE))) if mode == "archive" else None
     agents = {a.id for a in task.agents}
     entries = []
     for i, p in enumerate(plans):
@@ -155,10 +190,7 @@ def load_plan_set(out_dir: str | os.PathLike[str]) -> PlanSet:
         stnu_path = (folder / stnu_rel).resolve()
         if folder.resolve() not in stnu_path.parents:
             raise InputError(file, f"{path}.stnu", "must name a file inside the output folder")
-        try:
-            stnu = read_network(stnu_path)
-        except HrcError:
-            raise
+        stnu = archive.read(stnu_rel, f"{path}.stnu") if archive is not None else read_network(stnu_path)
         pref = p.get("preference")
         pattern = p.get("pattern")
         blocked = isinstance(pattern, dict) and pattern.get("candidates") == 0  # no motion pattern was found
