@@ -285,6 +285,45 @@ def test_a_family_compiles_as_each_of_its_plans_does(options):
         assert [repr(cp) for cp in got] == [repr(compile_plan(task, p, paths, options)) for p in family]
 
 
+@pytest.mark.parametrize("options", [CompileOptions(), CompileOptions(human_waits=False, rank_by="earliest")])
+def test_a_relabelled_record_is_the_record_of_the_relabelled_plan(options):
+    """`relabel_record` (a family member's record from its first plan's, names changed) against the
+    member compiled and classified on its own STNU with the same pattern (`compile_plan`): equal, GraphML
+    and schedules included, on kitting_6picks with an APA preference on two actions that are not twins
+    (so the preference value is carried over too). DC and not-DC families both; the latter are refused
+    (their explanations name actions)."""
+    from dataclasses import replace
+
+    from hrc.compile.compiler import compile_plan, relabel_record
+    from hrc.compile.motion_pattern import choose_pattern
+    from hrc.model import Event, Interval, Preference, PreferenceKind
+    from hrc.motion import plan_paths
+    from hrc.plans import identical_actions, plan_families
+
+    base = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
+    pref = Preference(Event("pick_b", "place", "end"), Event("pick_d", "place", "end"), Interval(-60, 60),
+                      PreferenceKind.QUADRATIC, (0.0, 1.0, -0.05))
+    task = replace(base, preferences=(pref,))
+    assert identical_actions(task) == (("pick_a", "pick_f"),)
+    paths = plan_paths(task, seed=0)
+    seen = {"DC": 0, "other": 0}
+    for family in itertools.islice(plan_families(task), 0, 2520, 157):
+        choice = choose_pattern(task, family[0], paths, options.human_waits, options.rank_by)
+        first = compile_plan(task, family[0], paths, options, pattern=choice.pattern)
+        (member,) = family[1:]
+        if first.classification.explanation:
+            seen["other"] += 1
+            with pytest.raises(ValueError, match="names actions"):
+                relabel_record(task, first, choice.net.stnu, member)
+            continue
+        seen["DC"] += 1
+        assert first.preference is not None
+        got = relabel_record(task, first, choice.net.stnu, member)
+        assert got == compile_plan(task, member, paths, options, pattern=first.pattern)
+        assert got.graphml != first.graphml and got.classification.schedule != first.classification.schedule
+    assert seen["DC"] >= 5 and seen["other"] >= 2, seen
+
+
 def test_the_estimate_samples_plans_from_across_the_task():
     """`spread_families` draws its sample from allocations all over the space (the stream's first plans
     all give the human everything), each a family `plan_families` yields, none twice."""

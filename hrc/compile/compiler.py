@@ -20,17 +20,26 @@ from dataclasses import dataclass, replace
 
 from hrc.compile.classify import Classification, PlanClass
 from hrc.compile.executors import make_executor
-from hrc.compile.motion_pattern import RANK_BY, MotionPattern, apply_pattern, choose_pattern, pattern_key
+from hrc.compile.motion_pattern import (
+    RANK_BY,
+    MotionPattern,
+    PlanChoice,
+    apply_pattern,
+    choose_pattern,
+    pattern_key,
+)
 from hrc.compile.preferences import plan_preference
+from hrc.compile.temporal_net_creator import relabel_timepoints
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import task_to_dict
 from hrc.model import Plan, Task
 from hrc.motion import Motion, PathLibrary, plan_paths
 from hrc.plans import count_plans, plan_families, symmetry_factor
+from hrc.temporal import STNU
 from hrc.temporal.graphml import write_graphml
 
 __all__ = ["ClassStats", "CompileOptions", "CompiledPlan", "CompiledPlanSet", "PlanSetSummary", "compile_chunk",
-           "compile_family", "compile_plan", "compile_task",
+           "compile_family", "compile_plan", "compile_task", "relabel_record",
            "rank_key", "task_digest"]
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
@@ -139,10 +148,17 @@ def compile_plan(task: Task, plan: Plan, paths: PathLibrary, options: CompileOpt
     """Motion acquisition (routes, conflicts, passing orders), temporal net creator and classification
     for one plan (rank left at 0; `graphml` False leaves its GraphML text empty). With `pattern` (the
     motion pattern of a plan of the same family, `compile_family`) motion acquisition's search is skipped."""
+    return _record(task, plan, _choice(task, plan, paths, options, pattern), graphml)
+
+
+def _choice(task: Task, plan: Plan, paths: PathLibrary, options: CompileOptions,
+            pattern: MotionPattern | None = None) -> PlanChoice:
     if pattern is None:
-        choice = choose_pattern(task, plan, paths, human_waits=options.human_waits, rank_by=options.rank_by)
-    else:
-        choice = apply_pattern(task, plan, pattern, human_waits=options.human_waits)
+        return choose_pattern(task, plan, paths, human_waits=options.human_waits, rank_by=options.rank_by)
+    return apply_pattern(task, plan, pattern, human_waits=options.human_waits)
+
+
+def _record(task: Task, plan: Plan, choice: PlanChoice, graphml: bool) -> CompiledPlan:
     stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
     return CompiledPlan(plan=plan, pattern=choice.pattern, classification=choice.classification, stnu_size=size,
@@ -150,13 +166,32 @@ def compile_plan(task: Task, plan: Plan, paths: PathLibrary, options: CompileOpt
                         preference=plan_preference(task, plan, choice.net))
 
 
+def relabel_record(task: Task, first: CompiledPlan, stnu: STNU, plan: Plan, graphml: bool = True) -> CompiledPlan:
+    """`first`'s record (whose STNU is `stnu`) carried over to `plan`, a relabelling of identical actions
+    of it (`hrc.plans.relabellings`): the same pattern, class, makespans, idle times and preference value,
+    the schedules and the STNU with the timepoints renamed (`relabel_timepoints`). Exactly what
+    `compile_plan` gives `plan` with `first`'s pattern (tested), since its STNU is `stnu` up to the names,
+    in the same order; but not for a record with an explanation, whose words name actions (ValueError)."""
+    c = first.classification
+    if c.explanation:
+        raise ValueError(f"plan {first.plan.id}'s explanation names actions: compile {plan.id} instead")
+    names = relabel_timepoints(task, first.plan, plan)
+    cls = replace(c, schedule=tuple((names[t], v) for t, v in c.schedule),
+                  worst_schedule=tuple((names[t], v) for t, v in c.worst_schedule))
+    text = write_graphml(stnu.renamed(names, f"{task.name}:{plan.id}")) if graphml else ""
+    return replace(first, plan=plan, classification=cls, graphml=text)
+
+
 def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
                    options: CompileOptions = CompileOptions(), graphml: bool = True) -> list[CompiledPlan]:
     """The plans of one family (`hrc.plans.plan_families`: the same up to the names of identical actions):
     the first compiled in full, the others with its motion pattern (their searches would find the same
-    one), each classified on its own STNU. The same records as `compile_plan` on each."""
-    first = compile_plan(task, family[0], paths, options, graphml)
-    return [first, *(compile_plan(task, plan, paths, options, graphml, first.pattern) for plan in family[1:])]
+    one): a DC plan's record renamed (`relabel_record`), the others' classified on their own STNU (for
+    their explanations' words). The same records as `compile_plan` on each."""
+    choice = _choice(task, family[0], paths, options)
+    first = _record(task, family[0], choice, graphml)
+    return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) if not first.classification.explanation
+                     else compile_plan(task, plan, paths, options, graphml, first.pattern) for plan in family[1:])]
 
 
 def compile_chunk(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]],

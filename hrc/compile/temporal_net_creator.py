@@ -55,7 +55,7 @@ from hrc.temporal import STNU, ContingentLink, RequirementLink
 from hrc.temporal.ticks import to_ticks
 
 __all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint", "leg_timepoint",
-           "ref_namer", "ref_timepoint", "seconds_to_ticks", "with_separations"]
+           "ref_namer", "ref_timepoint", "relabel_timepoints", "seconds_to_ticks", "with_separations"]
 
 TICKS_PER_SECOND = 1000
 """The temporal core's exact unit: milliseconds."""
@@ -101,6 +101,25 @@ def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
         return ORIGIN if ref.agent == "" else leg_timepoint(legs[ref.agent][ref.leg], ref.what)
 
     return name
+
+
+_LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
+
+
+def relabel_timepoints(task: Task, plan: Plan, other: Plan) -> dict[str, str]:
+    """For two plans whose legs differ only in their actions' ids (a relabelling of identical actions,
+    `hrc.plans.relabellings`): the name in `other`'s STNU of every timepoint `create_stnu` may give
+    `plan`'s (every leg's, and the origin's). Raises ValueError if their legs differ otherwise."""
+    names = {ORIGIN: ORIGIN}
+    for agent in task.agents:
+        mine, theirs = agent_legs(task, plan, agent.id), agent_legs(task, other, agent.id)
+        if len(mine) != len(theirs):
+            raise ValueError(f"plans {plan.id} and {other.id} give {agent.id} different numbers of legs")
+        for a, b in zip(mine, theirs, strict=True):
+            if (a.origin, a.location, a.phase) != (b.origin, b.location, b.phase):
+                raise ValueError(f"plans {plan.id} and {other.id} differ in {agent.id}'s leg {a.index}")
+            names.update((leg_timepoint(a, w), leg_timepoint(b, w)) for w in _LEG_TIMEPOINTS)
+    return names
 
 
 @dataclass(frozen=True, slots=True)

@@ -23,6 +23,7 @@ frozenset({'C'})
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hrc.errors import HrcError
@@ -136,6 +137,15 @@ class STNU:
     def n_edges(self) -> int:
         """Number of finite bounds, i.e. edges of the distance graph from requirement links."""
         return sum((r.lb is not None) + (r.ub is not None) for r in self.requirements)
+
+    def renamed(self, names: Mapping[str, str], name: str | None = None) -> STNU:
+        """The same network with every timepoint ``t`` called ``names[t]`` (the same order and links;
+        `name`: the network's new name, if given). Raises `NetworkError` if two timepoints would share a
+        name, and KeyError for a timepoint `names` leaves out."""
+        return STNU(tuple(names[t] for t in self.timepoints),
+                    tuple(RequirementLink(names[r.source], names[r.target], r.lb, r.ub) for r in self.requirements),
+                    tuple(ContingentLink(names[c.source], names[c.target], c.lb, c.ub) for c in self.contingents),
+                    self.name if name is None else name)
 
     def as_stn(self) -> STNU:
         """The STN obtained by treating every contingent link as a requirement link."""
