@@ -284,6 +284,39 @@ def test_branch_and_bound_keeps_the_best_pattern() -> None:
     assert compared > 50 and cut > 0  # not vacuous: pruning did cut leaves
 
 
+def test_the_chain_bound_is_below_every_pattern_it_rules_out() -> None:
+    """`_Routing.chain_bound` lets `choose_pattern` pass over a route choice without building its network
+    (`_beyond`). It must be a lower bound: on every route choice of a sample of plans, for each reading,
+    no DC leaf the search finds (nor the network without passing orders, `_bound`) has a makespan
+    below it; and `_beyond` rules out no route choice whose best pattern beats the key it was given."""
+    import hrc.compile.motion_pattern as mp
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+
+    checked = tight = ruled_out = 0
+    for name, step in (("cube_stacking", 3), ("kitting", 131), ("kitting_7picks", 2003)):
+        task = load_task(ROOT / "tasks" / f"{name}.yaml")
+        paths = plan_paths(task, seed=0)
+        for plan in list(generate_plans(task))[::step]:
+            for human_waits, rank_by in ((True, "worst"), (True, "earliest"), (False, "nominal")):
+                for routes in [{}, *mp._route_trials(task, plan, paths, human_waits)]:
+                    routing = mp._Routing(task, plan, paths, routes, human_waits)
+                    low = round(routing.chain_bound(rank_by), 6)
+                    keys = [mp._bound(task, routing, rank_by)]
+                    keys += [k for k, _ in mp._search(task, plan, routing, rank_by, None, prune=False)[0]]
+                    for key in keys:
+                        if key[0] == 0:  # DC: fits the human at maxima, so above the chains
+                            assert low <= key[1], (plan.id, routes, rank_by, low, key)
+                            tight += low > key[1] - 1
+                    best = min(keys)
+                    for beat in {(0, low - 0.5, 0, 0), (0, low + 0.5, 0, 0), best}:
+                        if mp._beyond(routing, rank_by, beat):
+                            assert best >= beat, (plan.id, routes, rank_by, beat, best)
+                            ruled_out += 1
+                    checked += 1
+    assert checked > 100 and tight > 0 and ruled_out > 0  # not vacuous
+
+
 def test_a_plan_with_no_pattern_on_its_first_routes_tries_every_route() -> None:
     """Kitting: a person whose inspect and deliver at Q enclose the robot's label at Q blocks it unless
     the person steps back to a waiting place between the two; the bound ranks that route choice behind

@@ -241,6 +241,24 @@ class _Routing:
     def conflicts(self) -> tuple[Conflict, ...]:
         return find_conflicts(self.task, self.plan, self.paths, self.routes)
 
+    def chain_bound(self, rank_by: str) -> float:
+        """A lower bound (s) on the makespan `rank_by` names of every pattern with these routes, read off
+        the agents' own chains of travels and steps alone, without building the network: each agent's
+        travel times and durations in turn, at their lower bounds (the human's at the upper bounds for
+        the worst case, which a DC pattern must fit: `_beyond`), a tick per link less for rounding."""
+        motion = {(m.agent, m.leg): m for m in self.motions}
+        longest = 0.0
+        for agent in self.task.agents:
+            late = agent.is_human and rank_by == "worst"
+            slack = agent.travel_slack if late else 1.0
+            total, links = 0.0, 0
+            for leg in agent_legs(self.task, self.plan, agent.id):
+                bounds = self.task.action(leg.action).phase(leg.phase).duration(agent.id)
+                total += motion[(agent.id, leg.index)].time * slack + (bounds.ub if late else bounds.lb)
+                links += 3
+            longest = max(longest, total - links / TICKS_PER_SECOND)
+        return longest
+
     @functools.cached_property
     def robust(self) -> np.ndarray:
         """`_apsp` of `_robust`: what holds in every execution."""
@@ -579,6 +597,14 @@ def _bound(task: Task, routing: _Routing, rank_by: str, beat: tuple | None = Non
     return pattern_key(classify(task, net, explained=False, full=full), rank_by)
 
 
+def _beyond(routing: _Routing, rank_by: str, best: tuple) -> bool:
+    """Whether the agents' chains alone (`_Routing.chain_bound`) show that no pattern with these routes
+    beats `best`, a DC key (the check `_bound` would make, without building the network). For the worst
+    case: a DC pattern fits every human duration at its maximum, so its worst-case makespan is at least
+    the human's chain at maxima; a pattern that does not fit them is not DC, and loses to `best`."""
+    return best[0] == 0 and round(routing.chain_bound(rank_by), 6) > best[1]
+
+
 def _consistent(stnu: STNU) -> bool:
     """`check_consistency(stnu).consistent`, from the native core when it is built."""
     found = native_distances(len(stnu.timepoints), *distance_graph(stnu), None)
@@ -681,7 +707,8 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
     if best_key > bound:  # a detour or a waiting place may do better than waiting in the way
         trials = [_Routing(task, plan, paths, routes, human_waits)
                   for routes in _route_trials(task, plan, paths, human_waits, shortest)]
-        bounded = [(_bound(task, routing, rank_by, best_key), i, routing) for i, routing in enumerate(trials)]
+        bounded = [(_bound(task, routing, rank_by, best_key), i, routing) for i, routing in enumerate(trials)
+                   if not _beyond(routing, rank_by, best_key)]  # those would sort after every one tried
         bounded.sort(key=lambda b: (b[0], b[1]))  # the most promising first
         for tried, (bound, _, routing) in enumerate(bounded):
             if bound >= best_key:
