@@ -100,8 +100,13 @@ def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
     base = _task_phase_graph(task)
     last = {a.id: str(PhaseRef(a.id, a.phases[-1].id)) for a in task.actions}
     first = {a.id: str(PhaseRef(a.id, a.phases[0].id)) for a in task.actions}
+    # a cycle through two agents' sequences needs a task-graph edge between two actions: without one
+    # (independent actions, as in the kitting tasks) every combination is valid, and checking each
+    # with networkx was most of the time plan generation took
+    linked = (any(pr.before.action != pr.after.action for pr in task.precedence)
+              or not nx.is_directed_acyclic_graph(base))
     for combo in itertools.product(*per_agent):
-        if len(combo) > 1:  # cross-agent cycles are possible only with two or more busy agents
+        if linked and len(combo) > 1:  # cross-agent cycles need two or more busy agents
             g = base.copy()
             for _, seq in combo:
                 g.add_edges_from((last[a], first[b]) for a, b in itertools.pairwise(seq))
