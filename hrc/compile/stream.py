@@ -229,7 +229,11 @@ class PlanSink:
                                summary=self._summary(counts, n), stnu_files=self.stnu)
 
     def _write_archive(self, order: np.ndarray) -> None:
-        """``stnu.zip``: the GraphML files in rank order, deflated, with fixed dates (deterministic bytes)."""
+        """``stnu.zip``: the GraphML files in rank order, deflated, with fixed dates (deterministic bytes).
+
+        Deflate level 1: this runs alone at the end of the compile, and on kitting_7picks (40,320 files,
+        1.25 GB of GraphML) level 1 takes 6 s where the default (6) took 17 s, for a 27 % larger archive
+        (158 MB instead of 125 MB)."""
         assert self._graphml is not None
         ends = np.append(np.frombuffer(self._graphml_at, dtype=np.int64), self._graphml.tell())
         with zipfile.ZipFile(self.out_dir / STNU_ARCHIVE, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -240,7 +244,7 @@ class PlanSink:
                 info = zipfile.ZipInfo(f"stnu/{pid}.graphml", date_time=(1980, 1, 1, 0, 0, 0))
                 info.compress_type = zipfile.ZIP_DEFLATED
                 info.external_attr = 0o644 << 16
-                zf.writestr(info, data)
+                zf.writestr(info, data, compresslevel=1)
 
     def _close(self) -> None:
         for fh, name in ((self._lines, ".plans.spool"), (self._graphml, ".stnu.spool")):
@@ -314,7 +318,7 @@ def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], op
             if stnu == "graphml":
                 size += -(-len(cp.graphml.encode()) // 4096) * 4096
             elif stnu == "archive":
-                size += len(zlib.compress(cp.graphml.encode(), 6))
+                size += len(zlib.compress(cp.graphml.encode(), 1))
         n += len(family)
         done += 1
         if time.perf_counter() - t0 >= budget or n >= 16:
