@@ -61,6 +61,7 @@ import yaml
 
 from hrc import __version__
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, task_digest
+from hrc.compile.motion_pattern import MotionPattern
 from hrc.compile.temporal_net_creator import ref_namer
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
@@ -97,6 +98,19 @@ def _xy(p: tuple[float, float]) -> list[float]:
     return [round(p[0], 3), round(p[1], 3)]
 
 
+_PARTS: list[tuple[MotionPattern, list[tuple[dict, dict, list[float], float]]]] = []
+
+
+def _passing_parts(pattern: MotionPattern) -> list[tuple[dict, dict, list[float], float]]:
+    """Per passing order of `pattern` (not implied), the parts of its ``compiled.json`` entry that name
+    no action: a family's plans share one pattern (`hrc.compile.compiler.compile_family`), so these are
+    built once for the last pattern seen (the entries share them: `plan_dict`'s dicts are only encoded)."""
+    if not _PARTS or _PARTS[0][0] is not pattern:
+        _PARTS[:] = [(pattern, [(_occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point),
+                                 _s(o.separation.gap)) for o in pattern.constrained])]
+    return _PARTS[0][1]
+
+
 def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dict[str, Any]:
     """One plan's entry of ``compiled.json`` (``stnu``: the `STNU_MODES` value; None writes ``"stnu": null``)."""
     plan, c = cp.plan, cp.classification
@@ -113,13 +127,11 @@ def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dic
         })
     passing = []
     name = ref_namer(task, plan)
-    for o in cp.pattern.constrained:
+    for o, (robot, human, point, gap) in zip(cp.pattern.constrained, _passing_parts(cp.pattern), strict=True):
         sep = o.separation
         passing.append({
-            "robot": _occupancy(o.conflict.robot), "human": _occupancy(o.conflict.human),
-            "first": o.first, "how": o.how, "point": _xy(o.conflict.point),
-            "constraint": {"from": tool_name(name(sep.earlier)), "to": tool_name(name(sep.later)),
-                           "min": _s(sep.gap)},
+            "robot": robot, "human": human, "first": o.first, "how": o.how, "point": point,
+            "constraint": {"from": tool_name(name(sep.earlier)), "to": tool_name(name(sep.later)), "min": gap},
         })
     pattern = cp.pattern
     return {
