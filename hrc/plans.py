@@ -275,8 +275,26 @@ class Leg:
     phase: str
 
 
+_LEGS: dict[tuple[int, Plan, str], tuple[Task, tuple[Leg, ...]]] = {}
+
+
 def agent_legs(task: Task, plan: Plan, agent_id: str) -> tuple[Leg, ...]:
-    """The agent's legs in order, starting at its start location (a leg may have origin == location)."""
+    """The agent's legs in order, starting at its start location (a leg may have origin == location).
+
+    Remembered for the last few hundred plans: a plan's compile asks for them a dozen times (motions,
+    STNU, conflicts, names, output). Each entry holds its task, which it must be (not a namesake)."""
+    key = (id(task), plan, agent_id)
+    hit = _LEGS.get(key)
+    if hit is not None and hit[0] is task:
+        return hit[1]
+    legs = _agent_legs(task, plan, agent_id)
+    if len(_LEGS) >= 512:
+        _LEGS.clear()
+    _LEGS[key] = (task, legs)
+    return legs
+
+
+def _agent_legs(task: Task, plan: Plan, agent_id: str) -> tuple[Leg, ...]:
     here = task.agent(agent_id).start
     legs: list[Leg] = []
     for action_id in plan.sequence(agent_id):
