@@ -84,6 +84,26 @@ def test_graphml_round_trip_and_determinism(stnu: STNU) -> None:
                                                      back.name))
 
 
+@settings(max_examples=100, deadline=None, database=None)
+@given(networks(), st.randoms(use_true_random=False))
+def test_graphml_written_under_new_names_is_that_of_the_renamed_network(stnu: STNU, rnd) -> None:
+    """`write_graphml(stnu, names, name)` (the compile's relabelled plans) against writing
+    `STNU.renamed`: the same text, or the same refusal when two new names share a node id."""
+    new = [f"t{i}.{v}" for i, v in enumerate(stnu.timepoints)]
+    rnd.shuffle(new)
+    names = dict(zip(stnu.timepoints, new, strict=True))
+    if rnd.random() < 0.2 and len(new) > 1:  # two names one node id apart: "t0.x" / "t0_x"
+        names[stnu.timepoints[1]] = names[stnu.timepoints[0]].replace(".", "_")
+    try:
+        expected = write_graphml(stnu.renamed(names, "renamed"))
+    except NetworkError as e:
+        with pytest.raises(NetworkError, match="would both be written as node"):
+            write_graphml(stnu, names, "renamed")
+        assert "would both be written as node" in str(e)
+        return
+    assert write_graphml(stnu, names, "renamed") == expected
+
+
 @settings(max_examples=200, deadline=None, database=None)
 @given(networks(names=st.sampled_from(["A", "B", "C1", "Ω", "x_2"])))
 def test_stnu_text_round_trip(stnu: STNU) -> None:

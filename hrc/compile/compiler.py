@@ -178,7 +178,7 @@ def relabel_record(task: Task, first: CompiledPlan, stnu: STNU, plan: Plan, grap
     names = relabel_timepoints(task, first.plan, plan)
     cls = replace(c, schedule=tuple((names[t], v) for t, v in c.schedule),
                   worst_schedule=tuple((names[t], v) for t, v in c.worst_schedule))
-    text = write_graphml(stnu.renamed(names, f"{task.name}:{plan.id}")) if graphml else ""
+    text = write_graphml(stnu, names, f"{task.name}:{plan.id}") if graphml else ""  # of stnu.renamed(...)
     return replace(first, plan=plan, classification=cls, graphml=text)
 
 

@@ -48,6 +48,7 @@ from __future__ import annotations
 import functools
 import re
 import unicodedata
+from collections.abc import Mapping
 from pathlib import Path
 from xml.parsers import expat
 
@@ -284,24 +285,29 @@ def tool_name(name: str) -> str:
     return _NOT_TOOL.sub("_", plain) or "_"
 
 
-def _node_ids(stnu: STNU) -> dict[str, str]:
-    """`tool_name` of every timepoint; raises `NetworkError` if two timepoints would share an id."""
+def _node_ids(stnu: STNU, names: Mapping[str, str] | None = None) -> dict[str, str]:
+    """`tool_name` of every timepoint (of ``names[t]`` with `names`); raises `NetworkError` if two
+    timepoints would share an id."""
     ids: dict[str, str] = {}
     owner: dict[str, str] = {}
     for v in stnu.timepoints:
-        nid = tool_name(v)
+        shown = v if names is None else names[v]
+        nid = tool_name(shown)
         if nid in owner:
-            raise NetworkError(f"timepoints {show(owner[nid])} and {show(v)} would both be written as node "
+            raise NetworkError(f"timepoints {show(owner[nid])} and {show(shown)} would both be written as node "
                                f"{show(nid)} (the CSTNU Tool allows only [A-Za-z0-9_ωΩ? ] in names); rename one")
-        owner[nid] = v
+        owner[nid] = shown
         ids[v] = nid
     return ids
 
 
-def write_graphml(stnu: STNU) -> str:
+def write_graphml(stnu: STNU, names: Mapping[str, str] | None = None, name: str | None = None) -> str:
     """The network as CSTNU Tool GraphML text (deterministic; node ids by `tool_name`, fixed durations as
-    requirement links: see the module docstring). Raises `NetworkError` if two names share an id."""
-    ids = _node_ids(stnu)
+    requirement links: see the module docstring). Raises `NetworkError` if two names share an id.
+
+    With `names` and `name`: the text of ``stnu.renamed(names, name)``, without building that network
+    (a compile writes one per plan of a family from the first plan's, `hrc.compile.compiler`)."""
+    ids = _node_ids(stnu, names)
     edges: list[tuple[str, str, str, str, str]] = []  # (source, target, Type, key, value)
     for r in stnu.requirements:
         if r.ub is not None:
@@ -346,7 +352,7 @@ def write_graphml(stnu: STNU) -> str:
     out.append(f'<data key="NetworkType">{"STNU" if contingent else "STN"}</data>')
     out.append(f'<data key="nEdges">{len(edges)}</data>')
     out.append(f'<data key="nVertices">{len(stnu.timepoints)}</data>')
-    out.append(f'<data key="Name">{_escape(stnu.name)}</data>')
+    out.append(f'<data key="Name">{_escape(stnu.name if name is None else name)}</data>')
     quoted = {nid: _quoteattr(nid) for nid in ids.values()}  # once per node, not per edge end
     out += [f'<node id={quoted[ids[v]]}>\n<data key="x">{150.0 * (i % 10):.1f}</data>\n'
             f'<data key="y">{150.0 * (i // 10):.1f}</data>\n</node>' for i, v in enumerate(stnu.timepoints)]
