@@ -291,14 +291,17 @@ def test_a_relabelled_record_is_the_record_of_the_relabelled_plan(options):
     member compiled and classified on its own STNU with the same pattern (`compile_plan`): equal, GraphML
     and schedules included, on kitting_6picks with an APA preference on two actions that are not twins
     (so the preference value is carried over too). DC and not-DC families both; the latter are refused
-    (their explanations name actions)."""
+    (their explanations name actions) and classified on their own STNU, with the first plan's DC check
+    renamed (`relabel_check`): the very verdict and cycle the check finds on the member's STNU."""
     from dataclasses import replace
 
-    from hrc.compile.compiler import compile_plan, relabel_record
-    from hrc.compile.motion_pattern import choose_pattern
+    from hrc.compile.compiler import compile_family, compile_plan, relabel_check, relabel_record
+    from hrc.compile.motion_pattern import apply_pattern, choose_pattern
+    from hrc.compile.temporal_net_creator import relabel_timepoints
     from hrc.model import Event, Interval, Preference, PreferenceKind
     from hrc.motion import plan_paths
     from hrc.plans import identical_actions, plan_families
+    from hrc.temporal import check_dc
 
     base = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
     pref = Preference(Event("pick_b", "place", "end"), Event("pick_d", "place", "end"), Interval(-60, 60),
@@ -315,6 +318,14 @@ def test_a_relabelled_record_is_the_record_of_the_relabelled_plan(options):
             seen["other"] += 1
             with pytest.raises(ValueError, match="names actions"):
                 relabel_record(task, first, choice.net.stnu, member)
+            # classified on its own STNU with the first's DC check renamed: the check's own answer
+            names = relabel_timepoints(task, family[0], member)
+            own = compile_plan(task, member, paths, options, pattern=first.pattern)
+            if first.pattern.candidates:
+                mine = check_dc(apply_pattern(task, member, first.pattern, options.human_waits).net.stnu)
+                renamed = relabel_check(check_dc(choice.net.stnu), names)
+                assert (renamed.verdict, renamed.cycle) == (mine.verdict, mine.cycle) and mine.cycle
+            assert compile_family(task, family, paths, options)[1] == own
             continue
         seen["DC"] += 1
         assert first.preference is not None

@@ -33,7 +33,7 @@ from typing import Literal
 
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwork
 from hrc.model import Task
-from hrc.temporal import STNU, RequirementLink, Verdict, check_dc
+from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_dc
 from hrc.temporal.native_stn import native_distances
 from hrc.temporal.rul import edge_arrays
 
@@ -281,14 +281,15 @@ def _seconds(times: dict[str, int], names: tuple[str, ...]) -> tuple[tuple[str, 
 
 
 def classify(task: Task, net: PlanNetwork, explained: bool = True, full: bool = True,
-             start: EarliestStart | None = None) -> Classification:
+             start: EarliestStart | None = None, known: DCResult | None = None) -> Classification:
     """Class (DC check), explanation, makespans, idle times and the earliest and worst-case schedules.
 
     `explained=False` leaves the explanation empty (it costs a few more DC checks for a consistent plan);
     `full=False` only the class and the makespans (`measure`): a search over candidate networks
     explains and measures in full only the one it keeps; `start` makes measuring incremental (`measure`).
+    `known`: the DC check's result on ``net.stnu``, if already known (the check is then not run again).
     """
-    result = check_dc(net.stnu)
+    result = known if known is not None else check_dc(net.stnu)
     explanation = ""
     if result.verdict is Verdict.DC:
         plan_class = PlanClass.DC

@@ -15,7 +15,7 @@ import hashlib
 import itertools
 import json
 import math
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 
 from hrc.compile.classify import Classification, PlanClass
@@ -35,11 +35,11 @@ from hrc.io.task_file import task_to_dict
 from hrc.model import Plan, Task
 from hrc.motion import Motion, PathLibrary, plan_paths
 from hrc.plans import count_plans, plan_families, symmetry_factor
-from hrc.temporal import STNU
+from hrc.temporal import STNU, DCResult, Edge, check_dc
 from hrc.temporal.graphml import write_graphml
 
 __all__ = ["ClassStats", "CompileOptions", "CompiledPlan", "CompiledPlanSet", "PlanSetSummary", "compile_chunk",
-           "compile_family", "compile_plan", "compile_task", "relabel_record",
+           "compile_family", "compile_plan", "compile_task", "relabel_check", "relabel_record",
            "rank_key", "task_digest"]
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
@@ -182,16 +182,33 @@ def relabel_record(task: Task, first: CompiledPlan, stnu: STNU, plan: Plan, grap
     return replace(first, plan=plan, classification=cls, graphml=text)
 
 
+def relabel_check(result: DCResult, names: Mapping[str, str]) -> DCResult:
+    """A DC check's `result` on a network, for that network with its timepoints renamed (`names`): the
+    same verdict and the same negative cycle, renamed (the checks work on timepoint indices, in the
+    network's order, which renaming keeps)."""
+    cycle = tuple(Edge(names[e.source], names[e.target], e.value, e.kind, names[e.label] if e.label else "")
+                  for e in result.cycle)
+    return DCResult(result.verdict, result.consistent, cycle)
+
+
 def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
                    options: CompileOptions = CompileOptions(), graphml: bool = True) -> list[CompiledPlan]:
     """The plans of one family (`hrc.plans.plan_families`: the same up to the names of identical actions):
     the first compiled in full, the others with its motion pattern (their searches would find the same
-    one): a DC plan's record renamed (`relabel_record`), the others' classified on their own STNU (for
-    their explanations' words). The same records as `compile_plan` on each."""
+    one): a DC plan's record renamed (`relabel_record`); the others' classified on their own STNU, for
+    their explanations' words, with the first's DC check renamed (`relabel_check`). The same records as
+    `compile_plan` on each."""
     choice = _choice(task, family[0], paths, options)
     first = _record(task, family[0], choice, graphml)
-    return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) if not first.classification.explanation
-                     else compile_plan(task, plan, paths, options, graphml, first.pattern) for plan in family[1:])]
+    if not first.classification.explanation:
+        return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) for plan in family[1:])]
+    out = [first]
+    result = check_dc(choice.net.stnu) if len(family) > 1 and first.pattern.candidates else None
+    for plan in family[1:]:
+        known = None if result is None else relabel_check(result, relabel_timepoints(task, family[0], plan))
+        member = apply_pattern(task, plan, first.pattern, human_waits=options.human_waits, known=known)
+        out.append(_record(task, plan, member, graphml))
+    return out
 
 
 def compile_chunk(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]],

@@ -72,7 +72,7 @@ from hrc.model import Plan, Task
 from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detour, find_conflicts, plan_motions
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs
-from hrc.temporal import STNU, RequirementLink, Verdict, check_consistency, check_dc
+from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_consistency, check_dc
 from hrc.temporal.native_stn import native_apsp, native_distances
 from hrc.temporal.rul import core_verdict, edge_arrays, native_library
 
@@ -731,12 +731,14 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
                       classify(task, net))  # again, in full, with its explanation
 
 
-def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: bool = True) -> PlanChoice:
+def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: bool = True,
+                  known: DCResult | None = None) -> PlanChoice:
     """`plan` carried out with another plan's `pattern`, classified in full: for a plan of the same family
     (`hrc.plans.plan_families`: the same up to the names of identical actions), whose search would find
-    that very pattern, since motion patterns name legs and places, never actions."""
+    that very pattern, since motion patterns name legs and places, never actions. `known`: the DC check's
+    result on the plan's STNU, if known (`classify`)."""
     base = create_stnu(task, plan, pattern.motions, (), human_waits)
     if pattern.candidates == 0:  # no pattern at all: the co-workers block each other (`choose_pattern`)
         return PlanChoice(pattern, base, _BLOCKED)
     net = _worded(task, plan, _network(base, ref_namer(task, plan), list(pattern.orders)), pattern.orders)
-    return PlanChoice(pattern, net, classify(task, net))
+    return PlanChoice(pattern, net, classify(task, net, known=known))
