@@ -93,17 +93,34 @@ def ref_timepoint(task: Task, plan: Plan, ref: TimeRef) -> str:
     return leg_timepoint(agent_legs(task, plan, ref.agent)[ref.leg], ref.what)
 
 
+_LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
+_NAMES: dict[tuple[int, Plan], tuple[Task, dict[str, list[dict[str, str]]]]] = {}
+
+
+def _leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
+    """Per agent and leg, the name of each timepoint the leg may have (`leg_timepoint`), remembered for
+    the last few hundred plans (a plan's compile names thousands of references: conflicts, passing
+    orders, output). Each entry holds its task, which it must be (not a namesake)."""
+    key = (id(task), plan)
+    hit = _NAMES.get(key)
+    if hit is not None and hit[0] is task:
+        return hit[1]
+    table = {a.id: [{w: leg_timepoint(leg, w) for w in _LEG_TIMEPOINTS} for leg in agent_legs(task, plan, a.id)]
+             for a in task.agents}
+    if len(_NAMES) >= 256:
+        _NAMES.clear()
+    _NAMES[key] = (task, table)
+    return table
+
+
 def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
-    """`ref_timepoint` for many references of one plan (the legs are looked up once)."""
-    legs = {a.id: agent_legs(task, plan, a.id) for a in task.agents}
+    """`ref_timepoint` for many references of one plan (the names are built once per plan)."""
+    table = _leg_names(task, plan)
 
     def name(ref: TimeRef) -> str:
-        return ORIGIN if ref.agent == "" else leg_timepoint(legs[ref.agent][ref.leg], ref.what)
+        return ORIGIN if ref.agent == "" else table[ref.agent][ref.leg][ref.what]
 
     return name
-
-
-_LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
 
 
 def relabel_timepoints(task: Task, plan: Plan, other: Plan) -> dict[str, str]:
@@ -118,7 +135,8 @@ def relabel_timepoints(task: Task, plan: Plan, other: Plan) -> dict[str, str]:
         for a, b in zip(mine, theirs, strict=True):
             if (a.origin, a.location, a.phase) != (b.origin, b.location, b.phase):
                 raise ValueError(f"plans {plan.id} and {other.id} differ in {agent.id}'s leg {a.index}")
-            names.update((leg_timepoint(a, w), leg_timepoint(b, w)) for w in _LEG_TIMEPOINTS)
+        for a_names, b_names in zip(_leg_names(task, plan)[agent.id], _leg_names(task, other)[agent.id], strict=True):
+            names.update((a_names[w], b_names[w]) for w in _LEG_TIMEPOINTS)
     return names
 
 
@@ -181,11 +199,13 @@ def create_stnu(task: Task, plan: Plan, motions: Sequence[Motion],
             ticks = seconds_to_ticks(t)
             req(a, b, ticks, ticks, "robot", f"{text} ({t:.1f} s)")
 
+    names = _leg_names(task, plan)
     for agent in task.agents:
         prev_end = ORIGIN
         rigid = agent.is_human and not human_waits
         for leg in agent_legs(task, plan, agent.id):
-            dep, arr, st, en = (leg_timepoint(leg, w) for w in ("depart", "arrive", "start", "end"))
+            here = names[agent.id][leg.index]
+            dep, arr, st, en = here["depart"], here["arrive"], here["start"], here["end"]
             motion = motion_of[(agent.id, leg.index)]
             step = f"{leg.action}.{leg.phase}"
             if rigid:
@@ -194,7 +214,7 @@ def create_stnu(task: Task, plan: Plan, motions: Sequence[Motion],
                 req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step")
             route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
             if motion.park:
-                park, unpark = leg_timepoint(leg, "park"), leg_timepoint(leg, "unpark")
+                park, unpark = here["park"], here["unpark"]
                 timepoints += [dep, park, unpark, arr, st, en]
                 travel(agent, dep, park, motion.park_time, f"{agent.id}'s travel {leg.origin} -> {motion.park} "
                                                            f"to wait there for {step}")
