@@ -39,9 +39,11 @@ class NetworkError(HrcError):
     links onto one timepoint, ...). This is misuse of the API, not an expected verdict."""
 
 
-def _check_int(value: object, what: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise NetworkError(f"{what} must be an integer number of ticks, got {value!r}")
+def _check_int(value: object, what: str, link: RequirementLink | ContingentLink) -> None:
+    """`value` (a bound of `link`, `what`: e.g. "lower bound of") must be an int (not a bool). The
+    message is built only on failure: networks are built by the thousand in a compile."""
+    if type(value) is not int and (isinstance(value, bool) or not isinstance(value, int)):
+        raise NetworkError(f"{what} {link.source}->{link.target} must be an integer number of ticks, got {value!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,9 +57,9 @@ class RequirementLink:
 
     def __post_init__(self) -> None:
         if self.lb is not None:
-            _check_int(self.lb, f"lower bound of {self.source}->{self.target}")
+            _check_int(self.lb, "lower bound of", self)
         if self.ub is not None:
-            _check_int(self.ub, f"upper bound of {self.source}->{self.target}")
+            _check_int(self.ub, "upper bound of", self)
         if self.lb is not None and self.ub is not None and self.lb > self.ub:
             raise NetworkError(f"requirement {self.source}->{self.target}: lb {self.lb} > ub {self.ub}")
 
@@ -77,8 +79,8 @@ class ContingentLink:
     ub: int
 
     def __post_init__(self) -> None:
-        _check_int(self.lb, f"lower bound of contingent {self.source}->{self.target}")
-        _check_int(self.ub, f"upper bound of contingent {self.source}->{self.target}")
+        _check_int(self.lb, "lower bound of contingent", self)
+        _check_int(self.ub, "upper bound of contingent", self)
         if not 0 <= self.lb <= self.ub:
             raise NetworkError(
                 f"contingent {self.source}->{self.target}: need 0 <= lb <= ub, got [{self.lb}, {self.ub}]"
