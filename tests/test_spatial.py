@@ -191,6 +191,7 @@ def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool)
     """The search reads each leaf's class and makespans off its own matrices and the C core
     (`motion_pattern._search`); `classify` on the leaf's built STNU is the independent truth: the same
     key for every leaf of every route choice of a sample of workshop and kitting plans."""
+    from hrc.compile.classify import classify
     from hrc.compile.motion_pattern import _route_trials, _Routing, _search, pattern_key
     from hrc.motion import plan_paths
     from hrc.plans import generate_plans
@@ -204,7 +205,9 @@ def test_search_leaves_are_measured_as_classify_measures_them(human_waits: bool)
                 routing = _Routing(task, plan, paths, routes, human_waits)
                 results, _ = _search(task, plan, routing, "worst", None, prune=False)
                 for key, build in results:
-                    assert pattern_key(build().classification, "worst") == key
+                    leaf = build()
+                    truth = classify(task, leaf.net, explained=False, full=False)  # on the leaf's own STNU
+                    assert leaf.classification == truth and pattern_key(truth, "worst") == key
                     leaves += 1
     assert leaves >= 20  # not vacuous (about 200 leaves when the human waits, 21 when not)
 

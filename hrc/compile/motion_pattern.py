@@ -325,7 +325,7 @@ class _NativeSearch:
             "bound": np.array([_ticks_key(bound) if bound is not None else (0, 0, 0, 0)], dtype=np.int64).reshape(4),
         }
         self.has_bound = bound is not None
-        self.leaves: list[tuple[np.ndarray, np.ndarray, tuple]] = []
+        self.leaves: list[tuple[np.ndarray, np.ndarray, Classification]] = []
 
     @classmethod
     def make(cls, k: int, z: int, earlier: np.ndarray, later: np.ndarray, gap: np.ndarray, settled: list[bool],
@@ -368,9 +368,8 @@ class _NativeSearch:
         if rc != 0:
             return False
         state.update(nodes=int(st[0]), leaves=int(st[1]), stop=bool(st[2]), exhaustive=bool(st[3]))
-        self.leaves = [(dec[i], how[i], _key_of_ticks(keys[i], self.rank_by))
-                       for i in range(int(before[1]), int(st[1]))]
-        state["best"] = min([state["best"], *(key for _, _, key in self.leaves)])
+        self.leaves = [(dec[i], how[i], _class_of_ticks(keys[i])) for i in range(int(before[1]), int(st[1]))]
+        state["best"] = min([state["best"], *(pattern_key(cls, self.rank_by) for _, _, cls in self.leaves)])
         return True
 
 
@@ -379,10 +378,11 @@ def _ticks_key(key: tuple) -> tuple[int, ...]:
     return (int(key[0]), *(int(_INF_TICKS) if math.isinf(v) else round(v * TICKS_PER_SECOND) for v in key[1:4]))
 
 
-def _key_of_ticks(row: np.ndarray, rank_by: str) -> tuple:
-    """The `pattern_key` of a C leaf: the key the Python leaf computes from the same class and makespans."""
+def _class_of_ticks(row: np.ndarray) -> Classification:
+    """The class and makespans of a C leaf, as the Python leaf (and ``classify(..., explained=False,
+    full=False)``) gives them: its `pattern_key` is the key the Python leaf computes."""
     makespan = None if int(row[1]) == _INF_TICKS else (int(row[3]) / TICKS_PER_SECOND, int(row[2]) / TICKS_PER_SECOND)
-    return pattern_key(Classification(list(PlanClass)[int(row[0])], "", makespan, (), ()), rank_by)
+    return Classification(list(PlanClass)[int(row[0])], "", makespan, (), ())
 
 
 def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tuple | None,
@@ -454,18 +454,19 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
         return [PassingOrder(c, ("robot", "human")[first_of[j] if settled[j] else how[j][0]],
                              "implied" if settled[j] else how[j][1]) for j, c in enumerate(conflicts)]
 
-    def choice(how: dict[int, tuple[int, str]], cls: Classification | None) -> Leaf:
+    def choice(how: dict[int, tuple[int, str]], cls: Classification) -> Leaf:
+        """The leaf's `PlanChoice` with its class and makespans as the search measured them (what
+        ``classify(..., explained=False, full=False)`` gives; `choose_pattern` classifies the one it keeps
+        in full)."""
         def build() -> PlanChoice:
             orders = orders_of(how)
-            net = _network(base, namer, orders)
-            return PlanChoice(MotionPattern(motions, tuple(orders), 0, True), net,
-                              cls if cls is not None else classify(task, net, explained=False, full=False))
+            return PlanChoice(MotionPattern(motions, tuple(orders), 0, True), _network(base, namer, orders), cls)
         return build
 
-    def native_choice(dec: np.ndarray, codes: np.ndarray) -> Leaf:
+    def native_choice(dec: np.ndarray, codes: np.ndarray, cls: Classification) -> Leaf:
         def build() -> PlanChoice:
             how = {int(j): (int(dec[j]), ("", "forced", "chosen")[codes[j]]) for j in np.flatnonzero(dec >= 0)}
-            return choice(how, None)()
+            return choice(how, cls)()
         return build
 
     def span(mat: np.ndarray | None) -> int | None:
@@ -493,7 +494,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
             makespan = None if early is None else (early / TICKS_PER_SECOND,
                                                    (early if late is None else late) / TICKS_PER_SECOND)
             cls = Classification(plan_class, "", makespan, (), ())
-            build = choice(how, None)
+            build = choice(how, cls)
         else:
             net, cls = _evaluate(task, base, namer, orders_of(how), rank_by, warm)
             build = choice(how, cls)
@@ -554,7 +555,8 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
     for start in (_apsp(base.stnu), _apsp(free)):
         if start is not None:
             if native is not None and native.run(start, readings, state, prune):
-                results += [(key, native_choice(dec, codes)) for dec, codes, key in native.leaves]
+                results += [(pattern_key(cls, rank_by), native_choice(dec, codes, cls))
+                            for dec, codes, cls in native.leaves]
             else:
                 native = None  # not built, or it failed: the Python search, from the same state
                 dfs((start, *readings), {})
