@@ -27,7 +27,7 @@ import contextlib
 import functools
 import itertools
 import json
-import mmap
+import os
 import time
 import zipfile
 import zlib
@@ -193,10 +193,12 @@ class PlanSink:
         cols = [np.frombuffer(self._cols[name], dtype=np.float64) for name in _KEY_COLUMNS]
         return np.lexsort([ids, *reversed(cols)])
 
-    def _plan_line(self, i: int, rank: int, spool: mmap.mmap | bytes, ends: np.ndarray) -> bytes:
-        """Plan `i`'s ``compiled.json`` line with its rank, from the spool (`ends`: where each line ends)."""
+    def _plan_line(self, i: int, rank: int, ends: np.ndarray) -> bytes:
+        """Plan `i`'s ``compiled.json`` line with its rank, read from the spool in one call (`ends`: where
+        each line ends; not a memory map, whose pages would count as the process's memory)."""
         pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
-        return _line_head(pid, rank).encode("utf-8") + spool[self._line_at[i]:int(ends[i])]
+        start = self._line_at[i]
+        return _line_head(pid, rank).encode("utf-8") + os.pread(self._lines.fileno(), int(ends[i]) - start, start)
 
     def finish(self, seed: int, paths: PathLibrary, options: CompileOptions,
                partial: int | None = None) -> CompiledPlanSet:
@@ -219,14 +221,12 @@ class PlanSink:
             self._lines.flush()
             size = self._lines.tell()
             ends = np.append(np.frombuffer(self._line_at, dtype=np.int64)[1:], size) - 1  # before each "\n"
-            with open(self.out_dir / "compiled.json", "wb") as out, \
-                    (mmap.mmap(self._lines.fileno(), size, access=mmap.ACCESS_READ) if size else
-                     contextlib.nullcontext(b"")) as spool:
+            with open(self.out_dir / "compiled.json", "wb") as out:
                 out.write(json_head(header).encode("utf-8"))
                 for k, i in enumerate(order):
                     if k:
                         out.write(b",\n")
-                    out.write(self._plan_line(int(i), k + 1, spool, ends))
+                    out.write(self._plan_line(int(i), k + 1, ends))
                 out.write(JSON_TAIL.encode("utf-8"))
             if archive is not None:
                 archive.result()
