@@ -13,10 +13,12 @@ under the "must precede" relation, filtered by a joint acyclicity check (O(phase
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import networkx as nx
 
@@ -24,8 +26,10 @@ from hrc.errors import InputError
 from hrc.model import PhaseRef, Plan, Task
 
 __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocations", "count_plans", "estimate_plan_count",
-           "generate_plans", "identical_actions", "is_canonical", "must_precede", "phase_graph", "pin_actions",
-           "plan_count_bound", "plan_families", "relabellings", "spread_families", "symmetry_factor"]
+           "generate_plans", "identical_actions", "is_canonical", "must_precede", "per_plan", "phase_graph",
+           "pin_actions", "plan_count_bound", "plan_families", "relabellings", "spread_families", "symmetry_factor"]
+
+R = TypeVar("R")
 
 COUNT_STATES = 100_000
 """Most run states `estimate_plan_count` memoizes before it falls back to `plan_count_bound` (about
@@ -275,26 +279,33 @@ class Leg:
     phase: str
 
 
-_LEGS: dict[tuple[int, Plan, str], tuple[Task, tuple[Leg, ...]]] = {}
+def per_plan(size: int) -> Callable[[Callable[..., R]], Callable[..., R]]:
+    """Remember ``fn(task, plan, *args)`` for the last `size` or so calls: what a plan's compile asks for
+    many times (its legs, its timepoint names). Keyed by the task's identity, the plan and `args`; each
+    entry holds its task, which it must be (not a namesake at a reused address). Safe across tasks and
+    threads (an entry is only ever added whole)."""
+    def wrap(fn: Callable[..., R]) -> Callable[..., R]:
+        memo: dict[tuple, tuple[Task, R]] = {}
+
+        @functools.wraps(fn)
+        def remembered(task: Task, plan: Plan, *args: Hashable) -> R:
+            key = (id(task), plan, *args)
+            hit = memo.get(key)
+            if hit is not None and hit[0] is task:
+                return hit[1]
+            value = fn(task, plan, *args)
+            if len(memo) >= size:
+                memo.clear()
+            memo[key] = (task, value)
+            return value
+        return remembered
+    return wrap
 
 
+@per_plan(512)
 def agent_legs(task: Task, plan: Plan, agent_id: str) -> tuple[Leg, ...]:
     """The agent's legs in order, starting at its start location (a leg may have origin == location).
-
-    Remembered for the last few hundred plans: a plan's compile asks for them a dozen times (motions,
-    STNU, conflicts, names, output). Each entry holds its task, which it must be (not a namesake)."""
-    key = (id(task), plan, agent_id)
-    hit = _LEGS.get(key)
-    if hit is not None and hit[0] is task:
-        return hit[1]
-    legs = _agent_legs(task, plan, agent_id)
-    if len(_LEGS) >= 512:
-        _LEGS.clear()
-    _LEGS[key] = (task, legs)
-    return legs
-
-
-def _agent_legs(task: Task, plan: Plan, agent_id: str) -> tuple[Leg, ...]:
+    Remembered per plan (`per_plan`): a plan's compile asks for them a dozen times."""
     here = task.agent(agent_id).start
     legs: list[Leg] = []
     for action_id in plan.sequence(agent_id):

@@ -184,3 +184,22 @@ def test_agent_legs_follow_the_sequence_from_the_start():
         ("T", "S4", "cube4", "fetch"), ("S4", "T", "cube4", "put"),
     ]
     assert [leg.index for leg in legs] == [0, 1, 2, 3]
+
+
+def test_remembered_legs_belong_to_their_task():
+    """`agent_legs` is remembered per plan (`hrc.plans.per_plan`): the same plan of two tasks that differ
+    (here only in the robot's start) gets each task's own legs, however the calls interleave."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from hrc.io.task_file import load_task
+
+    task = load_task(Path(__file__).resolve().parents[1] / "tasks" / "kitting.yaml")
+    robot = next(a for a in task.agents if not a.is_human)
+    other = next(loc.id for loc in task.workspace.locations if loc.id != robot.start)
+    moved = replace(task, agents=tuple(replace(a, start=other) if a is robot else a for a in task.agents))
+    plan = next(p for p in generate_plans(task) if p.sequence(robot.id))
+    for _ in range(2):
+        assert agent_legs(task, plan, robot.id)[0].origin == robot.start
+        assert agent_legs(moved, plan, robot.id)[0].origin == other
+        assert agent_legs(task, plan, robot.id) is agent_legs(task, plan, robot.id)  # remembered

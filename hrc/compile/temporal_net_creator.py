@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 
 from hrc.model import Agent, Event, Plan, Task
 from hrc.motion import Motion, Separation, TimeRef
-from hrc.plans import Leg, agent_legs
+from hrc.plans import Leg, agent_legs, per_plan
 from hrc.temporal import STNU, ContingentLink, RequirementLink
 from hrc.temporal.ticks import to_ticks
 
@@ -94,23 +94,15 @@ def ref_timepoint(task: Task, plan: Plan, ref: TimeRef) -> str:
 
 
 _LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
-_NAMES: dict[tuple[int, Plan], tuple[Task, dict[str, list[dict[str, str]]]]] = {}
 
 
+@per_plan(256)
 def _leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
-    """Per agent and leg, the name of each timepoint the leg may have (`leg_timepoint`), remembered for
-    the last few hundred plans (a plan's compile names thousands of references: conflicts, passing
-    orders, output). Each entry holds its task, which it must be (not a namesake)."""
-    key = (id(task), plan)
-    hit = _NAMES.get(key)
-    if hit is not None and hit[0] is task:
-        return hit[1]
-    table = {a.id: [{w: leg_timepoint(leg, w) for w in _LEG_TIMEPOINTS} for leg in agent_legs(task, plan, a.id)]
-             for a in task.agents}
-    if len(_NAMES) >= 256:
-        _NAMES.clear()
-    _NAMES[key] = (task, table)
-    return table
+    """Per agent and leg, the name of each timepoint the leg may have (`leg_timepoint`), remembered per
+    plan (`hrc.plans.per_plan`): a plan's compile names thousands of references (conflicts, passing
+    orders, output)."""
+    return {a.id: [{w: leg_timepoint(leg, w) for w in _LEG_TIMEPOINTS} for leg in agent_legs(task, plan, a.id)]
+            for a in task.agents}
 
 
 def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
