@@ -105,10 +105,12 @@ def _passing_parts(pattern: MotionPattern) -> list[tuple[dict, dict, list[float]
     """Per passing order of `pattern` (not implied), the parts of its ``compiled.json`` entry that name
     no action: a family's plans share one pattern (`hrc.compile.compiler.compile_family`), so these are
     built once for the last pattern seen (the entries share them: `plan_dict`'s dicts are only encoded)."""
-    if not _PARTS or _PARTS[0][0] is not pattern:
-        _PARTS[:] = [(pattern, [(_occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point),
-                                 _s(o.separation.gap)) for o in pattern.constrained])]
-    return _PARTS[0][1]
+    entry = _PARTS[0] if _PARTS else None  # read once: another thread may replace it meanwhile
+    if entry is None or entry[0] is not pattern:
+        entry = (pattern, [(_occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point),
+                            _s(o.separation.gap)) for o in pattern.constrained])
+        _PARTS[:] = [entry]
+    return entry[1]
 
 
 def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dict[str, Any]:
