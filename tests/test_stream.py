@@ -350,3 +350,30 @@ def test_the_estimate_samples_plans_from_across_the_task():
     assert where[0] < 16 and where[-1] > 100  # of 128 allocations
     assert len({sum(ag == "robot" for _, ag in f[0].allocation) for f in sample}) >= 4  # 0..7 picks to the robot
     assert {len(f) for f in spread_families(task, 4, symmetry=True)} == {1}
+
+
+def test_a_plan_line_is_its_entry_encoded():
+    """`plan_line` splices the passing orders in from the pattern's text parts; the truth is `plan_dict`
+    encoded by `json.dumps`: the same text for every plan of the workshop (whose names include detours
+    and waiting places) and for families of kitting_7picks, in every `--stnu` mode."""
+    from hrc.compile.compiler import compile_family
+    from hrc.compile.output import plan_dict, plan_line
+    from hrc.motion import plan_paths
+    from hrc.plans import plan_families
+
+    def encoded(task, cp, mode):  # noqa: ANN001, ANN202
+        return json.dumps(plan_dict(task, cp, mode), separators=(",", ":"))
+
+    workshop = compile_task(load_task(WORKSHOP_TASK), jobs=1)
+    checked = 0
+    for cp in workshop.plans:
+        for mode in ("graphml", "archive", "none", None):
+            assert plan_line(workshop.task, cp, mode) == encoded(workshop.task, cp, mode)
+            checked += 1
+    task = load_task(ROOT / "tasks" / "kitting_7picks.yaml")
+    paths = plan_paths(task, seed=0)
+    for family in itertools.islice(plan_families(task), 0, 10080, 1999):
+        for cp in compile_family(task, family, paths):
+            assert plan_line(task, cp, "archive") == encoded(task, cp, "archive")
+            checked += 1
+    assert checked > 100

@@ -51,6 +51,7 @@ console load the task from there (`load_compiled_task`) and check it against ``t
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -72,7 +73,8 @@ from hrc.plans import agent_legs
 from hrc.temporal.graphml import tool_name
 
 __all__ = ["JSON_TAIL", "SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json", "compiled_to_dict",
-           "header_dict", "json_head", "load_compiled_task", "plan_dict", "write_compiled", "write_input"]
+           "header_dict", "json_head", "load_compiled_task", "plan_dict", "plan_line", "write_compiled",
+           "write_input"]
 
 SCHEMA_VERSION = 2
 
@@ -98,23 +100,71 @@ def _xy(p: tuple[float, float]) -> list[float]:
     return [round(p[0], 3), round(p[1], 3)]
 
 
-_PARTS: list[tuple[MotionPattern, list[tuple[dict, dict, list[float], float]]]] = []
+Parts = list[tuple[dict, dict, list[float], float]]  # per passing order: robot, human, point, gap
+_PARTS: list[tuple[MotionPattern, Parts, list[tuple[str, str]]]] = []
 
 
-def _passing_parts(pattern: MotionPattern) -> list[tuple[dict, dict, list[float], float]]:
+def _pattern_parts(pattern: MotionPattern) -> tuple[Parts, list[tuple[str, str]]]:
     """Per passing order of `pattern` (not implied), the parts of its ``compiled.json`` entry that name
-    no action: a family's plans share one pattern (`hrc.compile.compiler.compile_family`), so these are
-    built once for the last pattern seen (the entries share them: `plan_dict`'s dicts are only encoded)."""
+    no action, as values (`plan_dict`) and as JSON text before and after the constraint's two names
+    (`plan_line`). A family's plans share one pattern (`hrc.compile.compiler.compile_family`), so these
+    are built once, for the last pattern seen."""
     entry = _PARTS[0] if _PARTS else None  # read once: another thread may replace it meanwhile
     if entry is None or entry[0] is not pattern:
-        entry = (pattern, [(_occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point),
-                            _s(o.separation.gap)) for o in pattern.constrained])
+        parts = [(_occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point),
+                  _s(o.separation.gap)) for o in pattern.constrained]
+        texts = [(f'{{"robot":{_json(robot)},"human":{_json(human)},"first":{_json(o.first)},"how":{_json(o.how)},'
+                  f'"point":{_json(point)},"constraint":{{"from":', f',"min":{_json(gap)}}}}}')
+                 for o, (robot, human, point, gap) in zip(pattern.constrained, parts, strict=True)]
+        entry = (pattern, parts, texts)
         _PARTS[:] = [entry]
-    return entry[1]
+    return entry[1], entry[2]
+
+
+_json = json.JSONEncoder(separators=(",", ":")).encode  # as json.dumps(value, separators=...), one encoder
+
+
+@functools.lru_cache(maxsize=1 << 12)
+def _json_name(name: str) -> str:
+    """A timepoint's name as JSON (a compile writes a few hundred distinct ones, each thousands of times)."""
+    return _json(name)
+
+
+def _constraint_names(task: Task, cp: CompiledPlan) -> list[tuple[str, str]]:
+    """Per passing order of the plan (not implied), its constraint's two timepoints as the GraphML names them."""
+    name = ref_namer(task, cp.plan)
+    return [(tool_name(name(o.separation.earlier)), tool_name(name(o.separation.later)))
+            for o in cp.pattern.constrained]
+
+
+_PASSING = "\x00hrc: the passing orders\x00"  # a stand-in no field of a plan's entry can hold
+
+
+def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str:
+    """``json.dumps(plan_dict(task, cp, stnu), separators=(",", ":"))``, the plan's ``compiled.json``
+    line (tested equal), built faster: the passing orders, nine tenths of a line, are spliced in from
+    the pattern's text parts (`_pattern_parts`) with this plan's names, not built as dicts and encoded."""
+    _, texts = _pattern_parts(cp.pattern)
+    entries = [f"{before}{_json_name(a)},\"to\":{_json_name(b)}{after}"
+               for (before, after), (a, b) in zip(texts, _constraint_names(task, cp), strict=True)]
+    text = _json(_plan_fields(task, cp, stnu, _PASSING, len(entries)))
+    stand_in = _json(_PASSING)
+    if text.count(stand_in) != 1:  # pragma: no cover - the stand-in holds a NUL, which no id or name may
+        return _json(plan_dict(task, cp, stnu))
+    return text.replace(stand_in, "[" + ",".join(entries) + "]")
 
 
 def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dict[str, Any]:
     """One plan's entry of ``compiled.json`` (``stnu``: the `STNU_MODES` value; None writes ``"stnu": null``)."""
+    parts, _ = _pattern_parts(cp.pattern)
+    passing = [{"robot": robot, "human": human, "first": o.first, "how": o.how, "point": point,
+                "constraint": {"from": a, "to": b, "min": gap}}
+               for o, (robot, human, point, gap), (a, b) in zip(cp.pattern.constrained, parts,
+                                                                 _constraint_names(task, cp), strict=True)]
+    return _plan_fields(task, cp, stnu, passing, len(passing))
+
+
+def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n_passing: int) -> dict[str, Any]:
     plan, c = cp.plan, cp.classification
     legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
     motions = []
@@ -126,14 +176,6 @@ def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dic
             "free_time": _s(m.free_time), "time": _s(m.time),
             "detour": {"round": m.via, "points": [_xy(p) for p in m.points]} if m.via else None,
             "park": {"at": m.park, "time": _s(m.park_time)} if m.park else None,
-        })
-    passing = []
-    name = ref_namer(task, plan)
-    for o, (robot, human, point, gap) in zip(cp.pattern.constrained, _passing_parts(cp.pattern), strict=True):
-        sep = o.separation
-        passing.append({
-            "robot": robot, "human": human, "first": o.first, "how": o.how, "point": point,
-            "constraint": {"from": tool_name(name(sep.earlier)), "to": tool_name(name(sep.later)), "min": gap},
         })
     pattern = cp.pattern
     return {
@@ -151,7 +193,7 @@ def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dic
         "explanation": c.explanation or None,
         "motions": motions,
         "passing": passing,
-        "pattern": {"conflicts": len(pattern.orders), "implied": len(pattern.orders) - len(passing),
+        "pattern": {"conflicts": len(pattern.orders), "implied": len(pattern.orders) - n_passing,
                     "candidates": pattern.candidates, "exhaustive": pattern.exhaustive},
     }
 

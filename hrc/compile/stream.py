@@ -52,7 +52,15 @@ from hrc.compile.compiler import (
     task_digest,
 )
 from hrc.compile.executors import make_executor
-from hrc.compile.output import JSON_TAIL, STNU_ARCHIVE, STNU_MODES, header_dict, json_head, plan_dict, write_input
+from hrc.compile.output import (
+    JSON_TAIL,
+    STNU_ARCHIVE,
+    STNU_MODES,
+    header_dict,
+    json_head,
+    plan_line,
+    write_input,
+)
 from hrc.errors import HrcError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
@@ -75,10 +83,10 @@ def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
                     families: list[tuple[Plan, ...]]) -> list[tuple[CompiledPlan, str]]:
     """The executor's unit of work: whole families of plans (`hrc.plans.plan_families`, one motion
     search each, `compile_family`), each plan with its ``compiled.json`` line after ``"rank":``
-    (`plan_dict` encoded where the plan was compiled, so that the parent only copies bytes)."""
+    (`plan_line`, encoded where the plan was compiled, so that the parent only copies bytes)."""
     out = []
     for cp in (cp for family in families for cp in compile_family(task, family, paths, options, stnu != "none")):
-        text = json.dumps(plan_dict(task, cp, stnu), separators=(",", ":"))
+        text = plan_line(task, cp, stnu)
         head = _line_head(cp.plan.id, 0)
         if not text.startswith(head):  # pragma: no cover - plan_dict puts id and rank first
             raise HrcError(f"internal: plan {cp.plan.id}'s line does not start with its id and rank")
