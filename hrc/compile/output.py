@@ -138,6 +138,7 @@ def _constraint_names(task: Task, cp: CompiledPlan) -> list[tuple[str, str]]:
 
 
 _PASSING = "\x00hrc: the passing orders\x00"  # a stand-in no field of a plan's entry can hold
+_PASSING_JSON = _json(_PASSING)
 
 
 def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str:
@@ -148,10 +149,9 @@ def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str
     entries = [f"{before}{_json_name(a)},\"to\":{_json_name(b)}{after}"
                for (before, after), (a, b) in zip(texts, _constraint_names(task, cp), strict=True)]
     text = _json(_plan_fields(task, cp, stnu, _PASSING, len(entries)))
-    stand_in = _json(_PASSING)
-    if text.count(stand_in) != 1:  # pragma: no cover - the stand-in holds a NUL, which no id or name may
+    if text.count(_PASSING_JSON) != 1:  # pragma: no cover - the stand-in holds a NUL, which no id or name may
         return _json(plan_dict(task, cp, stnu))
-    return text.replace(stand_in, "[" + ",".join(entries) + "]")
+    return text.replace(_PASSING_JSON, "[" + ",".join(entries) + "]")
 
 
 def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dict[str, Any]:
