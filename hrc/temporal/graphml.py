@@ -319,34 +319,44 @@ def write_graphml(stnu: STNU, names: Mapping[str, str] | None = None, name: str 
     return "".join(out)
 
 
-_LAYOUT: list[tuple[STNU, tuple[str, ...], tuple[int, ...]]] = []
+_LAYOUT: list[tuple[STNU, list[str], list[int]]] = []
+_SLOT = "\x00"  # around a slot's number in `_text`'s output: no id, name or literal of it holds a NUL
 
 
-def _layout(stnu: STNU) -> tuple[tuple[str, ...], tuple[int, ...]]:
-    """`write_graphml`'s text of `stnu` as literal chunks between slots: ``chunks[0] + id(slots[0]) +
-    chunks[1] + ...``, a slot being a timepoint's index (its node id) or ``len(timepoints)`` (the
-    network's name, escaped). Kept for the last network asked for (its family's plans follow it)."""
+def _layout(stnu: STNU) -> tuple[list[str], list[int]]:
+    """`write_graphml`'s text of `stnu` as literal chunks between slots: ``chunks[0] + slot 0 + chunks[1]
+    + ...``, a slot being a timepoint's index (its node id) or ``len(timepoints)`` (the network's name,
+    escaped). Kept for the last network asked for (its family's plans follow it)."""
     entry = _LAYOUT[0] if _LAYOUT else None  # read once: another thread may replace it meanwhile
     if entry is not None and entry[0] is stnu:
         return entry[1], entry[2]
-    at = {v: i for i, v in enumerate(stnu.timepoints)}
-    edges: list[tuple[int, int, str, str, str, int]] = []  # (source, target, Type, key, value, label node)
+    number = {str(i): i for i in range(len(stnu.timepoints) + 1)}
+    marks = {v: f"{_SLOT}{i}{_SLOT}" for i, v in enumerate(stnu.timepoints)}
+    parts = _text(stnu, marks, f"{_SLOT}{len(stnu.timepoints)}{_SLOT}").split(_SLOT)
+    entry = (stnu, parts[0::2], [number[x] for x in parts[1::2]])
+    _LAYOUT[:] = [entry]
+    return entry[1], entry[2]
+
+
+def _text(stnu: STNU, ids: Mapping[str, str], label: str) -> str:
+    """The GraphML text with node ids `ids` and the network's name written as `label` (already escaped)."""
+    edges: list[tuple[str, str, str, str, str]] = []  # (source, target, Type, key, value)
     for r in stnu.requirements:
         if r.ub is not None:
-            edges.append((at[r.source], at[r.target], "requirement", "Value", str(r.ub), -1))
+            edges.append((ids[r.source], ids[r.target], "requirement", "Value", str(r.ub)))
         if r.lb is not None:
-            edges.append((at[r.target], at[r.source], "requirement", "Value", str(-r.lb), -1))
+            edges.append((ids[r.target], ids[r.source], "requirement", "Value", str(-r.lb)))
     contingent = 0
     for c in stnu.contingents:
-        a, t = at[c.source], at[c.target]
+        a, t = ids[c.source], ids[c.target]
         if c.lb == c.ub:  # a fixed duration: the same network with a requirement link
-            edges.append((a, t, "requirement", "Value", str(c.ub), -1))
-            edges.append((t, a, "requirement", "Value", str(-c.lb), -1))
+            edges.append((a, t, "requirement", "Value", str(c.ub)))
+            edges.append((t, a, "requirement", "Value", str(-c.lb)))
             continue
         contingent += 1
-        edges.append((a, t, "contingent", "LabeledValue", f"LC(|):{c.lb}", t))
-        edges.append((t, a, "contingent", "LabeledValue", f"UC(|):{-c.ub}", t))
-    head = [
+        edges.append((a, t, "contingent", "LabeledValue", f"LC({t}):{c.lb}"))
+        edges.append((t, a, "contingent", "LabeledValue", f"UC({t}):{-c.ub}"))
+    out = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         '<graphml xmlns="http://graphml.graphdrawing.org/xmlns/graphml" '
         'xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance" '
@@ -365,42 +375,26 @@ def _layout(stnu: STNU) -> tuple[tuple[str, ...], tuple[int, ...]]:
         ("LabeledValue", "edge", "Case Value. Format: 'LC(NodeName):integer' or 'UC(NodeName):integer'", ""),
     ]
     for kid, kfor, desc, default in keys:
-        head += [f'<key id="{kid}" for="{kfor}">', f"<desc>{_escape(desc)}</desc>", f"<default>{default}</default>",
-                 "</key>"]
-    head += ['<graph edgedefault="directed">', f'<data key="nContingent">{contingent}</data>',
-             f'<data key="NetworkType">{"STNU" if contingent else "STN"}</data>',
-             f'<data key="nEdges">{len(edges)}</data>', f'<data key="nVertices">{len(stnu.timepoints)}</data>',
-             '<data key="Name">']
-    chunks: list[str] = ["\n".join(head)]
-    slots: list[int] = [len(stnu.timepoints)]
-
-    def then(text: str, slot: int) -> None:
-        chunks[-1] += text
-        chunks.append("")
-        slots.append(slot)
-
-    chunks.append("</data>")
-    for i in range(len(stnu.timepoints)):
-        then('\n<node id="', i)
-        chunks[-1] += (f'">\n<data key="x">{150.0 * (i % 10):.1f}</data>\n'
-                       f'<data key="y">{150.0 * (i // 10):.1f}</data>\n</node>')
-    # one edge per four lines: values are integers or LC/UC labels of node ids, which the tool's name rule
-    # keeps free of XML's special characters (as it keeps the ids themselves), so nothing needs escaping
-    for i, (s, t, etype, key, value, label) in enumerate(edges):
-        then(f'\n<edge id="e{i}" source="', s)
-        then('" target="', t)
-        chunks[-1] += f'">\n<data key="Type">{etype}</data>\n<data key="{key}">'
-        if label >= 0:
-            before, after = value.split("|")
-            then(before, label)
-            chunks[-1] += after
-        else:
-            chunks[-1] += value
-        chunks[-1] += "</data>\n</edge>"
-    chunks[-1] += "\n</graph>\n</graphml>\n"
-    entry = (stnu, tuple(chunks), tuple(slots))
-    _LAYOUT[:] = [entry]
-    return entry[1], entry[2]
+        out.append(f'<key id="{kid}" for="{kfor}">')
+        out.append(f"<desc>{_escape(desc)}</desc>")
+        out.append(f"<default>{default}</default>")
+        out.append("</key>")
+    out.append('<graph edgedefault="directed">')
+    out.append(f'<data key="nContingent">{contingent}</data>')
+    out.append(f'<data key="NetworkType">{"STNU" if contingent else "STN"}</data>')
+    out.append(f'<data key="nEdges">{len(edges)}</data>')
+    out.append(f'<data key="nVertices">{len(stnu.timepoints)}</data>')
+    out.append(f'<data key="Name">{label}</data>')
+    quoted = {nid: _quoteattr(nid) for nid in ids.values()}  # once per node, not per edge end
+    out += [f'<node id={quoted[ids[v]]}>\n<data key="x">{150.0 * (i % 10):.1f}</data>\n'
+            f'<data key="y">{150.0 * (i // 10):.1f}</data>\n</node>' for i, v in enumerate(stnu.timepoints)]
+    # one string per edge (four lines): values are integers or LC/UC labels of node ids, which the tool's
+    # name rule keeps free of XML's special characters, so they need no escaping
+    out += [f'<edge id="e{i}" source={quoted[s]} target={quoted[t]}>\n<data key="Type">{etype}</data>\n'
+            f'<data key="{key}">{value}</data>\n</edge>' for i, (s, t, etype, key, value) in enumerate(edges)]
+    out.append("</graph>")
+    out.append("</graphml>")
+    return "\n".join(out) + "\n"
 
 
 def read_network(path: str | Path, *, derived: bool = False, origin: bool = True) -> STNU:
