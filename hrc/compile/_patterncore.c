@@ -49,19 +49,33 @@ typedef struct {
     unsigned char *leaf_how;  /* leaf_cap x k: 1 forced, 2 chosen, 0 settled */
     int64_t *leaf_key;        /* leaf_cap x 4 */
     double *col, *row;        /* scratch, n each */
+    int *rows, *cols;         /* scratch, n each */
 } Search;
 
-/* mat := min(mat, mat[:, lt] - g + mat[e, :]), from copies of the column and row (the Python update,
-   operation for operation) */
+/* mat := min(mat, mat[:, lt] - g + mat[e, :]) (the Python update), on the rows and columns it can change.
+
+   `mat` is a shortest-distance matrix without negative cycle (integer ticks, exact in doubles), so it
+   keeps the triangle inequality d(i, j) <= d(i, x) + d(x, j). Row i cannot change when the new edge
+   does not shorten its way to e, d(i, lt) - g >= d(i, e): every d(i, lt) - g + d(e, j) is then at least
+   d(i, e) + d(e, j) >= d(i, j). Likewise column j when d(e, j) - g >= d(lt, j). So only the rows and
+   columns that pass those tests are touched: the same matrix, operation for operation on the entries
+   that change, and most of an n x n update skipped (an order usually moves a few timepoints). */
 static void add_edge(Search *s, double *mat, int e, int lt, double g) {
-    int n = s->n;
-    for (int i = 0; i < n; i++) s->col[i] = mat[(size_t)i * n + lt];
-    memcpy(s->row, mat + (size_t)e * n, (size_t)n * sizeof(double));
+    int n = s->n, ni = 0, nj = 0;
+    const double *re = mat + (size_t)e * n, *rl = mat + (size_t)lt * n;
     for (int i = 0; i < n; i++) {
-        double ci = s->col[i] - g;
-        double *r = mat + (size_t)i * n;
-        for (int j = 0; j < n; j++) {
-            double v = ci + s->row[j];
+        double ci = mat[(size_t)i * n + lt] - g;
+        if (ci < mat[(size_t)i * n + e]) { s->rows[ni] = i; s->col[ni++] = ci; }
+    }
+    if (ni == 0) return;
+    for (int j = 0; j < n; j++)
+        if (re[j] - g < rl[j]) { s->cols[nj] = j; s->row[nj++] = re[j]; }
+    for (int a = 0; a < ni; a++) {
+        double ci = s->col[a];
+        double *r = mat + (size_t)s->rows[a] * n;
+        for (int b = 0; b < nj; b++) {
+            double v = ci + s->row[b];
+            int j = s->cols[b];
             if (v < r[j]) r[j] = v;
         }
     }
@@ -267,10 +281,12 @@ int hrc_pattern_search(int n, int k, int z, const double *start, const int *star
     s.wt = malloc(((size_t)m + k + 1) * sizeof(int64_t));
     s.col = malloc(((size_t)n + 1) * sizeof(double));
     s.row = malloc(((size_t)n + 1) * sizeof(double));
+    s.rows = malloc(((size_t)n + 1) * sizeof(int));
+    s.cols = malloc(((size_t)n + 1) * sizeof(int));
     signed char *dec = malloc((size_t)k + 1);
     unsigned char *how = calloc((size_t)k + 1, 1);
     int rc = 0;
-    if (!s.src || !s.dst || !s.wt || !s.col || !s.row || !dec || !how) {
+    if (!s.src || !s.dst || !s.wt || !s.col || !s.row || !s.rows || !s.cols || !dec || !how) {
         rc = -1;
     } else {
         memcpy(s.src, src, (size_t)m * sizeof(int));
@@ -282,6 +298,6 @@ int hrc_pattern_search(int n, int k, int z, const double *start, const int *star
         if (s.failed) rc = -1;
     }
     state[0] = s.nodes; state[1] = s.leaves; state[2] = s.stop; state[3] = s.exhaustive;
-    free(s.src); free(s.dst); free(s.wt); free(s.col); free(s.row); free(dec); free(how);
+    free(s.src); free(s.dst); free(s.wt); free(s.col); free(s.row); free(s.rows); free(s.cols); free(dec); free(how);
     return rc;
 }
