@@ -698,7 +698,9 @@ _BLOCKED = Classification(PlanClass.INCONSISTENT, "the co-workers would block ea
 
 def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool = True,
                    rank_by: str = "worst") -> PlanChoice:
-    """The plan's best motion pattern, its STNU and its classification (see the module docstring)."""
+    """The plan's best motion pattern, its STNU and its classification (see the module docstring). The
+    network's words (`PlanNetwork.meaning`) name its passing orders only when the plan is not DC: they
+    are read only to explain a class, and a DC plan has none to explain."""
     if rank_by not in RANK_BY:
         raise ValueError(f"rank_by must be one of {RANK_BY}, got {rank_by!r}")
     shortest = _Routing(task, plan, paths, {}, human_waits)
@@ -728,9 +730,12 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
         return PlanChoice(MotionPattern(shortest.motions, (), count, exhaustive), shortest.base, _BLOCKED)
     kept = best()
     pattern = kept.pattern
+    found = MotionPattern(pattern.motions, pattern.orders, count, exhaustive)
+    if kept.classification.plan_class is PlanClass.DC:
+        # the search's verdict (on the same links): measured in full, nothing to explain, so no words
+        return PlanChoice(found, kept.net, classify(task, kept.net, known=DCResult(Verdict.DC, True)))
     net = _worded(task, plan, kept.net, pattern.orders)
-    return PlanChoice(MotionPattern(pattern.motions, pattern.orders, count, exhaustive), net,
-                      classify(task, net))  # again, in full, with its explanation
+    return PlanChoice(found, net, classify(task, net))  # again, in full, with its explanation
 
 
 def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: bool = True,
