@@ -124,6 +124,9 @@ def test_public_names_match_all() -> None:
         (lambda: STNU(("A", "B", "C"), (), (C("A", "C", 1, 2), C("B", "C", 1, 2))), "target of two contingent"),
         (lambda: STNU(("A", "B"), (C("A", "B", 1, 2),)), "RequirementLink"),
         (lambda: STNU(("A", "B"), (), (R("A", "B", 1, 2),)), "ContingentLink"),
+        (lambda: STNU(("A", "B"), ("A->B",)), "not a link"),  # type: ignore[arg-type]
+        (lambda: STNU(("B",), (), (C("A", "B", 1, 2),)), "unknown timepoint 'A'"),
+        (lambda: STNU(("A", "B"), (R("A", "B", 0, 1),), (C("A", "C", 1, 2),)), "unknown timepoint 'C'"),
     ],
 )
 def test_validation_rejects_bad_networks(build, message: str) -> None:

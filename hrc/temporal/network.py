@@ -109,6 +109,19 @@ class STNU:
             if not isinstance(getattr(self, field_name), tuple):
                 object.__setattr__(self, field_name, tuple(getattr(self, field_name)))
         known = set(self.timepoints)
+        reqs, conts = self.requirements, self.contingents
+        # the usual case in a few set operations (a compile builds networks by the thousand); anything
+        # else (a subclass of a link, a problem) goes through `_diagnose`, which names the first problem
+        if (len(known) == len(self.timepoints) and all(type(r) is RequirementLink for r in reqs)
+                and all(type(c) is ContingentLink for c in conts)):
+            ends = {r.source for r in reqs}
+            ends.update([r.target for r in reqs], [c.source for c in conts], [c.target for c in conts])
+            if ends <= known and len({c.target for c in conts}) == len(conts):
+                return
+        self._diagnose(known)
+
+    def _diagnose(self, known: set[str]) -> None:
+        """Raise `NetworkError` for the first problem of the network, if any (one link at a time)."""
         if len(known) != len(self.timepoints):
             seen: set[str] = set()
             dup = next(t for t in self.timepoints if t in seen or seen.add(t))  # type: ignore[func-returns-value]
