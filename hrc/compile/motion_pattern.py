@@ -552,7 +552,8 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
     if fast:
         readings = (_apsp(free, "", after_origin=True), _apsp(free, "ub", after_origin=True))
     native = _NativeSearch.make(k, z, earlier, later, gap, settled, ends, edges, bound, rank_by) if fast else None
-    for start in (_apsp(base.stnu), _apsp(free)):
+    for network in (base.stnu, free):  # the second pass's matrix only when the first found nothing
+        start = _apsp(network)
         if start is not None:
             if native is not None and native.run(start, readings, state, prune):
                 results += [(pattern_key(cls, rank_by), native_choice(dec, codes, cls))
