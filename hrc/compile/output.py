@@ -62,13 +62,13 @@ import yaml
 
 from hrc import __version__
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, task_digest
-from hrc.compile.motion_pattern import MotionPattern
+from hrc.compile.motion_pattern import MotionPattern, PassingOrder
 from hrc.compile.temporal_net_creator import ref_namer
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import load_task, task_to_dict
 from hrc.model import Task
-from hrc.motion import Occupancy
+from hrc.motion import Conflict, Occupancy, TimeRef
 from hrc.plans import agent_legs
 from hrc.temporal.graphml import tool_name
 
@@ -100,23 +100,45 @@ def _xy(p: tuple[float, float]) -> list[float]:
     return [round(p[0], 3), round(p[1], 3)]
 
 
-Parts = list[tuple[dict, dict, list[float], float]]  # per passing order: robot, human, point, gap
-_PARTS: list[tuple[MotionPattern, Parts, list[tuple[str, str]]]] = []
+_ORDER_TEXTS: dict[tuple[int, str, str], tuple[Conflict, tuple[str, str]]] = {}
+_ORDER_TEXTS_CAP = 200_000  # entries kept per process (a few hundred bytes each)
 
 
-def _pattern_parts(pattern: MotionPattern) -> tuple[Parts, list[tuple[str, str]]]:
-    """Per passing order of `pattern` (not implied), the parts of its ``compiled.json`` entry that name
-    no action, as values (`plan_dict`) and as JSON text before and after the constraint's two names
-    (`plan_line`). A family's plans share one pattern (`hrc.compile.compiler.compile_family`), so these
-    are built once, for the last pattern seen."""
+def _order_text(o: PassingOrder) -> tuple[str, str]:
+    """A passing order's ``compiled.json`` entry as JSON text before and after its constraint's two
+    timepoint names (the rest names no action). Kept per conflict, by identity (the entry holds the
+    conflict, so its id is not reused while it is here): conflicts come from `hrc.motion.find_conflicts`'
+    per-process cache, so the same few thousand recur across the plans of a task."""
+    key = (id(o.conflict), o.first, o.how)
+    hit = _ORDER_TEXTS.get(key)
+    if hit is not None and hit[0] is o.conflict:
+        return hit[1]
+    robot, human, point, gap = _order_values(o)
+    text = (f'{{"robot":{_json(robot)},"human":{_json(human)},"first":{_json(o.first)},"how":{_json(o.how)},'
+            f'"point":{_json(point)},"constraint":{{"from":', f',"min":{_json(gap)}}}}}')
+    if len(_ORDER_TEXTS) >= _ORDER_TEXTS_CAP:
+        _ORDER_TEXTS.clear()
+    _ORDER_TEXTS[key] = (o.conflict, text)
+    return text
+
+
+def _order_values(o: PassingOrder) -> tuple[dict, dict, list[float], float]:
+    """The parts of a passing order's entry that name no action: its occupancies, point and gap."""
+    return _occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point), _s(o.separation.gap)
+
+
+_PARTS: list[tuple[MotionPattern, list[tuple[str, str]], list[tuple[TimeRef, TimeRef]]]] = []
+
+
+def _pattern_parts(pattern: MotionPattern) -> tuple[list[tuple[str, str]], list[tuple[TimeRef, TimeRef]]]:
+    """Per passing order of `pattern` (not implied): its `_order_text` and its constraint's two
+    timepoints (as references, which each plan names). A family's plans share one pattern
+    (`hrc.compile.compiler.compile_family`), so these are gathered once, for the last pattern seen."""
     entry = _PARTS[0] if _PARTS else None  # read once: another thread may replace it meanwhile
     if entry is None or entry[0] is not pattern:
-        parts = [(_occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point),
-                  _s(o.separation.gap)) for o in pattern.constrained]
-        texts = [(f'{{"robot":{_json(robot)},"human":{_json(human)},"first":{_json(o.first)},"how":{_json(o.how)},'
-                  f'"point":{_json(point)},"constraint":{{"from":', f',"min":{_json(gap)}}}}}')
-                 for o, (robot, human, point, gap) in zip(pattern.constrained, parts, strict=True)]
-        entry = (pattern, parts, texts)
+        orders = pattern.constrained
+        entry = (pattern, [_order_text(o) for o in orders],
+                 [(o.separation.earlier, o.separation.later) for o in orders])
         _PARTS[:] = [entry]
     return entry[1], entry[2]
 
@@ -125,16 +147,17 @@ _json = json.JSONEncoder(separators=(",", ":")).encode  # as json.dumps(value, s
 
 
 @functools.lru_cache(maxsize=1 << 12)
-def _json_name(name: str) -> str:
-    """A timepoint's name as JSON (a compile writes a few hundred distinct ones, each thousands of times)."""
-    return _json(name)
+def _json_tool_name(name: str) -> str:
+    """A timepoint's GraphML node id (`tool_name`) as JSON (a compile writes a few hundred distinct
+    ones, each thousands of times)."""
+    return _json(tool_name(name))
 
 
-def _constraint_names(task: Task, cp: CompiledPlan) -> list[tuple[str, str]]:
-    """Per passing order of the plan (not implied), its constraint's two timepoints as the GraphML names them."""
+def _constraint_names(task: Task, cp: CompiledPlan, refs: list[tuple[TimeRef, TimeRef]]) -> list[tuple[str, str]]:
+    """Per passing order of the plan (`refs`: its constraint's timepoints, `_pattern_parts`), the two
+    timepoints as the GraphML names them, as JSON strings."""
     name = ref_namer(task, cp.plan)
-    return [(tool_name(name(o.separation.earlier)), tool_name(name(o.separation.later)))
-            for o in cp.pattern.constrained]
+    return [(_json_tool_name(name(a)), _json_tool_name(name(b))) for a, b in refs]
 
 
 _PASSING = "\x00hrc: the passing orders\x00"  # a stand-in no field of a plan's entry can hold
@@ -144,10 +167,10 @@ _PASSING_JSON = _json(_PASSING)
 def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str:
     """``json.dumps(plan_dict(task, cp, stnu), separators=(",", ":"))``, the plan's ``compiled.json``
     line (tested equal), built faster: the passing orders, nine tenths of a line, are spliced in from
-    the pattern's text parts (`_pattern_parts`) with this plan's names, not built as dicts and encoded."""
-    _, texts = _pattern_parts(cp.pattern)
-    entries = [f"{before}{_json_name(a)},\"to\":{_json_name(b)}{after}"
-               for (before, after), (a, b) in zip(texts, _constraint_names(task, cp), strict=True)]
+    their text parts (`_pattern_parts`) with this plan's names, not built as dicts and encoded."""
+    texts, refs = _pattern_parts(cp.pattern)
+    entries = [f"{before}{a},\"to\":{b}{after}"
+               for (before, after), (a, b) in zip(texts, _constraint_names(task, cp, refs), strict=True)]
     text = _json(_plan_fields(task, cp, stnu, _PASSING, len(entries)))
     if text.count(_PASSING_JSON) != 1:  # pragma: no cover - the stand-in holds a NUL, which no id or name may
         return _json(plan_dict(task, cp, stnu))
@@ -156,11 +179,13 @@ def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str
 
 def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dict[str, Any]:
     """One plan's entry of ``compiled.json`` (``stnu``: the `STNU_MODES` value; None writes ``"stnu": null``)."""
-    parts, _ = _pattern_parts(cp.pattern)
-    passing = [{"robot": robot, "human": human, "first": o.first, "how": o.how, "point": point,
-                "constraint": {"from": a, "to": b, "min": gap}}
-               for o, (robot, human, point, gap), (a, b) in zip(cp.pattern.constrained, parts,
-                                                                 _constraint_names(task, cp), strict=True)]
+    name = ref_namer(task, cp.plan)
+    passing = []
+    for o in cp.pattern.constrained:
+        robot, human, point, gap = _order_values(o)
+        passing.append({"robot": robot, "human": human, "first": o.first, "how": o.how, "point": point,
+                        "constraint": {"from": tool_name(name(o.separation.earlier)),
+                                       "to": tool_name(name(o.separation.later)), "min": gap}})
     return _plan_fields(task, cp, stnu, passing, len(passing))
 
 
