@@ -158,12 +158,14 @@ def _choice(task: Task, plan: Plan, paths: PathLibrary, options: CompileOptions,
     return apply_pattern(task, plan, pattern, human_waits=options.human_waits)
 
 
-def _record(task: Task, plan: Plan, choice: PlanChoice, graphml: bool) -> CompiledPlan:
+def _record(task: Task, plan: Plan, choice: PlanChoice, graphml: bool, text: str | None = None) -> CompiledPlan:
+    """The plan's record; its GraphML written from its STNU (or `text`, the same written otherwise)."""
     stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
+    if text is None:
+        text = write_graphml(stnu) if graphml else ""
     return CompiledPlan(plan=plan, pattern=choice.pattern, classification=choice.classification, stnu_size=size,
-                        graphml=write_graphml(stnu) if graphml else "",
-                        preference=plan_preference(task, plan, choice.net))
+                        graphml=text, preference=plan_preference(task, plan, choice.net))
 
 
 def relabel_record(task: Task, first: CompiledPlan, stnu: STNU, plan: Plan, graphml: bool = True) -> CompiledPlan:
@@ -205,9 +207,12 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
     out = [first]
     result = check_dc(choice.net.stnu) if len(family) > 1 and first.pattern.candidates else None
     for plan in family[1:]:
-        known = None if result is None else relabel_check(result, relabel_timepoints(task, family[0], plan))
+        names = relabel_timepoints(task, family[0], plan)
+        known = None if result is None else relabel_check(result, names)
         member = apply_pattern(task, plan, first.pattern, human_waits=options.human_waits, known=known)
-        out.append(_record(task, plan, member, graphml))
+        # its STNU is the first's renamed, so its GraphML is written from the first's (`relabel_record`)
+        text = write_graphml(choice.net.stnu, names, f"{task.name}:{plan.id}") if graphml else ""
+        out.append(_record(task, plan, member, graphml, text))
     return out
 
 
