@@ -101,7 +101,7 @@ def _xy(p: tuple[float, float]) -> list[float]:
 
 
 _ORDER_TEXTS: dict[tuple[int, str, str], tuple[Conflict, tuple[str, str]]] = {}
-_ORDER_TEXTS_CAP = 200_000  # entries kept per process (a few hundred bytes each)
+_ORDER_TEXTS_CAP = 50_000  # entries kept per process (a few hundred bytes each, and their conflicts)
 
 
 def _order_text(o: PassingOrder) -> tuple[str, str]:
