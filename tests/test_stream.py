@@ -40,9 +40,13 @@ def test_stream_writes_the_bytes_of_the_in_memory_compile(mini_task, tmp_path):
     a.mkdir()
     b.mkdir()
     write_compiled(compile_task(mini_task, jobs=1), a)
-    result = compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0)
+    samples = []
+    result = compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0,
+                            estimate=samples.append)
     assert not result.partial and result.compiled == len(list(generate_plans(mini_task)))
-    assert _tree(a) == _tree(b)
+    assert _tree(a) == _tree(b)  # the sample's plans, compiled twice for the estimate, are written once
+    (sample,) = samples
+    assert sample.plans >= 1 and sample.seconds_per_plan > 0 and sample.first_seconds_per_plan > 0
 
 
 @pytest.mark.slow

@@ -189,11 +189,15 @@ def run(args: argparse.Namespace) -> int:
         "until measured")
 
     def on_estimate(sample: Sample) -> None:
-        t = est.wall(jobs or workers, sample.seconds_per_plan)[0]
+        # between the pace with this process's caches filled (the same plans again: a long run's pace, or
+        # faster) and the first time's (which pays for filling them: a short run's, or slower)
+        first, again = sample.first_seconds_per_plan, sample.seconds_per_plan
+        lo, hi = est.wall(jobs or workers, again)[0], est.wall(jobs or workers, first)[0]
         disk = fmt_bytes(sample.bytes_per_plan * total)
-        say(f"{sample.plans} sample plans (from allocations across the task) took {sample.seconds_per_plan:.3f} s "
-            f"each: about {fmt_seconds(t)} for all {total:,} at that pace, and {disk} on disk "
-            "(plans differ a lot: the progress line's estimate follows the real pace)")
+        say(f"{sample.plans} sample plans (from allocations across the task) took {first:.3f} s "
+            f"each, {again:.3f} s the second time: about {fmt_seconds(lo)}-{fmt_seconds(hi)} for "
+            f"all {total:,} at those paces, and {disk} on disk (plans differ a lot: the progress line's estimate "
+            "follows the real pace)")
 
     progress = _Progress(tty=sys.stderr.isatty(), quiet=quiet)
     t0 = time.perf_counter()
