@@ -420,16 +420,13 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
     ends = np.array([index[t] for t in base.last_ends], dtype=int)
     k = len(conflicts)
     # per conflict and order (0: robot first, 1: human first): T(later) - T(earlier) >= gap, in ticks
-    earlier = np.zeros((k, 2), dtype=int)
-    later = np.zeros((k, 2), dtype=int)
-    gap = np.zeros((k, 2))
-    for j, c in enumerate(conflicts):
-        for o, sep in enumerate((c.robot_first, c.human_first)):
-            earlier[j, o], later[j, o] = index[namer(sep.earlier)], index[namer(sep.later)]
-            gap[j, o] = math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9)
+    seps = [sep for c in conflicts for sep in (c.robot_first, c.human_first)]
+    earlier = np.array([index[namer(sep.earlier)] for sep in seps], dtype=int).reshape(k, 2)
+    later = np.array([index[namer(sep.later)] for sep in seps], dtype=int).reshape(k, 2)
+    gap = np.array([math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9) for sep in seps], dtype=float).reshape(k, 2)
     implied = np.asarray(robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)  # holds in every execution
-    settled = [bool(row.any()) for row in implied]
-    first_of = [0 if row[0] else 1 for row in implied]
+    settled: list[bool] = np.any(implied, axis=1).tolist()
+    first_of: list[int] = np.where(implied[:, 0], 0, 1).tolist()
     results: list[tuple[tuple, Leaf]] = []
     state: dict[str, Any] = {"nodes": 0, "leaves": 0, "stop": False, "exhaustive": True,
              "best": incumbent if incumbent is not None and prune and fast else _NO_KEY}
