@@ -266,6 +266,21 @@ class _Routing:
         assert robust is not None  # lower bounds and the robot's own durations along an acyclic phase graph
         return robust
 
+    @functools.cached_property
+    def orders(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per conflict and order (0: robot first, 1: human first) the constraint ``T(later) - T(earlier)
+        >= gap`` as ``(earlier, later, gap)`` (k x 2 each: timepoints by position in `base`, the gap in
+        ticks, rounded up), and whether it holds in every execution (`robust`, k x 2)."""
+        index = {v: i for i, v in enumerate(self.base.stnu.timepoints)}
+        namer = ref_namer(self.task, self.plan)
+        k = len(self.conflicts)
+        seps = [sep for c in self.conflicts for sep in (c.robot_first, c.human_first)]
+        earlier = np.array([index[namer(sep.earlier)] for sep in seps], dtype=int).reshape(k, 2)
+        later = np.array([index[namer(sep.later)] for sep in seps], dtype=int).reshape(k, 2)
+        gap = np.array([math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9) for sep in seps], dtype=float).reshape(k, 2)
+        implied = np.asarray(self.robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)
+        return earlier, later, gap, implied
+
 
 _CLASS_OF = {"DC": PlanClass.DC, "not DC": PlanClass.CONSISTENT, "inconsistent": PlanClass.INCONSISTENT}
 _VERDICT_CLASS = {Verdict.DC: PlanClass.DC, Verdict.NOT_DC: PlanClass.CONSISTENT,
@@ -333,7 +348,7 @@ class _NativeSearch:
         """The native search, or None when the library is not built or the numbers are too large for it."""
         if _NATIVE is None or edges is None or rank_by not in ("worst", "earliest"):
             return None
-        biggest = max([abs(w) for w in edges.wt] + edges.ys + [int(abs(g)) for g in gap.ravel()] + [0])
+        biggest = max(max(map(abs, edges.wt), default=0), max(edges.ys, default=0), int(np.abs(gap).max(initial=0)))
         if biggest >= 1 << 40 or (bound is not None and any(math.isnan(b) for b in bound)):
             return None
         return cls(_NATIVE, k, z, earlier, later, gap, settled, ends, edges, bound, rank_by)
@@ -408,7 +423,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
     classified. The best pattern is the one the search without pruning finds (ties keep the first
     found, which pruning never passes over); with the caps, it is reached within them more often.
     """
-    motions, conflicts, base, robust = routing.motions, routing.conflicts, routing.base, routing.robust
+    motions, conflicts, base = routing.motions, routing.conflicts, routing.base
     names = base.stnu.timepoints
     index = {v: i for i, v in enumerate(names)}
     z = index[ORIGIN]
@@ -419,12 +434,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
     edges = _Edges(base.stnu) if fast else None
     ends = np.array([index[t] for t in base.last_ends], dtype=int)
     k = len(conflicts)
-    # per conflict and order (0: robot first, 1: human first): T(later) - T(earlier) >= gap, in ticks
-    seps = [sep for c in conflicts for sep in (c.robot_first, c.human_first)]
-    earlier = np.array([index[namer(sep.earlier)] for sep in seps], dtype=int).reshape(k, 2)
-    later = np.array([index[namer(sep.later)] for sep in seps], dtype=int).reshape(k, 2)
-    gap = np.array([math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9) for sep in seps], dtype=float).reshape(k, 2)
-    implied = np.asarray(robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)  # holds in every execution
+    earlier, later, gap, implied = routing.orders  # per conflict and order; implied: holds in every execution
     settled: list[bool] = np.any(implied, axis=1).tolist()
     first_of: list[int] = np.where(implied[:, 0], 0, 1).tolist()
     results: list[tuple[tuple, Leaf]] = []
@@ -611,12 +621,6 @@ def _consistent(stnu: STNU) -> bool:
     return check_consistency(stnu).consistent if found is None else found[0]
 
 
-def _separation_ticks(namer: Callable[[TimeRef], str], index: dict[str, int],
-                      sep: Separation) -> tuple[int, int, float]:
-    """``(earlier, later, gap)``: timepoint indices and the gap in ticks, rounded up."""
-    return index[namer(sep.earlier)], index[namer(sep.later)], float(math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9))
-
-
 def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
                   shortest: _Routing | None = None) -> list[Routes]:
     """Route choices to try besides the shortest routes, from the conflicts the plan does not settle
@@ -631,17 +635,9 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
     """
     robot = next(a for a in task.agents if not a.is_human)
     shortest = shortest or _Routing(task, plan, paths, {}, human_waits)
-    motions, robust = shortest.motions, shortest.robust
-    index = {v: i for i, v in enumerate(shortest.base.stnu.timepoints)}
-    namer = ref_namer(task, plan)
-    open_conflicts = []
-    for c in shortest.conflicts:
-        implied = False
-        for sep in (c.robot_first, c.human_first):
-            e, lt, g = _separation_ticks(namer, index, sep)
-            implied = implied or bool(robust[lt, e] <= -g)
-        if not implied:
-            open_conflicts.append(c)
+    motions = shortest.motions
+    implied = shortest.orders[3]
+    open_conflicts = [c for c, row in zip(shortest.conflicts, implied, strict=True) if not row.any()]
     trials: list[Routes] = []
     # detours
     places: dict[int, list[Conflict]] = {}
