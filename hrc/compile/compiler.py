@@ -205,7 +205,9 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
     if not first.classification.explanation:
         return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) for plan in family[1:])]
     out = [first]
-    result = check_dc(choice.net.stnu) if len(family) > 1 and first.pattern.candidates else None
+    result = None
+    if len(family) > 1 and first.pattern.candidates:  # the first plan's check, with its negative cycle
+        result = choice.check if choice.check is not None else check_dc(choice.net.stnu)
     for plan in family[1:]:
         names = relabel_timepoints(task, family[0], plan)
         known = None if result is None else relabel_check(result, names)

@@ -129,6 +129,7 @@ class PlanChoice:
     pattern: MotionPattern
     net: PlanNetwork
     classification: Classification
+    check: DCResult | None = None  # the DC check of ``net.stnu`` behind the class, when one was run here
 
 
 def pattern_key(c: Classification, rank_by: str = "worst") -> tuple:
@@ -729,7 +730,8 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
         # the search's verdict (on the same links): measured in full, nothing to explain, so no words
         return PlanChoice(found, kept.net, classify(task, kept.net, known=DCResult(Verdict.DC, True)))
     net = _worded(task, plan, kept.net, pattern.orders)
-    return PlanChoice(found, net, classify(task, net))  # again, in full, with its explanation
+    check = check_dc(net.stnu)  # again, for the negative cycle that the explanation reads
+    return PlanChoice(found, net, classify(task, net, known=check), check)
 
 
 def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: bool = True,
