@@ -35,7 +35,7 @@ from hrc.io.task_file import task_to_dict
 from hrc.model import Plan, Task
 from hrc.motion import Motion, PathLibrary, plan_paths
 from hrc.plans import count_plans, plan_families, symmetry_factor
-from hrc.temporal import STNU, DCResult, Edge, check_dc
+from hrc.temporal import STNU, DCResult, Edge
 from hrc.temporal.graphml import write_graphml
 
 __all__ = ["ClassStats", "CompileOptions", "CompiledPlan", "CompiledPlanSet", "PlanSetSummary", "compile_chunk",
@@ -205,9 +205,7 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
     if not first.classification.explanation:
         return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) for plan in family[1:])]
     out = [first]
-    result = None
-    if len(family) > 1 and first.pattern.candidates:  # the first plan's check, with its negative cycle
-        result = choice.check if choice.check is not None else check_dc(choice.net.stnu)
+    result = choice.check  # the first plan's check, with its negative cycle (None: each member checks)
     for plan in family[1:]:
         names = relabel_timepoints(task, family[0], plan)
         known = None if result is None else relabel_check(result, names)

@@ -268,12 +268,16 @@ class _Routing:
         return robust
 
     @functools.cached_property
+    def index(self) -> dict[str, int]:
+        """Each timepoint's position in `base`."""
+        return {v: i for i, v in enumerate(self.base.stnu.timepoints)}
+
+    @functools.cached_property
     def orders(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Per conflict and order (0: robot first, 1: human first) the constraint ``T(later) - T(earlier)
         >= gap`` as ``(earlier, later, gap)`` (k x 2 each: timepoints by position in `base`, the gap in
         ticks, rounded up), and whether it holds in every execution (`robust`, k x 2)."""
-        index = {v: i for i, v in enumerate(self.base.stnu.timepoints)}
-        namer = ref_namer(self.task, self.plan)
+        index, namer = self.index, ref_namer(self.task, self.plan)
         k = len(self.conflicts)
         seps = [sep for c in self.conflicts for sep in (c.robot_first, c.human_first)]
         earlier = np.array([index[namer(sep.earlier)] for sep in seps], dtype=int).reshape(k, 2)
@@ -424,9 +428,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
     classified. The best pattern is the one the search without pruning finds (ties keep the first
     found, which pruning never passes over); with the caps, it is reached within them more often.
     """
-    motions, conflicts, base = routing.motions, routing.conflicts, routing.base
-    names = base.stnu.timepoints
-    index = {v: i for i, v in enumerate(names)}
+    motions, conflicts, base, index = routing.motions, routing.conflicts, routing.base, routing.index
     z = index[ORIGIN]
     namer = ref_namer(task, plan)
     fast = rank_by != "nominal"
