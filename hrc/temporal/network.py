@@ -23,6 +23,7 @@ frozenset({'C'})
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -32,6 +33,9 @@ __all__ = ["INF", "ContingentLink", "NetworkError", "RequirementLink", "STNU"]
 
 INF = None
 """Marks a missing bound of a requirement link (``lb=INF`` is -infinity, ``ub=INF`` is +infinity)."""
+
+
+_SOURCE, _TARGET = operator.attrgetter("source"), operator.attrgetter("target")
 
 
 class NetworkError(HrcError):
@@ -56,12 +60,17 @@ class RequirementLink:
     ub: int | None
 
     def __post_init__(self) -> None:
-        if self.lb is not None:
-            _check_int(self.lb, "lower bound of", self)
-        if self.ub is not None:
-            _check_int(self.ub, "upper bound of", self)
-        if self.lb is not None and self.ub is not None and self.lb > self.ub:
-            raise NetworkError(f"requirement {self.source}->{self.target}: lb {self.lb} > ub {self.ub}")
+        lb, ub = self.lb, self.ub
+        # the usual case in one expression (a compile builds links by the million), the rest checked in turn
+        if (lb is None or type(lb) is int) and (ub is None or type(ub) is int) and (lb is None or ub is None
+                                                                                    or lb <= ub):
+            return
+        if lb is not None:
+            _check_int(lb, "lower bound of", self)
+        if ub is not None:
+            _check_int(ub, "upper bound of", self)
+        if lb is not None and ub is not None and lb > ub:
+            raise NetworkError(f"requirement {self.source}->{self.target}: lb {lb} > ub {ub}")
 
     def __str__(self) -> str:
         lb = "-inf" if self.lb is None else str(self.lb)
@@ -79,6 +88,8 @@ class ContingentLink:
     ub: int
 
     def __post_init__(self) -> None:
+        if type(self.lb) is int and type(self.ub) is int and 0 <= self.lb <= self.ub and self.source != self.target:
+            return  # the usual case in one expression; the rest checked in turn
         _check_int(self.lb, "lower bound of contingent", self)
         _check_int(self.ub, "upper bound of contingent", self)
         if not 0 <= self.lb <= self.ub:
@@ -112,11 +123,12 @@ class STNU:
         reqs, conts = self.requirements, self.contingents
         # the usual case in a few set operations (a compile builds networks by the thousand); anything
         # else (a subclass of a link, a problem) goes through `_diagnose`, which names the first problem
-        if (len(known) == len(self.timepoints) and all(type(r) is RequirementLink for r in reqs)
-                and all(type(c) is ContingentLink for c in conts)):
-            ends = {r.source for r in reqs}
-            ends.update([r.target for r in reqs], [c.source for c in conts], [c.target for c in conts])
-            if ends <= known and len({c.target for c in conts}) == len(conts):
+        if (len(known) == len(self.timepoints) and set(map(type, reqs)) <= {RequirementLink}
+                and set(map(type, conts)) <= {ContingentLink}):
+            ends = set(map(_SOURCE, reqs))
+            targets = set(map(_TARGET, conts))
+            ends.update(map(_TARGET, reqs), map(_SOURCE, conts), targets)
+            if ends <= known and len(targets) == len(conts):
                 return
         self._diagnose(known)
 
