@@ -291,3 +291,39 @@ def test_why_consistent_names_the_human_durations_that_matter(task, compiled):
         assert check_dc(controlled(stnu, set(named)), "morris2014").is_dc, cp.plan.id
         for link in named:
             assert not check_dc(controlled(stnu, set(named) - {link}), "morris2014").is_dc, (cp.plan.id, link)
+
+
+def test_each_route_choice_of_a_plan_gets_its_own_travel_links():
+    """`create_stnu` builds what does not depend on the routes once per plan and each leg's travel once
+    per route: whatever order a plan's route choices (shortest, detours, waiting places) are built in,
+    each network has four timepoints per leg and two more per stop at a waiting place, and every robot
+    travel is a rigid link of exactly that route's moving time (the motions are the independent truth)."""
+    from hrc.compile.motion_pattern import _route_trials
+    from hrc.motion import plan_paths
+
+    kitting = load_task(ROOT / "tasks" / "kitting.yaml")
+    paths = plan_paths(kitting, seed=0)
+    checked = parks = 0
+    for plan in list(generate_plans(kitting))[::97]:
+        choices = [{}, *_route_trials(kitting, plan, paths, True)]
+        for order in (choices, choices[::-1]):
+            for routes in order:
+                motions = plan_motions(kitting, plan, paths, routes)
+                stnu = create_stnu(kitting, plan, motions).stnu
+                assert len(stnu.timepoints) == 1 + 4 * len(motions) + 2 * sum(bool(m.park) for m in motions)
+                rigid = {(r.source, r.target): (r.lb, r.ub) for r in stnu.requirements}
+                for m in motions:
+                    if m.agent != "robot" or m.time <= 0:
+                        continue
+                    leg = agent_legs(kitting, plan, "robot")[m.leg]
+                    at = f"robot.{leg.phase}.{leg.action}."
+                    if m.park:
+                        legs = [(at + "depart", at + "park", m.park_time), (at + "unpark", at + "arrive",
+                                                                            m.time - m.park_time)]
+                        parks += 1
+                    else:
+                        legs = [(at + "depart", at + "arrive", m.time)]
+                    for a, b, t in legs:
+                        assert rigid[(a, b)] == (round(t * 1000), round(t * 1000))
+                checked += 1
+    assert checked >= 20 and parks  # not vacuous: detours and waiting places among the choices

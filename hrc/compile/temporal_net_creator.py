@@ -156,102 +156,158 @@ class PlanNetwork:
         return self._free[0]
 
 
+# A link as `create_stnu` adds it: the link, whether it is contingent, and its meaning (``(source,
+# target)``, ``(kind, text)``). A requirement's meaning is kept only if its pair has none yet; a
+# contingent link's replaces any.
+_Op = tuple[RequirementLink | ContingentLink, bool, tuple[str, str], tuple[str, str]]
+
+
+class _Skeleton:
+    """What `create_stnu` builds of one plan that does not depend on its routes, built once per plan and
+    reading (`_skeleton`): per leg, its links but the travel; the task graph and the limits; and, filled
+    as routes are met, each leg's links for each motion (a search builds a plan's network once per route
+    choice, most legs on the same route each time)."""
+
+    def __init__(self, task: Task, plan: Plan, human_waits: bool) -> None:
+        self.task, self.plan, self.human_waits = task, plan, human_waits
+        names = _leg_names(task, plan)
+        owner = dict(plan.allocation)
+        self.legs: list[tuple[Agent, Leg, dict[str, str], str, list[_Op]]] = []  # ..., previous end, after travel
+        last_ends = []
+        for agent in task.agents:
+            prev_end = ORIGIN
+            rigid = agent.is_human and not human_waits
+            for leg in agent_legs(task, plan, agent.id):
+                here = names[agent.id][leg.index]
+                arr, st, en = here["arrive"], here["start"], here["end"]
+                step = f"{leg.action}.{leg.phase}"
+                after: list[_Op] = []
+                waits_for_robot = any(owner[p.before.action] != agent.id for p in task.precedence
+                                      if (p.after.action, p.after.phase) == (leg.action, leg.phase))
+                if rigid and not waits_for_robot:
+                    after.append(_req(arr, st, 0, 0, "order", f"{agent.id} starts {step} on arrival"))
+                else:
+                    after.append(_req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {step}"))
+                bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
+                what = f"{agent.id}'s {leg.phase} of {leg.action} ({bounds.lb:g}-{bounds.ub:g} s)"
+                if agent.is_human:
+                    after.append(_cont(st, en, bounds.lb, bounds.ub, what))
+                else:
+                    after.append(_req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), "robot", what))
+                self.legs.append((agent, leg, here, prev_end, after))
+                prev_end = en
+            if prev_end != ORIGIN:
+                last_ends.append(prev_end)
+        self.last_ends = tuple(last_ends)
+        self.graph: list[_Op] = []
+        for pr in task.precedence:
+            a = event_timepoint(plan, Event(pr.before.action, pr.before.phase, "end"))
+            b = event_timepoint(plan, Event(pr.after.action, pr.after.phase, "start"))
+            self.graph.append(_req(a, b, 0, None, "order", f"task graph: {pr.after} after {pr.before}"))
+        self.limits: list[_Op] = []
+        for c in task.constraints:
+            a, b = event_timepoint(plan, c.source), event_timepoint(plan, c.target)
+            c_ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
+            self.limits.append(_req(a, b, seconds_to_ticks(c.bounds.lb), c_ub, "limit",
+                                    f"constraint {c.target} - {c.source} in [{c.bounds.lb:g}, {c.bounds.ub:g}] s"))
+        if task.deadline is not None:
+            for end in last_ends:
+                self.limits.append(_req(ORIGIN, end, 0, seconds_to_ticks(task.deadline), "limit",
+                                        f"makespan deadline {task.deadline:g} s"))
+        self._travels: dict[tuple, tuple[list[str], list[_Op]]] = {}
+
+    def travel(self, i: int, motion: Motion) -> tuple[list[str], list[_Op]]:
+        """Leg `i`'s timepoints and its links up to the arrival (the wait before it and the travel) along
+        `motion`."""
+        key = (i, motion.time, motion.via, motion.park, motion.park_time)
+        found = self._travels.get(key)
+        if found is None:
+            found = self._travels[key] = self._travel(i, motion)
+        return found
+
+    def _travel(self, i: int, motion: Motion) -> tuple[list[str], list[_Op]]:
+        agent, leg, here, prev_end, _ = self.legs[i]
+        dep, arr, st, en = here["depart"], here["arrive"], here["start"], here["end"]
+        step = f"{leg.action}.{leg.phase}"
+        ops: list[_Op] = []
+        if agent.is_human and not self.human_waits:
+            ops.append(_req(prev_end, dep, 0, 0, "order",
+                            f"{agent.id} leaves for {step} as soon as the previous step ends"))
+        else:
+            ops.append(_req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step"))
+        route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
+        if motion.park:
+            park, unpark = here["park"], here["unpark"]
+            ops.append(_travel(agent, dep, park, motion.park_time, f"{agent.id}'s travel {leg.origin} -> {motion.park} "
+                                                                  f"to wait there for {step}"))
+            ops.append(_req(park, unpark, 0, None, "order", f"{agent.id} waits at {motion.park} before {step}"))
+            ops.append(_travel(agent, unpark, arr, motion.time - motion.park_time,
+                               f"{agent.id}'s travel {motion.park} -> {leg.location}"))
+            return [dep, park, unpark, arr, st, en], ops
+        if motion.time <= 0:
+            ops.append(_req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}"))
+        else:
+            ops.append(_travel(agent, dep, arr, motion.time, route + (f" round {motion.via}" if motion.via else "")))
+        return [dep, arr, st, en], ops
+
+
+@per_plan(64)
+def _skeleton(task: Task, plan: Plan, human_waits: bool) -> _Skeleton:
+    return _Skeleton(task, plan, human_waits)
+
+
+def _req(a: str, b: str, lb: int | None, ub: int | None, kind: str, text: str) -> _Op:
+    return RequirementLink(a, b, lb, ub), False, (a, b), (kind, text)
+
+
+def _cont(a: str, b: str, lb: float, ub: float, text: str) -> _Op:
+    return ContingentLink(a, b, _floor_ticks(lb), _ceil_ticks(ub)), True, (a, b), ("human", text)
+
+
+def _travel(agent: Agent, a: str, b: str, t: float, text: str) -> _Op:
+    if t <= 0:
+        return _req(a, b, 0, 0, "order", text)
+    if agent.is_human:
+        ub = t * agent.travel_slack
+        return _cont(a, b, t, ub, f"{text} ({t:.1f}-{ub:.1f} s)")
+    ticks = seconds_to_ticks(t)
+    return _req(a, b, ticks, ticks, "robot", f"{text} ({t:.1f} s)")
+
+
 def create_stnu(task: Task, plan: Plan, motions: Sequence[Motion],
                 separations: Sequence[tuple[Separation, str]] = (), human_waits: bool = True) -> PlanNetwork:
     """Encode `plan` as an STNU (see the module docstring).
 
     `motions`: one per leg (`hrc.motion.plan_motions`); `separations`: the chosen passing orders, each
     with its meaning in words; `human_waits`: the paper's reading (True) or the stricter one (False).
+    The links that do not depend on the routes are built once per plan (`_Skeleton`).
     """
+    sk = _skeleton(task, plan, human_waits)
+    motion_of = {(m.agent, m.leg): m for m in motions}
     timepoints: list[str] = [ORIGIN]
     reqs: list[RequirementLink] = []
     conts: list[ContingentLink] = []
     meaning: dict[tuple[str, str], tuple[str, str]] = {}
-    motion_of = {(m.agent, m.leg): m for m in motions}
-    last_ends = []
-    owner = dict(plan.allocation)
 
-    # kinds: "human" (a contingent duration), "robot" (a robot duration), "limit" (deadline or
-    # temporal constraint), "order" (sequencing, waiting, task graph), "space" (a passing order)
-    def req(a: str, b: str, lb: int | None, ub: int | None, kind: str, text: str) -> None:
-        reqs.append(RequirementLink(a, b, lb, ub))
-        meaning.setdefault((a, b), (kind, text))
-
-    def cont(a: str, b: str, lb: float, ub: float, text: str) -> None:
-        conts.append(ContingentLink(a, b, _floor_ticks(lb), _ceil_ticks(ub)))
-        meaning[(a, b)] = ("human", text)
-
-    def travel(agent: Agent, a: str, b: str, t: float, text: str) -> None:
-        if t <= 0:
-            req(a, b, 0, 0, "order", text)
-        elif agent.is_human:
-            ub = t * agent.travel_slack
-            cont(a, b, t, ub, f"{text} ({t:.1f}-{ub:.1f} s)")
-        else:
-            ticks = seconds_to_ticks(t)
-            req(a, b, ticks, ticks, "robot", f"{text} ({t:.1f} s)")
-
-    names = _leg_names(task, plan)
-    for agent in task.agents:
-        prev_end = ORIGIN
-        rigid = agent.is_human and not human_waits
-        for leg in agent_legs(task, plan, agent.id):
-            here = names[agent.id][leg.index]
-            dep, arr, st, en = here["depart"], here["arrive"], here["start"], here["end"]
-            motion = motion_of[(agent.id, leg.index)]
-            step = f"{leg.action}.{leg.phase}"
-            if rigid:
-                req(prev_end, dep, 0, 0, "order", f"{agent.id} leaves for {step} as soon as the previous step ends")
+    def add(ops: list[_Op]) -> None:
+        for link, contingent, pair, said in ops:
+            if contingent:
+                conts.append(link)  # type: ignore[arg-type]
+                meaning[pair] = said
             else:
-                req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step")
-            route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
-            if motion.park:
-                park, unpark = here["park"], here["unpark"]
-                timepoints += [dep, park, unpark, arr, st, en]
-                travel(agent, dep, park, motion.park_time, f"{agent.id}'s travel {leg.origin} -> {motion.park} "
-                                                           f"to wait there for {step}")
-                req(park, unpark, 0, None, "order", f"{agent.id} waits at {motion.park} before {step}")
-                travel(agent, unpark, arr, motion.time - motion.park_time,
-                       f"{agent.id}'s travel {motion.park} -> {leg.location}")
-            else:
-                timepoints += [dep, arr, st, en]
-                if motion.time <= 0:
-                    req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}")
-                else:
-                    travel(agent, dep, arr, motion.time, route + (f" round {motion.via}" if motion.via else ""))
-            waits_for_robot = any(owner[p.before.action] != agent.id for p in task.precedence
-                                  if (p.after.action, p.after.phase) == (leg.action, leg.phase))
-            if rigid and not waits_for_robot:
-                req(arr, st, 0, 0, "order", f"{agent.id} starts {step} on arrival")
-            else:
-                req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {step}")
-            bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
-            what = f"{agent.id}'s {leg.phase} of {leg.action} ({bounds.lb:g}-{bounds.ub:g} s)"
-            if agent.is_human:
-                cont(st, en, bounds.lb, bounds.ub, what)
-            else:
-                req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), "robot", what)
-            prev_end = en
-        if prev_end != ORIGIN:
-            last_ends.append(prev_end)
+                reqs.append(link)  # type: ignore[arg-type]
+                meaning.setdefault(pair, said)
 
-    for pr in task.precedence:
-        a = event_timepoint(plan, Event(pr.before.action, pr.before.phase, "end"))
-        b = event_timepoint(plan, Event(pr.after.action, pr.after.phase, "start"))
-        req(a, b, 0, None, "order", f"task graph: {pr.after} after {pr.before}")
-
+    for i, (agent, leg, _, _, after) in enumerate(sk.legs):
+        names, ops = sk.travel(i, motion_of[(agent.id, leg.index)])
+        timepoints += names
+        add(ops)
+        add(after)
+    add(sk.graph)
     n_before = len(reqs)
-    for c in task.constraints:
-        a, b = event_timepoint(plan, c.source), event_timepoint(plan, c.target)
-        c_ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
-        req(a, b, seconds_to_ticks(c.bounds.lb), c_ub, "limit",
-            f"constraint {c.target} - {c.source} in [{c.bounds.lb:g}, {c.bounds.ub:g}] s")
-    if task.deadline is not None:
-        for end in last_ends:
-            req(ORIGIN, end, 0, seconds_to_ticks(task.deadline), "limit", f"makespan deadline {task.deadline:g} s")
-
+    add(sk.limits)
     stnu = STNU(tuple(timepoints), tuple(reqs), tuple(conts), name=f"{task.name}:{plan.id}")
-    net = PlanNetwork(stnu=stnu, meaning=tuple(sorted(meaning.items())), last_ends=tuple(last_ends),
+    net = PlanNetwork(stnu=stnu, meaning=tuple(sorted(meaning.items())), last_ends=sk.last_ends,
                       n_limits=len(reqs) - n_before)
     return with_separations(net, separations, ref_namer(task, plan)) if separations else net
 
