@@ -26,6 +26,7 @@ passing order, or done early).
 from __future__ import annotations
 
 import enum
+import functools
 import operator
 from collections import deque
 from dataclasses import dataclass
@@ -123,12 +124,19 @@ def _earliest(stnu: STNU, fix: Fix = "") -> dict[str, int] | None:
     index arrays (`edge_arrays`); without the core, `_earliest_python`. The distances are unique, so both
     give the same numbers (a test compares them).
     """
+    times = _earliest_values(stnu, fix)
+    return None if times is None else dict(zip(stnu.timepoints, times, strict=True))
+
+
+def _earliest_values(stnu: STNU, fix: Fix = "") -> list[int] | None:
+    """`_earliest`'s times in timepoint order."""
     found = native_distances(len(stnu.timepoints), *distance_graph(stnu, fix, after_origin=True),
                              stnu.timepoints.index(ORIGIN))
     if found is None:
-        return _earliest_python(stnu, fix)
+        times = _earliest_python(stnu, fix)
+        return None if times is None else [times[t] for t in stnu.timepoints]
     ok, dist = found
-    return {t: -d for t, d in zip(stnu.timepoints, dist, strict=True)} if ok else None
+    return [-d for d in dist] if ok else None
 
 
 def distance_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple[list[int], list[int], list[int]]:
@@ -276,10 +284,6 @@ def explain(net: PlanNetwork, cycle: tuple, inconsistent: bool) -> str:
     return f"{limits} cannot be met even at the shortest: {durations}"
 
 
-def _seconds(times: dict[str, int], names: tuple[str, ...]) -> tuple[tuple[str, float], ...]:
-    return tuple((t, times[t] / TICKS_PER_SECOND) for t in names)
-
-
 def classify(task: Task, net: PlanNetwork, explained: bool = True, full: bool = True,
              start: EarliestStart | None = None, known: DCResult | None = None) -> Classification:
     """Class (DC check), explanation, makespans, idle times and the earliest and worst-case schedules.
@@ -317,41 +321,72 @@ def measure(task: Task, net: PlanNetwork, plan_class: PlanClass, explanation: st
     `start`: the `EarliestStart` of a network that ``net.without_limits()`` extends by requirement links
     at its end (the same numbers, found incrementally).
     """
-    free = net.without_limits() if start is None or full else None  # not needed for a search's leaf
-    early = start.earliest(net, "") if start is not None else _earliest(net.without_limits(), "")
+    names = net.stnu.timepoints
+    if start is not None:  # a search's leaf (`full` False): by name, from the search's start
+        got = start.earliest(net, "")
+        early = None if got is None else [got[t] for t in names]
+    else:
+        early = _earliest_values(net.without_limits(), "")
     if early is None:
         return Classification(plan_class, explanation, None, (), ())
     # with the human's durations fixed the rest may not fit (a passing order that a slow person breaks):
     # the worst case then falls back to the earliest schedule, and the explanation says so
-    late = start.earliest(net, "ub") if start is not None else _earliest(net.without_limits(), "ub")
+    if start is not None:
+        got = start.earliest(net, "ub")
+        late = None if got is None else [got[t] for t in names]
+    else:
+        late = _earliest_values(net.without_limits(), "ub")
     if late is None:
         late = early
         if explanation:
             explanation += " (no schedule fits every human duration at its maximum)"
+    layout = _layout(names, net.last_ends, tuple(a.id for a in task.agents))
 
-    def span(times: dict[str, int]) -> int:
-        return max((times[t] for t in net.last_ends), default=0)
+    def span(times: list[int]) -> int:
+        return max((times[i] for i in layout.ends), default=0)
 
     end = span(early)
     makespan = (end / TICKS_PER_SECOND, span(late) / TICKS_PER_SECOND)
     if not full:
         return Classification(plan_class, explanation, makespan, (), ())
-    middle = _earliest(free, "mid") if free is not None else None
-    middle = middle or early
-    idle = tuple((agent.id, _idle(early, agent.id, end) / TICKS_PER_SECOND) for agent in task.agents)
-    names = net.stnu.timepoints
+    middle = _earliest_values(net.without_limits(), "mid") or early
+    idle = tuple((agent, (end - sum(early[b] - early[a] for a, b in pairs)) / TICKS_PER_SECOND)
+                 for agent, pairs in layout.busy)
     return Classification(plan_class, explanation, makespan, idle, _seconds(early, names), _seconds(late, names),
                           span(middle) / TICKS_PER_SECOND)
 
 
-def _idle(times: dict[str, int], agent: str, makespan: int) -> int:
-    busy = 0
-    for name, t in times.items():
-        if not name.startswith(agent + "."):
-            continue
-        base, what = name.rsplit(".", 1)
-        if what == "arrive":
-            busy += t - times[base + ".depart"]
-        elif what == "end":
-            busy += t - times[base + ".start"]
-    return makespan - busy
+def _seconds(times: list[int], names: tuple[str, ...]) -> tuple[tuple[str, float], ...]:
+    return tuple(zip(names, [t / TICKS_PER_SECOND for t in times], strict=True))
+
+
+@dataclass(frozen=True, slots=True)
+class _Layout:
+    """Where `measure` reads a network's schedule: the positions of the agents' last ends, and per agent
+    the (from, to) positions of its travels (depart -> arrive) and manipulations (start -> end)."""
+
+    ends: tuple[int, ...]
+    busy: tuple[tuple[str, tuple[tuple[int, int], ...]], ...]
+
+
+@functools.lru_cache(maxsize=256)
+def _layout(names: tuple[str, ...], last_ends: tuple[str, ...], agents: tuple[str, ...]) -> _Layout:
+    """`_Layout` of a network's timepoints (remembered: a plan's route choices mostly share them).
+
+    An agent is busy from each of its ``.depart`` to the matching ``.arrive`` and from each ``.start``
+    to its ``.end`` (timepoints named ``AGENT.PHASE.ACTION.WHAT``, `leg_timepoint`): its idle time is
+    the makespan less those."""
+    position = {t: i for i, t in enumerate(names)}
+    busy = []
+    for agent in agents:
+        pairs = []
+        for name in names:
+            if not name.startswith(agent + "."):
+                continue
+            base, what = name.rsplit(".", 1)
+            if what == "arrive":
+                pairs.append((position[base + ".depart"], position[name]))
+            elif what == "end":
+                pairs.append((position[base + ".start"], position[name]))
+        busy.append((agent, tuple(pairs)))
+    return _Layout(tuple(position[t] for t in last_ends), tuple(busy))
