@@ -288,17 +288,28 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
 
     # the conflicts of an occupancy pair depend on the two occupancies and their routes only, and the
     # same pairs recur across the plans of a task: kept per process, like the geometry they come from
+    # (by a number per signature: a plan has a few dozen occupancies but hundreds of pairs)
     cache = paths.samples.setdefault(("pairs", reach, robot.speed, human.speed), {})
-    if len(cache) > _PAIR_CACHE:
+    ids = paths.samples.setdefault(("pair-ids", reach, robot.speed, human.speed), {})
+    if len(cache) > _PAIR_CACHE or len(ids) > _PAIR_CACHE:
         cache.clear()
+        ids.clear()
+
+    def number(occ: Occupancy) -> int:
+        sig = signature(occ)
+        found = ids.get(sig)
+        if found is None:
+            found = ids[sig] = len(ids)
+        return found
+
     out: list[Conflict] = []
-    h_occ = [(h, signature(h)) for h in occupancies(task, plan, human, routes)]
+    h_occ = [(h, number(h)) for h in occupancies(task, plan, human, routes)]
     for r in occupancies(task, plan, robot, routes):
-        rk = signature(r)
+        rk = number(r) << 32
         for h, hk in h_occ:
-            found = cache.get((rk, hk))
+            found = cache.get(rk | hk)
             if found is None:
-                found = cache[(rk, hk)] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
+                found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
             out.extend(found)
     return tuple(out)
 
