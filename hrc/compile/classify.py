@@ -28,6 +28,7 @@ from __future__ import annotations
 import enum
 import functools
 import operator
+from array import array
 from collections import deque
 from dataclasses import dataclass
 from typing import Literal
@@ -39,7 +40,7 @@ from hrc.temporal.native_stn import native_distances
 from hrc.temporal.rul import edge_arrays
 
 __all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start", "explain",
-           "measure"]
+           "measure", "packed_graph"]
 
 
 class PlanClass(enum.Enum):
@@ -130,8 +131,8 @@ def _earliest(stnu: STNU, fix: Fix = "") -> dict[str, int] | None:
 
 def _earliest_values(stnu: STNU, fix: Fix = "") -> list[int] | None:
     """`_earliest`'s times in timepoint order."""
-    found = native_distances(len(stnu.timepoints), *distance_graph(stnu, fix, after_origin=True),
-                             stnu.timepoints.index(ORIGIN))
+    graph = packed_graph(stnu, fix, after_origin=True)
+    found = None if graph is None else native_distances(len(stnu.timepoints), *graph, stnu.timepoints.index(ORIGIN))
     if found is None:
         times = _earliest_python(stnu, fix)
         return None if times is None else [times[t] for t in stnu.timepoints]
@@ -152,6 +153,51 @@ def distance_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tup
         n = len(stnu.timepoints)
         src, dst, wt = src + list(range(n)), dst + [stnu.timepoints.index(ORIGIN)] * n, wt + [0] * n
     return src, dst, wt
+
+
+_Packed = tuple[array, array, array, array, array, array, array, array]  # src dst wt act ctg -xs ys -ys
+_PACKED: dict[int, tuple[STNU, _Packed | None]] = {}  # by identity, the last few (each kept alive here)
+_BIG = 1 << 40  # as `hrc.temporal.native_stn`: weights below this cannot overflow its sums
+
+
+def packed_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple[array, array, array] | None:
+    """`distance_graph` as the native core's typed arrays (`hrc.temporal.native_stn`), without the
+    origin's edge to itself (which changes no distance); None when the network has a requirement link
+    from a timepoint to itself or numbers too large for the core (the caller then takes the lists).
+
+    A network is read several times over (consistency, schedules, distance matrices): its links are
+    packed once (the last few networks are kept, by identity) and each reading is a few array copies."""
+    hit = _PACKED.get(id(stnu))
+    if hit is None or hit[0] is not stnu:
+        if len(_PACKED) >= 8:
+            del _PACKED[next(iter(_PACKED))]
+        hit = _PACKED[id(stnu)] = (stnu, _pack(stnu))
+    packed = hit[1]
+    if packed is None:
+        return None
+    src, dst, wt, act, ctg, neg_xs, ys, neg_ys = packed
+    if fix == "mid":
+        xs, ys_list = edge_arrays(stnu)[5:7]
+        mid = [(x + y) // 2 for x, y in zip(xs, ys_list, strict=True)]
+        up, down = array("q", mid), array("q", [-m for m in mid])
+    else:
+        up, down = ys, (neg_ys if fix == "ub" else neg_xs)
+    src, dst, wt = src + act + ctg, dst + ctg + act, wt + up + down
+    if after_origin:
+        n, z = len(stnu.timepoints), stnu.timepoints.index(ORIGIN)
+        others = array("i", [i for i in range(n) if i != z])
+        src, dst, wt = src + others, dst + array("i", [z]) * len(others), wt + array("q", bytes(8 * len(others)))
+    return src, dst, wt
+
+
+def _pack(stnu: STNU) -> _Packed | None:
+    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
+    if any(a == b for a, b in zip(src, dst, strict=True)):
+        return None
+    if len(stnu.timepoints) >= 1 << 20 or max(map(abs, wt), default=0) >= _BIG or max(ys, default=0) >= _BIG:
+        return None
+    return (array("i", src), array("i", dst), array("q", wt), array("i", act), array("i", ctg),
+            array("q", [-x for x in xs]), array("q", ys), array("q", [-y for y in ys]))
 
 
 def _earliest_python(stnu: STNU, fix: Fix = "") -> dict[str, int] | None:

@@ -60,6 +60,7 @@ from hrc.compile.classify import (
     distance_graph,
     earliest_start,
     measure,
+    packed_graph,
 )
 from hrc.compile.temporal_net_creator import (
     ORIGIN,
@@ -149,10 +150,10 @@ def _apsp(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> np.ndarray |
     `after_origin` adds ``T(x) >= T(origin)`` for every timepoint (the reading of `classify`'s earliest
     schedules). Floyd-Warshall in the native core (`hrc.temporal.native_stn`); without it, scipy's
     (`_apsp_scipy`, the reference: a test compares them)."""
-    src, dst, wt = _distance_graph(stnu, fix, after_origin)
-    found = native_apsp(len(stnu.timepoints), src, dst, wt)
+    packed = packed_graph(stnu, fix, after_origin)
+    found = None if packed is None else native_apsp(len(stnu.timepoints), *packed)
     if found is None:
-        return _apsp_scipy(len(stnu.timepoints), src, dst, wt)
+        return _apsp_scipy(len(stnu.timepoints), *_distance_graph(stnu, fix, after_origin))
     ok, mat = found
     return mat if ok else None
 
@@ -620,7 +621,8 @@ def _beyond(routing: _Routing, rank_by: str, best: tuple) -> bool:
 
 def _consistent(stnu: STNU) -> bool:
     """`check_consistency(stnu).consistent`, from the native core when it is built."""
-    found = native_distances(len(stnu.timepoints), *distance_graph(stnu), None)
+    packed = packed_graph(stnu)
+    found = None if packed is None else native_distances(len(stnu.timepoints), *packed, None)
     return check_consistency(stnu).consistent if found is None else found[0]
 
 

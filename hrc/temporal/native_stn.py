@@ -40,6 +40,11 @@ _DIST, _APSP = _load()
 
 
 def _arrays(n: int, src: Sequence[int], dst: Sequence[int], wt: Sequence[int]) -> tuple[array, array, array] | None:
+    """The edges as the core's typed arrays; None if the numbers are too large for it. Typed arrays
+    already (``array("i")``, ``array("i")``, ``array("q")``, `hrc.compile.classify.packed_graph`) are
+    taken as they are: whoever packed them checked their range."""
+    if type(wt) is array and type(src) is array and type(dst) is array:
+        return src, dst, wt
     if wt and (max(wt) >= _BIG or min(wt) <= -_BIG or n >= 1 << 20):
         return None
     return array("i", src), array("i", dst), array("q", wt)
