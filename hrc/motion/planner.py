@@ -307,7 +307,8 @@ class Roadmap:
                     continue
                 best = self._trace(pred, a, n + b, ends)
                 candidates = [best] + self._alternatives(dist, pred, a, b, best, ends)
-                shortened = [shorten(world, route, c) for route in candidates]
+                seen = _Remembered(world)  # the candidates' shortenings ask much the same
+                shortened = [shorten(seen, route, c) for route in candidates]  # type: ignore[arg-type]
                 out[(a, b)] = min(shortened, key=_length)
         return out
 
@@ -368,8 +369,12 @@ def _to_polyline(p: np.ndarray, line: np.ndarray) -> float:
 def shorten(world: World, points: list[Point], clearance: float, rounds: int = 12) -> list[Point]:
     """Shorten a clear polyline without losing clearance (exact swept-disc checks only).
 
-    Never lengthens the path; endpoints are kept. O(rounds * n * log) pymunk queries for n vertices.
+    Never lengthens the path; endpoints are kept. O(rounds * n * log) pymunk queries for n vertices, of
+    which about three in four ask again what an earlier round asked (the points settle): answered from
+    a memo of this shortening's queries (`_Remembered`).
     """
+    if not isinstance(world, _Remembered):
+        world = _Remembered(world)  # type: ignore[assignment]
     pts = _skip(world, list(points), clearance)
     for _ in range(rounds):
         before = _length(pts)
@@ -378,6 +383,21 @@ def shorten(world: World, points: list[Point], clearance: float, rounds: int = 1
         if before - _length(pts) < 1e-6:
             break
     return pts
+
+
+class _Remembered:
+    """A world's `World.segment_clear`, each query answered once (a pure function of its arguments)."""
+
+    def __init__(self, world: World) -> None:
+        self._world = world
+        self._seen: dict[tuple[Point, Point, float], bool] = {}
+
+    def segment_clear(self, a: Point, b: Point, clearance: float) -> bool:
+        key = (a, b, clearance)
+        found = self._seen.get(key)
+        if found is None:
+            found = self._seen[key] = self._world.segment_clear(a, b, clearance)
+        return found
 
 
 def _skip(world: World, pts: list[Point], c: float) -> list[Point]:
