@@ -44,9 +44,11 @@ bounds are rounded to the nearest tick.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from hrc.model import Agent, Event, Plan, Task
 from hrc.motion import Motion, Separation, TimeRef
@@ -101,8 +103,7 @@ def _leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
     """Per agent and leg, the name of each timepoint the leg may have (`leg_timepoint`), remembered per
     plan (`hrc.plans.per_plan`): a plan's compile names thousands of references (conflicts, passing
     orders, output)."""
-    return {a.id: [{w: leg_timepoint(leg, w) for w in _LEG_TIMEPOINTS} for leg in agent_legs(task, plan, a.id)]
-            for a in task.agents}
+    return {a.id: [_names(a.id, leg.phase, leg.action) for leg in agent_legs(task, plan, a.id)] for a in task.agents}
 
 
 def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
@@ -163,92 +164,143 @@ _Op = tuple[RequirementLink | ContingentLink, bool, tuple[str, str], tuple[str, 
 
 
 class _Skeleton:
-    """What `create_stnu` builds of one plan that does not depend on its routes, built once per plan and
-    reading (`_skeleton`): per leg, its links but the travel; the task graph and the limits; and, filled
-    as routes are met, each leg's links for each motion (a search builds a plan's network once per route
-    choice, most legs on the same route each time)."""
+    """What `create_stnu` builds of one plan that does not depend on its routes (`_skeleton`, once per
+    plan and reading): per leg, the key of its travel links and its links after the arrival; the task
+    graph and the limits. The links themselves depend only on the legs (their agent, step, places and
+    the step before), which recur across the plans of a task: each is built once per task (`_task_ops`)."""
 
     def __init__(self, task: Task, plan: Plan, human_waits: bool) -> None:
-        self.task, self.plan, self.human_waits = task, plan, human_waits
-        names = _leg_names(task, plan)
+        self.task, self.human_waits = task, human_waits
+        ops = _task_ops(task)
+        waits_on = ops.get(("waits on",))
+        if waits_on is None:
+            waits_on = ops[("waits on",)] = {}
+            for p in task.precedence:
+                waits_on.setdefault((p.after.action, p.after.phase), []).append(p.before.action)
         owner = dict(plan.allocation)
-        self.legs: list[tuple[Agent, Leg, dict[str, str], str, list[_Op]]] = []  # ..., previous end, after travel
+        self.legs: list[tuple[Agent, Leg, tuple, list[_Op]]] = []  # agent, leg, travel key, links after travel
         last_ends = []
         for agent in task.agents:
             prev_end = ORIGIN
-            rigid = agent.is_human and not human_waits
             for leg in agent_legs(task, plan, agent.id):
-                here = names[agent.id][leg.index]
-                arr, st, en = here["arrive"], here["start"], here["end"]
-                step = f"{leg.action}.{leg.phase}"
-                after: list[_Op] = []
-                waits_for_robot = any(owner[p.before.action] != agent.id for p in task.precedence
-                                      if (p.after.action, p.after.phase) == (leg.action, leg.phase))
-                if rigid and not waits_for_robot:
-                    after.append(_req(arr, st, 0, 0, "order", f"{agent.id} starts {step} on arrival"))
-                else:
-                    after.append(_req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {step}"))
-                bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
-                what = f"{agent.id}'s {leg.phase} of {leg.action} ({bounds.lb:g}-{bounds.ub:g} s)"
-                if agent.is_human:
-                    after.append(_cont(st, en, bounds.lb, bounds.ub, what))
-                else:
-                    after.append(_req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), "robot", what))
-                self.legs.append((agent, leg, here, prev_end, after))
-                prev_end = en
+                waits_for_robot = any(owner[b] != agent.id for b in waits_on.get((leg.action, leg.phase), ()))
+                key: tuple = ("after", agent.id, leg.action, leg.phase, leg.location, waits_for_robot, human_waits)
+                after = ops.get(key)
+                if after is None:
+                    after = ops[key] = _after(task, agent, leg, waits_for_robot, human_waits)
+                self.legs.append((agent, leg, ("travel", agent.id, leg.action, leg.phase, leg.origin, leg.location,
+                                               prev_end, human_waits), after))
+                prev_end = _names(agent.id, leg.phase, leg.action)["end"]
             if prev_end != ORIGIN:
                 last_ends.append(prev_end)
         self.last_ends = tuple(last_ends)
         self.graph: list[_Op] = []
-        for pr in task.precedence:
+        for i, pr in enumerate(task.precedence):
             a = event_timepoint(plan, Event(pr.before.action, pr.before.phase, "end"))
             b = event_timepoint(plan, Event(pr.after.action, pr.after.phase, "start"))
-            self.graph.append(_req(a, b, 0, None, "order", f"task graph: {pr.after} after {pr.before}"))
+            key = ("graph", i, a, b)
+            op = ops.get(key)
+            if op is None:
+                op = ops[key] = _req(a, b, 0, None, "order", f"task graph: {pr.after} after {pr.before}")
+            self.graph.append(op)
         self.limits: list[_Op] = []
-        for c in task.constraints:
+        for i, c in enumerate(task.constraints):
             a, b = event_timepoint(plan, c.source), event_timepoint(plan, c.target)
-            c_ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
-            self.limits.append(_req(a, b, seconds_to_ticks(c.bounds.lb), c_ub, "limit",
-                                    f"constraint {c.target} - {c.source} in [{c.bounds.lb:g}, {c.bounds.ub:g}] s"))
+            key = ("limit", i, a, b)
+            op = ops.get(key)
+            if op is None:
+                c_ub = None if math.isinf(c.bounds.ub) else seconds_to_ticks(c.bounds.ub)
+                op = ops[key] = _req(a, b, seconds_to_ticks(c.bounds.lb), c_ub, "limit",
+                                     f"constraint {c.target} - {c.source} in [{c.bounds.lb:g}, {c.bounds.ub:g}] s")
+            self.limits.append(op)
         if task.deadline is not None:
             for end in last_ends:
-                self.limits.append(_req(ORIGIN, end, 0, seconds_to_ticks(task.deadline), "limit",
-                                        f"makespan deadline {task.deadline:g} s"))
-        self._travels: dict[tuple, tuple[list[str], list[_Op]]] = {}
+                key = ("deadline", end)
+                op = ops.get(key)
+                if op is None:
+                    op = ops[key] = _req(ORIGIN, end, 0, seconds_to_ticks(task.deadline), "limit",
+                                         f"makespan deadline {task.deadline:g} s")
+                self.limits.append(op)
 
     def travel(self, i: int, motion: Motion) -> tuple[list[str], list[_Op]]:
         """Leg `i`'s timepoints and its links up to the arrival (the wait before it and the travel) along
         `motion`."""
-        key = (i, motion.time, motion.via, motion.park, motion.park_time)
-        found = self._travels.get(key)
+        agent, leg, leg_key, _ = self.legs[i]
+        ops = _task_ops(self.task)
+        key = (*leg_key, motion.time, motion.via, motion.park, motion.park_time)
+        found = ops.get(key)
         if found is None:
-            found = self._travels[key] = self._travel(i, motion)
+            found = ops[key] = _travel_ops(agent, leg, leg_key[6], self.human_waits, motion)
         return found
 
-    def _travel(self, i: int, motion: Motion) -> tuple[list[str], list[_Op]]:
-        agent, leg, here, prev_end, _ = self.legs[i]
-        dep, arr, st, en = here["depart"], here["arrive"], here["start"], here["end"]
-        step = f"{leg.action}.{leg.phase}"
-        ops: list[_Op] = []
-        if agent.is_human and not self.human_waits:
-            ops.append(_req(prev_end, dep, 0, 0, "order",
-                            f"{agent.id} leaves for {step} as soon as the previous step ends"))
-        else:
-            ops.append(_req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step"))
-        route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
-        if motion.park:
-            park, unpark = here["park"], here["unpark"]
-            ops.append(_travel(agent, dep, park, motion.park_time, f"{agent.id}'s travel {leg.origin} -> {motion.park} "
-                                                                  f"to wait there for {step}"))
-            ops.append(_req(park, unpark, 0, None, "order", f"{agent.id} waits at {motion.park} before {step}"))
-            ops.append(_travel(agent, unpark, arr, motion.time - motion.park_time,
-                               f"{agent.id}'s travel {motion.park} -> {leg.location}"))
-            return [dep, park, unpark, arr, st, en], ops
-        if motion.time <= 0:
-            ops.append(_req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}"))
-        else:
-            ops.append(_travel(agent, dep, arr, motion.time, route + (f" round {motion.via}" if motion.via else "")))
-        return [dep, arr, st, en], ops
+
+_TASK_OPS: dict[int, tuple[Task, dict[tuple, Any]]] = {}  # per task, by identity: the last few
+_TASK_OPS_CAP = 100_000  # links kept per task (a few tens of MB at most)
+
+
+def _task_ops(task: Task) -> dict[tuple, Any]:
+    """The links `_Skeleton` has built for `task`, by what they depend on."""
+    hit = _TASK_OPS.get(id(task))
+    if hit is None or hit[0] is not task:
+        if len(_TASK_OPS) >= 4:
+            del _TASK_OPS[next(iter(_TASK_OPS))]
+        hit = _TASK_OPS[id(task)] = (task, {})
+    if len(hit[1]) > _TASK_OPS_CAP:
+        hit[1].clear()
+    return hit[1]
+
+
+@functools.lru_cache(maxsize=4096)
+def _names(agent: str, phase: str, action: str) -> dict[str, str]:
+    """The names of a leg's timepoints (`leg_timepoint`), by what they are (callers must not change it)."""
+    return {w: f"{agent}.{phase}.{action}.{w}" for w in _LEG_TIMEPOINTS}
+
+
+def _after(task: Task, agent: Agent, leg: Leg, waits_for_robot: bool, human_waits: bool) -> list[_Op]:
+    """A leg's links after the arrival: the wait before its step, and the step's duration."""
+    here = _names(agent.id, leg.phase, leg.action)
+    arr, st, en = here["arrive"], here["start"], here["end"]
+    step = f"{leg.action}.{leg.phase}"
+    after: list[_Op] = []
+    if agent.is_human and not human_waits and not waits_for_robot:
+        after.append(_req(arr, st, 0, 0, "order", f"{agent.id} starts {step} on arrival"))
+    else:
+        after.append(_req(arr, st, 0, None, "order", f"{agent.id} waits at {leg.location} before {step}"))
+    bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
+    what = f"{agent.id}'s {leg.phase} of {leg.action} ({bounds.lb:g}-{bounds.ub:g} s)"
+    if agent.is_human:
+        after.append(_cont(st, en, bounds.lb, bounds.ub, what))
+    else:
+        after.append(_req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), "robot", what))
+    return after
+
+
+def _travel_ops(agent: Agent, leg: Leg, prev_end: str, human_waits: bool,
+                motion: Motion) -> tuple[list[str], list[_Op]]:
+    """A leg's timepoints and its links up to the arrival: the wait after the step before, the travel."""
+    here = _names(agent.id, leg.phase, leg.action)
+    dep, arr, st, en = here["depart"], here["arrive"], here["start"], here["end"]
+    step = f"{leg.action}.{leg.phase}"
+    ops: list[_Op] = []
+    if agent.is_human and not human_waits:
+        ops.append(_req(prev_end, dep, 0, 0, "order",
+                        f"{agent.id} leaves for {step} as soon as the previous step ends"))
+    else:
+        ops.append(_req(prev_end, dep, 0, None, "order", f"{agent.id} leaves for {step} after its previous step"))
+    route = f"{agent.id}'s travel {leg.origin} -> {leg.location}"
+    if motion.park:
+        park, unpark = here["park"], here["unpark"]
+        ops.append(_travel(agent, dep, park, motion.park_time, f"{agent.id}'s travel {leg.origin} -> {motion.park} "
+                                                              f"to wait there for {step}"))
+        ops.append(_req(park, unpark, 0, None, "order", f"{agent.id} waits at {motion.park} before {step}"))
+        ops.append(_travel(agent, unpark, arr, motion.time - motion.park_time,
+                           f"{agent.id}'s travel {motion.park} -> {leg.location}"))
+        return [dep, park, unpark, arr, st, en], ops
+    if motion.time <= 0:
+        ops.append(_req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}"))
+    else:
+        ops.append(_travel(agent, dep, arr, motion.time, route + (f" round {motion.via}" if motion.via else "")))
+    return [dep, arr, st, en], ops
 
 
 @per_plan(64)
@@ -298,7 +350,7 @@ def create_stnu(task: Task, plan: Plan, motions: Sequence[Motion],
                 reqs.append(link)  # type: ignore[arg-type]
                 meaning.setdefault(pair, said)
 
-    for i, (agent, leg, _, _, after) in enumerate(sk.legs):
+    for i, (agent, leg, _, after) in enumerate(sk.legs):
         names, ops = sk.travel(i, motion_of[(agent.id, leg.index)])
         timepoints += names
         add(ops)
