@@ -70,14 +70,30 @@ Routes = dict[tuple[str, int], Route]
 
 
 def plan_motions(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | None = None) -> tuple[Motion, ...]:
-    """One `Motion` per leg of every agent (`agent_legs` order, agents in task order)."""
+    """One `Motion` per leg of every agent (`agent_legs` order, agents in task order). A leg on its
+    shortest route moves as every leg of that agent, index and places does, in any plan: those motions
+    are kept per process (in ``paths.samples``; a compile asks for them hundreds of thousands of times)."""
     routes = routes or {}
     out = []
+    shortest = paths.samples.setdefault(("motions",), {})
     for agent in task.agents:
         for leg in agent_legs(task, plan, agent.id):
-            free = paths.get(agent.id, leg.origin, leg.location)
-            route = routes.get((agent.id, leg.index), Route(free))
-            out.append(Motion(agent.id, leg.index, leg.origin, leg.location, free.duration, route.time,
-                              route.path.via, route.points, route.park,
-                              route.path.duration if route.park else 0.0))
+            route = routes.get((agent.id, leg.index))
+            if route is None:
+                key = (agent.id, leg.index, leg.origin, leg.location)
+                motion = shortest.get(key)
+                if motion is None:
+                    motion = shortest[key] = _motion(agent.id, leg.index, leg.origin, leg.location, paths, None)
+                else:
+                    paths.gets += 1  # as `_motion` counts it
+                out.append(motion)
+            else:
+                out.append(_motion(agent.id, leg.index, leg.origin, leg.location, paths, route))
     return tuple(out)
+
+
+def _motion(agent: str, index: int, origin: str, target: str, paths: PathLibrary, route: Route | None) -> Motion:
+    free = paths.get(agent, origin, target)
+    route = route or Route(free)
+    return Motion(agent, index, origin, target, free.duration, route.time, route.path.via, route.points, route.park,
+                  route.path.duration if route.park else 0.0)
