@@ -67,9 +67,9 @@ from hrc.compile.temporal_net_creator import ref_namer
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import load_task, task_to_dict
-from hrc.model import Task
-from hrc.motion import Conflict, Occupancy, TimeRef
-from hrc.plans import agent_legs
+from hrc.model import Plan, Task
+from hrc.motion import Conflict, Motion, Occupancy, TimeRef
+from hrc.plans import Leg, agent_legs
 from hrc.temporal.graphml import tool_name
 
 __all__ = ["JSON_TAIL", "SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json", "compiled_to_dict",
@@ -171,10 +171,32 @@ def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str
     texts, refs = _pattern_parts(cp.pattern)
     entries = [f"{before}{a},\"to\":{b}{after}"
                for (before, after), (a, b) in zip(texts, _constraint_names(task, cp, refs), strict=True)]
-    text = _json(_plan_fields(task, cp, stnu, _PASSING, len(entries)))
-    if text.count(_PASSING_JSON) != 1:  # pragma: no cover - the stand-in holds a NUL, which no id or name may
-        return _json(plan_dict(task, cp, stnu))
-    return text.replace(_PASSING_JSON, "[" + ",".join(entries) + "]")
+    text = _json(_plan_fields(task, cp, stnu, _PASSING, len(entries), _MOTIONS))
+    if text.count(_PASSING_JSON) != 1 or text.count(_MOTIONS_JSON) != 1:  # pragma: no cover - the stand-ins
+        return _json(plan_dict(task, cp, stnu))                           # hold a NUL, which no id or name may
+    legs = _legs(task, cp.plan)
+    motions = "[" + ",".join(_motion_text(m, legs[(m.agent, m.leg)]) for m in cp.motions) + "]"
+    return text.replace(_MOTIONS_JSON, motions).replace(_PASSING_JSON, "[" + ",".join(entries) + "]")
+
+
+_MOTIONS = "\x00hrc: the motions\x00"
+_MOTIONS_JSON = _json(_MOTIONS)
+_MOTION_TEXTS: dict[tuple[int, str, str], tuple[Motion, str]] = {}
+
+
+def _motion_text(m: Motion, leg: Leg) -> str:
+    """A motion's ``compiled.json`` entry as JSON text, kept per motion, by identity (the entry holds the
+    motion): a leg's motion along its shortest route is one object for every plan that has that leg
+    (`hrc.motion.plan_motions`), with the step the plan does there."""
+    key = (id(m), leg.action, leg.phase)
+    hit = _MOTION_TEXTS.get(key)
+    if hit is not None and hit[0] is m:
+        return hit[1]
+    text = _json(_motion_dict(m, leg))
+    if len(_MOTION_TEXTS) >= _ORDER_TEXTS_CAP:
+        _MOTION_TEXTS.clear()
+    _MOTION_TEXTS[key] = (m, text)
+    return text
 
 
 def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dict[str, Any]:
@@ -189,19 +211,28 @@ def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dic
     return _plan_fields(task, cp, stnu, passing, len(passing))
 
 
-def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n_passing: int) -> dict[str, Any]:
+def _legs(task: Task, plan: Plan) -> dict[tuple[str, int], Leg]:
+    return {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
+
+
+def _motion_dict(m: Motion, leg: Leg) -> dict[str, Any]:
+    return {
+        "agent": m.agent, "leg": m.leg, "from": m.origin, "to": m.target,
+        "action": leg.action, "phase": leg.phase,
+        "free_time": _s(m.free_time), "time": _s(m.time),
+        "detour": {"round": m.via, "points": [_xy(p) for p in m.points]} if m.via else None,
+        "park": {"at": m.park, "time": _s(m.park_time)} if m.park else None,
+    }
+
+
+def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n_passing: int,
+                 motions: Any = None) -> dict[str, Any]:
+    """A plan's entry (`passing` and `motions`: the values of those keys, or stand-ins spliced over
+    later, `plan_line`; `motions` None: the motions' entries)."""
     plan, c = cp.plan, cp.classification
-    legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
-    motions = []
-    for m in cp.motions:
-        leg = legs[(m.agent, m.leg)]
-        motions.append({
-            "agent": m.agent, "leg": m.leg, "from": m.origin, "to": m.target,
-            "action": leg.action, "phase": leg.phase,
-            "free_time": _s(m.free_time), "time": _s(m.time),
-            "detour": {"round": m.via, "points": [_xy(p) for p in m.points]} if m.via else None,
-            "park": {"at": m.park, "time": _s(m.park_time)} if m.park else None,
-        })
+    if motions is None:
+        legs = _legs(task, plan)
+        motions = [_motion_dict(m, legs[(m.agent, m.leg)]) for m in cp.motions]
     pattern = cp.pattern
     return {
         "id": plan.id,
