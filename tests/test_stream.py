@@ -49,6 +49,28 @@ def test_stream_writes_the_bytes_of_the_in_memory_compile(mini_task, tmp_path):
     assert sample.plans >= 1 and sample.seconds_per_plan > 0 and sample.first_seconds_per_plan > 0
 
 
+def test_stream_writes_the_same_bytes_where_the_kernel_cannot_copy(mini_task, tmp_path, monkeypatch):
+    """``compiled.json``'s lines are copied from the spool by ``copy_file_range``; where the kernel
+    refuses (another file system on an older kernel), they are read and written instead: the same bytes."""
+    import errno
+    import os
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    write_compiled(compile_task(mini_task, jobs=1), a)
+    calls = []
+
+    def refuse(*args, **kwargs):
+        calls.append(args)
+        raise OSError(errno.EXDEV, "Invalid cross-device link")
+
+    monkeypatch.setattr(os, "copy_file_range", refuse, raising=False)
+    compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0)
+    assert _tree(a) == _tree(b)
+    assert len(calls) == 1  # tried once, then read and written
+
+
 @pytest.mark.slow
 def test_stream_writes_the_workshop_bytes_of_the_in_memory_compile(tmp_path):
     task = load_task(WORKSHOP_TASK)

@@ -201,12 +201,11 @@ class PlanSink:
         cols = [np.frombuffer(self._cols[name], dtype=np.float64) for name in _KEY_COLUMNS]
         return np.lexsort([ids, *reversed(cols)])
 
-    def _plan_line(self, i: int, rank: int, ends: np.ndarray) -> bytes:
-        """Plan `i`'s ``compiled.json`` line with its rank, read from the spool in one call (`ends`: where
-        each line ends; not a memory map, whose pages would count as the process's memory)."""
+    def _line_head(self, i: int, rank: int) -> bytes:
+        """Plan `i`'s ``compiled.json`` line up to its rank (the rest is its tail in the spool; not read
+        through a memory map, whose pages would count as the process's memory)."""
         pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
-        start = self._line_at[i]
-        return _line_head(pid, rank).encode("utf-8") + os.pread(self._lines.fileno(), int(ends[i]) - start, start)
+        return _line_head(pid, rank).encode("utf-8")
 
     def finish(self, seed: int, paths: PathLibrary, options: CompileOptions,
                partial: int | None = None) -> CompiledPlanSet:
@@ -231,10 +230,21 @@ class PlanSink:
             ends = np.append(np.frombuffer(self._line_at, dtype=np.int64)[1:], size) - 1  # before each "\n"
             with open(self.out_dir / "compiled.json", "wb") as out:
                 out.write(json_head(header).encode("utf-8"))
+                copy = _kernel_copy if hasattr(os, "copy_file_range") else None
                 for k, i in enumerate(order):
-                    if k:
-                        out.write(b",\n")
-                    out.write(self._plan_line(int(i), k + 1, ends))
+                    head = (b",\n" if k else b"") + self._line_head(int(i), k + 1)
+                    start = self._line_at[int(i)]
+                    size = int(ends[i]) - start
+                    if copy is not None:  # the line's tail copied from spool to file in the kernel
+                        out.write(head)
+                        out.flush()
+                        if copy(self._lines.fileno(), out.fileno(), size, start):
+                            continue
+                        copy = None  # not on this file system: read and write from here on
+                        out.seek(0, os.SEEK_END)
+                    else:
+                        out.write(head)
+                    out.write(os.pread(self._lines.fileno(), size, start))
                 out.write(JSON_TAIL.encode("utf-8"))
             if archive is not None:
                 archive.result()
@@ -298,6 +308,25 @@ class PlanSink:
             slowest = (float(early[j]), self._ids[16 * j:16 * j + 16].rstrip(b" ").decode("ascii"))
         return PlanSetSummary(total=n, counts=tuple(counts.items()), stats=tuple(stats),
                               bins=tuple(round(float(x), 3) for x in edges), slowest=slowest)
+
+
+def _kernel_copy(src: int, dst: int, size: int, offset: int) -> bool:
+    """Append `size` bytes of file `src` from `offset` to file `dst` (at its end) without reading them
+    into this process (``copy_file_range``: a third of the CPU time of reading and writing them for
+    kitting_7picks' 687 MB); False, with nothing written, where the kernel cannot (another file system
+    on an older kernel, or a file system without it)."""
+    done = 0
+    while done < size:
+        try:
+            n = os.copy_file_range(src, dst, size - done, offset + done)
+        except OSError:
+            if done:  # pragma: no cover - failing midway: no known case
+                raise
+            return False
+        if n == 0:  # pragma: no cover - the spool ends early: cannot happen while we hold it
+            raise HrcError("internal: the plans' spool ended before its last line")
+        done += n
+    return True
 
 
 @dataclass(frozen=True, slots=True)
