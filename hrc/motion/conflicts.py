@@ -291,9 +291,12 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
     # (by a number per signature: a plan has a few dozen occupancies but hundreds of pairs)
     cache = paths.samples.setdefault(("pairs", reach, robot.speed, human.speed), {})
     ids = paths.samples.setdefault(("pair-ids", reach, robot.speed, human.speed), {})
-    if len(cache) > _PAIR_CACHE or len(ids) > _PAIR_CACHE:
+    # an agent's occupancies on its shortest routes depend on its legs' places only, and recur too
+    agents = paths.samples.setdefault(("occupancies", reach, robot.speed, human.speed), {})
+    if len(cache) > _PAIR_CACHE or len(ids) > _PAIR_CACHE or len(agents) > _PAIR_CACHE:
         cache.clear()
-        ids.clear()
+        ids.clear()  # the numbers the others hold
+        agents.clear()
 
     def number(occ: Occupancy) -> int:
         sig = signature(occ)
@@ -302,10 +305,19 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
             found = ids[sig] = len(ids)
         return found
 
+    def numbered(agent: Agent) -> list[tuple[Occupancy, int]]:
+        if any(k[0] == agent.id for k in routes):
+            return [(o, number(o)) for o in occupancies(task, plan, agent, routes)]
+        key = (agent.id, *((leg.origin, leg.location) for leg in agent_legs(task, plan, agent.id)))
+        found = agents.get(key)
+        if found is None:
+            found = agents[key] = [(o, number(o)) for o in occupancies(task, plan, agent, routes)]
+        return found
+
     out: list[Conflict] = []
-    h_occ = [(h, number(h)) for h in occupancies(task, plan, human, routes)]
-    for r in occupancies(task, plan, robot, routes):
-        rk = number(r) << 32
+    h_occ = numbered(human)
+    for r, rn in numbered(robot):
+        rk = rn << 32
         for h, hk in h_occ:
             found = cache.get(rk | hk)
             if found is None:
