@@ -193,11 +193,16 @@ def _text(order: PassingOrder) -> str:
 
 def _network(base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[PassingOrder]) -> PlanNetwork:
     """`base` with the passing orders that are not implied as requirement links (before the limits)."""
-    s = base.stnu
-    cut = len(s.requirements) - base.n_limits
     added = tuple(RequirementLink(namer(o.separation.earlier), namer(o.separation.later),
                                   math.ceil(o.separation.gap * TICKS_PER_SECOND - 1e-9), None)
                   for o in orders if o.how != "implied")
+    return _with_links(base, added)
+
+
+def _with_links(base: PlanNetwork, added: tuple[RequirementLink, ...]) -> PlanNetwork:
+    """`base` with the requirement links `added` before its limits."""
+    s = base.stnu
+    cut = len(s.requirements) - base.n_limits
     return PlanNetwork(stnu=STNU(s.timepoints, s.requirements[:cut] + added + s.requirements[cut:], s.contingents,
                                  s.name), meaning=base.meaning, last_ends=base.last_ends, n_limits=base.n_limits)
 
@@ -470,8 +475,15 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
         ``classify(..., explained=False, full=False)`` gives; `choose_pattern` classifies the one it keeps
         in full)."""
         def build() -> PlanChoice:
-            orders = orders_of(how)
-            return PlanChoice(MotionPattern(motions, tuple(orders), 0, True), _network(base, namer, orders), cls)
+            # the links `_network` gives these orders, from the search's arrays (the same names and ticks)
+            names = base.stnu.timepoints
+            added = []
+            for j in range(k):
+                if not settled[j]:
+                    o = how[j][0]
+                    added.append(RequirementLink(names[earlier[j, o]], names[later[j, o]], int(gap[j, o]), None))
+            return PlanChoice(MotionPattern(motions, tuple(orders_of(how)), 0, True), _with_links(base, tuple(added)),
+                              cls)
         return build
 
     def native_choice(dec: np.ndarray, codes: np.ndarray, cls: Classification) -> Leaf:
