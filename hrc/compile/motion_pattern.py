@@ -45,7 +45,7 @@ import ctypes
 import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -615,12 +615,15 @@ def _bound(task: Task, routing: _Routing, rank_by: str, beat: tuple | None = Non
     beat that key (the class part of the returned key is then the best possible, 0)."""
     net = routing.base
     full = rank_by == "nominal"
-    if beat is not None:
-        best_class = PlanClass.DC if _consistent(net.stnu) else PlanClass.INCONSISTENT
-        cheap = pattern_key(measure(task, net, best_class, full=full), rank_by)
-        if cheap >= beat:
-            return cheap
-    return pattern_key(classify(task, net, explained=False, full=full), rank_by)
+    if beat is None:
+        return pattern_key(classify(task, net, explained=False, full=full), rank_by)
+    best_class = PlanClass.DC if _consistent(net.stnu) else PlanClass.INCONSISTENT
+    measured = measure(task, net, best_class, full=full)
+    cheap = pattern_key(measured, rank_by)
+    if cheap >= beat:
+        return cheap
+    # what `classify(task, net, explained=False, full=full)` gives: the DC check's class, the same numbers
+    return pattern_key(replace(measured, plan_class=_VERDICT_CLASS[check_dc(net.stnu).verdict]), rank_by)
 
 
 def _beyond(routing: _Routing, rank_by: str, best: tuple) -> bool:
