@@ -33,6 +33,8 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Literal
 
+import numpy as np
+
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwork
 from hrc.model import Task
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_dc
@@ -184,20 +186,31 @@ def packed_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple
         up, down = ys, (neg_ys if fix == "ub" else neg_xs)
     src, dst, wt = src + act + ctg, dst + ctg + act, wt + up + down
     if after_origin:
-        n, z = len(stnu.timepoints), stnu.timepoints.index(ORIGIN)
-        others = array("i", [i for i in range(n) if i != z])
-        src, dst, wt = src + others, dst + array("i", [z]) * len(others), wt + array("q", bytes(8 * len(others)))
+        others, origin, zeros = _to_origin(len(stnu.timepoints), stnu.timepoints.index(ORIGIN))
+        src, dst, wt = src + others, dst + origin, wt + zeros
     return src, dst, wt
+
+
+@functools.lru_cache(maxsize=64)
+def _to_origin(n: int, z: int) -> tuple[array, array, array]:
+    """The edges ``x -> z`` of weight 0 for every other x (never changed: only ever concatenated)."""
+    others = array("i", [i for i in range(n) if i != z])
+    return others, array("i", [z]) * len(others), array("q", bytes(8 * len(others)))
 
 
 def _pack(stnu: STNU) -> _Packed | None:
     src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
-    if any(a == b for a, b in zip(src, dst, strict=True)):
+    if len(stnu.timepoints) >= 1 << 20:
         return None
-    if len(stnu.timepoints) >= 1 << 20 or max(map(abs, wt), default=0) >= _BIG or max(ys, default=0) >= _BIG:
+    try:
+        packed = (array("i", src), array("i", dst), array("q", wt), array("i", act), array("i", ctg),
+                  array("q", [-x for x in xs]), array("q", ys), array("q", [-y for y in ys]))
+    except OverflowError:  # beyond 64 bits
         return None
-    return (array("i", src), array("i", dst), array("q", wt), array("i", act), array("i", ctg),
-            array("q", [-x for x in xs]), array("q", ys), array("q", [-y for y in ys]))
+    s, d, w = (np.frombuffer(a, dtype=t) for a, t in zip(packed[:3], (np.int32, np.int32, np.int64), strict=True))
+    if np.any(s == d) or (len(w) and (int(w.max()) >= _BIG or int(w.min()) <= -_BIG)) or max(ys, default=0) >= _BIG:
+        return None
+    return packed
 
 
 def _earliest_python(stnu: STNU, fix: Fix = "") -> dict[str, int] | None:
