@@ -352,6 +352,7 @@ class _NativeSearch:
         }
         self.has_bound = bound is not None
         self.leaves: list[tuple[np.ndarray, np.ndarray, Classification]] = []
+        self._pointers: dict[str, int] | None = None
 
     @classmethod
     def make(cls, k: int, z: int, earlier: np.ndarray, later: np.ndarray, gap: np.ndarray, settled: list[bool],
@@ -386,10 +387,13 @@ class _NativeSearch:
         def ptr(x: np.ndarray) -> int:
             return int(x.ctypes.data)
 
-        rc = self.fn(n, k, self.z, ptr(mats), ptr(alive), ptr(a["earlier"]), ptr(a["later"]), ptr(a["gap"]),
-                     ptr(a["settled"]), len(a["ends"]), ptr(a["ends"]), len(a["src"]), ptr(a["src"]), ptr(a["dst"]),
-                     ptr(a["wt"]), len(a["act"]), ptr(a["act"]), ptr(a["ctg"]), ptr(a["xs"]), ptr(a["ys"]),
-                     NODE_CAP, LEAF_CAP, int(self.has_bound), ptr(a["bound"]), int(self.rank_by == "worst"),
+        p = self._pointers
+        if p is None:  # the search's own arrays, the same for every pass
+            p = self._pointers = {name: ptr(x) for name, x in a.items()}
+        rc = self.fn(n, k, self.z, ptr(mats), ptr(alive), p["earlier"], p["later"], p["gap"],
+                     p["settled"], len(a["ends"]), p["ends"], len(a["src"]), p["src"], p["dst"],
+                     p["wt"], len(a["act"]), p["act"], p["ctg"], p["xs"], p["ys"],
+                     NODE_CAP, LEAF_CAP, int(self.has_bound), p["bound"], int(self.rank_by == "worst"),
                      int(prune), ptr(best), ptr(st), ptr(dec), ptr(how), ptr(keys))
         if rc != 0:
             return False
