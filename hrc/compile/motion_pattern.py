@@ -67,6 +67,7 @@ from hrc.compile.temporal_net_creator import (
     TICKS_PER_SECOND,
     PlanNetwork,
     create_stnu,
+    leg_names,
     ref_namer,
 )
 from hrc.model import Plan, Task
@@ -283,14 +284,45 @@ class _Routing:
         """Per conflict and order (0: robot first, 1: human first) the constraint ``T(later) - T(earlier)
         >= gap`` as ``(earlier, later, gap)`` (k x 2 each: timepoints by position in `base`, the gap in
         ticks, rounded up), and whether it holds in every execution (`robust`, k x 2)."""
-        index, namer = self.index, ref_namer(self.task, self.plan)
+        index = self.index
+        at = {(ORIGIN, 0, ""): index[ORIGIN]}  # a reference's key (`_constraints`) -> its position in `base`
+        for agent, legs in leg_names(self.task, self.plan).items():
+            for leg, names in enumerate(legs):
+                at.update(((agent, leg, what), index[name]) for what, name in names.items() if name in index)
         k = len(self.conflicts)
-        seps = [sep for c in self.conflicts for sep in (c.robot_first, c.human_first)]
-        earlier = np.array([index[namer(sep.earlier)] for sep in seps], dtype=int).reshape(k, 2)
-        later = np.array([index[namer(sep.later)] for sep in seps], dtype=int).reshape(k, 2)
-        gap = np.array([math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9) for sep in seps], dtype=float).reshape(k, 2)
+        rows = [_constraints(c) for c in self.conflicts]
+        earlier = np.array([at[key] for row in rows for key in row[0]], dtype=int).reshape(k, 2)
+        later = np.array([at[key] for row in rows for key in row[1]], dtype=int).reshape(k, 2)
+        gap = np.array([g for row in rows for g in row[2]], dtype=float).reshape(k, 2)
         implied = np.asarray(self.robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)
         return earlier, later, gap, implied
+
+
+_Keys = tuple[tuple[tuple[str, int, str], tuple[str, int, str]], tuple[tuple[str, int, str], tuple[str, int, str]],
+              tuple[int, int]]
+_CONSTRAINTS: dict[int, tuple[Conflict, _Keys]] = {}
+_CONSTRAINTS_CAP = 50_000  # conflicts kept per process
+
+
+def _constraints(c: Conflict) -> _Keys:
+    """A conflict's two orders as ``T(later) - T(earlier) >= gap`` (robot first, then human first): the
+    earlier and later timepoints as plain keys ``(agent, leg, what)`` (the origin's: ``(ORIGIN, 0, "")``)
+    and the gaps in ticks, rounded up. Kept per conflict, by identity (the entry holds the conflict):
+    conflicts recur across a task's plans (`hrc.motion.find_conflicts`), and a search reads every one."""
+    hit = _CONSTRAINTS.get(id(c))
+    if hit is not None and hit[0] is c:
+        return hit[1]
+
+    def key(ref: TimeRef) -> tuple[str, int, str]:
+        return (ORIGIN, 0, "") if ref.agent == "" else (ref.agent, ref.leg, ref.what)
+
+    seps = (c.robot_first, c.human_first)
+    keys: _Keys = (tuple(key(sep.earlier) for sep in seps), tuple(key(sep.later) for sep in seps),  # type: ignore[assignment]
+                   tuple(math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9) for sep in seps))
+    if len(_CONSTRAINTS) >= _CONSTRAINTS_CAP:
+        _CONSTRAINTS.clear()
+    _CONSTRAINTS[id(c)] = (c, keys)
+    return keys
 
 
 _CLASS_OF = {"DC": PlanClass.DC, "not DC": PlanClass.CONSISTENT, "inconsistent": PlanClass.INCONSISTENT}

@@ -56,8 +56,8 @@ from hrc.plans import Leg, agent_legs, per_plan
 from hrc.temporal import STNU, ContingentLink, RequirementLink
 from hrc.temporal.ticks import to_ticks
 
-__all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint", "leg_timepoint",
-           "ref_namer", "ref_timepoint", "relabel_timepoints", "seconds_to_ticks", "with_separations"]
+__all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint", "leg_names",
+           "leg_timepoint", "ref_namer", "ref_timepoint", "relabel_timepoints", "seconds_to_ticks", "with_separations"]
 
 TICKS_PER_SECOND = 1000
 """The temporal core's exact unit: milliseconds."""
@@ -99,7 +99,7 @@ _LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
 
 
 @per_plan(256)
-def _leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
+def leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
     """Per agent and leg, the name of each timepoint the leg may have (`leg_timepoint`), remembered per
     plan (`hrc.plans.per_plan`): a plan's compile names thousands of references (conflicts, passing
     orders, output)."""
@@ -108,7 +108,7 @@ def _leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
 
 def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
     """`ref_timepoint` for many references of one plan (the names are built once per plan)."""
-    table = _leg_names(task, plan)
+    table = leg_names(task, plan)
 
     def name(ref: TimeRef) -> str:
         return ORIGIN if ref.agent == "" else table[ref.agent][ref.leg][ref.what]
@@ -128,7 +128,7 @@ def relabel_timepoints(task: Task, plan: Plan, other: Plan) -> dict[str, str]:
         for a, b in zip(mine, theirs, strict=True):
             if (a.origin, a.location, a.phase) != (b.origin, b.location, b.phase):
                 raise ValueError(f"plans {plan.id} and {other.id} differ in {agent.id}'s leg {a.index}")
-        for a_names, b_names in zip(_leg_names(task, plan)[agent.id], _leg_names(task, other)[agent.id], strict=True):
+        for a_names, b_names in zip(leg_names(task, plan)[agent.id], leg_names(task, other)[agent.id], strict=True):
             names.update((a_names[w], b_names[w]) for w in _LEG_TIMEPOINTS)
     return names
 
