@@ -318,3 +318,28 @@ def test_native_shortest_distances_are_scipy_and_the_lp(stnu: STNU, fix: str) ->
     if native is not None and reference is not None:
         assert np.array_equal(native, reference)
     assert mp._consistent(stnu) == lp_consistent(stnu)
+
+
+@pytest.mark.skipif(rul.native_library() is None, reason="the native core is not built (no C compiler at install time)")
+@FAST
+@given(stnus(max_nodes=7, max_contingent=3, max_requirements=10))
+def test_lower_bound_reading_is_the_network_with_lower_bounds_as_links(stnu: STNU) -> None:
+    """`classify.packed_lower_bounds` (the search's "robust" reading, `motion_pattern._Routing.robust`)
+    against scipy on the network its docstring describes, built as links: every contingent duration as a
+    requirement link with its lower bound and no upper bound."""
+    from hrc.compile import classify
+    from hrc.compile import motion_pattern as mp
+    from hrc.temporal.native_stn import native_apsp
+
+    packed = classify.packed_lower_bounds(stnu)
+    lows = tuple(RequirementLink(c.source, c.target, c.lb, None) for c in stnu.contingents)
+    built = STNU(stnu.timepoints, stnu.requirements + lows, (), stnu.name)
+    reference = mp._apsp_scipy(len(built.timepoints), *mp._distance_graph(built, "", False))
+    if packed is None:  # a link from a timepoint to itself: the caller takes the lists
+        assert any(r.source == r.target for r in stnu.requirements)
+        return
+    found = native_apsp(len(stnu.timepoints), *packed)
+    assert found is not None
+    assert found[0] == (reference is not None)
+    if reference is not None:
+        assert np.array_equal(found[1], reference)

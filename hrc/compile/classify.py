@@ -42,7 +42,7 @@ from hrc.temporal.native_stn import native_distances
 from hrc.temporal.rul import edge_arrays
 
 __all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start", "explain",
-           "measure", "packed_graph"]
+           "measure", "packed_graph", "packed_lower_bounds"]
 
 
 class PlanClass(enum.Enum):
@@ -169,12 +169,7 @@ def packed_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple
 
     A network is read several times over (consistency, schedules, distance matrices): its links are
     packed once (the last few networks are kept, by identity) and each reading is a few array copies."""
-    hit = _PACKED.get(id(stnu))
-    if hit is None or hit[0] is not stnu:
-        if len(_PACKED) >= 8:
-            del _PACKED[next(iter(_PACKED))]
-        hit = _PACKED[id(stnu)] = (stnu, _pack(stnu))
-    packed = hit[1]
+    packed = _packed(stnu)
     if packed is None:
         return None
     src, dst, wt, act, ctg, neg_xs, ys, neg_ys = packed
@@ -191,11 +186,32 @@ def packed_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple
     return src, dst, wt
 
 
+def packed_lower_bounds(stnu: STNU) -> tuple[array, array, array] | None:
+    """`packed_graph`'s edges with each contingent duration bounded below only (at least its lower
+    bound, however long: what holds even if the human breaks the plan's upper bounds); None as for
+    `packed_graph`."""
+    packed = _packed(stnu)
+    if packed is None:
+        return None
+    src, dst, wt, act, ctg, neg_xs, _, _ = packed
+    return src + ctg, dst + act, wt + neg_xs
+
+
 @functools.lru_cache(maxsize=64)
 def _to_origin(n: int, z: int) -> tuple[array, array, array]:
     """The edges ``x -> z`` of weight 0 for every other x (never changed: only ever concatenated)."""
     others = array("i", [i for i in range(n) if i != z])
     return others, array("i", [z]) * len(others), array("q", bytes(8 * len(others)))
+
+
+def _packed(stnu: STNU) -> _Packed | None:
+    """`_pack` of `stnu`, kept for the last few networks (by identity)."""
+    hit = _PACKED.get(id(stnu))
+    if hit is None or hit[0] is not stnu:
+        if len(_PACKED) >= 8:
+            del _PACKED[next(iter(_PACKED))]
+        hit = _PACKED[id(stnu)] = (stnu, _pack(stnu))
+    return hit[1]
 
 
 def _pack(stnu: STNU) -> _Packed | None:

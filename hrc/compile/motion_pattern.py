@@ -61,6 +61,7 @@ from hrc.compile.classify import (
     earliest_start,
     measure,
     packed_graph,
+    packed_lower_bounds,
 )
 from hrc.compile.temporal_net_creator import (
     ORIGIN,
@@ -269,7 +270,13 @@ class _Routing:
 
     @functools.cached_property
     def robust(self) -> np.ndarray:
-        """`_apsp` of `_robust`: what holds in every execution."""
+        """`_apsp` of `_robust`: what holds in every execution (from the network without limits, read
+        with the human's durations bounded below only, when the native core takes it)."""
+        free = self.base.without_limits()
+        packed = packed_lower_bounds(free)
+        found = None if packed is None else native_apsp(len(free.timepoints), *packed)
+        if found is not None and found[0]:
+            return found[1]
         robust = _apsp(_robust(self.base))
         assert robust is not None  # lower bounds and the robot's own durations along an acyclic phase graph
         return robust
