@@ -327,3 +327,34 @@ def test_each_route_choice_of_a_plan_gets_its_own_travel_links():
                         assert rigid[(a, b)] == (round(t * 1000), round(t * 1000))
                 checked += 1
     assert checked >= 20 and parks  # not vacuous: detours and waiting places among the choices
+
+
+@pytest.mark.parametrize("ub", [5, 0])
+def test_a_renamed_network_is_classified_as_classify_does(task, ub):
+    """A family's non-DC members take the first plan's numbers, renamed, and say its explanation again in
+    their own words (`classify.renamed`); `classify` on the renamed network is the truth. Two hand-made
+    networks `measure` notes: a slow human breaks a link (``ub`` 5: no schedule with every duration at
+    its maximum), or nothing fits at all (``ub`` 0: no schedule, the co-workers block each other)."""
+    from hrc.compile.classify import classify, renamed
+    from hrc.compile.temporal_net_creator import PlanNetwork
+    from hrc.temporal import STNU, ContingentLink, RequirementLink
+
+    def network(step: str) -> PlanNetwork:
+        stnu = STNU((ORIGIN, f"human.fetch.{step}.start", f"human.fetch.{step}.end"),
+                    (RequirementLink(ORIGIN, f"human.fetch.{step}.start", 0, None),
+                     RequirementLink(ORIGIN, f"human.fetch.{step}.end", None, ub)),
+                    (ContingentLink(f"human.fetch.{step}.start", f"human.fetch.{step}.end", 1, 10),), "t")
+        return PlanNetwork(stnu, tuple(sorted({
+            (ORIGIN, f"human.fetch.{step}.start"): ("order", f"human leaves for {step}"),
+            (ORIGIN, f"human.fetch.{step}.end"): ("space", f"passing order: robot before {step}"),
+            (f"human.fetch.{step}.start", f"human.fetch.{step}.end"): ("human", f"human's fetch of {step} (1-10 s)"),
+        }.items())), (f"human.fetch.{step}.end",))
+
+    first, member = network("cube1"), network("cube2")
+    names = dict(zip(first.stnu.timepoints, member.stnu.timepoints, strict=True))
+    truth_first = classify(task, first)
+    result = check_dc(member.stnu)
+    truth = classify(task, member, known=result)
+    assert truth.plan_class is not PlanClass.DC and "cube2" in truth.explanation
+    assert ("at its maximum" in truth.explanation) == (ub == 5) and (truth.makespan is None) == (ub == 0)
+    assert renamed(truth_first, names, member, result) == truth

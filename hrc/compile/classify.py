@@ -30,6 +30,7 @@ import functools
 import operator
 from array import array
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
 
@@ -42,7 +43,7 @@ from hrc.temporal.native_stn import native_distances
 from hrc.temporal.rul import edge_arrays
 
 __all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start", "explain",
-           "measure", "packed_graph", "packed_lower_bounds"]
+           "measure", "packed_graph", "packed_lower_bounds", "renamed"]
 
 
 class PlanClass(enum.Enum):
@@ -383,9 +384,33 @@ def classify(task: Task, net: PlanNetwork, explained: bool = True, full: bool = 
 
     out = measure(task, net, plan_class, explanation, full, start)
     if out.makespan is None and explained and not explanation.startswith("the plan's ordering"):
-        explanation = "the co-workers would block each other: no timing keeps them apart; " + explanation
-        out = Classification(plan_class, explanation, None, (), ())
+        out = Classification(plan_class, _BLOCKED + explanation, None, (), ())
     return out
+
+
+_NO_FIT = " (no schedule fits every human duration at its maximum)"  # `measure` adds it to an explanation
+_BLOCKED = "the co-workers would block each other: no timing keeps them apart; "  # `classify` puts it first
+
+
+def renamed(c: Classification, names: Mapping[str, str], net: PlanNetwork, result: DCResult) -> Classification:
+    """What ``classify(task, net, known=result)`` gives for `net`, a network that the one `c` classifies
+    (in full, explained) renames by `names`, and `result` the DC check's result on `net`: the same class
+    and numbers (the checks and schedules work on timepoints in network order, which renaming keeps),
+    the schedules renamed, and the explanation said again in `net`'s words (its links' meanings name
+    actions). `measure`'s note on the worst case is read off `c`'s explanation, which ends with it
+    exactly when `measure` added it (no link's meaning ends so)."""
+    explanation = ""
+    if c.plan_class is not PlanClass.DC:
+        explanation = explain(net, result.cycle, inconsistent=c.plan_class is PlanClass.INCONSISTENT)
+    if c.makespan is None:
+        if not explanation.startswith("the plan's ordering"):
+            explanation = _BLOCKED + explanation
+        return Classification(c.plan_class, explanation, None, (), ())
+    if explanation and c.explanation.endswith(_NO_FIT):
+        explanation += _NO_FIT
+    return Classification(c.plan_class, explanation, c.makespan, c.idle,
+                          tuple((names[t], v) for t, v in c.schedule),
+                          tuple((names[t], v) for t, v in c.worst_schedule), c.nominal)
 
 
 def measure(task: Task, net: PlanNetwork, plan_class: PlanClass, explanation: str = "",
@@ -414,7 +439,7 @@ def measure(task: Task, net: PlanNetwork, plan_class: PlanClass, explanation: st
     if late is None:
         late = early
         if explanation:
-            explanation += " (no schedule fits every human duration at its maximum)"
+            explanation += _NO_FIT
     layout = _layout(names, net.last_ends, tuple(a.id for a in task.agents))
 
     def span(times: list[int]) -> int:

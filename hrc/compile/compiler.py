@@ -18,7 +18,7 @@ import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 
-from hrc.compile.classify import Classification, PlanClass
+from hrc.compile.classify import Classification, PlanClass, renamed
 from hrc.compile.executors import make_executor
 from hrc.compile.motion_pattern import (
     RANK_BY,
@@ -27,6 +27,7 @@ from hrc.compile.motion_pattern import (
     apply_pattern,
     choose_pattern,
     pattern_key,
+    pattern_network,
 )
 from hrc.compile.preferences import plan_preference
 from hrc.compile.temporal_net_creator import relabel_timepoints
@@ -209,7 +210,11 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
     for plan in family[1:]:
         names = relabel_timepoints(task, family[0], plan)
         known = None if result is None else relabel_check(result, names)
-        member = apply_pattern(task, plan, first.pattern, human_waits=options.human_waits, known=known)
+        if known is None or first.pattern.candidates == 0:
+            member = apply_pattern(task, plan, first.pattern, human_waits=options.human_waits, known=known)
+        else:  # the first's numbers, renamed, and its explanation in this plan's words (`renamed`)
+            net = pattern_network(task, plan, first.pattern, options.human_waits)
+            member = PlanChoice(first.pattern, net, renamed(first.classification, names, net, known))
         # its STNU is the first's renamed, so its GraphML is written from the first's (`relabel_record`)
         text = write_graphml(choice.net.stnu, names, f"{task.name}:{plan.id}") if graphml else ""
         out.append(_record(task, plan, member, graphml, text))

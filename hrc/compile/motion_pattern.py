@@ -80,7 +80,7 @@ from hrc.temporal.native_stn import native_apsp, native_distances
 from hrc.temporal.rul import core_verdict, edge_arrays, native_library
 
 __all__ = ["LEAF_CAP", "NODE_CAP", "RANK_BY", "TRIAL_CAP", "MotionPattern", "PassingOrder", "PlanChoice",
-           "apply_pattern", "choose_pattern", "pattern_key"]
+           "apply_pattern", "choose_pattern", "pattern_key", "pattern_network"]
 
 LEAF_CAP = 24
 NODE_CAP = 4000
@@ -802,8 +802,16 @@ def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: b
     (`hrc.plans.plan_families`: the same up to the names of identical actions), whose search would find
     that very pattern, since motion patterns name legs and places, never actions. `known`: the DC check's
     result on the plan's STNU, if known (`classify`)."""
-    base = create_stnu(task, plan, pattern.motions, (), human_waits)
+    net = pattern_network(task, plan, pattern, human_waits)
     if pattern.candidates == 0:  # no pattern at all: the co-workers block each other (`choose_pattern`)
-        return PlanChoice(pattern, base, _BLOCKED)
-    net = _worded(task, plan, _network(base, ref_namer(task, plan), list(pattern.orders)), pattern.orders)
+        return PlanChoice(pattern, net, _BLOCKED)
     return PlanChoice(pattern, net, classify(task, net, known=known))
+
+
+def pattern_network(task: Task, plan: Plan, pattern: MotionPattern, human_waits: bool = True) -> PlanNetwork:
+    """`plan`'s network with `pattern` (`apply_pattern`'s, before classifying): its passing orders with
+    their words; without any when the pattern has none at all (the co-workers block each other)."""
+    base = create_stnu(task, plan, pattern.motions, (), human_waits)
+    if pattern.candidates == 0:
+        return base
+    return _worded(task, plan, _network(base, ref_namer(task, plan), list(pattern.orders)), pattern.orders)
