@@ -206,3 +206,17 @@ def test_ticks() -> None:
         to_ticks(math.inf)
     assert scale_to_integers(["0.1", "0.25", "3"]) == ([2, 5, 60], 20)
     assert scale_to_integers([]) == ([], 1)
+
+
+def test_derived_networks_are_the_networks_built_in_full():
+    """`STNU.truncated` and `STNU.inserted` skip checking what was checked already; the network built
+    from the same parts (and checked in full) is the truth, and a bad inserted link is still refused."""
+    net = STNU(("Z", "A", "B"), (R("Z", "A", 0, 5), R("A", "B", 1, None)), (C("Z", "B", 1, 3),), "n")
+    assert net.truncated(1) == STNU(("Z", "A", "B"), (R("Z", "A", 0, 5),), (C("Z", "B", 1, 3),), "n")
+    added = (R("Z", "B", 2, None), R("B", "A", None, 4))
+    built = STNU(("Z", "A", "B"), (R("Z", "A", 0, 5), *added, R("A", "B", 1, None)), (C("Z", "B", 1, 3),), "n")
+    assert net.inserted(1, added) == built and hash(net.inserted(1, added)) == hash(built)
+    with pytest.raises(NetworkError, match="unknown timepoint 'Q'"):
+        net.inserted(0, (R("Z", "Q", 1, None),))
+    with pytest.raises(NetworkError, match="must hold RequirementLink"):
+        net.inserted(0, (C("A", "B", 1, 2),))  # type: ignore[arg-type]

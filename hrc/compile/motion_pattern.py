@@ -204,9 +204,8 @@ def _network(base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[Pa
 def _with_links(base: PlanNetwork, added: tuple[RequirementLink, ...]) -> PlanNetwork:
     """`base` with the requirement links `added` before its limits."""
     s = base.stnu
-    cut = len(s.requirements) - base.n_limits
-    return PlanNetwork(stnu=STNU(s.timepoints, s.requirements[:cut] + added + s.requirements[cut:], s.contingents,
-                                 s.name), meaning=base.meaning, last_ends=base.last_ends, n_limits=base.n_limits)
+    return PlanNetwork(stnu=s.inserted(len(s.requirements) - base.n_limits, added), meaning=base.meaning,
+                       last_ends=base.last_ends, n_limits=base.n_limits)
 
 
 def _evaluate(task: Task, base: PlanNetwork, namer: Callable[[TimeRef], str], orders: list[PassingOrder],

@@ -152,8 +152,7 @@ class PlanNetwork:
         identity, `hrc.temporal.rul.edge_arrays`)."""
         if not self._free:
             s = self.stnu
-            keep = s.requirements[:len(s.requirements) - self.n_limits]
-            self._free.append(STNU(s.timepoints, keep, s.contingents, s.name) if self.n_limits else s)
+            self._free.append(s.truncated(len(s.requirements) - self.n_limits) if self.n_limits else s)
         return self._free[0]
 
 
@@ -379,7 +378,6 @@ def with_separations(net: PlanNetwork, separations: Sequence[tuple[Separation, s
         a, b = name(sep.earlier), name(sep.later)
         added.append(RequirementLink(a, b, _ceil_ticks(sep.gap), None))
         meaning.setdefault((a, b), ("space", text))
-    s = net.stnu
-    stnu = STNU(s.timepoints, tuple(reqs[:cut] + added + reqs[cut:]), s.contingents, s.name)
+    stnu = net.stnu.inserted(cut, tuple(added))
     return PlanNetwork(stnu=stnu, meaning=tuple(sorted(meaning.items())), last_ends=net.last_ends,
                        n_limits=net.n_limits)

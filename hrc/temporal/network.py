@@ -165,6 +165,28 @@ class STNU:
         """Number of finite bounds, i.e. edges of the distance graph from requirement links."""
         return sum((r.lb is not None) + (r.ub is not None) for r in self.requirements)
 
+    def truncated(self, n: int) -> STNU:
+        """The network with only its first `n` requirement links. Nothing to check again (a part of a
+        checked network): a compiler derives networks by the thousand."""
+        return self._unchecked(self.requirements[:n])
+
+    def inserted(self, at: int, links: tuple[RequirementLink, ...]) -> STNU:
+        """The network with the requirement `links` inserted before its requirement link number `at`.
+        Only they are checked (a link, between timepoints of the network)."""
+        known = set(self.timepoints)
+        for link in links:
+            if type(link) is not RequirementLink or link.source not in known or link.target not in known:
+                reqs = self.requirements  # built in full, which names the problem
+                return STNU(self.timepoints, reqs[:at] + tuple(links) + reqs[at:], self.contingents, self.name)
+        return self._unchecked(self.requirements[:at] + tuple(links) + self.requirements[at:])
+
+    def _unchecked(self, requirements: tuple[RequirementLink, ...]) -> STNU:
+        net = object.__new__(STNU)
+        for field_name, value in (("timepoints", self.timepoints), ("requirements", requirements),
+                                  ("contingents", self.contingents), ("name", self.name)):
+            object.__setattr__(net, field_name, value)
+        return net
+
     def renamed(self, names: Mapping[str, str], name: str | None = None) -> STNU:
         """The same network with every timepoint ``t`` called ``names[t]`` (the same order and links;
         `name`: the network's new name, if given). Raises `NetworkError` if two timepoints would share a
