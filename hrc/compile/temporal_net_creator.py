@@ -234,7 +234,7 @@ class _Skeleton:
 
 
 _TASK_OPS: dict[int, tuple[Task, dict[tuple, Any]]] = {}  # per task, by identity: the last few
-_TASK_OPS_CAP = 100_000  # links kept per task (a few tens of MB at most)
+_TASK_OPS_CAP = 20_000  # entries kept per task (about 1 kB each: 20 MB at most)
 
 
 def _task_ops(task: Task) -> dict[tuple, Any]:

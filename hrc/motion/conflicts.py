@@ -293,9 +293,11 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
     ids = paths.samples.setdefault(("pair-ids", reach, robot.speed, human.speed), {})
     # an agent's occupancies on its shortest routes depend on its legs' places only, and recur too
     agents = paths.samples.setdefault(("occupancies", reach, robot.speed, human.speed), {})
-    if len(cache) > _PAIR_CACHE or len(ids) > _PAIR_CACHE or len(agents) > _PAIR_CACHE:
+    if len(cache) > _PAIR_CACHE or len(ids) > _PAIR_CACHE:
         cache.clear()
         ids.clear()  # the numbers the others hold
+        agents.clear()
+    elif len(agents) > _OCCUPANCY_CACHE:
         agents.clear()
 
     def number(occ: Occupancy) -> int:
@@ -327,6 +329,7 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
 
 
 _PAIR_CACHE = 200_000  # occupancy pairs kept per process (a few tens of MB at most)
+_OCCUPANCY_CACHE = 10_000  # agents' itineraries kept per process (about 7.5 kB each: 75 MB at most)
 
 
 def _pair(r: Occupancy, h: Occupancy, route, locs, reach: float, vr: float, vh: float,  # noqa: ANN001
