@@ -205,7 +205,7 @@ class PlanSink:
         cols = [np.frombuffer(self._cols[name], dtype=np.float64) for name in _KEY_COLUMNS]
         return np.lexsort([ids, *reversed(cols)])
 
-    def _line_head(self, i: int, rank: int) -> bytes:
+    def _head_of(self, i: int, rank: int) -> bytes:
         """Plan `i`'s ``compiled.json`` line up to its rank (the rest is its tail in the spool; not read
         through a memory map, whose pages would count as the process's memory)."""
         pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
@@ -236,7 +236,7 @@ class PlanSink:
                 out.write(json_head(header).encode("utf-8"))
                 copy = _kernel_copy if hasattr(os, "copy_file_range") else None
                 for k, i in enumerate(order):
-                    head = (b",\n" if k else b"") + self._line_head(int(i), k + 1)
+                    head = (b",\n" if k else b"") + self._head_of(int(i), k + 1)
                     start = self._line_at[int(i)]
                     size = int(ends[i]) - start
                     if copy is not None:  # the line's tail copied from spool to file in the kernel
@@ -331,9 +331,9 @@ def _write_at(folder: int | None, name: str, data: bytes) -> None:
 
 def _kernel_copy(src: int, dst: int, size: int, offset: int) -> bool:
     """Append `size` bytes of file `src` from `offset` to file `dst` (at its end) without reading them
-    into this process (``copy_file_range``: a third of the CPU time of reading and writing them for
-    kitting_7picks' 687 MB); False, with nothing written, where the kernel cannot (another file system
-    on an older kernel, or a file system without it)."""
+    into this process (``copy_file_range``: the end of a kitting_7picks run, 687 MB of lines, went from
+    3.4 to 1.6 s); False, with nothing written, where the kernel cannot (another file system on an older
+    kernel, or a file system without it)."""
     done = 0
     while done < size:
         try:
