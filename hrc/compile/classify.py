@@ -39,7 +39,7 @@ import numpy as np
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwork
 from hrc.model import Task
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_dc
-from hrc.temporal.native_stn import native_distances
+from hrc.temporal.native_stn import MAX_NODES, MAX_WEIGHT, native_distances
 from hrc.temporal.rul import edge_arrays
 
 __all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start", "explain",
@@ -160,7 +160,6 @@ def distance_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tup
 
 _Packed = tuple[array, array, array, array, array, array, array, array]  # src dst wt act ctg -xs ys -ys
 _PACKED: dict[int, tuple[STNU, _Packed | None]] = {}  # by identity, the last few (each kept alive here)
-_BIG = 1 << 40  # as `hrc.temporal.native_stn`: weights below this cannot overflow its sums
 
 
 def packed_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple[array, array, array] | None:
@@ -217,7 +216,7 @@ def _packed(stnu: STNU) -> _Packed | None:
 
 def _pack(stnu: STNU) -> _Packed | None:
     src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
-    if len(stnu.timepoints) >= 1 << 20:
+    if len(stnu.timepoints) >= MAX_NODES:
         return None
     try:
         packed = (array("i", src), array("i", dst), array("q", wt), array("i", act), array("i", ctg),
@@ -225,7 +224,8 @@ def _pack(stnu: STNU) -> _Packed | None:
     except OverflowError:  # beyond 64 bits
         return None
     s, d, w = (np.frombuffer(a, dtype=t) for a, t in zip(packed[:3], (np.int32, np.int32, np.int64), strict=True))
-    if np.any(s == d) or (len(w) and (int(w.max()) >= _BIG or int(w.min()) <= -_BIG)) or max(ys, default=0) >= _BIG:
+    if (np.any(s == d) or (len(w) and (int(w.max()) >= MAX_WEIGHT or int(w.min()) <= -MAX_WEIGHT))
+            or max(ys, default=0) >= MAX_WEIGHT):
         return None
     return packed
 

@@ -17,9 +17,12 @@ import numpy as np
 
 from hrc.temporal.rul import native_library
 
-__all__ = ["native_apsp", "native_distances"]
+__all__ = ["MAX_NODES", "MAX_WEIGHT", "native_apsp", "native_distances"]
 
-_BIG = 1 << 40  # |weight| below this: no sum of a few million of them overflows int64 or loses float64 precision
+MAX_WEIGHT = 1 << 40
+"""|weight| below this: no sum of a few million of them overflows int64 or loses float64 precision."""
+MAX_NODES = 1 << 20
+"""Timepoints below this: indices fit the core's 32-bit arrays with room to spare."""
 
 
 def _load() -> tuple[Callable[..., int] | None, Callable[..., int] | None]:
@@ -45,7 +48,7 @@ def _arrays(n: int, src: Sequence[int], dst: Sequence[int], wt: Sequence[int]) -
     taken as they are: whoever packed them checked their range."""
     if type(wt) is array and type(src) is array and type(dst) is array:
         return src, dst, wt
-    if wt and (max(wt) >= _BIG or min(wt) <= -_BIG or n >= 1 << 20):
+    if wt and (max(wt) >= MAX_WEIGHT or min(wt) <= -MAX_WEIGHT or n >= MAX_NODES):
         return None
     return array("i", src), array("i", dst), array("q", wt)
 
