@@ -169,8 +169,8 @@ class _Skeleton:
     the step before), which recur across the plans of a task: each is built once per task (`_task_ops`)."""
 
     def __init__(self, task: Task, plan: Plan, human_waits: bool) -> None:
-        self.task, self.human_waits = task, human_waits
-        ops = _task_ops(task)
+        self.human_waits = human_waits
+        self._ops = ops = _task_ops(task)  # cleared in place at its cap, never replaced
         waits_on = ops.get(("waits on",))
         if waits_on is None:
             waits_on = ops[("waits on",)] = {}
@@ -225,7 +225,7 @@ class _Skeleton:
         """Leg `i`'s timepoints and its links up to the arrival (the wait before it and the travel) along
         `motion`."""
         agent, leg, leg_key, _ = self.legs[i]
-        ops = _task_ops(self.task)
+        ops = self._ops
         key = (*leg_key, motion.time, motion.via, motion.park, motion.park_time)
         found = ops.get(key)
         if found is None:
