@@ -144,6 +144,56 @@ def test_an_interrupted_stream_leaves_a_valid_partial_output(tmp_path):
     assert load_compiled_task(tmp_path).name == "kitting"
 
 
+def test_an_interrupted_stream_on_two_workers_lists_what_it_wrote(tmp_path):
+    """Workers write their plans' GraphML and line tails into the folder themselves (`_WorkerFiles`);
+    interrupted, the output still lists exactly the STNU files it holds, and no spool is left."""
+    import time
+
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    seen = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if stage == "plans":
+            seen.append(done)
+            if len(seen) == 4:  # once the workers have written plans the sink has not taken yet
+                deadline = time.monotonic() + 30
+                while len(list((tmp_path / "stnu").iterdir())) <= done and time.monotonic() < deadline:
+                    time.sleep(0.05)
+                raise KeyboardInterrupt
+
+    result = compile_stream(task, tmp_path, 2880, jobs=2, progress=progress, sample_seconds=0.0)
+    assert result.partial and 0 < result.compiled < 2880
+    data = json.loads((tmp_path / "compiled.json").read_text())
+    assert sorted(p.name for p in (tmp_path / "stnu").iterdir()) == sorted(f"{p['id']}.graphml" for p in data["plans"])
+    assert [p["rank"] for p in data["plans"]] == list(range(1, result.compiled + 1))
+    assert not list(tmp_path.glob(".*.spool"))
+
+
+def test_two_workers_writing_their_own_files_give_the_same_bytes(mini_task, tmp_path):
+    outs = []
+    for jobs in (1, 2):
+        out = tmp_path / f"j{jobs}"
+        out.mkdir()
+        compile_stream(mini_task, out, count_plans(mini_task), jobs=jobs, sample_seconds=0.0)
+        outs.append(out)
+    assert _tree(outs[0]) == _tree(outs[1])
+    assert not list(outs[1].glob(".*.spool"))
+
+
+def test_dask_workers_send_their_texts_and_give_the_same_bytes(mini_task, tmp_path):
+    """Workers elsewhere (Dask) send the texts that local workers write themselves: the same output."""
+    distributed = pytest.importorskip("distributed")
+    outs = [tmp_path / "local", tmp_path / "dask"]
+    for out in outs:
+        out.mkdir()
+    compile_stream(mini_task, outs[0], count_plans(mini_task), jobs=2, sample_seconds=0.0)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        address = cluster.scheduler_address.replace("tcp://", "dask://")
+        compile_stream(mini_task, outs[1], count_plans(mini_task), executor=address, sample_seconds=0.0)
+    assert _tree(outs[0]) == _tree(outs[1])
+
+
 def test_the_sink_ranks_as_rank_key_does(mini_task, tmp_path):
     """Plans added in any order come out in rank order (the compact records sort as `rank_key`)."""
     full = compile_task(mini_task, jobs=1, options=CompileOptions(rank_by="earliest"))

@@ -65,7 +65,10 @@ def _run_in_worker(fn: Callable[..., Any], chunk: Any) -> Any:
 
 
 class PoolExecutor:
-    """A local process pool of `jobs` workers; started at the first `map_chunks`."""
+    """A local process pool of `jobs` workers; started at the first `map_chunks`. Its workers run on this
+    machine (`local_processes`): they can write into the output folder themselves."""
+
+    local_processes = True
 
     def __init__(self, jobs: int) -> None:
         self.jobs = jobs
