@@ -74,7 +74,7 @@ from hrc.compile.temporal_net_creator import (
 from hrc.model import Plan, Task
 from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detour, find_conflicts, plan_motions
 from hrc.motion.motions import Route, Routes
-from hrc.plans import agent_legs
+from hrc.plans import agent_legs, per_plan
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_consistency, check_dc
 from hrc.temporal.native_stn import native_apsp, native_distances
 from hrc.temporal.rul import core_verdict, edge_arrays, native_library
@@ -254,16 +254,12 @@ class _Routing:
         the agents' own chains of travels and steps alone, without building the network: each agent's
         travel times and durations in turn, at their lower bounds (the human's at the upper bounds for
         the worst case, which a DC pattern must fit: `_beyond`), a tick per link less for rounding."""
-        motion = {(m.agent, m.leg): m for m in self.motions}
+        motion = {(m.agent, m.leg): m.time for m in self.motions}
         longest = 0.0
-        for agent in self.task.agents:
-            late = agent.is_human and rank_by == "worst"
-            slack = agent.travel_slack if late else 1.0
-            total, links = 0.0, 0
-            for leg in agent_legs(self.task, self.plan, agent.id):
-                bounds = self.task.action(leg.action).phase(leg.phase).duration(agent.id)
-                total += motion[(agent.id, leg.index)].time * slack + (bounds.ub if late else bounds.lb)
-                links += 3
+        for agent, slack, terms, links in _chain_terms(self.task, self.plan, rank_by):
+            total = 0.0
+            for leg, bound in terms:
+                total += motion[(agent, leg)] * slack + bound
             longest = max(longest, total - links / TICKS_PER_SECOND)
         return longest
 
@@ -302,6 +298,26 @@ class _Routing:
         gap = np.array([g for row in rows for g in row[2]], dtype=float).reshape(k, 2)
         implied = np.asarray(self.robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)
         return earlier, later, gap, implied
+
+
+_Chain = tuple[str, float, tuple[tuple[int, float], ...], int]  # agent, slack, (leg, bound) per leg, links
+
+
+@per_plan(64)
+def _chain_terms(task: Task, plan: Plan, rank_by: str) -> tuple[_Chain, ...]:
+    """What `_Routing.chain_bound` reads of a plan besides its routes, per agent: the travel slack its
+    travel times are scaled by, each leg's duration bound (the lower one; the upper one for the human in
+    the worst case) and the number of links. The same for every route choice of the plan."""
+    out = []
+    for agent in task.agents:
+        late = agent.is_human and rank_by == "worst"
+        legs = agent_legs(task, plan, agent.id)
+        terms = []
+        for leg in legs:
+            bounds = task.action(leg.action).phase(leg.phase).duration(agent.id)
+            terms.append((leg.index, bounds.ub if late else bounds.lb))
+        out.append((agent.id, agent.travel_slack if late else 1.0, tuple(terms), 3 * len(legs)))
+    return tuple(out)
 
 
 _Keys = tuple[tuple[tuple[str, int, str], tuple[str, int, str]], tuple[tuple[str, int, str], tuple[str, int, str]],
