@@ -343,3 +343,37 @@ def test_lower_bound_reading_is_the_network_with_lower_bounds_as_links(stnu: STN
     assert found[0] == (reference is not None)
     if reference is not None:
         assert np.array_equal(found[1], reference)
+
+
+@FAST
+@given(stnus(max_nodes=6, max_contingent=2, max_requirements=8), st.data())
+def test_derived_networks_arrays_are_those_read_in_full(stnu: STNU, data) -> None:
+    """A network derived by `STNU.truncated` / `STNU.inserted` from one whose arrays are kept gets its
+    index arrays and its packing by cutting and splicing the parent's (`rul.edge_arrays`,
+    `classify._packed`): the same as reading the network, built in full from the same links, from
+    scratch; also along a chain of derivations, with loops and weights the native core refuses."""
+    from hrc.compile import classify
+    from hrc.temporal.native_stn import MAX_WEIGHT
+
+    names = stnu.timepoints
+    net = stnu
+    if data.draw(st.booleans()):  # the parent read first (otherwise nothing to derive from)
+        rul.edge_arrays(net)
+        classify.packed_graph(net)
+    for _ in range(data.draw(st.integers(1, 3))):
+        if data.draw(st.booleans()):
+            n = data.draw(st.integers(0, len(net.requirements)))
+            child = net.truncated(n)
+            reqs = net.requirements[:n]
+        else:
+            at = data.draw(st.integers(0, len(net.requirements)))
+            weights = st.one_of(st.none(), st.integers(0, 8), st.just(MAX_WEIGHT))  # upper bounds, >= 0
+            added = tuple(RequirementLink(data.draw(st.sampled_from(names)), data.draw(st.sampled_from(names)),
+                                          data.draw(st.one_of(st.none(), st.integers(-5, 0))), data.draw(weights))
+                          for _ in range(data.draw(st.integers(0, 3))))
+            child = net.inserted(at, added)
+            reqs = net.requirements[:at] + added + net.requirements[at:]
+        built = STNU(names, reqs, stnu.contingents, stnu.name)
+        assert rul.edge_arrays(child) == rul._edge_arrays(built)
+        assert classify._packed(child) == classify._pack(built)
+        net = child

@@ -40,7 +40,8 @@ from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwo
 from hrc.model import Task
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_dc
 from hrc.temporal.native_stn import MAX_NODES, MAX_WEIGHT, native_distances
-from hrc.temporal.rul import edge_arrays
+from hrc.temporal.network import bound_count, lineage
+from hrc.temporal.rul import bound_edges, edge_arrays
 
 __all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start", "explain",
            "measure", "packed_graph", "packed_lower_bounds", "renamed"]
@@ -205,13 +206,53 @@ def _to_origin(n: int, z: int) -> tuple[array, array, array]:
 
 
 def _packed(stnu: STNU) -> _Packed | None:
-    """`_pack` of `stnu`, kept for the last few networks (by identity)."""
+    """`_pack` of `stnu`, kept for the last few networks (by identity); for a network derived from a kept
+    one (`lineage`), the parent's arrays cut and spliced (`_derived_pack`)."""
     hit = _PACKED.get(id(stnu))
     if hit is None or hit[0] is not stnu:
-        if len(_PACKED) >= 8:
-            del _PACKED[next(iter(_PACKED))]
-        hit = _PACKED[id(stnu)] = (stnu, _pack(stnu))
+        packed = _derived_pack(stnu)
+        hit = _keep_packed(stnu, _pack(stnu) if packed is None else packed)
     return hit[1]
+
+
+def _keep_packed(stnu: STNU, packed: _Packed | None) -> tuple[STNU, _Packed | None]:
+    if len(_PACKED) >= 16:
+        del _PACKED[next(iter(_PACKED))]
+    hit = _PACKED[id(stnu)] = (stnu, packed)
+    return hit
+
+
+def _derived_pack(stnu: STNU) -> _Packed | None:
+    """`_pack` of a network derived from one whose packing is kept (`lineage`): the parent's edges up to
+    the cut, the new links' edges (checked as `_pack` checks all), then the parent's others if kept; None
+    when there is no such parent or a new edge is one `_pack` refuses (it then decides)."""
+    origin = lineage(stnu)
+    if origin is None:
+        return None
+    parent, at, links, rest = origin
+    hit = _PACKED.get(id(parent))
+    if hit is None or hit[0] is not parent:  # the parent itself derived from a kept one (or not)
+        derived = _derived_pack(parent)
+        if derived is None:
+            return None
+        _keep_packed(parent, derived)
+        hit = (parent, derived)
+    if hit[1] is None:
+        return None
+    src, dst, wt, *contingent = hit[1]
+    cut = len(src) - bound_count(parent.requirements[at:])  # the parent's first `at` links' edges
+    if links:
+        index = {v: i for i, v in enumerate(stnu.timepoints)}
+        new_src, new_dst, new_wt = bound_edges(links, index)  # in the order `edge_arrays` gives them
+        if any(a == b for a, b in zip(new_src, new_dst, strict=True)) or any(
+                not -MAX_WEIGHT < w < MAX_WEIGHT for w in new_wt):
+            return None
+        added = (array("i", new_src), array("i", new_dst), array("q", new_wt))
+    else:
+        added = (array("i"), array("i"), array("q"))
+    spliced = tuple((x[:cut] + y + x[cut:]) if rest else (x[:cut] + y) for x, y in zip((src, dst, wt), added,
+                                                                                       strict=True))
+    return (*spliced, *contingent)  # type: ignore[return-value]
 
 
 def _pack(stnu: STNU) -> _Packed | None:

@@ -267,6 +267,7 @@ class _Routing:
     def robust(self) -> np.ndarray:
         """`_apsp` of `_robust`: what holds in every execution (from the network without limits, read
         with the human's durations bounded below only, when the native core takes it)."""
+        packed_graph(self.base.stnu)  # the search reads it next: packed first, the free network's is derived
         free = self.base.without_limits()
         packed = packed_lower_bounds(free)
         found = None if packed is None else native_apsp(len(free.timepoints), *packed)

@@ -24,12 +24,12 @@ frozenset({'C'})
 from __future__ import annotations
 
 import operator
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from hrc.errors import HrcError
 
-__all__ = ["INF", "ContingentLink", "NetworkError", "RequirementLink", "STNU"]
+__all__ = ["INF", "ContingentLink", "NetworkError", "RequirementLink", "STNU", "bound_count", "lineage"]
 
 INF = None
 """Marks a missing bound of a requirement link (``lb=INF`` is -infinity, ``ub=INF`` is +infinity)."""
@@ -103,6 +103,32 @@ class ContingentLink:
         return f"{self.target} - {self.source} in [{self.lb}, {self.ub}] (contingent)"
 
 
+Lineage = tuple["STNU", int, tuple[RequirementLink, ...], bool]
+_LINEAGE: dict[int, tuple[STNU, Lineage]] = {}  # by identity, the last few derived networks (kept alive here)
+
+
+def lineage(stnu: STNU) -> Lineage | None:
+    """How `stnu` was derived, if it is one of the last few networks `STNU.truncated` or `STNU.inserted`
+    made: ``(parent, at, links, rest)``, its requirement links being the parent's first `at`, then
+    `links`, then (if `rest`) the parent's others. Readers that keep per-network arrays (the native
+    core's, `hrc.temporal.rul.edge_arrays`) derive the child's from the parent's instead of reading
+    all of its links again."""
+    hit = _LINEAGE.get(id(stnu))
+    return hit[1] if hit is not None and hit[0] is stnu else None
+
+
+def _derived(parent: STNU, child: STNU, at: int, links: tuple[RequirementLink, ...], rest: bool) -> STNU:
+    if len(_LINEAGE) >= 16:
+        del _LINEAGE[next(iter(_LINEAGE))]
+    _LINEAGE[id(child)] = (child, (parent, at, links, rest))
+    return child
+
+
+def bound_count(links: Sequence[RequirementLink]) -> int:
+    """The finite bounds of `links`: the edges of the distance graph they make."""
+    return sum((r.lb is not None) + (r.ub is not None) for r in links)
+
+
 @dataclass(frozen=True, slots=True)
 class STNU:
     """An immutable STNU; validated on construction (raises `NetworkError`).
@@ -163,12 +189,12 @@ class STNU:
     @property
     def n_edges(self) -> int:
         """Number of finite bounds, i.e. edges of the distance graph from requirement links."""
-        return sum((r.lb is not None) + (r.ub is not None) for r in self.requirements)
+        return bound_count(self.requirements)
 
     def truncated(self, n: int) -> STNU:
         """The network with only its first `n` requirement links. Nothing to check again (a part of a
         checked network): a compiler derives networks by the thousand."""
-        return self._unchecked(self.requirements[:n])
+        return _derived(self, self._unchecked(self.requirements[:n]), n, (), False)
 
     def inserted(self, at: int, links: tuple[RequirementLink, ...]) -> STNU:
         """The network with the requirement `links` inserted before its requirement link number `at`.
@@ -178,7 +204,8 @@ class STNU:
             if type(link) is not RequirementLink or link.source not in known or link.target not in known:
                 reqs = self.requirements  # built in full, which names the problem
                 return STNU(self.timepoints, reqs[:at] + tuple(links) + reqs[at:], self.contingents, self.name)
-        return self._unchecked(self.requirements[:at] + tuple(links) + self.requirements[at:])
+        return _derived(self, self._unchecked(self.requirements[:at] + tuple(links) + self.requirements[at:]), at,
+                        tuple(links), True)
 
     def _unchecked(self, requirements: tuple[RequirementLink, ...]) -> STNU:
         net = object.__new__(STNU)

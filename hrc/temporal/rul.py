@@ -55,15 +55,15 @@ from __future__ import annotations
 import ctypes
 import importlib.machinery
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from heapq import heappop, heappush
 from pathlib import Path
 
 from hrc.temporal.graph import Edge, EdgeKind
-from hrc.temporal.network import STNU
+from hrc.temporal.network import STNU, RequirementLink, bound_count, lineage
 from hrc.temporal.potential import feasible_potential
 
-__all__ = ["RulOutcome", "core_verdict", "edge_arrays", "native_library", "rul2021", "rul2021_check"]
+__all__ = ["RulOutcome", "bound_edges", "core_verdict", "edge_arrays", "native_library", "rul2021", "rul2021_check"]
 
 _INF = float("inf")
 _UNSTARTED, _STARTED, _DONE = 0, 1, 2
@@ -477,11 +477,13 @@ def edge_arrays(stnu: STNU) -> EdgeArrays:
     wt`` of its requirement links, then its contingent links ``act, ctg, xs, ys``.
 
     The compiler reads one network several times over (DC verdict, consistency, schedules, distance
-    matrices), so the last few results are kept, by identity (callers must not change the lists)."""
+    matrices), so the last few results are kept, by identity (callers must not change the lists); a
+    network derived from a kept one (`hrc.temporal.network.lineage`) gets the parent's arrays, cut and
+    spliced, in the same order as read in full."""
     hit = _EDGE_ARRAYS.get(id(stnu))
     if hit is not None and hit[0] is stnu:
         return hit[1]
-    arrays = _edge_arrays(stnu)
+    arrays = _derived_arrays(stnu) or _edge_arrays(stnu)
     if len(_EDGE_ARRAYS) >= 8:
         del _EDGE_ARRAYS[next(iter(_EDGE_ARRAYS))]
     _EDGE_ARRAYS[id(stnu)] = (stnu, arrays)
@@ -490,10 +492,18 @@ def edge_arrays(stnu: STNU) -> EdgeArrays:
 
 def _edge_arrays(stnu: STNU) -> EdgeArrays:
     index = {v: i for i, v in enumerate(stnu.timepoints)}
+    src, dst, wt = bound_edges(stnu.requirements, index)
+    conts = stnu.contingents
+    return (src, dst, wt, [index[c.source] for c in conts], [index[c.target] for c in conts],
+            [c.lb for c in conts], [c.ub for c in conts])
+
+
+def bound_edges(links: Sequence[RequirementLink], index: dict[str, int]) -> tuple[list[int], list[int], list[int]]:
+    """The edges of requirement `links`, in order: per link, its upper bound's, then its lower bound's."""
     src: list[int] = []
     dst: list[int] = []
     wt: list[int] = []
-    for r in stnu.requirements:
+    for r in links:
         s, t = index[r.source], index[r.target]
         if r.ub is not None:
             src.append(s)
@@ -503,9 +513,25 @@ def _edge_arrays(stnu: STNU) -> EdgeArrays:
             src.append(t)
             dst.append(s)
             wt.append(-r.lb)
-    conts = stnu.contingents
-    return (src, dst, wt, [index[c.source] for c in conts], [index[c.target] for c in conts],
-            [c.lb for c in conts], [c.ub for c in conts])
+    return src, dst, wt
+
+
+def _derived_arrays(stnu: STNU) -> EdgeArrays | None:
+    """`_edge_arrays` of a network derived from one whose arrays are kept (`lineage`), or None."""
+    origin = lineage(stnu)
+    if origin is None:
+        return None
+    parent, at, links, rest = origin
+    hit = _EDGE_ARRAYS.get(id(parent))
+    if hit is None or hit[0] is not parent:
+        return None
+    src, dst, wt, act, ctg, xs, ys = hit[1]
+    cut = len(src) - bound_count(parent.requirements[at:])  # the parent's first `at` links' edges
+    new: tuple[list[int], list[int], list[int]] = ([], [], [])
+    if links:
+        new = bound_edges(links, {v: i for i, v in enumerate(stnu.timepoints)})
+    parts = [(x[:cut] + y + x[cut:]) if rest else (x[:cut] + y) for x, y in zip((src, dst, wt), new, strict=True)]
+    return (parts[0], parts[1], parts[2], act, ctg, xs, ys)
 
 
 def _core_verdict(stnu: STNU) -> str | None:
