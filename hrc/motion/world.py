@@ -133,8 +133,15 @@ class World:
         return world
 
     def _static_within(self, p: tuple[float, float], distance: float) -> bool:
-        """True when a static shape (obstacle or wall, never an agent) is within `distance` of `p`."""
-        return any(shape.point_query(p).distance <= distance for shape, _ in self._static)
+        """True when a static shape (obstacle or wall, never an agent) is within `distance` of `p`. Only
+        shapes whose bounding box, grown by `distance`, holds `p` are asked (no other shape can be that
+        close): the roadmap's sampling asks this of every sample."""
+        x, y = p
+        for shape, (left, bottom, right, top) in self._static:
+            if (left - distance <= x <= right + distance and bottom - distance <= y <= top + distance
+                    and shape.point_query(p).distance <= distance):
+                return True
+        return False
 
     def add_agent(self, agent: Agent, x: float, y: float) -> pymunk.Body:
         """Add `agent` as a kinematic circle body at ``(x, y)`` (for simulation; queries ignore agents)."""
