@@ -119,7 +119,7 @@ def lineage(stnu: STNU) -> Lineage | None:
 
 def _derived(parent: STNU, child: STNU, at: int, links: tuple[RequirementLink, ...], rest: bool) -> STNU:
     if len(_LINEAGE) >= 16:
-        del _LINEAGE[next(iter(_LINEAGE))]
+        _LINEAGE.pop(next(iter(_LINEAGE), -1), None)  # never raises, should two threads trim at once
     _LINEAGE[id(child)] = (child, (parent, at, links, rest))
     return child
 
