@@ -91,6 +91,22 @@ def test_out_where_the_machine_refuses_a_folder(tmp_path, monkeypatch, capsys):
     assert list(tmp_path.iterdir()) == []  # the folder made for it is gone again
 
 
+def test_a_full_disk_names_the_output_and_leaves_nothing(tmp_path, monkeypatch, capsys):
+    """A full disk fails a write, which names no file: the error names the output folder instead."""
+    import errno
+
+    import hrc.compile.stream as stream
+
+    def full(fd: int, data: bytes) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(stream, "_write_all", full)
+    out = tmp_path / "out"
+    assert _compile(str(WORKSHOP_TASK), "--out", str(out), "--jobs", "1") == 2
+    _one_error_line(capsys, str(out), "No space left on device")
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("earlier", [False, True])
 def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path, earlier):
     """SIGTERM mid-compile: the plans so far as a partial output in a new folder; an earlier output in

@@ -223,6 +223,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
               "(a partial output replaces only a new or empty folder)", file=sys.stderr)
         return 130
+    except OSError as err:  # writing the output (a full disk: a write names no file); said by `hrc.cli.main`
+        if not err.filename:
+            err.filename = str(out)
+        raise
     cps = result.plan_set
     if result.partial:
         print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote them as a partial output "
