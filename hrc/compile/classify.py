@@ -40,8 +40,8 @@ from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwo
 from hrc.model import Task
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_dc
 from hrc.temporal.native_stn import MAX_NODES, MAX_WEIGHT, native_distances
-from hrc.temporal.network import bound_count, lineage
-from hrc.temporal.rul import bound_edges, edge_arrays
+from hrc.temporal.network import lineage
+from hrc.temporal.rul import bound_edges, edge_arrays, spliced
 
 __all__ = ["Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start", "explain",
            "measure", "packed_graph", "packed_lower_bounds", "renamed"]
@@ -239,20 +239,21 @@ def _derived_pack(stnu: STNU) -> _Packed | None:
         hit = (parent, derived)
     if hit[1] is None:
         return None
-    src, dst, wt, *contingent = hit[1]
-    cut = len(src) - bound_count(parent.requirements[at:])  # the parent's first `at` links' edges
-    if links:
-        index = {v: i for i, v in enumerate(stnu.timepoints)}
-        new_src, new_dst, new_wt = bound_edges(links, index)  # in the order `edge_arrays` gives them
-        if any(a == b for a, b in zip(new_src, new_dst, strict=True)) or any(
-                not -MAX_WEIGHT < w < MAX_WEIGHT for w in new_wt):
-            return None
-        added = (array("i", new_src), array("i", new_dst), array("q", new_wt))
-    else:
-        added = (array("i"), array("i"), array("q"))
-    spliced = tuple((x[:cut] + y + x[cut:]) if rest else (x[:cut] + y) for x, y in zip((src, dst, wt), added,
-                                                                                       strict=True))
-    return (*spliced, *contingent)  # type: ignore[return-value]
+    new = bound_edges(links, {v: i for i, v in enumerate(stnu.timepoints)} if links else {})
+    try:
+        added = (array("i", new[0]), array("i", new[1]), array("q", new[2]))
+    except OverflowError:  # beyond 64 bits
+        return None
+    if not _core_takes(*added):
+        return None
+    return (*spliced(hit[1][:3], parent, at, added, rest), *hit[1][3:])  # type: ignore[return-value]
+
+
+def _core_takes(src: array, dst: array, wt: array) -> bool:
+    """Whether the native core takes these edges: no edge from a timepoint to itself, every weight
+    within `MAX_WEIGHT`."""
+    s, d, w = (np.frombuffer(a, dtype=t) for a, t in zip((src, dst, wt), (np.int32, np.int32, np.int64), strict=True))
+    return not (np.any(s == d) or (len(w) and (int(w.max()) >= MAX_WEIGHT or int(w.min()) <= -MAX_WEIGHT)))
 
 
 def _pack(stnu: STNU) -> _Packed | None:
@@ -264,9 +265,7 @@ def _pack(stnu: STNU) -> _Packed | None:
                   array("q", [-x for x in xs]), array("q", ys), array("q", [-y for y in ys]))
     except OverflowError:  # beyond 64 bits
         return None
-    s, d, w = (np.frombuffer(a, dtype=t) for a, t in zip(packed[:3], (np.int32, np.int32, np.int64), strict=True))
-    if (np.any(s == d) or (len(w) and (int(w.max()) >= MAX_WEIGHT or int(w.min()) <= -MAX_WEIGHT))
-            or max(ys, default=0) >= MAX_WEIGHT):
+    if not _core_takes(*packed[:3]) or max(ys, default=0) >= MAX_WEIGHT:
         return None
     return packed
 

@@ -58,12 +58,14 @@ from array import array
 from collections.abc import Callable, Sequence
 from heapq import heappop, heappush
 from pathlib import Path
+from typing import Any
 
 from hrc.temporal.graph import Edge, EdgeKind
 from hrc.temporal.network import STNU, RequirementLink, bound_count, lineage
 from hrc.temporal.potential import feasible_potential
 
-__all__ = ["RulOutcome", "bound_edges", "core_verdict", "edge_arrays", "native_library", "rul2021", "rul2021_check"]
+__all__ = ["RulOutcome", "bound_edges", "core_verdict", "edge_arrays", "native_library", "rul2021", "rul2021_check",
+           "spliced"]
 
 _INF = float("inf")
 _UNSTARTED, _STARTED, _DONE = 0, 1, 2
@@ -525,13 +527,17 @@ def _derived_arrays(stnu: STNU) -> EdgeArrays | None:
     hit = _EDGE_ARRAYS.get(id(parent))
     if hit is None or hit[0] is not parent:
         return None
-    src, dst, wt, act, ctg, xs, ys = hit[1]
-    cut = len(src) - bound_count(parent.requirements[at:])  # the parent's first `at` links' edges
-    new: tuple[list[int], list[int], list[int]] = ([], [], [])
-    if links:
-        new = bound_edges(links, {v: i for i, v in enumerate(stnu.timepoints)})
-    parts = [(x[:cut] + y + x[cut:]) if rest else (x[:cut] + y) for x, y in zip((src, dst, wt), new, strict=True)]
-    return (parts[0], parts[1], parts[2], act, ctg, xs, ys)
+    new = bound_edges(links, {v: i for i, v in enumerate(stnu.timepoints)} if links else {})
+    src, dst, wt = spliced(hit[1][:3], parent, at, new, rest)
+    return (src, dst, wt, *hit[1][3:])
+
+
+def spliced(edges: Sequence[Any], parent: STNU, at: int, new: Sequence[Any], rest: bool) -> tuple[Any, ...]:
+    """A derived network's (`lineage`) requirement edges from its parent's `edges` (parallel sequences,
+    as `edge_arrays` orders them: lists or typed arrays): the parent's first `at` links' edges, then
+    `new` (the inserted links' edges, in the same layout), then, if `rest`, the parent's other edges."""
+    cut = len(edges[0]) - bound_count(parent.requirements[at:])
+    return tuple((x[:cut] + y + x[cut:]) if rest else (x[:cut] + y) for x, y in zip(edges, new, strict=True))
 
 
 def _core_verdict(stnu: STNU) -> str | None:
