@@ -34,7 +34,7 @@ import time
 import zipfile
 import zlib
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -119,11 +119,13 @@ def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     (top, best), families = work
     out: list[Record] = []
     compiled = compile_records(options, stnu, task, paths, families)
-    tails: list[str | Written] = [tail for _, tail in compiled]
-    graphml: list[str | Written | None] = [cp.graphml for cp, _ in compiled]
-    if folder is not None:
+    tails: Sequence[str | Written] = [tail for _, tail in compiled]
+    graphml: Sequence[str | Written | None]
+    if folder is None:
+        graphml = [cp.graphml for cp, _ in compiled]
+    else:
         files = _WorkerFiles.of(folder, stnu)
-        tails, graphml = [*files.lines([t for _, t in compiled])], files.stnus(compiled, stnu)
+        tails, graphml = files.lines([t for _, t in compiled]), files.stnus(compiled, stnu)
     for (cp, _), text, tail in zip(compiled, graphml, tails, strict=True):
         key = rank_key(cp, options.rank_by)
         cls = cp.plan_class.value
@@ -149,8 +151,7 @@ class _WorkerFiles:
                     os.open(os.path.join(folder, self.names[1]), flags, 0o666) if stnu == "archive" else -1]
         self.at = [os.fstat(fd).st_size if fd >= 0 else 0 for fd in self.fds]
         self.stnu_path = os.path.join(folder, "stnu")
-        self.stnu_dir = (os.open(self.stnu_path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-                         if stnu == "graphml" and os.open in os.supports_dir_fd else None)
+        self.stnu_dir = _open_folder(self.stnu_path) if stnu == "graphml" else None
 
     @classmethod
     def of(cls, folder: str, stnu: str) -> _WorkerFiles:
@@ -189,9 +190,7 @@ class _WorkerFiles:
     def stnus(self, compiled: list[tuple[CompiledPlan, str]], stnu: str) -> list[str | Written | None]:
         if stnu == "graphml":
             for cp, _ in compiled:
-                name = f"{cp.plan.id}.graphml"
-                where = name if self.stnu_dir is not None else os.path.join(self.stnu_path, name)
-                _write_at(self.stnu_dir, where, cp.graphml.encode("utf-8"))
+                _write_stnu_file(self.stnu_dir, self.stnu_path, cp.plan.id, cp.graphml)
             return [None] * len(compiled)
         if stnu == "archive":
             return list(self._append(1, [cp.graphml for cp, _ in compiled], newline=False))
@@ -275,9 +274,7 @@ class PlanSink:
         self._stnu_dir: int | None = None
         if stnu == "graphml":
             (self.out_dir / "stnu").mkdir(exist_ok=True)
-            # files opened relative to the folder: no path to build and resolve per plan (40,320 of them)
-            if os.open in os.supports_dir_fd:
-                self._stnu_dir = os.open(self.out_dir / "stnu", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+            self._stnu_dir = _open_folder(str(self.out_dir / "stnu"))
         elif stnu == "archive":
             self._graphml = _Spooled(self.out_dir, ".stnu.spool", b"")
         self._cols = {name: array("d") for name in _KEY_COLUMNS}
@@ -318,9 +315,7 @@ class PlanSink:
             self._lines.add_written(tail)
         if isinstance(graphml, str):
             if self.stnu == "graphml":
-                name = f"{pid}.graphml"
-                where = name if self._stnu_dir is not None else str(self.out_dir / "stnu" / name)
-                _write_at(self._stnu_dir, where, graphml.encode("utf-8"))
+                _write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, graphml)
             elif self._graphml is not None:
                 self._graphml.add_text(graphml.encode("utf-8"))
         elif graphml is not None and self._graphml is not None:
@@ -462,6 +457,20 @@ class PlanSink:
             slowest = (float(early[j]), self._ids[16 * j:16 * j + 16].rstrip(b" ").decode("ascii"))
         return PlanSetSummary(total=n, counts=tuple(counts.items()), stats=tuple(stats),
                               bins=tuple(round(float(x), 3) for x in edges), slowest=slowest)
+
+
+def _open_folder(path: str) -> int | None:
+    """`path` opened as a folder, for files opened relative to it (no path to build and resolve per
+    plan: 40,320 of them); None where the system has no ``dir_fd``."""
+    if os.open not in os.supports_dir_fd:
+        return None
+    return os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+
+
+def _write_stnu_file(folder: int | None, path: str, plan_id: str, text: str) -> None:
+    """A plan's GraphML file ``PLAN.graphml`` in ``stnu/`` (open as `folder`, or at `path`)."""
+    name = f"{plan_id}.graphml"
+    _write_at(folder, name if folder is not None else os.path.join(path, name), text.encode("utf-8"))
 
 
 def _write_at(folder: int | None, name: str, data: bytes) -> None:
