@@ -16,6 +16,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+from array import array
 from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, replace
 from typing import TypeVar
@@ -25,9 +26,10 @@ import networkx as nx
 from hrc.errors import InputError
 from hrc.model import PhaseRef, Plan, Task
 
-__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocations", "count_plans", "estimate_plan_count",
-           "generate_plans", "identical_actions", "is_canonical", "must_precede", "per_plan", "phase_graph",
-           "pin_actions", "plan_count_bound", "plan_families", "relabellings", "spread_families", "symmetry_factor"]
+__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "count_plans",
+           "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical", "must_precede",
+           "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
+           "plan_from_code", "relabellings", "spread_families", "symmetry_factor"]
 
 R = TypeVar("R")
 
@@ -38,6 +40,11 @@ COUNT_STATES = 100_000
 
 class _TooManyStates(Exception):
     """The exact count would memoize more run states than allowed."""
+
+
+def allocation_count(task: Task) -> int:
+    """How many allocations `allocations` yields."""
+    return math.prod(sum(ag in action.agents for ag in task.agent_ids) for action in task.actions)
 
 
 def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
@@ -367,6 +374,51 @@ def plan_families(task: Task) -> Iterator[tuple[Plan, ...]]:
     groups = identical_actions(task)
     for plan in generate_plans(task, symmetry=bool(groups)):
         yield relabellings(task, plan, groups) if groups else (plan,)
+
+
+def family_of(task: Task, plan: Plan, symmetry: bool = False) -> tuple[Plan, ...]:
+    """The family `plan` is compiled in: as `plan_families` yields it (its canonical plan, then the
+    canonical plan's `relabellings`), or with `symmetry` (one plan per family) the canonical plan alone.
+    `plan` is a member (with `symmetry`, only when canonical)."""
+    groups = identical_actions(task)
+    if not groups:
+        return (plan,)
+    canonical = next(p for p in relabellings(task, plan, groups) if is_canonical(task, p, groups))
+    return (canonical,) if symmetry else relabellings(task, canonical, groups)
+
+
+_AGENT_BREAK = 0xFFFF
+
+
+def plan_code(task: Task, plan: Plan) -> bytes:
+    """`plan` as ``len(actions) + len(agents) - 1`` 16-bit numbers (native byte order): each agent's
+    sequence (agents in task order) as action indices, the agents' sequences parted by 0xFFFF. What a
+    streamed compile keeps of each plan when it may need the plan again (`plan_from_code`); every plan
+    of a task has a code of the same length."""
+    index = {a: i for i, a in enumerate(task.action_ids)}
+    out = array("H")
+    for n, agent in enumerate(task.agent_ids):
+        if n:
+            out.append(_AGENT_BREAK)
+        out.extend(index[a] for a in plan.sequence(agent))
+    return out.tobytes()
+
+
+def plan_from_code(task: Task, code: bytes) -> Plan:
+    """The plan `plan_code` wrote as `code`."""
+    numbers = array("H")
+    numbers.frombytes(code)
+    sequences: list[tuple[str, tuple[str, ...]]] = []
+    part: list[str] = []
+    for x in numbers:
+        if x == _AGENT_BREAK:
+            sequences.append((task.agent_ids[len(sequences)], tuple(part)))
+            part = []
+        else:
+            part.append(task.action_ids[x])
+    sequences.append((task.agent_ids[len(sequences)], tuple(part)))
+    agent_of = {a: agent for agent, seq in sequences for a in seq}
+    return Plan(allocation=tuple((a, agent_of[a]) for a in task.action_ids), sequences=tuple(sequences))
 
 
 def spread_families(task: Task, count: int, symmetry: bool = False) -> list[tuple[Plan, ...]]:
