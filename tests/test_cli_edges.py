@@ -325,3 +325,25 @@ def test_show_bounds_a_count_that_would_be_slow(tmp_path, capsys):
     assert main(["show", str(path)]) == 0
     out = capsys.readouterr().out
     assert "plans: at most 355687428096000" in out and "refuses it unless --max-plans" in out
+
+
+def test_best_per_allocation_says_what_it_kept(mini, write_mini, tmp_path, capsys):
+    """Without its precedence (and the constraint and preference on it), the mini task has six plans in
+    four allocations (two actions, two agents): the best of each is four plans."""
+    task, map_ = mini
+    task["precedence"], task["constraints"], task["preferences"] = [], [], []
+    path = write_mini(task, map_)
+    out = tmp_path / "out"
+    assert main(["compile", str(path), "--out", str(out), "--best-per-allocation", "1", "--jobs", "1"]) == 0
+    captured = capsys.readouterr()
+    assert "keeping the best 1 of each of 4 allocations" in captured.err
+    assert "compiled 6 plans of" in captured.out and "kept the best 1 of each allocation, 4 plans" in captured.out
+    data = json.loads((out / "compiled.json").read_text())
+    assert len(data["plans"]) == 4 and data["plans_compiled"] == 6 and data["best_per_allocation"] == 1
+    assert len({json.dumps(p["allocation"], sort_keys=True) for p in data["plans"]}) == 4
+    assert "**Plans kept:** the best 1 of each allocation: 4 of the 6 plans compiled" in (out / "report.md").read_text()
+    with pytest.raises(SystemExit) as exc:
+        main(["compile", str(path), "--out", str(tmp_path / "o2"), "--best-per-allocation", "0"])
+    assert exc.value.code == 2
+    _one_error_line(capsys, "--best-per-allocation", "at least 1")
+    assert not (tmp_path / "o2").exists()

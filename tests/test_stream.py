@@ -19,9 +19,14 @@ from hrc.plans import (
     _TooManyStates,
     count_plans,
     estimate_plan_count,
+    family_of,
     generate_plans,
+    identical_actions,
     pin_actions,
+    plan_code,
     plan_count_bound,
+    plan_families,
+    plan_from_code,
 )
 
 
@@ -287,7 +292,7 @@ def test_pinning_names_what_is_wrong(mini_task, pins):
 def test_symmetry_keeps_one_plan_per_relabelling():
     """kitting_6picks: pick_f is pick_a's twin (rack A, same durations): every plan has exactly one
     canonical twin, with the same class and makespans."""
-    from hrc.plans import identical_actions, is_canonical, symmetry_factor
+    from hrc.plans import is_canonical, symmetry_factor
 
     task = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
     groups = identical_actions(task)
@@ -329,7 +334,7 @@ def test_symmetric_twins_compile_to_the_same_class_and_makespans():
 def test_plan_families_are_the_plans_grouped_by_relabelling():
     """`plan_families` yields every plan of `generate_plans` exactly once, in families of
     `symmetry_factor` plans, each headed by its canonical plan and closed under swapping twins."""
-    from hrc.plans import identical_actions, is_canonical, plan_families, symmetry_factor
+    from hrc.plans import is_canonical, symmetry_factor
 
     task = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
     groups = identical_actions(task)
@@ -453,3 +458,124 @@ def test_a_plan_line_is_its_entry_encoded():
             assert plan_line(task, cp, "archive") == encoded(task, cp, "archive")
             checked += 1
     assert checked > 100
+
+
+# --- the best K of each allocation -------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def picks4(tmp_path_factory):
+    """kitting_7picks cut to four picks, pick_f identical to pick_a: 5! = 120 plans, 16 allocations of
+    1 to 24 plans, families of two; with a deadline of 60 s, plans of all three classes, some allocations
+    with plans of two or three."""
+    import yaml
+
+    data = yaml.safe_load((ROOT / "tasks" / "kitting_7picks.yaml").read_text())
+    data["map"] = str(ROOT / "maps" / "kitting_cell.yaml")
+    data["actions"] = [a for a in data["actions"] if a["id"] in ("pick_a", "pick_b", "pick_c", "pick_f")]
+    data["deadline"] = 60
+    path = tmp_path_factory.mktemp("picks4") / "picks4.yaml"
+    path.write_text(yaml.safe_dump(data))
+    task = load_task(path)
+    full = compile_task(task, jobs=1)
+    out = tmp_path_factory.mktemp("picks4_full")
+    write_compiled(full, out)
+    return task, full, out
+
+
+def _best_of_each_allocation(plans, k):
+    taken, out = {}, []
+    for p in plans:
+        allocation = json.dumps(p["allocation"], sort_keys=True)
+        if taken.get(allocation, 0) < k:
+            taken[allocation] = taken.get(allocation, 0) + 1
+            out.append({**p, "rank": len(out) + 1})
+    return out
+
+
+@pytest.mark.parametrize(("stnu", "jobs", "best"), [("graphml", 1, 1), ("graphml", 2, 2), ("archive", 2, 1),
+                                                    ("none", 1, 3)])
+def test_best_per_allocation_keeps_the_best_plans_of_each_allocation(picks4, tmp_path, stnu, jobs, best):
+    """The oracle: the in-memory compile of every plan, cut to the first `best` plans of each allocation
+    in its rank order. The streamed compile must list exactly those, with the same lines but for the
+    rank, the same STNU bytes and no other file, and show the records the full compile has."""
+    from dataclasses import replace
+
+    task, full, full_out = picks4
+    assert identical_actions(task) == (("pick_a", "pick_f"),)
+    result = compile_stream(task, tmp_path, count_plans(task), jobs=jobs, stnu=stnu, keep=3, best=best,
+                            sample_seconds=0.0)
+    want = _best_of_each_allocation(json.loads((full_out / "compiled.json").read_text())["plans"], best)
+    assert len(want) == 16 if best == 1 else 16 < len(want) < 120  # 16 allocations, 120 plans
+    data = json.loads((tmp_path / "compiled.json").read_text())
+    assert data["best_per_allocation"] == best and data["plans_compiled"] == result.compiled == 120
+    assert [{**p, "stnu": None} for p in data["plans"]] == [{**p, "stnu": None} for p in want]
+    counts = {c: sum(p["class"] == c for p in want) for c in data["counts"]}
+    assert data["counts"] == counts and result.plan_set.total == len(want)
+    ids = [p["id"] for p in want]
+    expected = {f"{i}.graphml": (full_out / "stnu" / f"{i}.graphml").read_bytes() for i in ids}
+    if stnu == "graphml":
+        assert {p.name: p.read_bytes() for p in (tmp_path / "stnu").iterdir()} == expected
+    elif stnu == "archive":
+        with zipfile.ZipFile(tmp_path / "stnu.zip") as zf:
+            assert zf.namelist() == [f"stnu/{i}" for i in expected]
+            assert all(zf.read(f"stnu/{name}") == text for name, text in expected.items())
+    assert not list(tmp_path.glob(".*.spool"))
+    by_id = {cp.plan.id: cp for cp in full.plans}
+    shown = result.plan_set.plans
+    assert [cp.plan.id for cp in shown[:3]] == ids[:3]
+    assert {cp.plan_class for cp in shown} == {by_id[i].plan_class for i in ids}
+    for cp in shown:
+        assert cp == replace(by_id[cp.plan.id], graphml="", rank=ids.index(cp.plan.id) + 1)
+    summary = result.plan_set.summary
+    assert summary is not None and summary.total == len(want) and summary.best == (best, 120)
+
+
+def test_the_bars_with_best_per_allocation_keep_what_full_records_keep(picks4, tmp_path, monkeypatch):
+    """With `best`, a plan's full record is sent only when it beats the bar of the moment, as without;
+    the best plan kept of a class may then have been sent without it (a plan of its class that beat it
+    was dropped later) and is compiled again (`PlanSink._recover`). In any arrival order the sink must
+    show the records that full records give it."""
+    import random
+
+    from hrc.compile.stream import compact_records, compile_records
+
+    task, full, _ = picks4
+    families = list(plan_families(task))
+    recovered = []
+    recover = PlanSink._recover
+    monkeypatch.setattr(PlanSink, "_recover", lambda self, i, *a: recovered.append(i) or recover(self, i, *a))
+    # (a plan among the keep best is never recovered: `_recover` refuses, the bar must have kept it)
+    sent = 0
+    for seed in range(6):
+        random.Random(seed).shuffle(families)
+        sinks = []
+        for name in ("a", "b"):
+            (tmp_path / f"{name}{seed}").mkdir()
+            sinks.append(PlanSink(task, tmp_path / f"{name}{seed}", "none", keep=12, best=2))
+        a, b = sinks
+        for cp, tail in compile_records(full.options, "none", task, full.paths, families):
+            a.add(cp, tail)
+        for k in range(0, len(families), 3):
+            chunk = families[k:k + 3]
+            for record in compact_records(full.options, "none", task, full.paths, (b.bar(chunk), chunk)):
+                sent += record[5] is not None
+                b.add_record(record)
+        out_a, out_b = a.finish(0, full.paths, full.options), b.finish(0, full.paths, full.options)
+        assert out_a.plans == out_b.plans and len(out_a.plans) >= 12
+        assert out_a.summary == out_b.summary
+        assert (tmp_path / f"a{seed}" / "compiled.json").read_bytes() == (tmp_path / f"b{seed}" /
+                                                                           "compiled.json").read_bytes()
+    assert recovered  # some order needed a record compiled again
+    assert sent < 6 * len(families)  # the bars held plans back (the allocations' bars most of them)
+
+
+def test_a_plan_code_gives_back_its_plan_and_family():
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    widths = set()
+    for family in plan_families(task):
+        for plan in family:
+            code = plan_code(task, plan)
+            widths.add(len(code))
+            assert plan_from_code(task, code) == plan
+            assert family_of(task, plan) == family
+    assert widths == {2 * (len(task.actions) + len(task.agents) - 1)}

@@ -74,6 +74,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--symmetry", action="store_true",
                    help="compile one plan per relabelling of identical actions (same agents, phases, "
                         "locations, durations; in no precedence, constraint or preference)")
+    p.add_argument("--best-per-allocation", type=_positive, default=None, metavar="K",
+                   help="keep only the K best plans of each allocation (all are compiled; the others are not "
+                        "written, ranked or offered to the dispatcher)")
     p.add_argument("--report-top", type=_positive, default=REPORT_TOP, metavar="N",
                    help=f"the report's ranked table shows the N best plans and the best of each class "
                         f"(default {REPORT_TOP}), with statistics over all plans")
@@ -163,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     from hrc.compile.estimate import estimate, fmt_bytes, fmt_seconds
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
     from hrc.compile.stream import Sample
-    from hrc.plans import pin_actions
+    from hrc.plans import allocation_count, pin_actions
 
     task = load_task(args.task)
     if args.pin:
@@ -184,9 +187,12 @@ def run(args: argparse.Namespace) -> int:
     quiet = args.quiet
     say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
     lo, hi = est.wall(jobs or workers)
-    say(f"{task.name}: {est.plans} plans; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu {args.stnu}); "
-        f"{fmt_seconds(lo)}-{fmt_seconds(hi)} on {jobs or workers} worker{'s' * ((jobs or workers) > 1)} "
-        "until measured")
+    best = args.best_per_allocation
+    keeping = "" if best is None else (f", keeping the best {best} of each of {allocation_count(task):,} allocations "
+                                    "(all are compiled)")
+    say(f"{task.name}: {est.plans} plans{keeping}; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu "
+        f"{args.stnu}{', less what is not kept' * bool(keeping)}); {fmt_seconds(lo)}-{fmt_seconds(hi)} on "
+        f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)} until measured")
 
     def on_estimate(sample: Sample) -> None:
         # between the pace with this process's caches filled (the same plans again: a long run's pace, or
@@ -210,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
                                         options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
-                                        estimate=on_estimate, symmetry=args.symmetry)
+                                        estimate=on_estimate, symmetry=args.symmetry, best=best)
             finally:
                 progress.close()
             if result.partial and earlier:
@@ -228,13 +234,15 @@ def run(args: argparse.Namespace) -> int:
             err.filename = str(out)
         raise
     cps = result.plan_set
+    best_text = "" if best is None else f"the best {best} of each allocation, {cps.total:,} plans, "
     if result.partial:
-        print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote them as a partial output "
-              f"to {out} (\"partial\": true in compiled.json, no report)", file=sys.stderr)
+        print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote {best_text or 'them '}as a "
+              f"partial output to {out} (\"partial\": true in compiled.json, no report)", file=sys.stderr)
         return 130
     if not quiet:
         counts = cps.counts()
-        print(f"compiled {cps.total} plans of {task.name} in {time.perf_counter() - t0:.2f} s: "
+        print(f"compiled {result.compiled} plans of {task.name} in {time.perf_counter() - t0:.2f} s"
+              + (f"; kept {best_text[:-2]}" if best_text else "") + ": "
               + ", ".join(f"{n} {c}" for c, n in counts.items()))
         if cps.plans:
             best = cps.plans[0]

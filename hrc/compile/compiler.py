@@ -107,6 +107,7 @@ class PlanSetSummary:
     stats: tuple[ClassStats, ...]
     bins: tuple[float, ...]  # edges of the worst-case makespan histogram (s)
     slowest: tuple[float, str] | None  # (earliest makespan, plan id)
+    best: tuple[int, int] | None = None  # only the best K of each allocation kept: (K, plans compiled)
 
 
 @dataclass(frozen=True, slots=True)

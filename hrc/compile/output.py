@@ -256,12 +256,14 @@ def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n
 
 def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, counts: dict[str, int],
                 stnu: str = "graphml", partial: tuple[int, int] | None = None,
-                symmetric: tuple[tuple[str, ...], ...] = ()) -> dict[str, Any]:
+                symmetric: tuple[tuple[str, ...], ...] = (), best: tuple[int, int] | None = None) -> dict[str, Any]:
     """``compiled.json`` without its plans. The optional keys appear only when they say something:
     ``stnu_files`` ("none" or "archive") and ``stnu_archive`` when the STNUs are not one GraphML file per
     plan; ``partial`` and ``plans_expected`` when the run was interrupted (`partial`: plans written, plans
     expected, the latter possibly an upper bound); ``identical_actions`` when only one plan per
-    relabelling of identical actions was compiled (``hrc compile --symmetry``)."""
+    relabelling of identical actions was compiled (``hrc compile --symmetry``); ``best_per_allocation`` and
+    ``plans_compiled`` when only the best plans of each allocation are listed (`best`: how many, and the
+    plans compiled; ``hrc compile --best-per-allocation``)."""
     out: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
         "generator": f"hrc {__version__}",
@@ -277,6 +279,9 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
             out["stnu_archive"] = STNU_ARCHIVE
     if symmetric:
         out["identical_actions"] = [list(g) for g in symmetric]
+    if best is not None:
+        out["best_per_allocation"] = best[0]
+        out["plans_compiled"] = best[1]
     if partial is not None:
         out["partial"] = True
         out["plans_expected"] = partial[1]

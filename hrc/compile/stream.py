@@ -25,6 +25,7 @@ only their STNU files.
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import functools
 import itertools
@@ -66,7 +67,16 @@ from hrc.compile.output import (
 from hrc.errors import HrcError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
-from hrc.plans import generate_plans, identical_actions, plan_families, spread_families, symmetry_factor
+from hrc.plans import (
+    family_of,
+    generate_plans,
+    identical_actions,
+    plan_code,
+    plan_families,
+    plan_from_code,
+    spread_families,
+    symmetry_factor,
+)
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "Sample", "StreamResult", "chunk_size", "compact_records",
            "compile_records", "compile_stream"]
@@ -96,27 +106,32 @@ def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     return out
 
 
-Bar = tuple[tuple | None, dict[str, tuple]]  # the keep-th best rank key so far, the best key per class
+Bar = tuple[tuple | None, dict[str, tuple], dict[tuple, tuple]]
+"""The keep-th best rank key so far, the best key per class, and with `PlanSink.best` the key a plan of an
+allocation (of the work's plans) must beat to be kept at all (`PlanSink.bar`)."""
 Written = tuple[str, int, int]  # what a worker wrote itself: a spool file's name, the offset and the length
-Record = tuple[tuple, str, str, "str | Written | None", "str | Written", CompiledPlan | None]
+Record = tuple[tuple, str, str, "str | Written | None", "str | Written", CompiledPlan | None, bytes]
 """A plan as `compact_records` sends it: rank key, id, class, its STNU (GraphML text; where the worker
-wrote it itself, None for a file of ``stnu/`` or `Written` for the archive's spool), its line tail (text or
-`Written`), and its full record when it beat the bar."""
+wrote it itself, None for a file of ``stnu/`` or `Written` for a spool), its line tail (text or
+`Written`), its full record when it beat the bar, and the plan itself in a few bytes (`plan_code`)."""
 
 
 def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
-                    work: tuple[Bar, list[tuple[Plan, ...]]], folder: str | None = None) -> list[Record]:
+                    work: tuple[Bar, list[tuple[Plan, ...]]], folder: str | None = None,
+                    stnu_to: str = "files") -> list[Record]:
     """`compile_records` as the parent needs it (`PlanSink.add_record`): each plan's rank key, id, class,
     GraphML and line tail, and the full record (without its GraphML) only when the plan beats `bar`,
     the parent's `PlanSink.bar` when it sent the work: the keep-th best key so far, or the best of the
-    plan's class. Bars only ever fall, so every plan that ends among the kept ones is sent in full; the
+    plan's class, unless it cannot be kept at all (with `PlanSink.best`: `best` plans of its allocation
+    beat it). Bars only ever fall, so every plan that ends among the kept ones is sent in full; the
     rest (most of a large task) cross the process boundary as a few strings instead of thousands of
     small objects (pickling full records was a quarter of kitting_7picks' CPU time).
 
     With `folder` (the output folder, for a worker on the parent's machine: `_WorkerFiles`), the worker
     writes the texts there itself and sends where they are: 56 kB per kitting_7picks plan no longer cross
-    a pipe twice and pass through the parent, whose CPU the workers share."""
-    (top, best), families = work
+    a pipe twice and pass through the parent, whose CPU the workers share. `stnu_to` (`PlanSink.stnu_to`)
+    says where a GraphML goes then: its file in ``stnu/``, a spool, or nowhere."""
+    (top, best, among), families = work
     out: list[Record] = []
     compiled = compile_records(options, stnu, task, paths, families)
     tails: Sequence[str | Written] = [tail for _, tail in compiled]
@@ -124,42 +139,47 @@ def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     if folder is None:
         graphml = [cp.graphml for cp, _ in compiled]
     else:
-        files = _WorkerFiles.of(folder, stnu)
-        tails, graphml = files.lines([t for _, t in compiled]), files.stnus(compiled, stnu)
+        files = _WorkerFiles.of(folder, stnu_to)
+        tails, graphml = files.lines([t for _, t in compiled]), files.stnus(compiled)
     for (cp, _), text, tail in zip(compiled, graphml, tails, strict=True):
         key = rank_key(cp, options.rank_by)
         cls = cp.plan_class.value
         full = (top is None or key < top) or cls not in best or key < best[cls]
-        out.append((key, cp.plan.id, cls, text, tail, replace(cp, graphml="") if full else None))
+        if full and among:
+            beat = among.get(cp.plan.allocation)
+            full = beat is None or key < beat
+        out.append((key, cp.plan.id, cls, text, tail, replace(cp, graphml="") if full else None,
+                    plan_code(task, cp.plan)))
     return out
 
 
 class _WorkerFiles:
     """A worker's own files in the output folder (`compact_records` with a folder): its spool of line
-    tails ``.plans.PID.spool`` and, by ``--stnu``, the GraphML files in ``stnu/`` or its spool for the
-    archive ``.stnu.PID.spool``; opened at the worker's first unit of work, appended to with one write
-    per unit. The parent reads the spools when it writes ``compiled.json`` and ``stnu.zip`` and removes
-    them (`PlanSink`); after an interrupt, it removes the GraphML files of plans it never heard of."""
+    tails ``.plans.PID.spool`` and, by `PlanSink.stnu_to`, the GraphML files in ``stnu/`` or its spool
+    ``.stnu.PID.spool`` (for the archive, or for the files of the plans kept in the end); opened at the
+    worker's first unit of work, appended to with one write per unit. The parent reads the spools when
+    it writes ``compiled.json`` and ``stnu.zip`` and removes them (`PlanSink`); after an interrupt, it
+    removes the GraphML files of plans it never heard of."""
 
     _open: dict[str, _WorkerFiles] = {}  # per process (a forked child opens its own): folder -> files
 
-    def __init__(self, folder: str, stnu: str) -> None:
-        self.pid = os.getpid()
+    def __init__(self, folder: str, stnu_to: str) -> None:
+        self.pid, self.stnu_to = os.getpid(), stnu_to
         self.names = (f".plans.{self.pid}.spool", f".stnu.{self.pid}.spool")
         flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND
         self.fds = [os.open(os.path.join(folder, self.names[0]), flags, 0o666),
-                    os.open(os.path.join(folder, self.names[1]), flags, 0o666) if stnu == "archive" else -1]
+                    os.open(os.path.join(folder, self.names[1]), flags, 0o666) if stnu_to == "spool" else -1]
         self.at = [os.fstat(fd).st_size if fd >= 0 else 0 for fd in self.fds]
         self.stnu_path = os.path.join(folder, "stnu")
-        self.stnu_dir = _open_folder(self.stnu_path) if stnu == "graphml" else None
+        self.stnu_dir = _open_folder(self.stnu_path) if stnu_to == "files" else None
 
     @classmethod
-    def of(cls, folder: str, stnu: str) -> _WorkerFiles:
+    def of(cls, folder: str, stnu_to: str) -> _WorkerFiles:
         files = cls._open.get(folder)
-        if files is None or files.pid != os.getpid():
+        if files is None or files.pid != os.getpid() or files.stnu_to != stnu_to:
             for old in cls._open.values():  # another run's, in a process that lives on (a test's)
                 old.close()
-            cls._open = {folder: cls(folder, stnu)}
+            cls._open = {folder: cls(folder, stnu_to)}
             files = cls._open[folder]
         return files
 
@@ -187,14 +207,14 @@ class _WorkerFiles:
     def lines(self, tails: list[str]) -> list[Written]:
         return self._append(0, tails, newline=True)
 
-    def stnus(self, compiled: list[tuple[CompiledPlan, str]], stnu: str) -> list[str | Written | None]:
-        if stnu == "graphml":
+    def stnus(self, compiled: list[tuple[CompiledPlan, str]]) -> list[str | Written | None]:
+        if self.stnu_to == "files":
             for cp, _ in compiled:
                 _write_stnu_file(self.stnu_dir, self.stnu_path, cp.plan.id, cp.graphml)
             return [None] * len(compiled)
-        if stnu == "archive":
+        if self.stnu_to == "spool":
             return list(self._append(1, [cp.graphml for cp, _ in compiled], newline=False))
-        return [cp.graphml for cp, _ in compiled]
+        return [None] * len(compiled)
 
 
 def _line_head(plan_id: str, rank: int) -> str:
@@ -264,19 +284,27 @@ class PlanSink:
     docstring); `finish` writes ``compiled.json`` and returns what the report needs."""
 
     def __init__(self, task: Task, out_dir: Path, stnu: str = "graphml", keep: int = REPORT_TOP,
-                 rank_by: str = "worst", symmetric: tuple[tuple[str, ...], ...] = ()) -> None:
+                 rank_by: str = "worst", symmetric: tuple[tuple[str, ...], ...] = (),
+                 best: int | None = None) -> None:
         if stnu not in STNU_MODES:
             raise ValueError(f"stnu must be one of {STNU_MODES}, got {stnu!r}")
+        if best is not None and best < 1:
+            raise ValueError(f"best must be at least 1, got {best}")
         self.task, self.out_dir, self.stnu, self.keep, self.rank_by = task, Path(out_dir), stnu, keep, rank_by
-        self.symmetric = symmetric
+        self.symmetric, self.best = symmetric, best
+        # where a plan's GraphML goes: its file at once; a spool, for the archive or, when only the best
+        # of each allocation are kept, for the files of those alone, written at the end; or nowhere
+        self.stnu_to = "none" if stnu == "none" else "spool" if stnu == "archive" or best else "files"
         self._lines = _Spooled(self.out_dir, ".plans.spool", b"\n")
         self._graphml: _Spooled | None = None
         self._stnu_dir: int | None = None
         if stnu == "graphml":
             (self.out_dir / "stnu").mkdir(exist_ok=True)
             self._stnu_dir = _open_folder(str(self.out_dir / "stnu"))
-        elif stnu == "archive":
+        if self.stnu_to == "spool":
             self._graphml = _Spooled(self.out_dir, ".stnu.spool", b"")
+        self._codes = bytearray()  # with `best`: each plan's `plan_code`, to group and recover them
+        self._among: dict[tuple, list[tuple]] = {}  # with `best`: the best keys of each allocation so far
         self._cols = {name: array("d") for name in _KEY_COLUMNS}
         self._ids = bytearray()  # 16 bytes per plan: its id, padded with spaces
         self._held: list[tuple[tuple, int, CompiledPlan]] = []
@@ -288,38 +316,67 @@ class PlanSink:
     def add(self, cp: CompiledPlan, tail: str) -> None:
         """Take one compiled plan and its line tail (`compile_records`)."""
         self.add_record((rank_key(cp, self.rank_by), cp.plan.id, cp.plan_class.value, cp.graphml, tail,
-                         replace(cp, graphml="")))
+                         replace(cp, graphml=""), plan_code(self.task, cp.plan)))
 
-    def bar(self) -> Bar:
+    def bar(self, families: Sequence[tuple[Plan, ...]] = ()) -> Bar:
         """What a plan must beat to be kept in full (`compact_records`): the keep-th best key so far (None
-        while fewer are held), and the best key of each class so far."""
+        while fewer are held), the best key of each class so far, and with `best`, for the allocations
+        of `families`' plans that have had `best` plans, the worst of their `best` best keys (a plan of
+        such an allocation that does not beat it is never kept: without this, the first bar stays None
+        until `keep` allocations have been seen, and every plan would be sent in full until then)."""
         top = None
         if len(self._held) >= self.keep:
             self._trim()
-            top = self._held[-1][0]
-        return top, {cls: b[0] for cls, b in self._best.items()}
+            top = self._held[-1][0] if len(self._held) >= self.keep else None
+        among: dict[tuple, tuple] = {}
+        if self.best is not None:
+            for plan in (plan for family in families for plan in family):
+                keys = self._among.get(plan.allocation)
+                if keys is not None and len(keys) >= self.best:
+                    among[plan.allocation] = keys[-1]
+        return top, {cls: b[0] for cls, b in self._best.items()}, among
 
     def _trim(self) -> None:
-        """Keep only the `keep` best held plans, best first."""
+        """Keep only the `keep` best held plans, best first; with `best`, at most that many of each
+        allocation among them.
+
+        Why the keep-th best of these is a sound bar with `best`: if `keep` of them beat a plan, then in
+        the end at least as many plans that are kept beat it, because an allocation's final `best` best
+        include, rank by rank, plans at least as good as those of its plans held now."""
         self._held.sort(key=lambda h: h[0])
+        if self.best is not None:
+            taken: dict[tuple, int] = {}
+            held = []
+            for h in self._held:
+                allocation = h[2].plan.allocation
+                if taken.get(allocation, 0) < self.best:
+                    taken[allocation] = taken.get(allocation, 0) + 1
+                    held.append(h)
+            self._held = held
         del self._held[self.keep:]
 
     def add_record(self, record: Record) -> None:
         """Take one plan as `compact_records` sends it (its full record only if it beat the bar; its texts
         or, from a worker on this machine, where the worker wrote them)."""
-        key, pid, cls, graphml, tail, light = record
+        key, pid, cls, graphml, tail, light, code = record
         i = len(self)
         if isinstance(tail, str):
             self._lines.add_text(tail.encode("utf-8"))
         else:
             self._lines.add_written(tail)
         if isinstance(graphml, str):
-            if self.stnu == "graphml":
-                _write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, graphml)
-            elif self._graphml is not None:
+            if self._graphml is not None:
                 self._graphml.add_text(graphml.encode("utf-8"))
+            elif self.stnu_to == "files":
+                _write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, graphml)
         elif graphml is not None and self._graphml is not None:
             self._graphml.add_written(graphml)
+        if self.best is not None:
+            self._codes += code
+            keys = self._among.setdefault(plan_from_code(self.task, code).allocation, [])
+            if len(keys) < self.best or key < keys[-1]:
+                bisect.insort(keys, key)
+                del keys[self.best:]
         for name, value in zip(_KEY_COLUMNS, key[:-1], strict=True):
             self._cols[name].append(float(value))
         self._ids += pid.encode("ascii").ljust(16, b" ")[:16]
@@ -345,22 +402,27 @@ class PlanSink:
 
     def finish(self, seed: int, paths: PathLibrary, options: CompileOptions,
                partial: int | None = None) -> CompiledPlanSet:
-        """Write ``compiled.json`` (and ``stnu.zip``) in rank order; remove the spools. `partial`: the
-        number of plans expected when the run was interrupted. Returns the best plans with their ranks
-        and a `PlanSetSummary` of all (for the report)."""
+        """Write ``compiled.json`` (and ``stnu.zip``, or with `best` the kept plans' GraphML files) in rank
+        order; remove the spools. `partial`: the number of plans expected when the run was interrupted.
+        Returns the best plans with their ranks and a `PlanSetSummary` of all kept (for the report)."""
         order = self._order()
+        compiled = len(order)
+        if self.best is not None:
+            order = order[self._among_best(order)]
         n = len(order)
-        rank = np.empty(n, dtype=np.int64)
+        rank = np.zeros(compiled, dtype=np.int64)  # 0: not kept (with `best`)
         rank[order] = np.arange(1, n + 1)
-        cls_col = np.frombuffer(self._cols["cls"], dtype=np.float64)
+        cls_col = np.frombuffer(self._cols["cls"], dtype=np.float64)[order]
         counts = {c.value: int(np.count_nonzero(cls_col == c.order)) for c in PlanClass}
         digest = task_digest(self.task)
         header = header_dict(self.task, seed, digest, options, counts, self.stnu,
-                             None if partial is None else (n, partial), self.symmetric)
-        # the archive (deflating, which frees the GIL) in a thread while compiled.json is copied: two
-        # files from two spools, so a second core shortens the end of a large compile
+                             None if partial is None else (n, partial), self.symmetric,
+                             None if self.best is None else (self.best, compiled))
+        # the archive (deflating, which frees the GIL) or the kept files in a thread while compiled.json is
+        # copied: two files from two spools, so a second core shortens the end of a large compile
         with ThreadPoolExecutor(max_workers=1) as pool:
-            archive = pool.submit(self._write_archive, order) if self._graphml is not None else None
+            writer = self._write_archive if self.stnu == "archive" else self._write_files
+            archive = pool.submit(writer, order) if self._graphml is not None else None
             lines = self._lines
             fds = lines.fds()
             with open(self.out_dir / "compiled.json", "wb") as out:
@@ -383,14 +445,54 @@ class PlanSink:
             if archive is not None:
                 archive.result()
         self._close()
-        if partial is not None and self.stnu == "graphml":
+        if partial is not None and self.stnu_to == "files":
             self._drop_unlisted()
-        self._trim()
-        chosen = {h[1]: h[2] for h in self._held}
-        chosen.update({i: cp for _, i, cp in self._best.values()})
-        plans = tuple(sorted((replace(cp, rank=int(rank[i])) for i, cp in chosen.items()), key=lambda cp: cp.rank))
+        held = {i: cp for _, i, cp in self._held}
+        held.update({i: cp for _, i, cp in self._best.values()})
+        # what the report shows: the keep best and the best of each class
+        wanted = dict.fromkeys(order[:self.keep].tolist())
+        for c in PlanClass:
+            first = np.flatnonzero(cls_col == c.order)
+            if first.size:
+                wanted[int(order[first[0]])] = None
+        plans = tuple(replace(held[i] if i in held else self._recover(i, rank[i] <= self.keep, paths, options),
+                              rank=int(rank[i])) for i in sorted(wanted, key=lambda i: rank[i]))
         return CompiledPlanSet(task=self.task, seed=seed, digest=digest, paths=paths, plans=plans, options=options,
-                               summary=self._summary(counts, n), stnu_files=self.stnu)
+                               summary=self._summary(counts, np.sort(order)), stnu_files=self.stnu)
+
+    def _among_best(self, order: np.ndarray) -> np.ndarray:
+        """Which plans of `order` (rank order) are among the `best` first of their allocation."""
+        n, best = len(order), self.best
+        assert best is not None
+        if not n:
+            return np.ones(0, dtype=bool)
+        codes = np.frombuffer(bytes(self._codes), dtype=np.uint16).reshape(n, -1)
+        parts = codes == 0xFFFF  # between two agents' sequences (`plan_code`)
+        agent = np.cumsum(parts, axis=1, dtype=np.uint16)
+        rows, cols = np.nonzero(~parts)
+        allocation = np.zeros((n, len(self.task.actions)), dtype=np.uint16)
+        allocation[rows, codes[rows, cols]] = agent[rows, cols]
+        group = np.unique(allocation, axis=0, return_inverse=True)[1].ravel()[order]
+        by_group = np.argsort(group, kind="stable")  # each allocation's plans together, in rank order
+        sorted_group = group[by_group]
+        at = np.arange(n)
+        starts = np.maximum.accumulate(np.where(np.r_[True, sorted_group[1:] != sorted_group[:-1]], at, 0))
+        place = np.empty(n, dtype=np.int64)
+        place[by_group] = at - starts  # 0 for the best of its allocation, 1 for the next, ...
+        return place < best
+
+    def _recover(self, i: int, top: bool, paths: PathLibrary, options: CompileOptions) -> CompiledPlan:
+        """Plan `i`'s full record, compiled again here (in its family, as the workers did: the same
+        record): with `best`, the best kept plan of a class may have been sent without it, since a plan
+        of its class that beat it then was dropped later with its allocation's worse plans. Never one of
+        the `keep` best (`top`): the bar keeps those (`_trim`)."""
+        if self.best is None or top:  # pragma: no cover - the bars keep them: `compact_records`, `_trim`
+            raise HrcError(f"internal: plan {i} is shown but its record was not kept")
+        width = len(self._codes) // len(self)
+        plan = plan_from_code(self.task, bytes(self._codes[width * i:width * (i + 1)]))
+        family = family_of(self.task, plan, symmetry=bool(self.symmetric))
+        cp = next(cp for cp in compile_family(self.task, family, paths, options, graphml=False) if cp.plan == plan)
+        return replace(cp, graphml="")
 
     def _write_archive(self, order: np.ndarray) -> None:
         """``stnu.zip``: the GraphML files in rank order, deflated, with fixed dates (deterministic bytes).
@@ -407,6 +509,14 @@ class PlanSink:
                 info.compress_type = zipfile.ZIP_DEFLATED
                 info.external_attr = 0o644 << 16
                 zf.writestr(info, spool.read(i), compresslevel=1)
+
+    def _write_files(self, order: np.ndarray) -> None:
+        """The GraphML files of the plans in `order` (the kept ones, with `best`) from the spool."""
+        spool = self._graphml
+        assert spool is not None
+        for i in order.tolist():
+            pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
+            _write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, spool.read(i))
 
     def _close(self) -> None:
         if self._stnu_dir is not None:
@@ -434,10 +544,12 @@ class PlanSink:
         """Close and remove the spools (the caller removes the folder)."""
         self._close()
 
-    def _summary(self, counts: dict[str, int], n: int) -> PlanSetSummary:
-        cls = np.frombuffer(self._cols["cls"], dtype=np.float64)
-        worst = np.frombuffer(self._cols["worst"], dtype=np.float64)
-        early = np.frombuffer(self._cols["early"], dtype=np.float64)
+    def _summary(self, counts: dict[str, int], kept: np.ndarray) -> PlanSetSummary:
+        """Statistics over the plans `kept` (indices)."""
+        n = len(kept)
+        cls = np.frombuffer(self._cols["cls"], dtype=np.float64)[kept]
+        worst = np.frombuffer(self._cols["worst"], dtype=np.float64)[kept]
+        early = np.frombuffer(self._cols["early"], dtype=np.float64)[kept]
         timed = np.isfinite(worst)
         edges = (np.histogram_bin_edges(worst[timed], bins=HISTOGRAM_BINS) if timed.any()
                  else np.array([0.0, 1.0]))
@@ -454,9 +566,11 @@ class PlanSink:
         slowest = None
         if np.isfinite(early).any():
             j = int(np.argmax(np.where(np.isfinite(early), early, -np.inf)))
-            slowest = (float(early[j]), self._ids[16 * j:16 * j + 16].rstrip(b" ").decode("ascii"))
+            k = int(kept[j])
+            slowest = (float(early[j]), self._ids[16 * k:16 * k + 16].rstrip(b" ").decode("ascii"))
         return PlanSetSummary(total=n, counts=tuple(counts.items()), stats=tuple(stats),
-                              bins=tuple(round(float(x), 3) for x in edges), slowest=slowest)
+                              bins=tuple(round(float(x), 3) for x in edges), slowest=slowest,
+                              best=None if self.best is None else (self.best, len(self)))
 
 
 def _open_folder(path: str) -> int | None:
@@ -467,10 +581,11 @@ def _open_folder(path: str) -> int | None:
     return os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
 
 
-def _write_stnu_file(folder: int | None, path: str, plan_id: str, text: str) -> None:
+def _write_stnu_file(folder: int | None, path: str, plan_id: str, text: str | bytes) -> None:
     """A plan's GraphML file ``PLAN.graphml`` in ``stnu/`` (open as `folder`, or at `path`)."""
     name = f"{plan_id}.graphml"
-    _write_at(folder, name if folder is not None else os.path.join(path, name), text.encode("utf-8"))
+    _write_at(folder, name if folder is not None else os.path.join(path, name),
+              text.encode("utf-8") if isinstance(text, str) else text)
 
 
 def _write_at(folder: int | None, name: str, data: bytes) -> None:
@@ -510,8 +625,9 @@ def _kernel_copy(src: int, dst: int, size: int, offset: int) -> bool:
 
 @dataclass(frozen=True, slots=True)
 class StreamResult:
-    """What `compile_stream` did: the report's view of the set, the plans compiled, and whether the run
-    was interrupted (``compiled.json`` then says ``"partial": true``)."""
+    """What `compile_stream` did: the report's view of the set (the plans kept: with `best`, fewer than
+    compiled), the plans compiled, and whether the run was interrupted (``compiled.json`` then says
+    ``"partial": true``)."""
 
     plan_set: CompiledPlanSet
     compiled: int
@@ -567,18 +683,20 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
                    executor: str | None = None, options: CompileOptions | None = None,
                    stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
                    estimate: Callable[[Sample], None] | None = None, sample_seconds: float = 1.0,
-                   symmetry: bool = False) -> StreamResult:
+                   symmetry: bool = False, best: int | None = None) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
     seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
     goes to the executor. Interrupted (KeyboardInterrupt) after some plans: a partial output; before
     any: re-raised. `symmetry`: one plan per class of plans that differ only by swapping identical actions
-    (`hrc.plans.identical_actions`; ``compiled.json`` names the groups). Raises `hrc.errors.HrcError`."""
+    (`hrc.plans.identical_actions`; ``compiled.json`` names the groups). `best`: keep only the best this
+    many plans of each allocation (all are compiled; the others are not written, ranked or reported).
+    Raises `hrc.errors.HrcError`."""
     options = options or CompileOptions()
     out_dir = Path(out_dir)
     write_input(task, out_dir)
     sink = PlanSink(task, out_dir, stnu, keep, options.rank_by,
-                    identical_actions(task) if symmetry else ())
+                    identical_actions(task) if symmetry else (), best)
     paths: PathLibrary | None = None
     per_plan: float | None = None
     partial = False
@@ -603,9 +721,9 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             size = max(1, chunk_size(max(total - len(sink), 1), getattr(ex, "jobs", 2)) // family)
             # workers on this machine write their plans' texts into the folder themselves
             folder = str(out_dir) if getattr(ex, "local_processes", False) else None
-            work = functools.partial(_records_with, options, stnu, folder)
+            work = functools.partial(_records_with, options, stnu, folder, sink.stnu_to)
             chunks = iter(lambda: list(itertools.islice(stream, size)), [])
-            for batch in ex.map_chunks(work, task, paths, ((sink.bar(), chunk) for chunk in chunks)):
+            for batch in ex.map_chunks(work, task, paths, ((sink.bar(chunk), chunk) for chunk in chunks)):
                 for record in batch:
                     sink.add_record(record)
                 if progress:
@@ -618,10 +736,11 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
     except BaseException:
         sink.abandon()
         raise
+    compiled = len(sink)
     plan_set = sink.finish(seed, paths, options, partial=total if partial else None)
-    return StreamResult(plan_set=plan_set, compiled=plan_set.total, partial=partial, seconds_per_plan=per_plan)
+    return StreamResult(plan_set=plan_set, compiled=compiled, partial=partial, seconds_per_plan=per_plan)
 
 
-def _records_with(options: CompileOptions, stnu: str, folder: str | None, task: Task, paths: PathLibrary,
-                  work: tuple[Bar, list[tuple[Plan, ...]]]) -> list[Record]:
-    return compact_records(options, stnu, task, paths, work, folder)
+def _records_with(options: CompileOptions, stnu: str, folder: str | None, stnu_to: str, task: Task,
+                  paths: PathLibrary, work: tuple[Bar, list[tuple[Plan, ...]]]) -> list[Record]:
+    return compact_records(options, stnu, task, paths, work, folder, stnu_to)

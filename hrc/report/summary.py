@@ -276,7 +276,10 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         options=(("human waits", "yes (the robot's strategy times the human's steps)" if cps.options.human_waits
                   else "no (the human never waits for the robot's sake)"),
                  ("rank within a class by", f"{cps.options.rank_by} makespan"
-                  + (" to the second, then the preference value" if task.preferences else ""))),
+                  + (" to the second, then the preference value" if task.preferences else "")))
+        + (() if cps.summary is None or cps.summary.best is None else
+           (("plans kept", f"the best {cps.summary.best[0]} of each allocation: {cps.total:,} of the "
+                           f"{cps.summary.best[1]:,} plans compiled (--best-per-allocation)"),)),
         preferences=bool(task.preferences),
         total=cps.total,
         stats=cps.summary.stats if cps.summary is not None and cps.total > len(rows) else (),
