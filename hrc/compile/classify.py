@@ -36,6 +36,7 @@ from typing import Literal
 
 import numpy as np
 
+from hrc.caches import make_room
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwork
 from hrc.model import Task
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_dc
@@ -216,8 +217,7 @@ def _packed(stnu: STNU) -> _Packed | None:
 
 
 def _keep_packed(stnu: STNU, packed: _Packed | None) -> tuple[STNU, _Packed | None]:
-    if len(_PACKED) >= 16:
-        del _PACKED[next(iter(_PACKED))]
+    make_room(_PACKED, 16)
     hit = _PACKED[id(stnu)] = (stnu, packed)
     return hit
 

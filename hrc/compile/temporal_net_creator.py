@@ -50,6 +50,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from hrc.caches import make_room
 from hrc.model import Agent, Event, Plan, Task
 from hrc.motion import Motion, Separation, TimeRef
 from hrc.plans import Leg, agent_legs, per_plan
@@ -241,8 +242,7 @@ def _task_ops(task: Task) -> dict[tuple, Any]:
     """The links `_Skeleton` has built for `task`, by what they depend on."""
     hit = _TASK_OPS.get(id(task))
     if hit is None or hit[0] is not task:
-        if len(_TASK_OPS) >= 4:
-            del _TASK_OPS[next(iter(_TASK_OPS))]
+        make_room(_TASK_OPS, 4)
         hit = _TASK_OPS[id(task)] = (task, {})
     if len(hit[1]) > _TASK_OPS_CAP:
         hit[1].clear()

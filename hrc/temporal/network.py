@@ -27,6 +27,7 @@ import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from hrc.caches import make_room
 from hrc.errors import HrcError
 
 __all__ = ["INF", "ContingentLink", "NetworkError", "RequirementLink", "STNU", "bound_count", "lineage"]
@@ -118,8 +119,7 @@ def lineage(stnu: STNU) -> Lineage | None:
 
 
 def _derived(parent: STNU, child: STNU, at: int, links: tuple[RequirementLink, ...], rest: bool) -> STNU:
-    if len(_LINEAGE) >= 16:
-        _LINEAGE.pop(next(iter(_LINEAGE), -1), None)  # never raises, should two threads trim at once
+    make_room(_LINEAGE, 16)
     _LINEAGE[id(child)] = (child, (parent, at, links, rest))
     return child
 

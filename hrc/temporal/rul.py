@@ -60,6 +60,7 @@ from heapq import heappop, heappush
 from pathlib import Path
 from typing import Any
 
+from hrc.caches import make_room
 from hrc.temporal.graph import Edge, EdgeKind
 from hrc.temporal.network import STNU, RequirementLink, bound_count, lineage
 from hrc.temporal.potential import feasible_potential
@@ -486,8 +487,7 @@ def edge_arrays(stnu: STNU) -> EdgeArrays:
     if hit is not None and hit[0] is stnu:
         return hit[1]
     arrays = _derived_arrays(stnu) or _edge_arrays(stnu)
-    if len(_EDGE_ARRAYS) >= 8:
-        del _EDGE_ARRAYS[next(iter(_EDGE_ARRAYS))]
+    make_room(_EDGE_ARRAYS, 8)
     _EDGE_ARRAYS[id(stnu)] = (stnu, arrays)
     return arrays
 
