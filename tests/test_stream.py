@@ -463,7 +463,7 @@ def test_a_plan_line_is_its_entry_encoded():
 # --- the best K of each allocation -------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def picks4(tmp_path_factory):
+def picks4_file(tmp_path_factory):
     """kitting_7picks cut to four picks, pick_f identical to pick_a: 5! = 120 plans, 16 allocations of
     1 to 24 plans, families of two; with a deadline of 60 s, plans of all three classes, some allocations
     with plans of two or three."""
@@ -475,7 +475,13 @@ def picks4(tmp_path_factory):
     data["deadline"] = 60
     path = tmp_path_factory.mktemp("picks4") / "picks4.yaml"
     path.write_text(yaml.safe_dump(data))
-    task = load_task(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def picks4(picks4_file, tmp_path_factory):
+    """`picks4_file`'s task, its in-memory compile and that compile's output folder."""
+    task = load_task(picks4_file)
     full = compile_task(task, jobs=1)
     out = tmp_path_factory.mktemp("picks4_full")
     write_compiled(full, out)
@@ -579,3 +585,143 @@ def test_a_plan_code_gives_back_its_plan_and_family():
             assert plan_from_code(task, code) == plan
             assert family_of(task, plan) == family
     assert widths == {2 * (len(task.actions) + len(task.agents) - 1)}
+
+
+# --- resuming an interrupted compile -------------------------------------------------------------------
+
+def _interrupted(task, out, after, **kwargs):
+    """`compile_stream` into `out`, interrupted once `after` progress lines about plans were given."""
+    seen = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if stage == "plans":
+            seen.append(done)
+            if len(seen) == after:
+                raise KeyboardInterrupt
+
+    out.mkdir()
+    return compile_stream(task, out, count_plans(task), progress=progress, sample_seconds=0.0, **kwargs)
+
+
+def _resumed(task, old, out, **kwargs):
+    from hrc.compile.stream import read_resume
+
+    rows = read_resume(old, task, 0, CompileOptions(), kwargs.get("stnu", "graphml"), False, kwargs.get("best"))
+    out.mkdir()
+    return compile_stream(task, out, count_plans(task), sample_seconds=0.0, resume=(old, rows), **kwargs)
+
+
+@pytest.mark.parametrize(("stnu", "jobs", "best"), [("graphml", 1, None), ("archive", 2, None), ("graphml", 2, 1),
+                                                    ("none", 1, 2)])
+def test_a_resumed_compile_writes_what_an_uninterrupted_one_does(picks4, tmp_path, stnu, jobs, best):
+    """Interrupted, then resumed (twice: the second resume goes on from a partial resumed output): the
+    same files, byte for byte, and the same plans for the report as a compile never interrupted."""
+    task = picks4[0]
+    whole = tmp_path / "whole"
+    whole.mkdir()
+    want = compile_stream(task, whole, count_plans(task), jobs=jobs, stnu=stnu, best=best, keep=5,
+                          sample_seconds=0.0)
+    first = _interrupted(task, tmp_path / "first", 2, jobs=jobs, stnu=stnu, best=best, keep=5)
+    assert first.partial and 0 < first.compiled < 120
+    assert (tmp_path / "first" / "resume.npy").is_file()
+    second_out = tmp_path / "second"
+    second_out.mkdir()
+    from hrc.compile.stream import read_resume
+
+    rows = read_resume(tmp_path / "first", task, 0, CompileOptions(), stnu, False, best)
+    seen = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if stage == "plans":
+            seen.append(done)
+            if len(seen) == 3:
+                raise KeyboardInterrupt
+
+    second = compile_stream(task, second_out, count_plans(task), jobs=jobs, stnu=stnu, best=best, keep=5,
+                            sample_seconds=0.0, progress=progress, resume=(tmp_path / "first", rows))
+    assert second.partial and first.compiled < second.compiled < 120, (first.compiled, second.compiled)
+    last = _resumed(task, second_out, tmp_path / "last", jobs=jobs, stnu=stnu, best=best, keep=5)
+    assert not last.partial and last.compiled == 120
+    assert _tree(tmp_path / "last") == _tree(whole)
+    assert last.plan_set.plans == want.plan_set.plans and last.plan_set.summary == want.plan_set.summary
+
+
+def test_a_family_taken_in_part_is_completed_on_resume(picks4, tmp_path):
+    """Interrupted between two plans of one family (pick_a and pick_f swapped), the resumed run compiles
+    that family again and takes only its missing plan."""
+    from hrc.compile.compiler import rank_key
+    from hrc.compile.output import write_input
+    from hrc.compile.stream import compile_records, read_resume
+
+    task, full, _ = picks4
+    whole = tmp_path / "whole"
+    whole.mkdir()
+    compile_stream(task, whole, count_plans(task), jobs=1, sample_seconds=0.0)
+    old = tmp_path / "old"
+    old.mkdir()
+    write_input(task, old)
+    sink = PlanSink(task, old)
+    families = [f for f in plan_families(task) if len(f) == 2][:3]
+    compiled = compile_records(full.options, "graphml", task, full.paths, families)
+    for cp, tail in compiled[:5]:  # two whole families and the first plan of the third
+        sink.add(cp, tail)
+    cp, tail = compiled[5]  # the sixth interrupted before its last append (an id the sink cannot take)
+    with pytest.raises(UnicodeEncodeError):
+        sink.add_record((rank_key(cp), "\u00e9" * 10, cp.plan_class.value, cp.graphml, tail, None,
+                         plan_code(task, cp.plan)))
+    sink.finish(0, full.paths, full.options, partial=120)
+    data = json.loads((old / "compiled.json").read_text())
+    assert len(data["plans"]) == 5 and len(list((old / "stnu").iterdir())) == 5
+    rows = read_resume(old, task, 0, CompileOptions(), "graphml", False, None)
+    assert len(rows) == 5
+    new = tmp_path / "new"
+    new.mkdir()
+    compile_stream(task, new, count_plans(task), jobs=1, sample_seconds=0.0, resume=(old, rows))
+    assert _tree(new) == _tree(whole)
+
+
+def test_resume_refuses_what_it_cannot_go_on_with(picks4, tmp_path):
+    from hrc.compile.stream import read_resume
+    from hrc.errors import InputError
+
+    task = picks4[0]
+    whole = tmp_path / "whole"
+    whole.mkdir()
+    compile_stream(task, whole, count_plans(task), jobs=1, sample_seconds=0.0)
+    with pytest.raises(InputError, match="complete, nothing to resume"):
+        read_resume(whole, task, 0, CompileOptions(), "graphml", False, None)
+    _interrupted(task, tmp_path / "part", 1, jobs=1)
+    for args, words in [((1, CompileOptions(), "graphml", False, None), "seed"),
+                        ((0, CompileOptions(rank_by="earliest"), "graphml", False, None), "options"),
+                        ((0, CompileOptions(), "archive", False, None), "stnu_files"),
+                        ((0, CompileOptions(), "graphml", True, None), "identical_actions"),
+                        ((0, CompileOptions(), "graphml", False, 1), "best_per_allocation")]:
+        with pytest.raises(InputError, match=words):
+            read_resume(tmp_path / "part", task, *args)
+    other = pin_actions(task, {"pick_a": "robot"})
+    with pytest.raises(InputError, match="task"):
+        read_resume(tmp_path / "part", other, 0, CompileOptions(), "graphml", False, None)
+    (tmp_path / "part" / "resume.npy").write_bytes(b"not numpy")
+    with pytest.raises(InputError, match="resume.npy"):
+        read_resume(tmp_path / "part", task, 0, CompileOptions(), "graphml", False, None)
+
+
+def test_the_cli_resumes_and_refuses_with_one_line(picks4_file, picks4, tmp_path, capsys):
+    from hrc.cli import main
+
+    task = picks4[0]
+    assert main(["compile", str(picks4_file), "--out", str(tmp_path / "whole"), "--jobs", "1", "-q"]) == 0
+    _interrupted(task, tmp_path / "out", 2, jobs=1)
+    before = _tree(tmp_path / "out")
+    for args, words in [(["--resume", "--seed", "3"], "seed"), (["--resume", "--stnu", "none"], "stnu_files")]:
+        assert main(["compile", str(picks4_file), "--out", str(tmp_path / "out"), "-q", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1 and words in err and "--resume" in err, err
+    assert _tree(tmp_path / "out") == before
+    assert main(["compile", str(picks4_file), "--out", str(tmp_path / "nowhere"), "--resume", "-q"]) == 2
+    assert "no such output folder" in capsys.readouterr().err and not (tmp_path / "nowhere").exists()
+    assert main(["compile", str(picks4_file), "--out", str(tmp_path / "out"), "--resume", "--jobs", "1"]) == 0
+    assert "resuming:" in capsys.readouterr().err
+    assert _tree(tmp_path / "out") == _tree(tmp_path / "whole")  # the report too
+    assert main(["compile", str(picks4_file), "--out", str(tmp_path / "out"), "--resume", "-q"]) == 2
+    assert "complete, nothing to resume" in capsys.readouterr().err

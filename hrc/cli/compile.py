@@ -7,8 +7,10 @@ after the compile), counts the plans in bounded time (or bounds them) and refuse
 the paths, measures its first plans and says how long the rest will take. Plans are compiled streaming
 (`hrc.compile.stream`); progress is a bar with ETA on a terminal, a line every `PROGRESS_EVERY` seconds
 otherwise. Interrupted (Ctrl-C or SIGTERM), it writes the plans compiled so far as a partial output
-(``"partial": true`` in compiled.json) into a new or empty ``--out`` (an earlier complete output there is
-kept instead) and exits 130; nothing else is left behind.
+(``"partial": true`` in compiled.json, and ``resume.npy``) into a new or empty ``--out`` (an earlier
+complete output there is kept instead) and exits 130; nothing else is left behind. ``--resume`` goes on
+with such an output (its plans are taken as they are) and ends with the output an uninterrupted run
+writes.
 """
 
 from __future__ import annotations
@@ -77,6 +79,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--best-per-allocation", type=_positive, default=None, metavar="K",
                    help="keep only the K best plans of each allocation (all are compiled; the others are not "
                         "written, ranked or offered to the dispatcher)")
+    p.add_argument("--resume", action="store_true",
+                   help="go on with the interrupted compile in --out (same task and options): its plans are "
+                        "kept, the rest compiled; the output is the same as an uninterrupted run's")
     p.add_argument("--report-top", type=_positive, default=REPORT_TOP, metavar="N",
                    help=f"the report's ranked table shows the N best plans and the best of each class "
                         f"(default {REPORT_TOP}), with statistics over all plans")
@@ -179,6 +184,15 @@ def run(args: argparse.Namespace) -> int:
         workers = default_jobs()
     else:
         workers = check_jobs(args.jobs) if args.jobs is not None else default_jobs()
+    options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
+    resume = None
+    if args.resume:
+        from hrc.compile.stream import read_resume
+
+        if not Path(out).is_dir():
+            raise InputError(out, "--out", "--resume: no such output folder (nothing to resume)")
+        resume = (Path(out), read_resume(Path(out), task, args.seed, options, args.stnu, args.symmetry,
+                                         args.best_per_allocation))
     est = estimate(task, symmetry=args.symmetry)
     if est.plans.value > args.max_plans:
         raise _refusal(args.task, est, args.max_plans, workers)
@@ -192,7 +206,8 @@ def run(args: argparse.Namespace) -> int:
                                     "(all are compiled)")
     say(f"{task.name}: {est.plans} plans{keeping}; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu "
         f"{args.stnu}{', less what is not kept' * bool(keeping)}); {fmt_seconds(lo)}-{fmt_seconds(hi)} on "
-        f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)} until measured")
+        f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)} until measured"
+        + ("" if resume is None else f"; resuming: {len(resume[1]):,} compiled already"))
 
     def on_estimate(sample: Sample) -> None:
         # between the pace with this process's caches filled (the same plans again: a long run's pace, or
@@ -209,14 +224,15 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     from hrc.compile.stream import compile_stream
 
-    options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
-    earlier = Path(out).is_dir() and any(Path(out).iterdir())  # an earlier output: not replaced by a partial one
+    # an earlier output is not replaced by a partial one (but the one resumed is: it holds fewer plans)
+    earlier = Path(out).is_dir() and any(Path(out).iterdir()) and resume is None
     try:
         with atomic_dir(out) as stage:
             try:
                 result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
                                         options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
-                                        estimate=on_estimate, symmetry=args.symmetry, best=best)
+                                        estimate=on_estimate, symmetry=args.symmetry, best=best,
+                                        resume=resume)
             finally:
                 progress.close()
             if result.partial and earlier:

@@ -31,6 +31,7 @@ import functools
 import itertools
 import json
 import os
+import shutil
 import time
 import zipfile
 import zlib
@@ -64,7 +65,7 @@ from hrc.compile.output import (
     plan_line,
     write_input,
 )
-from hrc.errors import HrcError
+from hrc.errors import HrcError, InputError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import (
@@ -303,7 +304,9 @@ class PlanSink:
             self._stnu_dir = _open_folder(str(self.out_dir / "stnu"))
         if self.stnu_to == "spool":
             self._graphml = _Spooled(self.out_dir, ".stnu.spool", b"")
-        self._codes = bytearray()  # with `best`: each plan's `plan_code`, to group and recover them
+        self._codes = bytearray()  # each plan's `plan_code`: to group (`best`), recover and resume them
+        self._width = 0  # bytes per plan code
+        self._restored = 0  # the first this many plans came from an interrupted run's output (`restore`)
         self._among: dict[tuple, list[tuple]] = {}  # with `best`: the best keys of each allocation so far
         self._cols = {name: array("d") for name in _KEY_COLUMNS}
         self._ids = bytearray()  # 16 bytes per plan: its id, padded with spaces
@@ -311,7 +314,19 @@ class PlanSink:
         self._best: dict[str, tuple[tuple, int, CompiledPlan]] = {}
 
     def __len__(self) -> int:
-        return len(self._lines)
+        return len(self._ids) // 16  # the last of a plan's columns `add_record` appends to
+
+    def _settle(self) -> None:
+        """Forget what `add_record` appended for a plan it did not finish taking (an interrupt between
+        two of its appends): every column as long as the plans taken."""
+        n = len(self)
+        for spool in (self._lines, self._graphml):
+            if spool is not None:
+                for column in (spool.file, spool.at, spool.size):
+                    del column[n:]
+        for values in self._cols.values():
+            del values[n:]
+        del self._codes[n * self._width:]
 
     def add(self, cp: CompiledPlan, tail: str) -> None:
         """Take one compiled plan and its line tail (`compile_records`)."""
@@ -371,8 +386,9 @@ class PlanSink:
                 _write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, graphml)
         elif graphml is not None and self._graphml is not None:
             self._graphml.add_written(graphml)
+        self._width = len(code)
+        self._codes += code
         if self.best is not None:
-            self._codes += code
             keys = self._among.setdefault(plan_from_code(self.task, code).allocation, [])
             if len(keys) < self.best or key < keys[-1]:
                 bisect.insort(keys, key)
@@ -405,6 +421,7 @@ class PlanSink:
         """Write ``compiled.json`` (and ``stnu.zip``, or with `best` the kept plans' GraphML files) in rank
         order; remove the spools. `partial`: the number of plans expected when the run was interrupted.
         Returns the best plans with their ranks and a `PlanSetSummary` of all kept (for the report)."""
+        self._settle()
         order = self._order()
         compiled = len(order)
         if self.best is not None:
@@ -445,8 +462,10 @@ class PlanSink:
             if archive is not None:
                 archive.result()
         self._close()
-        if partial is not None and self.stnu_to == "files":
-            self._drop_unlisted()
+        if partial is not None:
+            self._write_resume()
+            if self.stnu_to == "files":
+                self._drop_unlisted()
         held = {i: cp for _, i, cp in self._held}
         held.update({i: cp for _, i, cp in self._best.values()})
         # what the report shows: the keep best and the best of each class
@@ -459,6 +478,53 @@ class PlanSink:
                               rank=int(rank[i])) for i in sorted(wanted, key=lambda i: rank[i]))
         return CompiledPlanSet(task=self.task, seed=seed, digest=digest, paths=paths, plans=plans, options=options,
                                summary=self._summary(counts, np.sort(order)), stnu_files=self.stnu)
+
+    def _resume_rows(self) -> np.ndarray:
+        """Every plan taken so far as one row of `resume_dtype`, in the order taken."""
+        n, width = len(self), self._width // 2
+        rows = np.zeros(n, dtype=resume_dtype(width))
+        for name in _KEY_COLUMNS:
+            rows[name] = np.frombuffer(self._cols[name], dtype=np.float64)
+        rows["id"] = np.frombuffer(bytes(self._ids), dtype="S16")
+        if width:
+            rows["code"] = np.frombuffer(bytes(self._codes), dtype=np.uint16).reshape(n, width)
+        return rows
+
+    def _write_resume(self) -> None:
+        """``resume.npy`` beside a partial ``compiled.json``: each plan compiled (also those `best` did
+        not list) with its exact rank key and its `plan_code`, for ``hrc compile --resume``."""
+        np.save(self.out_dir / RESUME_FILE, self._resume_rows(), allow_pickle=False)
+
+    def restore(self, old: Path, rows: np.ndarray) -> None:
+        """Take the plans of an interrupted run's output `old` (its ``resume.npy`` rows, `read_resume`):
+        their line tails from its ``compiled.json``, their GraphML from its ``stnu/`` (linked, not copied,
+        when this sink writes files) or ``stnu.zip``. A plan compiled there but not listed (`best`) has
+        neither and is never listed here either: the plans that beat it are restored too. Call before
+        any other plan is added."""
+        if len(self):
+            raise ValueError("restore before any plan is added")
+        tails = _line_tails(old / "compiled.json")
+        classes = {c.order: c.value for c in PlanClass}
+        archive = zipfile.ZipFile(old / STNU_ARCHIVE) if (old / STNU_ARCHIVE).is_file() else None
+        try:
+            for row in rows:
+                pid = row["id"].decode("ascii").rstrip(" ")
+                tail = tails.get(pid)
+                key = (*(float(row[name]) for name in _KEY_COLUMNS), pid)
+                graphml: str | None = ""  # "": none; None: its file is in place
+                if self.stnu_to == "files":
+                    graphml = None
+                    if tail is not None:
+                        _link_or_copy(old / "stnu" / f"{pid}.graphml", self.out_dir / "stnu" / f"{pid}.graphml")
+                elif tail is not None and self.stnu_to == "spool":
+                    graphml = (archive.read(f"stnu/{pid}.graphml").decode("utf-8") if archive is not None
+                               else (old / "stnu" / f"{pid}.graphml").read_text(encoding="utf-8"))
+                self.add_record((key, pid, classes[int(row["cls"])], graphml, (tail or b"").decode("utf-8"),
+                                 None, row["code"].tobytes()))
+        finally:
+            if archive is not None:
+                archive.close()
+        self._restored = len(self)
 
     def _among_best(self, order: np.ndarray) -> np.ndarray:
         """Which plans of `order` (rank order) are among the `best` first of their allocation."""
@@ -484,11 +550,12 @@ class PlanSink:
     def _recover(self, i: int, top: bool, paths: PathLibrary, options: CompileOptions) -> CompiledPlan:
         """Plan `i`'s full record, compiled again here (in its family, as the workers did: the same
         record): with `best`, the best kept plan of a class may have been sent without it, since a plan
-        of its class that beat it then was dropped later with its allocation's worse plans. Never one of
-        the `keep` best (`top`): the bar keeps those (`_trim`)."""
-        if self.best is None or top:  # pragma: no cover - the bars keep them: `compact_records`, `_trim`
+        of its class that beat it then was dropped later with its allocation's worse plans; and a plan
+        restored from an interrupted run (`restore`) comes without one. Otherwise never one of the `keep`
+        best (`top`): the bar keeps those (`_trim`)."""
+        if i >= self._restored and (self.best is None or top):  # pragma: no cover - the bars keep them
             raise HrcError(f"internal: plan {i} is shown but its record was not kept")
-        width = len(self._codes) // len(self)
+        width = self._width
         plan = plan_from_code(self.task, bytes(self._codes[width * i:width * (i + 1)]))
         family = family_of(self.task, plan, symmetry=bool(self.symmetric))
         cp = next(cp for cp in compile_family(self.task, family, paths, options, graphml=False) if cp.plan == plan)
@@ -573,6 +640,75 @@ class PlanSink:
                               best=None if self.best is None else (self.best, len(self)))
 
 
+RESUME_FILE = "resume.npy"
+"""Beside a partial ``compiled.json``: what ``hrc compile --resume`` needs of every plan compiled."""
+
+
+def resume_dtype(width: int) -> np.dtype:
+    """A ``resume.npy`` row: the rank key's columns (exact), the id, the `plan_code` (`width` numbers)."""
+    return np.dtype([*((name, "<f8") for name in _KEY_COLUMNS), ("id", "S16"), ("code", "<u2", (width,))])
+
+
+_RESUMED_KEYS = ("schema_version", "generator", "seed", "options", "task", "stnu_files", "stnu_archive",
+                 "identical_actions", "best_per_allocation")
+"""What an interrupted run's ``compiled.json`` must say as the resumed run would (`read_resume`)."""
+
+
+def read_resume(folder: Path, task: Task, seed: int, options: CompileOptions, stnu: str, symmetry: bool,
+                best: int | None) -> np.ndarray:
+    """The ``resume.npy`` rows of the partial output in `folder`, after checking that it is one, of the
+    same task and options as the run that resumes it. Raises `InputError` (one line: which file, what
+    differs, what to do) before any work."""
+    header = header_dict(task, seed, task_digest(task), options, {}, stnu, None,
+                         identical_actions(task) if symmetry else (), None if best is None else (best, 0))
+    header = json.loads(json.dumps(header))  # as read back: lists, not tuples
+    compiled = Path(folder) / "compiled.json"
+    try:
+        with open(compiled, encoding="utf-8") as f:
+            head = f.read(1 << 16).split(',\n "plans": [', 1)[0] + "\n}"
+        old = json.loads(head)
+        if not isinstance(old, dict):
+            raise ValueError("not an object")
+    except (OSError, ValueError) as err:
+        raise InputError(str(compiled), "", f"--resume: not an hrc compile output ({err})") from err
+    if not old.get("partial"):
+        raise InputError(str(compiled), "partial", "--resume: this output is complete, nothing to resume")
+    for key in _RESUMED_KEYS:
+        if old.get(key) != header.get(key):
+            raise InputError(str(compiled), key, f"--resume: compiled with {json.dumps(old.get(key))}, this run "
+                                                 f"with {json.dumps(header.get(key))}; resume with the same task "
+                                                 "and options, or compile into a new --out")
+    path = Path(folder) / RESUME_FILE
+    try:
+        rows = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as err:
+        raise InputError(str(path), "", f"--resume: cannot read it ({err})") from err
+    names = rows.dtype.names or ()
+    if rows.ndim != 1 or names[:len(_KEY_COLUMNS) + 1] != (*_KEY_COLUMNS, "id") or "code" not in names:
+        raise InputError(str(path), "", "--resume: not the rows hrc compile writes")
+    return rows
+
+
+def _line_tails(path: Path) -> dict[str, bytes]:
+    """Each plan line of ``compiled.json`` after its id and rank (`_line_head`), by plan id."""
+    out: dict[str, bytes] = {}
+    with open(path, "rb") as f:
+        for line in f:
+            if line.startswith(b'{"id":'):
+                head, _, rest = line.partition(b',"rank":')
+                pid = json.loads(head[len(b'{"id":'):])
+                out[pid] = rest.split(b",", 1)[1].rstrip(b"\n").removesuffix(b",")
+    return out
+
+
+def _link_or_copy(source: Path, target: Path) -> None:
+    """`target` as a hard link to `source` (the same bytes, no copy), or a copy where links fail."""
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copyfile(source, target)
+
+
 def _open_folder(path: str) -> int | None:
     """`path` opened as a folder, for files opened relative to it (no path to build and resolve per
     plan: 40,320 of them); None where the system has no ``dir_fd``."""
@@ -654,16 +790,17 @@ class Sample:
 
 
 def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], options: CompileOptions,
-            stnu: str, sink: PlanSink, budget: float) -> Sample:
+            stnu: str, sink: PlanSink, budget: float, taken: frozenset[str] = frozenset()) -> Sample:
     """Compile sample families here until `budget` seconds pass (at least one family, at most 16 plans),
     then the same again (`Sample`): the time and disk per plan for the up-front estimate; the first
-    time's plans are kept, not wasted."""
+    time's plans are kept, not wasted (but for those the sink has `taken` already)."""
     t0 = time.perf_counter()
     n = done = 0
     size = 0.0
     for family in families:
         for cp, tail in compile_records(options, stnu, task, paths, [family]):
-            sink.add(cp, tail)
+            if cp.plan.id not in taken:
+                sink.add(cp, tail)
             size += len(tail.encode()) + 32
             if stnu == "graphml":
                 size += -(-len(cp.graphml.encode()) // 4096) * 4096
@@ -683,7 +820,8 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
                    executor: str | None = None, options: CompileOptions | None = None,
                    stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
                    estimate: Callable[[Sample], None] | None = None, sample_seconds: float = 1.0,
-                   symmetry: bool = False, best: int | None = None) -> StreamResult:
+                   symmetry: bool = False, best: int | None = None,
+                   resume: tuple[Path, np.ndarray] | None = None) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
     seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
@@ -691,12 +829,18 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
     any: re-raised. `symmetry`: one plan per class of plans that differ only by swapping identical actions
     (`hrc.plans.identical_actions`; ``compiled.json`` names the groups). `best`: keep only the best this
     many plans of each allocation (all are compiled; the others are not written, ranked or reported).
+    `resume`: an interrupted run's output folder and its `read_resume` rows: its plans are taken as they
+    are and not compiled again (the output is the same as a run never interrupted).
     Raises `hrc.errors.HrcError`."""
     options = options or CompileOptions()
     out_dir = Path(out_dir)
     write_input(task, out_dir)
     sink = PlanSink(task, out_dir, stnu, keep, options.rank_by,
                     identical_actions(task) if symmetry else (), best)
+    taken: frozenset[str] = frozenset()
+    if resume is not None:
+        sink.restore(*resume)
+        taken = frozenset(pid.decode("ascii").rstrip(" ") for pid in resume[1]["id"].tolist())
     paths: PathLibrary | None = None
     per_plan: float | None = None
     partial = False
@@ -707,14 +851,16 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             # the estimate's sample comes from allocations spread over the whole space (the stream's first
             # plans are all of one corner: the human doing everything), and is left out of the stream
             spread = spread_families(task, 16, symmetry)
-            sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds)
+            sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken)
             per_plan = sample.seconds_per_plan
             done = {f[0] for f in spread[:sample.families]}
             if estimate is not None:
                 estimate(sample)
             stream = (((plan,) for plan in generate_plans(task, symmetry=True)) if symmetry
                       else plan_families(task))
-            stream = (f for f in stream if f[0] not in done)
+            # a family the interrupted run took in part (interrupted between its plans) is compiled
+            # again, and only its missing plans are taken
+            stream = (f for f in stream if f[0] not in done and not (taken and all(p.id in taken for p in f)))
             if progress:
                 progress("plans", len(sink), total)
             family = 1 if symmetry else symmetry_factor(task)
@@ -725,7 +871,8 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             chunks = iter(lambda: list(itertools.islice(stream, size)), [])
             for batch in ex.map_chunks(work, task, paths, ((sink.bar(chunk), chunk) for chunk in chunks)):
                 for record in batch:
-                    sink.add_record(record)
+                    if record[1] not in taken:
+                        sink.add_record(record)
                 if progress:
                     progress("plans", len(sink), total)
     except KeyboardInterrupt:
