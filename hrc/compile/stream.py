@@ -79,8 +79,8 @@ from hrc.plans import (
     symmetry_factor,
 )
 
-__all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "PlanSink", "Sample", "StreamResult", "chunk_size", "compact_records",
-           "compile_records", "compile_stream"]
+__all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "RESUME_FILE", "PlanSink", "Sample", "StreamResult", "chunk_size",
+           "compact_records", "compile_records", "compile_stream", "read_resume", "resume_dtype"]
 
 REPORT_TOP = 100
 """Plans the report's ranked table shows by default (plus the best of each class)."""
