@@ -34,7 +34,7 @@ def test_show_text(capsys):
 def test_show_json(capsys):
     assert main(["show", str(WORKSHOP_TASK), "--json"]) == 0
     data = _strict_json(capsys.readouterr().out)
-    assert data["plan_count"] == 32
+    assert data["plan_count"] == 32 and data["allocations"] == 32  # cube_stacking: one order per allocation
     assert [a["id"] for a in data["agents"]] == ["human", "robot"]
     assert [a["id"] for a in data["actions"]] == ["cube1", "cube2", "cube3", "cube4", "triangle"]
     assert data["actions"][0]["phases"][0] == {"id": "fetch", "location": "S1",

@@ -11,7 +11,7 @@ from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate, fmt_bytes, fmt_sec
 from hrc.compile.executors import default_jobs
 from hrc.io.task_file import load_task
 from hrc.model import Task
-from hrc.plans import identical_actions, symmetry_factor
+from hrc.plans import allocation_count, identical_actions, symmetry_factor
 
 __all__ = ["add_parser", "run", "task_summary"]
 
@@ -52,6 +52,7 @@ def task_summary(task: Task) -> dict[str, Any]:
                 "obstacles": len(ws.obstacles), "floorplan": ws.floorplan,
                 "locations": {loc.id: [loc.x, loc.y] for loc in ws.locations}},
         "plan_count": est.plans.value,
+        "allocations": allocation_count(task),
         "plan_count_exact": est.plans.exact,
         "estimate": {"disk_bytes": {mode: est.disk(mode) for mode in est.stnu_bytes},
                      "cpu_seconds": [round(est.cpu_seconds[0], 1), round(est.cpu_seconds[1], 1)],
@@ -107,7 +108,8 @@ def _text(s: dict[str, Any]) -> str:
         lines.append(f"  identical actions ({groups}): `hrc compile --symmetry` compiles one plan in "
                      f"{s['symmetry_factor']}")
     count = f"{s['plan_count']}" if s["plan_count_exact"] else f"at most {s['plan_count']} (exact count too slow)"
-    lines.append(f"plans: {count} (allocations x valid per-agent sequences)")
+    lines.append(f"plans: {count} ({s['allocations']:,} allocations x valid per-agent sequences; "
+                 "`hrc compile --best-per-allocation K` keeps only the K best of each)")
     return "\n".join(lines)
 
 
