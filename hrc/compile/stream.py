@@ -674,10 +674,16 @@ def read_resume(folder: Path, task: Task, seed: int, options: CompileOptions, st
     if not old.get("partial"):
         raise InputError(str(compiled), "partial", "--resume: this output is complete, nothing to resume")
     for key in _RESUMED_KEYS:
-        if old.get(key) != header.get(key):
-            raise InputError(str(compiled), key, f"--resume: compiled with {json.dumps(old.get(key))}, this run "
-                                                 f"with {json.dumps(header.get(key))}; resume with the same task "
-                                                 "and options, or compile into a new --out")
+        was, now = old.get(key), header.get(key)
+        where = key
+        while isinstance(was, dict) and isinstance(now, dict) and was != now:  # the first key that differs
+            sub = next(k for k in (*was, *now) if was.get(k) != now.get(k))
+            where, was, now = f"{where}.{sub}", was.get(sub), now.get(sub)
+        if was != now:
+            why = " (the task, its map or --pin differ)" if where == "task.digest" else ""
+            raise InputError(str(compiled), where, f"--resume: compiled with {json.dumps(was)}, this run with "
+                                                   f"{json.dumps(now)}{why}; resume with the same task and "
+                                                   "options, or compile into a new --out")
     path = Path(folder) / RESUME_FILE
     try:
         rows = np.load(path, allow_pickle=False)
