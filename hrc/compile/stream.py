@@ -97,14 +97,21 @@ def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     """The executor's unit of work: whole families of plans (`hrc.plans.plan_families`, one motion
     search each, `compile_family`), each plan with its ``compiled.json`` line after ``"rank":``
     (`plan_line`, encoded where the plan was compiled, so that the parent only copies bytes)."""
-    out = []
-    for cp in (cp for family in families for cp in compile_family(task, family, paths, options, stnu != "none")):
-        text = plan_line(task, cp, stnu)
-        head = _line_head(cp.plan.id, 0)
-        if not text.startswith(head):  # pragma: no cover - plan_dict puts id and rank first
-            raise HrcError(f"internal: plan {cp.plan.id}'s line does not start with its id and rank")
-        out.append((cp, text[len(head):]))
-    return out
+    return [(cp, _line_tail(task, cp, stnu)) for cp in _compiled(options, stnu, task, paths, families)]
+
+
+def _compiled(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
+              families: list[tuple[Plan, ...]]) -> list[CompiledPlan]:
+    return [cp for family in families for cp in compile_family(task, family, paths, options, stnu != "none")]
+
+
+def _line_tail(task: Task, cp: CompiledPlan, stnu: str) -> str:
+    """`cp`'s ``compiled.json`` line after ``"rank":`` (`plan_line`)."""
+    text = plan_line(task, cp, stnu)
+    head = _line_head(cp.plan.id, 0)
+    if not text.startswith(head):  # pragma: no cover - plan_dict puts id and rank first
+        raise HrcError(f"internal: plan {cp.plan.id}'s line does not start with its id and rank")
+    return text[len(head):]
 
 
 Bar = tuple[tuple | None, dict[str, tuple], dict[tuple, tuple]]
@@ -131,24 +138,24 @@ def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     With `folder` (the output folder, for a worker on the parent's machine: `_WorkerFiles`), the worker
     writes the texts there itself and sends where they are: 56 kB per kitting_7picks plan no longer cross
     a pipe twice and pass through the parent, whose CPU the workers share. `stnu_to` (`PlanSink.stnu_to`)
-    says where a GraphML goes then: its file in ``stnu/``, a spool, or nowhere."""
+    says where a GraphML goes then: its file in ``stnu/``, a spool, or nowhere.
+
+    A plan that cannot be kept at all gets neither line nor GraphML (empty texts: never written out)."""
     (top, best, among), families = work
     out: list[Record] = []
-    compiled = compile_records(options, stnu, task, paths, families)
-    tails: Sequence[str | Written] = [tail for _, tail in compiled]
-    graphml: Sequence[str | Written | None]
-    if folder is None:
-        graphml = [cp.graphml for cp, _ in compiled]
-    else:
+    compiled = _compiled(options, stnu, task, paths, families)
+    keys = [rank_key(cp, options.rank_by) for cp in compiled]
+    kept = [not among or (beat := among.get(cp.plan.allocation)) is None or key < beat
+            for cp, key in zip(compiled, keys, strict=True)]
+    texts = [(_line_tail(task, cp, stnu), cp.graphml) if k else ("", "") for cp, k in zip(compiled, kept, strict=True)]
+    tails: Sequence[str | Written] = [tail for tail, _ in texts]
+    graphml: Sequence[str | Written | None] = [text for _, text in texts]
+    if folder is not None:
         files = _WorkerFiles.of(folder, stnu_to)
-        tails, graphml = files.lines([t for _, t in compiled]), files.stnus(compiled)
-    for (cp, _), text, tail in zip(compiled, graphml, tails, strict=True):
-        key = rank_key(cp, options.rank_by)
+        tails, graphml = files.lines([tail for tail, _ in texts]), files.stnus(compiled, [t for _, t in texts])
+    for cp, key, k, text, tail in zip(compiled, keys, kept, graphml, tails, strict=True):
         cls = cp.plan_class.value
-        full = (top is None or key < top) or cls not in best or key < best[cls]
-        if full and among:
-            beat = among.get(cp.plan.allocation)
-            full = beat is None or key < beat
+        full = k and ((top is None or key < top) or cls not in best or key < best[cls])
         out.append((key, cp.plan.id, cls, text, tail, replace(cp, graphml="") if full else None,
                     plan_code(task, cp.plan)))
     return out
@@ -208,13 +215,14 @@ class _WorkerFiles:
     def lines(self, tails: list[str]) -> list[Written]:
         return self._append(0, tails, newline=True)
 
-    def stnus(self, compiled: list[tuple[CompiledPlan, str]]) -> list[str | Written | None]:
+    def stnus(self, compiled: list[CompiledPlan], texts: list[str]) -> list[str | Written | None]:
+        """Write each plan's GraphML `texts` where `stnu_to` says; where each went."""
         if self.stnu_to == "files":
-            for cp, _ in compiled:
-                _write_stnu_file(self.stnu_dir, self.stnu_path, cp.plan.id, cp.graphml)
+            for cp, text in zip(compiled, texts, strict=True):
+                _write_stnu_file(self.stnu_dir, self.stnu_path, cp.plan.id, text)
             return [None] * len(compiled)
         if self.stnu_to == "spool":
-            return list(self._append(1, [cp.graphml for cp, _ in compiled], newline=False))
+            return list(self._append(1, texts, newline=False))
         return [None] * len(compiled)
 
 
