@@ -701,6 +701,13 @@ def test_resume_refuses_what_it_cannot_go_on_with(picks4, tmp_path):
     other = pin_actions(task, {"pick_a": "robot"})
     with pytest.raises(InputError, match=r"task\.digest.*--pin differ"):
         read_resume(tmp_path / "part", other, 0, CompileOptions(), "graphml", False, None)
+    rows = read_resume(tmp_path / "part", task, 0, CompileOptions(), "graphml", False, None)
+    lines = (tmp_path / "part" / "compiled.json").read_text().split("\n")
+    first = next(k for k, line in enumerate(lines) if line.startswith('{"id":'))
+    (tmp_path / "part" / "compiled.json").write_text("\n".join(lines[:first] + lines[first + 1:]))
+    with pytest.raises(InputError, match="is not in compiled.json"):
+        compile_stream(task, tmp_path / "again", count_plans(task), jobs=1, sample_seconds=0.0,
+                       resume=(tmp_path / "part", rows))
     (tmp_path / "part" / "resume.npy").write_bytes(b"not numpy")
     with pytest.raises(InputError, match="resume.npy"):
         read_resume(tmp_path / "part", task, 0, CompileOptions(), "graphml", False, None)

@@ -512,23 +512,28 @@ class PlanSink:
         if len(self):
             raise ValueError("restore before any plan is added")
         tails = _line_tails(old / "compiled.json")
+        # the old lines are copied from the old compiled.json as from a worker's spool (linked here)
+        spool = ".plans.resumed.spool"
+        _link_or_copy(old / "compiled.json", self.out_dir / spool)
         classes = {c.order: c.value for c in PlanClass}
         archive = zipfile.ZipFile(old / STNU_ARCHIVE) if (old / STNU_ARCHIVE).is_file() else None
         try:
             for row in rows:
                 pid = row["id"].decode("ascii").rstrip(" ")
-                tail = tails.get(pid)
+                place = tails.get(pid)
+                if place is None and self.best is None:
+                    raise InputError(str(old / RESUME_FILE), "", f"--resume: plan {pid} is not in compiled.json")
                 key = (*(float(row[name]) for name in _KEY_COLUMNS), pid)
                 graphml: str | None = ""  # "": none; None: its file is in place
                 if self.stnu_to == "files":
                     graphml = None
-                    if tail is not None:
+                    if place is not None:
                         _link_or_copy(old / "stnu" / f"{pid}.graphml", self.out_dir / "stnu" / f"{pid}.graphml")
-                elif tail is not None and self.stnu_to == "spool":
+                elif place is not None and self.stnu_to == "spool":
                     graphml = (archive.read(f"stnu/{pid}.graphml").decode("utf-8") if archive is not None
                                else (old / "stnu" / f"{pid}.graphml").read_text(encoding="utf-8"))
-                self.add_record((key, pid, classes[int(row["cls"])], graphml, (tail or b"").decode("utf-8"),
-                                 None, row["code"].tobytes()))
+                tail: str | Written = "" if place is None else (spool, *place)
+                self.add_record((key, pid, classes[int(row["cls"])], graphml, tail, None, row["code"].tobytes()))
         finally:
             if archive is not None:
                 archive.close()
@@ -703,15 +708,20 @@ def read_resume(folder: Path, task: Task, seed: int, options: CompileOptions, st
     return rows
 
 
-def _line_tails(path: Path) -> dict[str, bytes]:
-    """Each plan line of ``compiled.json`` after its id and rank (`_line_head`), by plan id."""
-    out: dict[str, bytes] = {}
+def _line_tails(path: Path) -> dict[str, tuple[int, int]]:
+    """Where each plan line of ``compiled.json`` has its tail (after its id and rank, `_line_head`): offset
+    and length, by plan id. Read line by line: a partial output's lines can be gigabytes in all."""
+    out: dict[str, tuple[int, int]] = {}
+    at = 0
     with open(path, "rb") as f:
         for line in f:
             if line.startswith(b'{"id":'):
-                head, _, rest = line.partition(b',"rank":')
-                pid = json.loads(head[len(b'{"id":'):])
-                out[pid] = rest.split(b",", 1)[1].rstrip(b"\n").removesuffix(b",")
+                head, sep, rest = line.partition(b',"rank":')
+                skip = len(head) + len(sep) + rest.index(b",") + 1
+                end = len(line.rstrip(b"\n"))
+                end -= line[end - 1:end] == b","
+                out[json.loads(head[len(b'{"id":'):])] = (at + skip, end - skip)
+            at += len(line)
     return out
 
 
@@ -853,7 +863,11 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
                     identical_actions(task) if symmetry else (), best)
     taken: frozenset[str] = frozenset()
     if resume is not None:
-        sink.restore(*resume)
+        try:
+            sink.restore(*resume)
+        except BaseException:
+            sink.abandon()
+            raise
         taken = frozenset(pid.decode("ascii").rstrip(" ") for pid in resume[1]["id"].tolist())
     paths: PathLibrary | None = None
     per_plan: float | None = None
