@@ -12,13 +12,14 @@ import concurrent.futures as cf
 import os
 import signal
 import socket
+import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 from urllib.parse import urlparse
 
 from hrc.errors import ExecutorError
 
-__all__ = ["EXECUTORS", "DaskExecutor", "PoolExecutor", "SerialExecutor", "check_jobs", "default_jobs",
+__all__ = ["EXECUTORS", "STOP_GRACE", "DaskExecutor", "PoolExecutor", "SerialExecutor", "check_jobs", "default_jobs",
            "make_executor", "parse_executor_url", "probe_scheduler"]
 
 
@@ -64,6 +65,10 @@ def _run_in_worker(fn: Callable[..., Any], chunk: Any) -> Any:
     return fn(task, paths, chunk)
 
 
+STOP_GRACE = 60.0
+"""Seconds an interrupted compile waits for its workers to end their units of work before stopping them."""
+
+
 class PoolExecutor:
     """A local process pool of `jobs` workers; started at the first `map_chunks`. Its workers run on this
     machine (`local_processes`): they can write into the output folder themselves."""
@@ -85,13 +90,19 @@ class PoolExecutor:
         if exc_type is None:
             pool.shutdown(cancel_futures=True)
             return
-        # interrupted or failed: do not wait for the chunks in flight, stop the workers now
+        # interrupted or failed: drop the chunks not started and let each worker end the one it is on (they
+        # ignore SIGINT; a unit of work takes a few seconds at most: `hrc.compile.stream.chunk_size`). Killing
+        # them at once could cut a result in the middle of the pipe, and the pool's manager thread would then
+        # wait for the rest of it for ever: the process hung at exit, joining that thread (seen in the tests).
         procs = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
+        deadline = time.monotonic() + STOP_GRACE
         for proc in procs:
-            proc.terminate()
-        for proc in procs:
-            proc.join(5)
+            proc.join(max(0.0, deadline - time.monotonic()))
+        for proc in procs:  # stuck past the grace period: stopped (the risk above is the lesser evil now)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(5)
 
     def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
         if self._pool is not None:
