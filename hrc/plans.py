@@ -42,15 +42,19 @@ class _TooManyStates(Exception):
     """The exact count would memoize more run states than allowed."""
 
 
+def _agent_choices(task: Task) -> list[list[str]]:
+    """Per action (task order), the agents that may do it (task order)."""
+    return [[ag for ag in task.agent_ids if ag in action.agents] for action in task.actions]
+
+
 def allocation_count(task: Task) -> int:
     """How many allocations `allocations` yields."""
-    return math.prod(sum(ag in action.agents for ag in task.agent_ids) for action in task.actions)
+    return math.prod(len(c) for c in _agent_choices(task))
 
 
 def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
     """Every allocation ``((action, agent), ...)`` in task order, each action to one agent that may do it."""
-    choices = [[ag for ag in task.agent_ids if ag in action.agents] for action in task.actions]
-    for combo in itertools.product(*choices):
+    for combo in itertools.product(*_agent_choices(task)):
         yield tuple(zip(task.action_ids, combo, strict=True))
 
 
@@ -426,8 +430,8 @@ def spread_families(task: Task, count: int, symmetry: bool = False) -> list[tupl
     spread evenly over the allocation space: the first family of each. A sample of the plans that is not
     all of one corner of the space, as the stream's first plans are (allocations come in lexicographic
     order: the first ones give the human everything), for `hrc compile`'s up-front estimate."""
-    choices = [[ag for ag in task.agent_ids if ag in action.agents] for action in task.actions]
-    total = math.prod(len(c) for c in choices)
+    choices = _agent_choices(task)
+    total = allocation_count(task)
     before = must_precede(task)
     groups = identical_actions(task)
     # a stride near total / golden ratio, coprime with total, visits every allocation once, spread out
