@@ -624,23 +624,13 @@ def test_a_resumed_compile_writes_what_an_uninterrupted_one_does(picks4, tmp_pat
     first = _interrupted(task, tmp_path / "first", 2, jobs=jobs, stnu=stnu, best=best, keep=5)
     assert first.partial and 0 < first.compiled < 120
     assert (tmp_path / "first" / "resume.npy").is_file()
-    second_out = tmp_path / "second"
-    second_out.mkdir()
     from hrc.compile.stream import read_resume
 
     rows = read_resume(tmp_path / "first", task, 0, CompileOptions(), stnu, False, best)
-    seen = []
-
-    def progress(stage: str, done: int, total: int) -> None:
-        if stage == "plans":
-            seen.append(done)
-            if len(seen) == 3:
-                raise KeyboardInterrupt
-
-    second = compile_stream(task, second_out, count_plans(task), jobs=jobs, stnu=stnu, best=best, keep=5,
-                            sample_seconds=0.0, progress=progress, resume=(tmp_path / "first", rows))
+    second = _interrupted(task, tmp_path / "second", 3, jobs=jobs, stnu=stnu, best=best, keep=5,
+                          resume=(tmp_path / "first", rows))
     assert second.partial and first.compiled < second.compiled < 120, (first.compiled, second.compiled)
-    last = _resumed(task, second_out, tmp_path / "last", jobs=jobs, stnu=stnu, best=best, keep=5)
+    last = _resumed(task, tmp_path / "second", tmp_path / "last", jobs=jobs, stnu=stnu, best=best, keep=5)
     assert not last.partial and last.compiled == 120
     assert _tree(tmp_path / "last") == _tree(whole)
     assert last.plan_set.plans == want.plan_set.plans and last.plan_set.summary == want.plan_set.summary

@@ -250,15 +250,16 @@ def run(args: argparse.Namespace) -> int:
             err.filename = str(out)
         raise
     cps = result.plan_set
-    best_text = "" if best is None else f"the best {best} of each allocation, {cps.total:,} plans, "
+    kept_text = None if best is None else f"the best {best} of each allocation, {cps.total:,} plans"
     if result.partial:
-        print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote {best_text or 'them '}as a "
-              f"partial output to {out} (\"partial\": true in compiled.json, no report)", file=sys.stderr)
+        wrote = "them" if kept_text is None else f"{kept_text},"
+        print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote {wrote} as a partial output "
+              f"to {out} (\"partial\": true in compiled.json, no report)", file=sys.stderr)
         return 130
     if not quiet:
         counts = cps.counts()
         print(f"compiled {result.compiled} plans of {task.name} in {time.perf_counter() - t0:.2f} s"
-              + (f"; kept {best_text[:-2]}" if best_text else "") + ": "
+              + ("" if kept_text is None else f"; kept {kept_text}") + ": "
               + ", ".join(f"{n} {c}" for c, n in counts.items()))
         if cps.plans:
             best = cps.plans[0]
