@@ -421,8 +421,11 @@ class PlanSink:
     def _head_of(self, i: int, rank: int) -> bytes:
         """Plan `i`'s ``compiled.json`` line up to its rank (the rest is its tail in the spool; not read
         through a memory map, whose pages would count as the process's memory)."""
-        pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
-        return _line_head(pid, rank).encode("utf-8")
+        return _line_head(self._id(i), rank).encode("utf-8")
+
+    def _id(self, i: int) -> str:
+        """Plan `i`'s id."""
+        return self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
 
     def finish(self, seed: int, paths: PathLibrary, options: CompileOptions,
                partial: int | None = None) -> CompiledPlanSet:
@@ -584,7 +587,7 @@ class PlanSink:
         assert spool is not None
         with zipfile.ZipFile(self.out_dir / STNU_ARCHIVE, "w", zipfile.ZIP_DEFLATED) as zf:
             for i in order.tolist():
-                pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
+                pid = self._id(i)
                 info = zipfile.ZipInfo(f"stnu/{pid}.graphml", date_time=(1980, 1, 1, 0, 0, 0))
                 info.compress_type = zipfile.ZIP_DEFLATED
                 info.external_attr = 0o644 << 16
@@ -595,8 +598,7 @@ class PlanSink:
         spool = self._graphml
         assert spool is not None
         for i in order.tolist():
-            pid = self._ids[16 * i:16 * i + 16].rstrip(b" ").decode("ascii")
-            _write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, spool.read(i))
+            _write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), self._id(i), spool.read(i))
 
     def _close(self) -> None:
         if self._stnu_dir is not None:
@@ -613,8 +615,7 @@ class PlanSink:
     def _drop_unlisted(self) -> None:
         """Remove the GraphML files of plans the sink never took: after an interrupt, workers writing
         into ``stnu/`` themselves (`_WorkerFiles`) may have written plans whose records never came."""
-        listed = {self._ids[k:k + 16].rstrip(b" ").decode("ascii") + ".graphml"
-                  for k in range(0, len(self._ids), 16)}
+        listed = {f"{self._id(i)}.graphml" for i in range(len(self))}
         folder = self.out_dir / "stnu"
         for name in os.listdir(folder):
             if name not in listed:
@@ -647,7 +648,7 @@ class PlanSink:
         if np.isfinite(early).any():
             j = int(np.argmax(np.where(np.isfinite(early), early, -np.inf)))
             k = int(kept[j])
-            slowest = (float(early[j]), self._ids[16 * k:16 * k + 16].rstrip(b" ").decode("ascii"))
+            slowest = (float(early[j]), self._id(k))
         return PlanSetSummary(total=n, counts=tuple(counts.items()), stats=tuple(stats),
                               bins=tuple(round(float(x), 3) for x in edges), slowest=slowest,
                               best=None if self.best is None else (self.best, len(self)))
