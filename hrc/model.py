@@ -12,6 +12,7 @@ is an allocation plus one sequence per agent.
 from __future__ import annotations
 
 import enum
+import functools
 import hashlib
 from dataclasses import dataclass, field
 
@@ -284,6 +285,14 @@ class Task:
         return tuple(sorted(pairs))
 
 
+@functools.lru_cache(maxsize=4096)
+def _plan_id(sequences: tuple[tuple[str, tuple[str, ...]], ...]) -> str:
+    """`Plan.id`, remembered for the plans of the moment: a compile asks for a plan's id a dozen times
+    (its records, files, caches), and a SHA-256 costs more than looking up the sequences."""
+    text = ";".join(f"{agent}:{','.join(seq)}" for agent, seq in sequences)
+    return hashlib.sha256(text.encode()).hexdigest()[:10]
+
+
 @dataclass(frozen=True, slots=True)
 class Plan:
     """An allocation (action -> agent) and one sequence of actions per agent.
@@ -298,8 +307,7 @@ class Plan:
     @property
     def id(self) -> str:
         """A stable 10-hex-digit id, derived from the allocation and the sequences."""
-        text = ";".join(f"{agent}:{','.join(seq)}" for agent, seq in self.sequences)
-        return hashlib.sha256(text.encode()).hexdigest()[:10]
+        return _plan_id(self.sequences)
 
     def agent_of(self, action_id: str) -> str:
         for action, agent in self.allocation:
