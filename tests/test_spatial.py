@@ -338,3 +338,28 @@ def test_a_plan_with_no_pattern_on_its_first_routes_tries_every_route() -> None:
         assert choice.pattern.candidates > 0, plan.id
         aside += any(m.park and m.agent == "human" for m in choice.pattern.motions)
     assert aside > 0
+
+
+def test_the_conflicts_of_route_choices_from_warm_caches_are_those_from_cold_ones() -> None:
+    """`find_conflicts` keeps each agent's itinerary per route choice (`_route_key`) and each pair's
+    conflicts per process: asked across plans and route trials in a mixed order, it must give what a path
+    library with empty caches gives. A key that missed a route choice would hand one trial's itinerary to
+    another (the kitting trials below detour and park the same legs in different ways)."""
+    import pickle
+
+    from hrc.compile.motion_pattern import _route_trials
+    from hrc.motion import find_conflicts, plan_paths
+    from hrc.plans import generate_plans
+
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    warm = plan_paths(task, seed=0)
+    asked = [(plan, routes) for plan in list(generate_plans(task))[::23]
+             for routes in [{}, *_route_trials(task, plan, warm, True)]]
+    random.Random(3).shuffle(asked)
+    asked = asked[:40]
+    assert sum(1 for _, routes in asked if routes) >= 20  # not vacuous
+    assert any(r.park for _, routes in asked for r in routes.values())
+    for plan, routes in asked:
+        cold = pickle.loads(pickle.dumps(warm))  # the same library, its caches empty
+        assert not cold.samples
+        assert find_conflicts(task, plan, warm, routes) == find_conflicts(task, plan, cold, routes), (plan.id, routes)

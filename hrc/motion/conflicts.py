@@ -308,9 +308,10 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
         return found
 
     def numbered(agent: Agent) -> list[tuple[Occupancy, int]]:
-        if any(k[0] == agent.id for k in routes):
-            return [(o, number(o)) for o in occupancies(task, plan, agent, routes)]
-        key = (agent.id, *((leg.origin, leg.location) for leg in agent_legs(task, plan, agent.id)))
+        # the route choices of the agent's legs, by what `signature` reads of them (a route trial's
+        # itinerary recurs across the plans that share the agent's legs too)
+        chosen = tuple(sorted((leg, _route_key(r)) for (a, leg), r in routes.items() if a == agent.id))
+        key = (agent.id, chosen, *((leg.origin, leg.location) for leg in agent_legs(task, plan, agent.id)))
         found = agents.get(key)
         if found is None:
             found = agents[key] = [(o, number(o)) for o in occupancies(task, plan, agent, routes)]
@@ -326,6 +327,13 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
                 found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
             out.extend(found)
     return tuple(out)
+
+
+def _route_key(route: Route) -> tuple:
+    """A route choice as `find_conflicts`' signatures tell paths apart (ends, detour label, length)."""
+    p, q = route.path, route.onward
+    return (p.origin, p.target, p.via, p.length, route.park,
+            None if q is None else (q.origin, q.target, q.via, q.length))
 
 
 _PAIR_CACHE = 200_000  # occupancy pairs kept per process (a few tens of MB at most)
