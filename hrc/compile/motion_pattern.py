@@ -43,7 +43,9 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import itertools
 import math
+import operator
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -294,9 +296,11 @@ class _Routing:
                 at.update(((agent, leg, what), index[name]) for what, name in names.items() if name in index)
         k = len(self.conflicts)
         rows = [_constraints(c) for c in self.conflicts]
-        earlier = np.array([at[key] for row in rows for key in row[0]], dtype=int).reshape(k, 2)
-        later = np.array([at[key] for row in rows for key in row[1]], dtype=int).reshape(k, 2)
-        gap = np.array([g for row in rows for g in row[2]], dtype=float).reshape(k, 2)
+        # each row's four keys (earlier, earlier, later, later) looked up in one C call
+        ends = np.array(operator.itemgetter(*itertools.chain.from_iterable(r[0] for r in rows))(at) if k else (),
+                        dtype=int).reshape(k, 2, 2)
+        earlier, later = ends[:, 0, :], ends[:, 1, :]
+        gap = np.array(list(itertools.chain.from_iterable(r[1] for r in rows)), dtype=float).reshape(k, 2)
         implied = np.asarray(self.robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)
         return earlier, later, gap, implied
 
@@ -321,8 +325,8 @@ def _chain_terms(task: Task, plan: Plan, rank_by: str) -> tuple[_Chain, ...]:
     return tuple(out)
 
 
-_Keys = tuple[tuple[tuple[str, int, str], tuple[str, int, str]], tuple[tuple[str, int, str], tuple[str, int, str]],
-              tuple[int, int]]
+_Key = tuple[str, int, str]
+_Keys = tuple[tuple[_Key, _Key, _Key, _Key], tuple[int, int]]  # earlier, earlier, later, later; the gaps
 _CONSTRAINTS: dict[int, tuple[Conflict, _Keys]] = {}
 _CONSTRAINTS_CAP = 50_000  # conflicts kept per process
 
@@ -340,8 +344,8 @@ def _constraints(c: Conflict) -> _Keys:
         return (ORIGIN, 0, "") if ref.agent == "" else (ref.agent, ref.leg, ref.what)
 
     seps = (c.robot_first, c.human_first)
-    keys: _Keys = (tuple(key(sep.earlier) for sep in seps), tuple(key(sep.later) for sep in seps),  # type: ignore[assignment]
-                   tuple(math.ceil(sep.gap * TICKS_PER_SECOND - 1e-9) for sep in seps))
+    keys: _Keys = ((key(seps[0].earlier), key(seps[1].earlier), key(seps[0].later), key(seps[1].later)),
+                   (math.ceil(seps[0].gap * TICKS_PER_SECOND - 1e-9), math.ceil(seps[1].gap * TICKS_PER_SECOND - 1e-9)))
     if len(_CONSTRAINTS) >= _CONSTRAINTS_CAP:
         _CONSTRAINTS.clear()
     _CONSTRAINTS[id(c)] = (c, keys)
