@@ -628,7 +628,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
         early = -mats[0][:, z]
         options = sorted((0, 1), key=lambda o: -(early[later[j, o]] - early[earlier[j, o]] - gap[j, o]))
         for o in options:  # first the order the earliest schedule is closer to
-            dfs(add(mats, j, o), how | {j: (o, "chosen")})
+            dfs(add(mats, j, o), how | {j: (o, "chosen")})  # noqa: F821 (the name is emptied after the search)
             if state["stop"]:
                 return
 
@@ -649,6 +649,9 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
                 dfs((start, *readings), {})
         if results or state["stop"] or not state["exhaustive"]:
             break
+    # `dfs` refers to itself through its closure: a reference cycle that only the garbage collector would
+    # free, holding the search's networks and arrays until then; emptying the name breaks it
+    del dfs
     results.sort(key=lambda r: r[0])
     return results, bool(state["exhaustive"] or state["stop"])  # reaching the bound is as good as exhaustive
 
