@@ -20,8 +20,8 @@ from urllib.parse import urlparse
 
 from hrc.errors import ExecutorError
 
-__all__ = ["EXECUTORS", "STOP_GRACE", "DaskExecutor", "PoolExecutor", "SerialExecutor", "check_jobs", "default_jobs",
-           "make_executor", "parse_executor_url", "probe_scheduler"]
+__all__ = ["EXECUTORS", "STOP_GRACE", "WORKER_GC_THRESHOLD", "DaskExecutor", "PoolExecutor", "SerialExecutor",
+           "check_jobs", "default_jobs", "make_executor", "parse_executor_url", "probe_scheduler"]
 
 
 def default_jobs() -> int:
@@ -30,6 +30,10 @@ def default_jobs() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
         return max(1, os.cpu_count() or 1)
+
+
+WORKER_GC_THRESHOLD = 10_000
+"""A worker's threshold for collecting its youngest generation of objects (Python's default: 700)."""
 
 
 class SerialExecutor:
@@ -44,15 +48,19 @@ class SerialExecutor:
         return None
 
     def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
-        for chunk in chunks:
-            yield fn(task, paths, chunk)
+        # the pool workers' threshold for the young objects (`_init_worker`), for as long as this runs
+        threshold = gc.get_threshold()
+        gc.set_threshold(WORKER_GC_THRESHOLD, *threshold[1:])
+        try:
+            for chunk in chunks:
+                yield fn(task, paths, chunk)
+        finally:
+            gc.set_threshold(*threshold)
 
 
 # Per worker process: the shared arguments (task, path library) arrive once, through the pool's
 # initializer, and stay for every chunk, with the caches the path library fills as plans use it.
 _WORKER_SHARED: dict[str, Any] = {}
-WORKER_GC_THRESHOLD = 10_000
-"""A worker's threshold for collecting its youngest generation of objects (Python's default: 700)."""
 
 
 def _init_worker(task: Any, paths: Any) -> None:
