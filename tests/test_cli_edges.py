@@ -138,6 +138,9 @@ def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path, earlier
         return
     data = json.loads((out / "compiled.json").read_text())
     assert data["partial"] is True and data["plans_expected"] == 32
+    # said before the writing, which takes a while for a large run
+    said = f"interrupted: writing the {len(data['plans'])} of 32 plans compiled so far as a partial output"
+    assert err.strip().splitlines()[-2] == said
     assert [p["rank"] for p in data["plans"]] == list(range(1, len(data["plans"]) + 1))
     assert sum(data["counts"].values()) == len(data["plans"]) >= 1
     assert sorted(p.name for p in (out / "stnu").iterdir()) == sorted(f"{p['id']}.graphml" for p in data["plans"])

@@ -103,6 +103,11 @@ class _Progress:
     def __call__(self, stage: str, done: int, total: int) -> None:
         if self.quiet:
             return
+        if stage == "stopping":  # interrupted: the plans so far are being written as a partial output
+            self.close()
+            print(f"interrupted: writing the {done:,} of {total:,} plans compiled so far as a partial output",
+                  file=sys.stderr, flush=True)
+            return
         label = {"motion": "motion planning", "plans": "plans"}.get(stage, stage)
         if self.tty:
             from tqdm import tqdm

@@ -909,6 +909,8 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             sink.abandon()
             raise
         partial = True
+        if progress:  # writing them takes a while for a large run (a 1.5 GB compiled.json, an archive): say so
+            progress("stopping", len(sink), total)
     except BaseException:
         sink.abandon()
         raise
