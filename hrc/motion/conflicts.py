@@ -283,8 +283,7 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
                f.leg, f.what)
         if occ.kind != "travel":
             return sig
-        p = route(occ)
-        return (*sig, p.origin, p.target, p.via, p.length)
+        return (*sig, *_path_key(route(occ)))
 
     # the conflicts of an occupancy pair depend on the two occupancies and their routes only, and the
     # same pairs recur across the plans of a task: kept per process, like the geometry they come from
@@ -329,11 +328,15 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
     return tuple(out)
 
 
+def _path_key(p: Path) -> tuple[str, str, str, float]:
+    """A path as `find_conflicts` tells paths apart in its signatures: ends, detour label, length."""
+    return (p.origin, p.target, p.via, p.length)
+
+
 def _route_key(route: Route) -> tuple:
-    """A route choice as `find_conflicts`' signatures tell paths apart (ends, detour label, length)."""
-    p, q = route.path, route.onward
-    return (p.origin, p.target, p.via, p.length, route.park,
-            None if q is None else (q.origin, q.target, q.via, q.length))
+    """A route choice by its paths' `_path_key` and its waiting place."""
+    q = route.onward
+    return (*_path_key(route.path), route.park, None if q is None else _path_key(q))
 
 
 _PAIR_CACHE = 200_000  # occupancy pairs kept per process (a few tens of MB at most)
