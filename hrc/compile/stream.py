@@ -506,12 +506,12 @@ class PlanSink:
         not list) with its exact rank key and its `plan_code`, for ``hrc compile --resume``."""
         np.save(self.out_dir / RESUME_FILE, self._resume_rows(), allow_pickle=False)
 
-    def restore(self, old: Path, rows: np.ndarray) -> None:
+    def restore(self, old: Path, rows: np.ndarray) -> frozenset[str]:
         """Take the plans of an interrupted run's output `old` (its ``resume.npy`` rows, `read_resume`):
         their line tails from its ``compiled.json``, their GraphML from its ``stnu/`` (linked, not copied,
         when this sink writes files) or ``stnu.zip``. A plan compiled there but not listed (`best`) has
         neither and is never listed here either: the plans that beat it are restored too. Call before
-        any other plan is added."""
+        any other plan is added. Returns the ids taken (not to be compiled again)."""
         if len(self):
             raise ValueError("restore before any plan is added")
         tails = _line_tails(old / "compiled.json")
@@ -541,6 +541,7 @@ class PlanSink:
             if archive is not None:
                 archive.close()
         self._restored = len(self)
+        return frozenset(self._id(i) for i in range(self._restored))
 
     def _among_best(self, order: np.ndarray) -> np.ndarray:
         """Which plans of `order` (rank order) are among the `best` first of their allocation."""
@@ -865,11 +866,10 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
     taken: frozenset[str] = frozenset()
     if resume is not None:
         try:
-            sink.restore(*resume)
+            taken = sink.restore(*resume)
         except BaseException:
             sink.abandon()
             raise
-        taken = frozenset(pid.decode("ascii").rstrip(" ") for pid in resume[1]["id"].tolist())
     paths: PathLibrary | None = None
     per_plan: float | None = None
     partial = False
