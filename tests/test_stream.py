@@ -575,6 +575,30 @@ def test_the_bars_with_best_per_allocation_keep_what_full_records_keep(picks4, t
     assert sent < 6 * len(families)  # the bars held plans back (the allocations' bars most of them)
 
 
+def test_the_slowest_plan_named_does_not_depend_on_arrival_order(picks4, tmp_path):
+    """The summary names the plan of the slowest earliest makespan (the report's sentence on an empty
+    class). Plans of identical picks tie there; workers deliver them in any order, so a tie must go to
+    the smallest id, whatever came first."""
+    import random
+
+    from hrc.compile.stream import compile_records
+
+    task, full, _ = picks4
+    records = compile_records(full.options, "none", task, full.paths, list(plan_families(task)))
+    early = {cp.plan.id: cp.classification.makespan[0] for cp, _ in records
+             if cp.classification.makespan is not None}
+    top = max(early.values())
+    tied = sorted(pid for pid, ms in early.items() if ms == top)
+    assert len(tied) > 1, tied  # else this test could not fail
+    for seed in range(4):
+        random.Random(seed).shuffle(records)
+        (tmp_path / str(seed)).mkdir()
+        sink = PlanSink(task, tmp_path / str(seed), "none", keep=5)
+        for cp, tail in records:
+            sink.add(cp, tail)
+        assert sink.finish(0, full.paths, full.options).summary.slowest == (top, tied[0])
+
+
 def test_a_plan_code_gives_back_its_plan_and_family():
     task = load_task(ROOT / "tasks" / "kitting.yaml")
     widths = set()

@@ -647,9 +647,9 @@ class PlanSink:
                 histogram=tuple(int(x) for x in np.histogram(worst[ok], bins=edges)[0])))
         slowest = None
         if np.isfinite(early).any():
-            j = int(np.argmax(np.where(np.isfinite(early), early, -np.inf)))
-            k = int(kept[j])
-            slowest = (float(early[j]), self._id(k))
+            # ties go to the smallest id: the plans' arrival order depends on the workers' timing
+            top = early.max(where=np.isfinite(early), initial=-np.inf)
+            slowest = (float(top), min(self._id(int(kept[j])) for j in np.flatnonzero(early == top)))
         return PlanSetSummary(total=n, counts=tuple(counts.items()), stats=tuple(stats),
                               bins=tuple(round(float(x), 3) for x in edges), slowest=slowest,
                               best=None if self.best is None else (self.best, len(self)))
