@@ -134,6 +134,7 @@ def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path, earlier
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder
     if earlier:
         assert "earlier output" in err and sorted(p.name for p in out.iterdir()) == ["compiled.json"]
+        assert "interrupted: writing" not in err  # it would be thrown away: not written at all
         assert json.loads((out / "compiled.json").read_text()) == {"earlier": True}
         return
     data = json.loads((out / "compiled.json").read_text())

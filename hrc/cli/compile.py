@@ -152,14 +152,6 @@ def _check_out(out: str) -> None:
                                        "compiled.json (not an earlier hrc compile output)")
 
 
-class _KeptEarlier(Exception):
-    """Interrupted while an earlier output is in --out: drop the partial one (the staging folder goes)."""
-
-    def __init__(self, compiled: int) -> None:
-        super().__init__(compiled)
-        self.compiled = compiled
-
-
 def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
     from hrc.compile.estimate import fmt_bytes, fmt_seconds
 
@@ -227,7 +219,7 @@ def run(args: argparse.Namespace) -> int:
 
     progress = _Progress(tty=sys.stderr.isatty(), quiet=quiet)
     t0 = time.perf_counter()
-    from hrc.compile.stream import compile_stream
+    from hrc.compile.stream import Abandoned, compile_stream
 
     # an earlier output is not replaced by a partial one (but the one resumed is: it holds fewer plans)
     earlier = Path(out).is_dir() and any(Path(out).iterdir()) and resume is None
@@ -237,16 +229,14 @@ def run(args: argparse.Namespace) -> int:
                 result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
                                         options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
                                         estimate=on_estimate, symmetry=args.symmetry, best=best,
-                                        resume=resume)
+                                        resume=resume, keep_partial=not earlier)
             finally:
                 progress.close()
-            if result.partial and earlier:
-                raise _KeptEarlier(result.compiled)
             if not args.no_report and not result.partial:
                 from hrc.report import write_report
 
                 write_report(result.plan_set, stage)
-    except _KeptEarlier as kept:
+    except Abandoned as kept:  # the staging folder is gone with nothing written into it
         print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
               "(a partial output replaces only a new or empty folder)", file=sys.stderr)
         return 130

@@ -79,8 +79,8 @@ from hrc.plans import (
     symmetry_factor,
 )
 
-__all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "RESUME_FILE", "PlanSink", "Sample", "StreamResult", "chunk_size",
-           "compact_records", "compile_records", "compile_stream", "read_resume", "resume_dtype"]
+__all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "RESUME_FILE", "Abandoned", "PlanSink", "Sample", "StreamResult",
+           "chunk_size", "compact_records", "compile_records", "compile_stream", "read_resume", "resume_dtype"]
 
 REPORT_TOP = 100
 """Plans the report's ranked table shows by default (plus the best of each class)."""
@@ -785,6 +785,15 @@ def _kernel_copy(src: int, dst: int, size: int, offset: int) -> bool:
     return True
 
 
+class Abandoned(Exception):
+    """An interrupted `compile_stream` that was not to keep a partial output: nothing was written;
+    `compiled` plans had been compiled."""
+
+    def __init__(self, compiled: int) -> None:
+        super().__init__(compiled)
+        self.compiled = compiled
+
+
 @dataclass(frozen=True, slots=True)
 class StreamResult:
     """What `compile_stream` did: the report's view of the set (the plans kept: with `best`, fewer than
@@ -847,7 +856,7 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
                    stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
                    estimate: Callable[[Sample], None] | None = None, sample_seconds: float = 1.0,
                    symmetry: bool = False, best: int | None = None,
-                   resume: tuple[Path, np.ndarray] | None = None) -> StreamResult:
+                   resume: tuple[Path, np.ndarray] | None = None, keep_partial: bool = True) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
     seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
@@ -856,7 +865,9 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
     (`hrc.plans.identical_actions`; ``compiled.json`` names the groups). `best`: keep only the best this
     many plans of each allocation (all are compiled; the others are not written, ranked or reported).
     `resume`: an interrupted run's output folder and its `read_resume` rows: its plans are taken as they
-    are and not compiled again (the output is the same as a run never interrupted).
+    are and not compiled again (the output is the same as a run never interrupted). `keep_partial`:
+    whether an interrupted run writes what it compiled (else it raises `Abandoned` at once: the caller
+    keeps an earlier output instead, and writing a large partial one would take a while for nothing).
     Raises `hrc.errors.HrcError`."""
     options = options or CompileOptions()
     out_dir = Path(out_dir)
@@ -908,6 +919,9 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
         if paths is None or not len(sink):
             sink.abandon()
             raise
+        if not keep_partial:
+            sink.abandon()
+            raise Abandoned(len(sink)) from None
         partial = True
         if progress:  # writing them takes a while for a large run (a 1.5 GB compiled.json, an archive): say so
             progress("stopping", len(sink), total)
