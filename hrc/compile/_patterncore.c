@@ -169,21 +169,23 @@ static void leaf(Search *s, const double *mats, const int *alive, const signed c
     }
 }
 
-/* `parent` (3 matrices) plus order o at conflict j (or nothing, j < 0), into a node of its own */
-static void dfs(Search *s, const double *parent, const int *parent_alive, const signed char *parent_dec,
-                const unsigned char *parent_how, int j0, int o0) {
+/* `parent` (3 matrices) plus order o at conflict j (or nothing, j < 0), into a node of its own; with
+   `take` the node works in `parent` itself (the parent's last child: the parent reads its matrices no
+   more), else in a copy */
+static void dfs(Search *s, double *parent, const int *parent_alive, const signed char *parent_dec,
+                const unsigned char *parent_how, int j0, int o0, int take) {
     if (s->stop) return;
     if (s->nodes >= s->node_cap || s->leaves >= s->leaf_cap) { s->exhaustive = 0; return; }
     int n = s->n, k = s->k;
     size_t nn = (size_t)n * n;
-    double *mats = malloc(3 * nn * sizeof(double));
+    double *mats = take ? parent : malloc(3 * nn * sizeof(double));
     signed char *dec = malloc((size_t)k + 1);
     unsigned char *how = malloc((size_t)k + 1);
     int *open = malloc(((size_t)k + 1) * sizeof(int));
     unsigned char *held = malloc((size_t)k + 1), *h0 = malloc((size_t)k + 1);
     unsigned char *nfit = malloc((size_t)k + 1), *f0 = malloc((size_t)k + 1);
     if (!mats || !dec || !how || !open || !held || !h0 || !nfit || !f0) { s->failed = 1; s->stop = 1; goto done; }
-    memcpy(mats, parent, 3 * nn * sizeof(double));
+    if (!take) memcpy(mats, parent, 3 * nn * sizeof(double));
     int alive[3] = {1, parent_alive[1], parent_alive[2]};
     memcpy(dec, parent_dec, (size_t)k);
     memcpy(how, parent_how, (size_t)k);
@@ -246,12 +248,13 @@ static void dfs(Search *s, const double *parent, const int *parent_alive, const 
         }
         int first = (-slack[1] < -slack[0]) ? 1 : 0; /* Python's stable sort on -slack */
         for (int t = 0; t < 2; t++) {
-            dfs(s, mats, alive, dec, how, j, t == 0 ? first : 1 - first);
+            dfs(s, mats, alive, dec, how, j, t == 0 ? first : 1 - first, t == 1);
             if (s->stop) break;
         }
     }
 done:
-    free(mats); free(dec); free(how); free(open); free(held); free(h0); free(nfit); free(f0);
+    if (!take) free(mats);
+    free(dec); free(how); free(open); free(held); free(h0); free(nfit); free(f0);
 }
 
 /* One pass of the search from `start` (3 n x n matrices; alive[1], alive[2] say whether the free and
@@ -294,7 +297,7 @@ int hrc_pattern_search(int n, int k, int z, const double *start, const int *star
         memcpy(s.wt, wt, (size_t)m * sizeof(int64_t));
         memset(dec, -1, (size_t)k + 1);
         int alive[3] = {1, start_alive[0], start_alive[1]};
-        dfs(&s, start, alive, dec, how, -1, 0);
+        dfs(&s, (double *)start, alive, dec, how, -1, 0, 0); /* copied: `start` is the caller's */
         if (s.failed) rc = -1;
     }
     state[0] = s.nodes; state[1] = s.leaves; state[2] = s.stop; state[3] = s.exhaustive;
