@@ -34,8 +34,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
 
-import numpy as np
-
 from hrc.caches import make_room
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND, PlanNetwork
 from hrc.model import Task
@@ -251,9 +249,11 @@ def _derived_pack(stnu: STNU) -> _Packed | None:
 
 def _core_takes(src: array, dst: array, wt: array) -> bool:
     """Whether the native core takes these edges: no edge from a timepoint to itself, every weight
-    within `MAX_WEIGHT`."""
-    s, d, w = (np.frombuffer(a, dtype=t) for a, t in zip((src, dst, wt), (np.int32, np.int32, np.int64), strict=True))
-    return not (np.any(s == d) or (len(w) and (int(w.max()) >= MAX_WEIGHT or int(w.min()) <= -MAX_WEIGHT)))
+    within `MAX_WEIGHT`. (Plain Python: a network has a few dozen to a few hundred links, where numpy's
+    calls cost more than the loops.)"""
+    if wt and (max(wt) >= MAX_WEIGHT or min(wt) <= -MAX_WEIGHT):
+        return False
+    return not any(map(operator.eq, src, dst))
 
 
 def _pack(stnu: STNU) -> _Packed | None:
