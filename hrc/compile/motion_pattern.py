@@ -722,8 +722,9 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
     robot = next(a for a in task.agents if not a.is_human)
     shortest = shortest or _Routing(task, plan, paths, {}, human_waits)
     motions = shortest.motions
-    implied = shortest.orders[3].any(axis=1).tolist()
-    open_conflicts = [c for c, settled in zip(shortest.conflicts, implied, strict=True) if not settled]
+    implied = shortest.orders[3]
+    settled: list[bool] = (implied[:, 0] | implied[:, 1]).tolist()  # either order holds in every execution
+    open_conflicts = [c for c, done in zip(shortest.conflicts, settled, strict=True) if not done]
     trials: list[Routes] = []
     # detours
     places: dict[int, list[Conflict]] = {}
