@@ -29,6 +29,15 @@ def test_show_text(capsys):
     assert out.rstrip().splitlines()[-1].startswith("plans: 32 ")
     for word in ("human", "robot", "cube1", "triangle", "cube4.put -> triangle.put", "map workshop", "9 obstacles"):
         assert word in out
+    # 32 plans: a second or two, said so rather than as a range from "0 s"
+    assert "compile estimate: up to " in out and " 0 s" not in out
+
+
+def test_time_spans_read_as_a_person_would_say_them():
+    from hrc.compile.estimate import fmt_span
+
+    assert [fmt_span(0.1, 0.2), fmt_span(0.1, 2.2), fmt_span(12.2, 12.4), fmt_span(21, 180),
+            fmt_span(50, 3000, " - ")] == ["under 1 s", "up to 2 s", "12 s", "21 s-3 min", "50 s - 50 min"]
 
 
 def test_show_json(capsys):

@@ -153,11 +153,11 @@ def _check_out(out: str) -> None:
 
 
 def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
-    from hrc.compile.estimate import fmt_bytes, fmt_seconds
+    from hrc.compile.estimate import fmt_bytes, fmt_span
 
     lo, hi = est.wall(workers)
     return InputError(task_file, "", f"{est.plans} plans, more than --max-plans {limit:,} (about "
-                      f"{fmt_seconds(lo)}-{fmt_seconds(hi)} on {workers} core{'s' * (workers > 1)}, "
+                      f"{fmt_span(lo, hi)} on {workers} core{'s' * (workers > 1)}, "
                       f"{fmt_bytes(est.disk('archive'))} with --stnu archive): raise --max-plans to compile "
                       "them all, spread them over a Dask cluster (--executor dask://HOST:PORT), or compile "
                       "fewer (--pin ACTION=AGENT, --symmetry)")
@@ -165,7 +165,7 @@ def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
 
 def run(args: argparse.Namespace) -> int:
     from hrc.compile.compiler import CompileOptions
-    from hrc.compile.estimate import estimate, fmt_bytes, fmt_seconds
+    from hrc.compile.estimate import estimate, fmt_bytes, fmt_span
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
     from hrc.compile.stream import Sample
     from hrc.plans import allocation_count, pin_actions
@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     keeping = "" if best is None else (f", keeping the best {best} of each of {allocation_count(task):,} allocations "
                                     "(all are compiled)")
     say(f"{task.name}: {est.plans} plans{keeping}; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu "
-        f"{args.stnu}{', less what is not kept' * bool(keeping)}); {fmt_seconds(lo)}-{fmt_seconds(hi)} on "
+        f"{args.stnu}{', less what is not kept' * bool(keeping)}); {fmt_span(lo, hi)} on "
         f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)} until measured"
         + ("" if resume is None else f"; resuming: {len(resume[1]):,} compiled already"))
 
@@ -212,8 +212,9 @@ def run(args: argparse.Namespace) -> int:
         first, again = sample.first_seconds_per_plan, sample.seconds_per_plan
         lo, hi = est.wall(jobs or workers, again)[0], est.wall(jobs or workers, first)[0]
         disk = fmt_bytes(sample.bytes_per_plan * total)
+        span = fmt_span(lo, hi)
         say(f"{sample.plans} sample plans (from allocations across the task) took {first:.3f} s "
-            f"each, {again:.3f} s the second time: about {fmt_seconds(lo)}-{fmt_seconds(hi)} for "
+            f"each, {again:.3f} s the second time: {'' if span.startswith('under') else 'about '}{span} for "
             f"all {total:,} at those paces, and {disk} on disk (plans differ a lot: the progress line's estimate "
             "follows the real pace)")
 

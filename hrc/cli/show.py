@@ -7,7 +7,7 @@ import json
 import math
 from typing import Any
 
-from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate, fmt_bytes, fmt_seconds
+from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate, fmt_bytes, fmt_span
 from hrc.compile.executors import default_jobs
 from hrc.io.task_file import load_task
 from hrc.model import Task
@@ -97,7 +97,7 @@ def _text(s: dict[str, Any]) -> str:
     jobs = default_jobs()
     lo, hi = (t / jobs for t in e["cpu_seconds"])
     disk = e["disk_bytes"]
-    lines.append(f"compile estimate: {fmt_seconds(lo)} - {fmt_seconds(hi)} on {jobs} core{'s' * (jobs > 1)}; on disk "
+    lines.append(f"compile estimate: {fmt_span(lo, hi, ' - ')} on {jobs} core{'s' * (jobs > 1)}; on disk "
                  f"{fmt_bytes(disk['graphml'])} (--stnu archive: {fmt_bytes(disk['archive'])}, none: "
                  f"{fmt_bytes(disk['none'])})")
     if s["plan_count"] > e["max_plans_default"]:

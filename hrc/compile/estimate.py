@@ -30,7 +30,7 @@ from hrc.model import Task
 from hrc.plans import PlanCount, estimate_plan_count
 
 __all__ = ["DEFAULT_MAX_PLANS", "GRAPHML_BYTES", "JSON_BYTES", "SECONDS_PER_PLAN", "ZIP_RATIO", "Estimate",
-           "estimate", "fmt_bytes", "fmt_seconds"]
+           "estimate", "fmt_bytes", "fmt_seconds", "fmt_span"]
 
 DEFAULT_MAX_PLANS = 50_000
 """``hrc compile --max-plans`` default: the 40,320 plans of 7 independent picks pass, 8 picks
@@ -98,3 +98,15 @@ def fmt_seconds(s: float) -> str:
     if s < 365 * 86400:
         return f"{s / 86400:.1f} days"
     return f"{s / (365.25 * 86400):.2g} years"
+
+
+def fmt_span(lo: float, hi: float, sep: str = "-") -> str:
+    """A range of seconds as `fmt_seconds` writes them, ``21 s-3 min``; once when both ends read the same
+    (``12 s``); ``under 1 s`` for a range that would read ``0 s-0 s`` and ``up to 2 s`` for one that would
+    start at ``0 s`` (the workshop's 32 plans)."""
+    if hi < 0.5:
+        return "under 1 s"
+    a, b = fmt_seconds(lo), fmt_seconds(hi)
+    if lo < 0.5:
+        return f"up to {b}"
+    return a if a == b else f"{a}{sep}{b}"
