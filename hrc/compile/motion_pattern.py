@@ -304,6 +304,13 @@ class _Routing:
         implied = np.asarray(self.robust[later, earlier] <= -gap, dtype=bool).reshape(k, 2)
         return earlier, later, gap, implied
 
+    @functools.cached_property
+    def settled(self) -> list[bool]:
+        """Per conflict, whether one of its orders holds in every execution (`orders`' `implied`): the
+        search never branches on it, and a route trial does not try to avoid it."""
+        implied = self.orders[3]
+        return (implied[:, 0] | implied[:, 1]).tolist()
+
 
 _Chain = tuple[str, float, tuple[tuple[int, float], ...], int]  # agent, slack, (leg, bound) per leg, links
 
@@ -507,7 +514,7 @@ def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tupl
     ends = np.array([index[t] for t in base.last_ends], dtype=int)
     k = len(conflicts)
     earlier, later, gap, implied = routing.orders  # per conflict and order; implied: holds in every execution
-    settled: list[bool] = np.any(implied, axis=1).tolist()
+    settled = routing.settled
     first_of: list[int] = np.where(implied[:, 0], 0, 1).tolist()
     results: list[tuple[tuple, Leaf]] = []
     state: dict[str, Any] = {"nodes": 0, "leaves": 0, "stop": False, "exhaustive": True,
@@ -722,9 +729,7 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
     robot = next(a for a in task.agents if not a.is_human)
     shortest = shortest or _Routing(task, plan, paths, {}, human_waits)
     motions = shortest.motions
-    implied = shortest.orders[3]
-    settled: list[bool] = (implied[:, 0] | implied[:, 1]).tolist()  # either order holds in every execution
-    open_conflicts = [c for c, done in zip(shortest.conflicts, settled, strict=True) if not done]
+    open_conflicts = [c for c, done in zip(shortest.conflicts, shortest.settled, strict=True) if not done]
     trials: list[Routes] = []
     # detours
     places: dict[int, list[Conflict]] = {}
