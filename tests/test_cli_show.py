@@ -38,6 +38,8 @@ def test_time_spans_read_as_a_person_would_say_them():
 
     assert [fmt_span(0.1, 0.2), fmt_span(0.1, 2.2), fmt_span(12.2, 12.4), fmt_span(21, 180),
             fmt_span(50, 3000, " - ")] == ["under 1 s", "up to 2 s", "12 s", "21 s-3 min", "50 s - 50 min"]
+    assert [fmt_span(0.1, 0.2, about=True), fmt_span(0.1, 2.2, about=True), fmt_span(21, 180, about=True)] == [
+        "under 1 s", "up to 2 s", "about 21 s-3 min"]
 
 
 def test_show_json(capsys):

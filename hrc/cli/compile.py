@@ -156,8 +156,8 @@ def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
     from hrc.compile.estimate import fmt_bytes, fmt_span
 
     lo, hi = est.wall(workers)
-    return InputError(task_file, "", f"{est.plans} plans, more than --max-plans {limit:,} (about "
-                      f"{fmt_span(lo, hi)} on {workers} core{'s' * (workers > 1)}, "
+    return InputError(task_file, "", f"{est.plans} plans, more than --max-plans {limit:,} ("
+                      f"{fmt_span(lo, hi, about=True)} on {workers} core{'s' * (workers > 1)}, "
                       f"{fmt_bytes(est.disk('archive'))} with --stnu archive): raise --max-plans to compile "
                       "them all, spread them over a Dask cluster (--executor dask://HOST:PORT), or compile "
                       "fewer (--pin ACTION=AGENT, --symmetry)")
@@ -212,9 +212,8 @@ def run(args: argparse.Namespace) -> int:
         first, again = sample.first_seconds_per_plan, sample.seconds_per_plan
         lo, hi = est.wall(jobs or workers, again)[0], est.wall(jobs or workers, first)[0]
         disk = fmt_bytes(sample.bytes_per_plan * total)
-        span = fmt_span(lo, hi)
         say(f"{sample.plans} sample plans (from allocations across the task) took {first:.3f} s "
-            f"each, {again:.3f} s the second time: {'' if span.startswith('under') else 'about '}{span} for "
+            f"each, {again:.3f} s the second time: {fmt_span(lo, hi, about=True)} for "
             f"all {total:,} at those paces, and {disk} on disk (plans differ a lot: the progress line's estimate "
             "follows the real pace)")
 

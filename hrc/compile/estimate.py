@@ -100,13 +100,13 @@ def fmt_seconds(s: float) -> str:
     return f"{s / (365.25 * 86400):.2g} years"
 
 
-def fmt_span(lo: float, hi: float, sep: str = "-") -> str:
+def fmt_span(lo: float, hi: float, sep: str = "-", about: bool = False) -> str:
     """A range of seconds as `fmt_seconds` writes them, ``21 s-3 min``; once when both ends read the same
     (``12 s``); ``under 1 s`` for a range that would read ``0 s-0 s`` and ``up to 2 s`` for one that would
-    start at ``0 s`` (the workshop's 32 plans)."""
+    start at ``0 s`` (the workshop's 32 plans). `about`: ``about 21 s-3 min``, where the words allow."""
     if hi < 0.5:
         return "under 1 s"
     a, b = fmt_seconds(lo), fmt_seconds(hi)
     if lo < 0.5:
         return f"up to {b}"
-    return a if a == b else f"{a}{sep}{b}"
+    return ("about " if about else "") + (a if a == b else f"{a}{sep}{b}")
