@@ -95,12 +95,12 @@ def test_a_full_disk_names_the_output_and_leaves_nothing(tmp_path, monkeypatch, 
     """A full disk fails a write, which names no file: the error names the output folder instead."""
     import errno
 
-    import hrc.compile.stream as stream
+    import hrc.compile.spool as spool
 
     def full(fd: int, data: bytes) -> None:
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(stream, "_write_all", full)
+    monkeypatch.setattr(spool, "write_all", full)
     out = tmp_path / "out"
     assert _compile(str(WORKSHOP_TASK), "--out", str(out), "--jobs", "1") == 2
     _one_error_line(capsys, str(out), "No space left on device")

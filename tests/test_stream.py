@@ -13,7 +13,8 @@ from conftest import ROOT, WORKSHOP_TASK
 
 from hrc.compile.compiler import CompileOptions, compile_task
 from hrc.compile.output import load_compiled_task, write_compiled
-from hrc.compile.stream import PlanSink, compile_stream
+from hrc.compile.sink import PlanSink
+from hrc.compile.stream import compile_stream
 from hrc.io.task_file import load_task
 from hrc.plans import (
     _TooManyStates,
@@ -628,7 +629,7 @@ def _interrupted(task, out, after, **kwargs):
 
 
 def _resumed(task, old, out, **kwargs):
-    from hrc.compile.stream import read_resume
+    from hrc.compile.resume import read_resume
 
     rows = read_resume(old, task, 0, CompileOptions(), kwargs.get("stnu", "graphml"), False, kwargs.get("best"))
     out.mkdir()
@@ -648,7 +649,7 @@ def test_a_resumed_compile_writes_what_an_uninterrupted_one_does(picks4, tmp_pat
     first = _interrupted(task, tmp_path / "first", 2, jobs=jobs, stnu=stnu, best=best, keep=5)
     assert first.partial and 0 < first.compiled < 120
     assert (tmp_path / "first" / "resume.npy").is_file()
-    from hrc.compile.stream import read_resume
+    from hrc.compile.resume import read_resume
 
     rows = read_resume(tmp_path / "first", task, 0, CompileOptions(), stnu, False, best)
     second = _interrupted(task, tmp_path / "second", 3, jobs=jobs, stnu=stnu, best=best, keep=5,
@@ -665,7 +666,8 @@ def test_a_family_taken_in_part_is_completed_on_resume(picks4, tmp_path):
     that family again and takes only its missing plan."""
     from hrc.compile.compiler import rank_key
     from hrc.compile.output import write_input
-    from hrc.compile.stream import compile_records, read_resume
+    from hrc.compile.resume import read_resume
+    from hrc.compile.stream import compile_records
 
     task, full, _ = picks4
     whole = tmp_path / "whole"
@@ -695,7 +697,7 @@ def test_a_family_taken_in_part_is_completed_on_resume(picks4, tmp_path):
 
 
 def test_resume_refuses_what_it_cannot_go_on_with(picks4, tmp_path):
-    from hrc.compile.stream import read_resume
+    from hrc.compile.resume import read_resume
     from hrc.errors import InputError
 
     task = picks4[0]

@@ -51,7 +51,7 @@ def _pin(text: str) -> tuple[str, str]:
 def add_parser(sub: Any) -> None:
     from hrc.compile.estimate import DEFAULT_MAX_PLANS
     from hrc.compile.output import STNU_MODES
-    from hrc.compile.stream import REPORT_TOP
+    from hrc.compile.sink import REPORT_TOP
 
     p = sub.add_parser("compile", help="compile a task into its ranked set of HRC schedules (STNUs)")
     p.add_argument("task", help="task YAML file")
@@ -184,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
     options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
     resume = None
     if args.resume:
-        from hrc.compile.stream import read_resume
+        from hrc.compile.resume import read_resume
 
         if not Path(out).is_dir():
             raise InputError(out, "--out", "--resume: no such output folder (nothing to resume)")

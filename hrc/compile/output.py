@@ -73,7 +73,7 @@ from hrc.plans import Leg, agent_legs
 from hrc.temporal.graphml import tool_name
 
 __all__ = ["JSON_TAIL", "SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json", "compiled_to_dict",
-           "header_dict", "json_head", "load_compiled_task", "plan_dict", "plan_line", "write_compiled",
+           "header_dict", "json_head", "line_head", "load_compiled_task", "plan_dict", "plan_line", "write_compiled",
            "write_input"]
 
 SCHEMA_VERSION = 2
@@ -353,3 +353,8 @@ def json_head(header: dict[str, Any]) -> str:
 JSON_TAIL = "\n ]\n}\n"
 """``compiled.json``'s text after its last plan line."""
 
+
+def line_head(plan_id: str, rank: int) -> str:
+    """The start of a plan's ``compiled.json`` line, up to its rank and the comma after it: the rest (its
+    tail) is the same wherever the plan ranks, so the compile writes it once and copies it."""
+    return f'{{"id":{json.dumps(plan_id)},"rank":{rank},'

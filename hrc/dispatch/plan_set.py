@@ -126,7 +126,7 @@ def _need(obj: Any, key: str, kind: type | tuple[type, ...], file: str, path: st
 
 class _Archive:
     """``stnu.zip`` of a compile made with ``--stnu archive``: each plan's GraphML is a member named as
-    the plan's ``stnu`` path (`hrc.compile.stream.PlanSink`)."""
+    the plan's ``stnu`` path (`hrc.compile.sink.PlanSink`)."""
 
     def __init__(self, folder: Path, file: str, name: str) -> None:
         self.path = folder / name
