@@ -12,9 +12,12 @@
  *
  * Returns 0 DC, 1 not DC, 2 inconsistent, -1 out of memory.
  */
+#include <limits.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "_rulcore.h"
 
 typedef __int128 W;
 
@@ -23,8 +26,9 @@ enum { UNSTARTED = 0, STARTED = 1, DONE = 2 };
 
 typedef struct { W key; int node; } Item;
 
-typedef struct {
+struct HrcRul {
     int n, k;
+    int ncap, kcap; /* the node and link arrays' sizes (a reused workspace grows, never shrinks) */
     /* edges: growable */
     int m, cap;
     int *src, *dst, *in_next, *out_next;
@@ -53,7 +57,12 @@ typedef struct {
     int64_t *hkeys;
     W *hvals;
     int64_t hcap2, hcount;
-} Net;
+    /* links in their order of processing, their keys, and the stack of started links */
+    int *links, *lkeys_tmp, *stack;
+    W *lkeys;
+    int *own_act, *own_ctg; /* the links' ends when the workspace owns them (hrc_rul_link) */
+};
+typedef struct HrcRul Net;
 
 static int grow_edges(Net *g) {
     if (g->m < g->cap) return 0;
@@ -383,87 +392,154 @@ static W join(const int64_t *lo, const int64_t *hi, int i) {
     return (W)(((unsigned __int128)(uint64_t)hi[i] << 64) | (uint64_t)lo[i]);
 }
 
+static void free_nodes(Net *g) {
+    free(g->in_head); free(g->out_head); free(g->act_first); free(g->p); free(g->stamp); free(g->done);
+    free(g->pred); free(g->key); free(g->dist); free(g->fstamp); free(g->fdone); free(g->fkey); free(g->moat);
+    free(g->touched); free(g->order); free(g->stack_node); free(g->stack_pos); free(g->color); free(g->negs);
+    free(g->pedge); free(g->pnode); free(g->cand); free(g->mark);
+}
+
+static void free_links(Net *g) {
+    free(g->x); free(g->y); free(g->lc); free(g->act_next); free(g->status); free(g->links); free(g->lkeys_tmp);
+    free(g->stack); free(g->lkeys); free(g->own_act); free(g->own_ctg);
+}
+
 static void release(Net *g) {
-    free(g->src); free(g->dst); free(g->in_next); free(g->out_next); free(g->w); free(g->kind);
-    free(g->in_head); free(g->out_head); free(g->x); free(g->y); free(g->lc); free(g->act_first);
-    free(g->act_next); free(g->status); free(g->p); free(g->stamp); free(g->done); free(g->pred);
-    free(g->key); free(g->dist); free(g->fstamp); free(g->fdone); free(g->fkey); free(g->heap);
-    free(g->moat); free(g->touched); free(g->order); free(g->stack_node); free(g->stack_pos);
-    free(g->color); free(g->negs); free(g->pedge); free(g->pnode); free(g->cand); free(g->mark);
+    free_nodes(g);
+    free_links(g);
+    free(g->src); free(g->dst); free(g->in_next); free(g->out_next); free(g->w); free(g->kind); free(g->heap);
     free(g->hkeys); free(g->hvals);
 }
+
+/* Room for n nodes and k links: arrays made afresh (zeroed, so every stamp is older than any search)
+ * when they are too small, kept otherwise. 0, or -1 when out of memory. */
+static int reserve(Net *g, int n, int k) {
+    int ok = 1;
+#define ALLOC(field, count) do { g->field = calloc((size_t)(count) + 1, sizeof *g->field); if (!g->field) ok = 0; } while (0)
+    if (n > g->ncap || !g->in_head) {
+        free_nodes(g);
+        int c = n > 16 ? n : 16;
+        ALLOC(in_head, c); ALLOC(out_head, c); ALLOC(act_first, c); ALLOC(p, c); ALLOC(stamp, c); ALLOC(done, c);
+        ALLOC(pred, c); ALLOC(key, c); ALLOC(dist, c); ALLOC(fstamp, c); ALLOC(fdone, c); ALLOC(fkey, c);
+        ALLOC(moat, c); ALLOC(touched, c); ALLOC(order, c); ALLOC(stack_node, c); ALLOC(stack_pos, c);
+        ALLOC(color, c); ALLOC(negs, c); ALLOC(pedge, c); ALLOC(pnode, c); ALLOC(cand, c); ALLOC(mark, c);
+        g->ncap = c; g->sid = 0; g->fsid = 0;
+    }
+    if (ok && (k > g->kcap || !g->x)) {
+        free_links(g);
+        int c = k > 8 ? k : 8;
+        ALLOC(x, c); ALLOC(y, c); ALLOC(lc, c); ALLOC(act_next, c); ALLOC(status, c); ALLOC(links, c);
+        ALLOC(lkeys_tmp, c); ALLOC(stack, c); ALLOC(lkeys, c); ALLOC(own_act, c); ALLOC(own_ctg, c);
+        g->kcap = c;
+    }
+#undef ALLOC
+    if (!ok) return -1;
+    if (!g->hcap2 && hgrow(g)) return -1;
+    return 0;
+}
+
+HrcRul *hrc_rul_new(void) { return calloc(1, sizeof(Net)); }
+
+void hrc_rul_free(HrcRul *g) {
+    if (g) { release(g); free(g); }
+}
+
+int hrc_rul_begin(HrcRul *g, int n, int k) {
+    if (n < 1 || k < 0 || reserve(g, n, k)) return -1;
+    g->n = n; g->k = k; g->m = 0;
+    for (int v = 0; v < n; v++) { g->in_head[v] = -1; g->out_head[v] = -1; g->act_first[v] = -1; }
+    for (int l = 0; l < k; l++) g->status[l] = UNSTARTED;
+    if (g->sid > INT_MAX / 2 || g->fsid > INT_MAX / 2) {  /* stamps wrap: start them again */
+        memset(g->stamp, 0, sizeof *g->stamp * (size_t)(g->ncap + 1));
+        memset(g->done, 0, sizeof *g->done * (size_t)(g->ncap + 1));
+        memset(g->fstamp, 0, sizeof *g->fstamp * (size_t)(g->ncap + 1));
+        memset(g->fdone, 0, sizeof *g->fdone * (size_t)(g->ncap + 1));
+        g->sid = 0; g->fsid = 0;
+    }
+    memset(g->hkeys, 0xff, sizeof(int64_t) * (size_t)g->hcap2);  /* every slot -1: empty */
+    g->hcount = 0;
+    g->act = g->own_act; g->ctg = g->own_ctg;
+    return 0;
+}
+
+int hrc_rul_edge(HrcRul *g, int s, int t, int64_t w) {
+    if (add_edge(g, s, t, (W)w, ORD) < 0 || hput_if_better(g, s, t, (W)w) < 0) return -1;
+    return 0;
+}
+
+void hrc_rul_link(HrcRul *g, int l, int a, int c, int64_t x, int64_t y) {
+    g->own_act[l] = a; g->own_ctg[l] = c; g->x[l] = (W)x; g->y[l] = (W)y;
+}
+
+/* The check on the edges and links given since hrc_rul_begin (g->x, g->y, g->act, g->ctg set), step 1
+ * starting from the potential p0 (NULL: all 0). Any start gives the same verdict; a feasible one (no edge
+ * of the LO-graph and the pairs violated) makes step 1 a single pass over the edges. */
+static int run(Net *g, const int64_t *p0) {
+    int n = g->n, k = g->k;
+    const int *act = g->act, *ctg = g->ctg;
+    for (int l = k - 1; l >= 0; l--) {
+        g->act_next[l] = g->act_first[act[l]];
+        g->act_first[act[l]] = l;
+    }
+    for (int l = 0; l < k; l++) {
+        g->lc[l] = add_edge(g, act[l], ctg[l], g->x[l], LC);
+        if (g->lc[l] < 0 || add_edge(g, act[l], ctg[l], g->y[l], PAIR) < 0 ||
+            add_edge(g, ctg[l], act[l], -g->x[l], PAIR) < 0) return -1;
+    }
+    /* step 1: one potential for the LO-graph and the pairs */
+    for (int v = 0; v < n; v++) g->p[v] = p0 ? (W)p0[v] : 0;
+    int r = potential(g, g->p, -1);
+    if (r) {
+        if (r < 0) return -1;
+        for (int v = 0; v < n; v++) g->p[v] = 0;
+        int stn = potential(g, g->p, LC);
+        return stn < 0 ? -1 : (stn ? 2 : 1);
+    }
+    /* steps 2-5, links by decreasing potential of their activation */
+    int *links = g->links, *stack = g->stack;
+    for (int l = 0; l < k; l++) { links[l] = l; g->lkeys[l] = g->p[act[l]]; }
+    sort_links(links, g->lkeys_tmp, g->lkeys, k);
+    int result = 0;
+    for (int i = 0; i < k && result == 0; i++) {
+        int first = links[i];
+        if (g->status[first] != UNSTARTED) continue;
+        int top = 0;
+        stack[0] = first; g->status[first] = STARTED;
+        while (top >= 0 && result == 0) {
+            int link = stack[top], other = -1;
+            int out = backprop(g, link, &other);
+            if (out < 0) { result = -1; break; }
+            if (out == NEED) { g->status[other] = STARTED; stack[++top] = other; continue; }
+            if (out == STARTED_HIT) { result = 1; break; }
+            int f = forward_check(g, link);
+            if (f) { result = f; break; }
+            f = finish(g, link);
+            if (f) { result = f; break; }
+            g->status[link] = DONE;
+            top--;
+        }
+    }
+    return result;
+}
+
+int hrc_rul_run(HrcRul *g, const int64_t *p0) { return run(g, p0); }
 
 int hrc_rul_verdict(int n, int m, const int *src, const int *dst, const int64_t *w_lo, const int64_t *w_hi,
                     int k, const int *act, const int *ctg, const int64_t *x_lo, const int64_t *x_hi,
                     const int64_t *y_lo, const int64_t *y_hi) {
     Net g;
     memset(&g, 0, sizeof g);
-    g.n = n; g.k = k; g.act = act; g.ctg = ctg;
-    int ok = 1;
-#define ALLOC(field, count) do { g.field = calloc((size_t)(count) + 1, sizeof *g.field); if (!g.field) ok = 0; } while (0)
-    ALLOC(in_head, n); ALLOC(out_head, n); ALLOC(x, k); ALLOC(y, k); ALLOC(lc, k); ALLOC(act_first, n);
-    ALLOC(act_next, k); ALLOC(status, k); ALLOC(p, n); ALLOC(stamp, n); ALLOC(done, n); ALLOC(pred, n);
-    ALLOC(key, n); ALLOC(dist, n); ALLOC(fstamp, n); ALLOC(fdone, n); ALLOC(fkey, n); ALLOC(moat, n);
-    ALLOC(touched, n); ALLOC(order, n); ALLOC(stack_node, n); ALLOC(stack_pos, n); ALLOC(color, n);
-    ALLOC(negs, n); ALLOC(pedge, n); ALLOC(pnode, n); ALLOC(cand, n); ALLOC(mark, n);
-#undef ALLOC
-    if (!ok || hgrow(&g)) { release(&g); return -1; }
-    for (int v = 0; v < n; v++) { g.in_head[v] = -1; g.out_head[v] = -1; g.act_first[v] = -1; }
-    int result = 0;
+    int result = hrc_rul_begin(&g, n, k);
+    g.act = act; g.ctg = ctg;
     for (int e = 0; e < m && result == 0; e++) {
         W w = join(w_lo, w_hi, e);
-        if (add_edge(&g, src[e], dst[e], w, ORD) < 0) result = -1;
-        else if (hput_if_better(&g, src[e], dst[e], w) < 0) result = -1;
-    }
-    for (int l = k - 1; l >= 0 && result == 0; l--) {
-        g.x[l] = join(x_lo, x_hi, l);
-        g.y[l] = join(y_lo, y_hi, l);
-        g.act_next[l] = g.act_first[act[l]];
-        g.act_first[act[l]] = l;
+        if (add_edge(&g, src[e], dst[e], w, ORD) < 0 || hput_if_better(&g, src[e], dst[e], w) < 0) result = -1;
     }
     for (int l = 0; l < k && result == 0; l++) {
-        g.lc[l] = add_edge(&g, act[l], ctg[l], g.x[l], LC);
-        if (g.lc[l] < 0 || add_edge(&g, act[l], ctg[l], g.y[l], PAIR) < 0 ||
-            add_edge(&g, ctg[l], act[l], -g.x[l], PAIR) < 0) result = -1;
+        g.x[l] = join(x_lo, x_hi, l);
+        g.y[l] = join(y_lo, y_hi, l);
     }
-    if (result) { release(&g); return -1; }
-    /* step 1: one potential for the LO-graph and the pairs */
-    int r = potential(&g, g.p, -1);
-    if (r) {
-        if (r < 0) { release(&g); return -1; }
-        for (int v = 0; v < n; v++) g.p[v] = 0;
-        int stn = potential(&g, g.p, LC);
-        release(&g);
-        return stn < 0 ? -1 : (stn ? 2 : 1);
-    }
-    /* steps 2-5, links by decreasing potential of their activation */
-    int *links = malloc(sizeof(int) * (size_t)(k + 1));
-    W *keys = malloc(sizeof(W) * (size_t)(k + 1));
-    int *stack = malloc(sizeof(int) * (size_t)(k + 1));
-    if (!links || !keys || !stack) { free(links); free(keys); free(stack); release(&g); return -1; }
-    for (int l = 0; l < k; l++) { links[l] = l; keys[l] = g.p[act[l]]; }
-    sort_links(links, stack, keys, k);  /* stack is free scratch space until the loop below */
-    result = 0;
-    for (int i = 0; i < k && result == 0; i++) {
-        int first = links[i];
-        if (g.status[first] != UNSTARTED) continue;
-        int top = 0;
-        stack[0] = first; g.status[first] = STARTED;
-        while (top >= 0 && result == 0) {
-            int link = stack[top], other = -1;
-            int out = backprop(&g, link, &other);
-            if (out < 0) { result = -1; break; }
-            if (out == NEED) { g.status[other] = STARTED; stack[++top] = other; continue; }
-            if (out == STARTED_HIT) { result = 1; break; }
-            int f = forward_check(&g, link);
-            if (f) { result = f; break; }
-            f = finish(&g, link);
-            if (f) { result = f; break; }
-            g.status[link] = DONE;
-            top--;
-        }
-    }
-    free(links); free(keys); free(stack);
+    if (result == 0) result = run(&g, NULL);
     release(&g);
     return result;
 }
