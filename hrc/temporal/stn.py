@@ -149,17 +149,30 @@ def earliest_times(stnu: STNU, origin: str) -> dict[str, int] | None:
 
     Earliest(x) = -d(x, origin) in the distance graph with ``x -> origin`` edges of weight 0 added
     (Dechter, Meiri & Pearl 1991): one single-target Bellman-Ford (queue-based), O(n m) worst case and
-    near-linear on plan networks, where `time_windows` needs all pairs.
+    near-linear on plan networks, where `time_windows` needs all pairs. In the native core
+    (`hrc.temporal.native_stn.native_distances`) when it is built, else here in Python: the same numbers.
 
     >>> from hrc.temporal.network import RequirementLink as R
     >>> earliest_times(STNU(("Z", "A", "B"), (R("Z", "A", 2, 5), R("A", "B", 1, None))), "Z")
     {'Z': 0, 'A': 2, 'B': 3}
     """
-    into: dict[str, list[tuple[str, int]]] = {t: [] for t in stnu.timepoints}  # target -> (source, w)
-    for e in distance_edges(stnu):
-        into[e.target].append((e.source, e.value))
-    if origin not in into:
+    edges = distance_edges(stnu)
+    if origin not in stnu.timepoints:
         raise NetworkError(f"unknown origin {origin!r}")
+    from hrc.temporal.native_stn import native_distances
+
+    index = {t: i for i, t in enumerate(stnu.timepoints)}
+    z = index[origin]
+    others = [i for i in range(len(index)) if i != z]
+    found = native_distances(len(index), [index[e.source] for e in edges] + others,
+                             [index[e.target] for e in edges] + [z] * len(others),
+                             [e.value for e in edges] + [0] * len(others), z)
+    if found is not None:
+        consistent, d = found
+        return {t: -d[i] for t, i in index.items()} if consistent else None
+    into: dict[str, list[tuple[str, int]]] = {t: [] for t in stnu.timepoints}  # target -> (source, w)
+    for e in edges:
+        into[e.target].append((e.source, e.value))
     for t in stnu.timepoints:
         if t != origin:
             into[origin].append((t, 0))
