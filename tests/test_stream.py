@@ -532,7 +532,7 @@ def test_best_per_allocation_keeps_the_best_plans_of_each_allocation(picks4, tmp
     assert [cp.plan.id for cp in shown[:3]] == ids[:3]
     assert {cp.plan_class for cp in shown} == {by_id[i].plan_class for i in ids}
     for cp in shown:
-        assert cp == replace(by_id[cp.plan.id], graphml="", rank=ids.index(cp.plan.id) + 1)
+        assert cp == replace(by_id[cp.plan.id], graphml="", form=b"", rank=ids.index(cp.plan.id) + 1)
     summary = result.plan_set.summary
     assert summary is not None and summary.total == len(want) and summary.best == (best, 120)
 
@@ -684,7 +684,7 @@ def test_a_family_taken_in_part_is_completed_on_resume(picks4, tmp_path):
     cp, tail = compiled[5]  # the sixth interrupted before its last append (an id the sink cannot take)
     with pytest.raises(UnicodeEncodeError):
         sink.add_record((rank_key(cp), "\u00e9" * 10, cp.plan_class.value, cp.graphml, tail, None,
-                         plan_code(task, cp.plan)))
+                         plan_code(task, cp.plan), cp.form))
     sink.finish(0, full.paths, full.options, partial=120)
     data = json.loads((old / "compiled.json").read_text())
     assert len(data["plans"]) == 5 and len(list((old / "stnu").iterdir())) == 5

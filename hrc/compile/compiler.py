@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 
 from hrc.compile.classify import Classification, PlanClass, renamed
+from hrc.compile.dispatch_form import plan_record
 from hrc.compile.executors import make_executor
 from hrc.compile.motion_pattern import (
     RANK_BY,
@@ -72,6 +73,7 @@ class CompiledPlan:
     graphml: str
     rank: int = 0
     preference: float | None = None  # APA's optimal global preference value (None: no preferences)
+    form: bytes = b""  # the plan's record in the dispatch form (`hrc.compile.dispatch_form.plan_record`), with graphml
 
     @property
     def plan_class(self) -> PlanClass:
@@ -160,14 +162,18 @@ def _choice(task: Task, plan: Plan, paths: PathLibrary, options: CompileOptions,
     return apply_pattern(task, plan, pattern, human_waits=options.human_waits)
 
 
-def _record(task: Task, plan: Plan, choice: PlanChoice, graphml: bool, text: str | None = None) -> CompiledPlan:
-    """The plan's record; its GraphML written from its STNU (or `text`, the same written otherwise)."""
+def _record(task: Task, plan: Plan, choice: PlanChoice, graphml: bool, text: str | None = None,
+            form: bytes | None = None) -> CompiledPlan:
+    """The plan's record; its GraphML written from its STNU (or `text`, the same written otherwise), and
+    with it its dispatch form record (or `form`: the same, of a plan it is a relabelling of)."""
     stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
     if text is None:
         text = write_graphml(stnu) if graphml else ""
+    if form is None:
+        form = plan_record(task, plan, stnu, choice.pattern.candidates == 0) if graphml else b""
     return CompiledPlan(plan=plan, pattern=choice.pattern, classification=choice.classification, stnu_size=size,
-                        graphml=text, preference=plan_preference(task, plan, choice.net))
+                        graphml=text, preference=plan_preference(task, plan, choice.net), form=form)
 
 
 def relabel_record(task: Task, first: CompiledPlan, stnu: STNU, plan: Plan, graphml: bool = True) -> CompiledPlan:
@@ -175,7 +181,8 @@ def relabel_record(task: Task, first: CompiledPlan, stnu: STNU, plan: Plan, grap
     of it (`hrc.plans.relabellings`): the same pattern, class, makespans, idle times and preference value,
     the schedules and the STNU with the timepoints renamed (`relabel_timepoints`). Exactly what
     `compile_plan` gives `plan` with `first`'s pattern (tested), since its STNU is `stnu` up to the names,
-    in the same order; but not for a record with an explanation, whose words name actions (ValueError)."""
+    in the same order (and its dispatch form record is `first`'s: it names agents and leg positions, not
+    actions); but not for a record with an explanation, whose words name actions (ValueError)."""
     c = first.classification
     if c.explanation:
         raise ValueError(f"plan {first.plan.id}'s explanation names actions: compile {plan.id} instead")
@@ -218,7 +225,7 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
             member = PlanChoice(first.pattern, net, renamed(first.classification, names, net, known))
         # its STNU is the first's renamed, so its GraphML is written from the first's (`relabel_record`)
         text = write_graphml(choice.net.stnu, names, f"{task.name}:{plan.id}") if graphml else ""
-        out.append(_record(task, plan, member, graphml, text))
+        out.append(_record(task, plan, member, graphml, text, first.form))
     return out
 
 

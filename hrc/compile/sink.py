@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import bisect
 import contextlib
+import json
+import math
 import os
 import zipfile
 from array import array
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -35,15 +37,29 @@ from hrc.compile.compiler import (
     rank_key,
     task_digest,
 )
-from hrc.compile.output import JSON_TAIL, STNU_ARCHIVE, STNU_MODES, header_dict, json_head, line_head
+from hrc.compile.dispatch_form import FormWriter, plan_record, plan_sequences, read_form
+from hrc.compile.output import (
+    FORM_PLACEHOLDER,
+    JSON_TAIL,
+    STNU_ARCHIVE,
+    STNU_MODES,
+    header_dict,
+    json_head,
+    line_head,
+    line_places,
+    read_header,
+)
 from hrc.compile.resume import KEY_COLUMNS, RESUME_FILE, line_tails, resume_dtype
 from hrc.compile.spool import Spooled, Written, kernel_copy, link_or_copy, open_folder, write_stnu_file
 from hrc.errors import HrcError, InputError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary
 from hrc.plans import family_of, plan_code, plan_from_code
+from hrc.temporal.graphml import read_graphml
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "Bar", "PlanSink", "Record"]
+
+_CLASS_NAMES = {c.order: c.value for c in PlanClass}
 
 REPORT_TOP = 100
 """Plans the report's ranked table shows by default (plus the best of each class)."""
@@ -55,7 +71,7 @@ HISTOGRAM_BINS = 24
 Bar = tuple[tuple | None, dict[str, tuple], dict[tuple, tuple]]
 """The keep-th best rank key so far, the best key per class, and with `PlanSink.best` the key a plan of an
 allocation (of the work's plans) must beat to be kept at all (`PlanSink.bar`)."""
-Record = tuple[tuple, str, str, "str | Written | None", "str | Written", CompiledPlan | None, bytes]
+Record = tuple[tuple, str, str, "str | Written | None", "str | Written", CompiledPlan | None, bytes, bytes]
 """A plan as `compact_records` sends it: rank key, id, class, its STNU (GraphML text; where the worker
 wrote it itself, None for a file of ``stnu/`` or `Written` for a spool), its line tail (text or
 `Written`), its full record when it beat the bar, and the plan itself in a few bytes (`plan_code`)."""
@@ -87,6 +103,9 @@ class PlanSink:
             self._stnu_dir = open_folder(str(self.out_dir / "stnu"))
         if self.stnu_to == "spool":
             self._graphml = Spooled(self.out_dir, ".stnu.spool", b"")
+        # each plan's dispatch form record (`hrc.compile.dispatch_form`), written in rank order at the end;
+        # none with --stnu none (such an output cannot be dispatched)
+        self._form = None if stnu == "none" else Spooled(self.out_dir, ".form.spool", b"")
         self._codes = bytearray()  # each plan's `plan_code`: to group (`best`), recover and resume them
         self._width = 0  # bytes per plan code
         self._restored = 0  # the first this many plans came from an interrupted run's output (`restore`)
@@ -103,7 +122,7 @@ class PlanSink:
         """Forget what `add_record` appended for a plan it did not finish taking (an interrupt between
         two of its appends): every column as long as the plans taken."""
         n = len(self)
-        for spool in (self._lines, self._graphml):
+        for spool in (self._lines, self._graphml, self._form):
             if spool is not None:
                 for column in (spool.file, spool.at, spool.size):
                     del column[n:]
@@ -114,7 +133,7 @@ class PlanSink:
     def add(self, cp: CompiledPlan, tail: str) -> None:
         """Take one compiled plan and its line tail (`compile_records`)."""
         self.add_record((rank_key(cp, self.rank_by), cp.plan.id, cp.plan_class.value, cp.graphml, tail,
-                         replace(cp, graphml=""), plan_code(self.task, cp.plan)))
+                         replace(cp, graphml="", form=b""), plan_code(self.task, cp.plan), cp.form))
 
     def bar(self, families: Sequence[tuple[Plan, ...]] = ()) -> Bar:
         """What a plan must beat to be kept in full (`compact_records`): the keep-th best key so far (None
@@ -156,7 +175,7 @@ class PlanSink:
     def add_record(self, record: Record) -> None:
         """Take one plan as `compact_records` sends it (its full record only if it beat the bar; its texts
         or, from a worker on this machine, where the worker wrote them)."""
-        key, pid, cls, graphml, tail, light, code = record
+        key, pid, cls, graphml, tail, light, code, form = record
         i = len(self)
         if isinstance(tail, str):
             self._lines.add_text(tail.encode("utf-8"))
@@ -169,6 +188,8 @@ class PlanSink:
                 write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, graphml)
         elif graphml is not None and self._graphml is not None:
             self._graphml.add_written(graphml)
+        if self._form is not None:
+            self._form.add_text(form)
         self._width = len(code)
         self._codes += code
         if self.best is not None:
@@ -218,9 +239,18 @@ class PlanSink:
         cls_col = np.frombuffer(self._cols["cls"], dtype=np.float64)[order]
         counts = {c.value: int(np.count_nonzero(cls_col == c.order)) for c in PlanClass}
         digest = task_digest(self.task)
-        header = header_dict(self.task, seed, digest, options, counts, self.stnu,
-                             None if partial is None else (n, partial), self.symmetric,
-                             None if self.best is None else (self.best, compiled))
+
+        def header_of(form: str | None) -> dict:
+            return header_dict(self.task, seed, digest, options, counts, self.stnu,
+                               None if partial is None else (n, partial), self.symmetric,
+                               None if self.best is None else (self.best, compiled), form)
+
+        form = None
+        if self._form is not None:  # first: compiled.json's header names it, and it names the lines' places
+            lines = self._lines
+            sizes = [len(self._head_of(i, k + 1)) + lines.size[i] for k, i in enumerate(order.tolist())]
+            form = self._write_form(order, line_places(header_of(FORM_PLACEHOLDER), sizes), options.rank_by)
+        header = header_of(form)
         # the archive (deflating, which frees the GIL) or the kept files in a thread while compiled.json is
         # copied: two files from two spools, so a second core shortens the end of a large compile
         with ThreadPoolExecutor(max_workers=1) as pool:
@@ -295,6 +325,7 @@ class PlanSink:
         link_or_copy(old / "compiled.json", self.out_dir / spool)
         classes = {c.order: c.value for c in PlanClass}
         archive = zipfile.ZipFile(old / STNU_ARCHIVE) if (old / STNU_ARCHIVE).is_file() else None
+        old_form = self._old_form(old)
         try:
             for row in rows:
                 pid = row["id"].decode("ascii").rstrip(" ")
@@ -311,12 +342,37 @@ class PlanSink:
                     graphml = (archive.read(f"stnu/{pid}.graphml").decode("utf-8") if archive is not None
                                else (old / "stnu" / f"{pid}.graphml").read_text(encoding="utf-8"))
                 tail: str | Written = "" if place is None else (spool, *place)
-                self.add_record((key, pid, classes[int(row["cls"])], graphml, tail, None, row["code"].tobytes()))
+                form = b"" if place is None or self._form is None else old_form(pid, row["code"].tobytes(), place)
+                self.add_record((key, pid, classes[int(row["cls"])], graphml, tail, None, row["code"].tobytes(), form))
         finally:
             if archive is not None:
                 archive.close()
         self._restored = len(self)
         return frozenset(self._id(i) for i in range(self._restored))
+
+    def _old_form(self, old: Path) -> Callable[[str, bytes, tuple[int, int]], bytes]:
+        """How to get an interrupted run's plan's dispatch form record, from its id, `plan_code` and line's
+        place: from that run's form, or where it has none (written before there was one), from its GraphML
+        and its line (whether it was blocked)."""
+        header = read_header(old)
+        meta = header.get("dispatch_form")
+        if isinstance(meta, dict):
+            form = read_form(old, self.task, self.rank_by, expected=meta.get("sha256"))
+            index = {form.plan_id(p): p for p in range(len(form))}
+            return lambda pid, code, place: form.record(index[pid])
+        archive = zipfile.ZipFile(old / STNU_ARCHIVE) if (old / STNU_ARCHIVE).is_file() else None
+
+        def from_graphml(pid: str, code: bytes, place: tuple[int, int]) -> bytes:
+            where = f"{old}/stnu/{pid}.graphml"
+            text = archive.read(f"stnu/{pid}.graphml") if archive is not None else Path(where).read_bytes()
+            with open(old / "compiled.json", "rb") as f:
+                f.seek(place[0])
+                line = json.loads(b'{"id":"","rank":0,' + f.read(place[1]).rstrip(b",\n"))
+            blocked = line.get("pattern", {}).get("candidates") == 0
+            return plan_record(self.task, plan_from_code(self.task, code), read_graphml(text, where), blocked,
+                               graphml_names=True, where=where)
+
+        return from_graphml
 
     def _among_best(self, order: np.ndarray) -> np.ndarray:
         """Which plans of `order` (rank order) are among the `best` first of their allocation."""
@@ -376,15 +432,42 @@ class PlanSink:
         for i in order.tolist():
             write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), self._id(i), spool.read(i))
 
+    def _write_form(self, order: np.ndarray, places: Sequence[tuple[int, int]], rank_by: str) -> str:
+        """The dispatch form of the plans in `order` (rank order), from the spooled records; the SHA-256
+        of its ``form.json``. `places`: where each plan's line lies in ``compiled.json``."""
+        spool = self._form
+        assert spool is not None
+        width = self._width
+        for wide in (False, True):
+            writer = FormWriter(self.out_dir, self.task, rank_by, wide)
+            try:
+                for (at, size), i in zip(places, order.tolist(), strict=True):
+                    cls = int(self._cols["cls"][i])
+                    pref = self._cols["pref"][i]
+                    plan = plan_from_code(self.task, bytes(self._codes[width * i:width * (i + 1)]))
+                    writer.add(self._id(i), _CLASS_NAMES[cls], None if math.isinf(pref) else -pref,
+                               plan_sequences(self.task, plan), spool.read(i), at, size)
+            except OverflowError:
+                writer.abandon()
+                if wide:  # pragma: no cover - every bound of the temporal core fits 64 bits
+                    raise
+                continue
+            except BaseException:
+                writer.abandon()
+                raise
+            return writer.close()
+        raise AssertionError("unreachable")  # pragma: no cover
+
     def _close(self) -> None:
         if self._stnu_dir is not None:
             os.close(self._stnu_dir)
             self._stnu_dir = None
-        for spool in (self._lines, self._graphml):
+        for spool in (self._lines, self._graphml, self._form):
             if spool is not None:
                 spool.close()
         # this process's spools and every worker's, also those whose plans never arrived (interrupted)
-        for path in [*self.out_dir.glob(".plans*.spool"), *self.out_dir.glob(".stnu*.spool")]:
+        for path in [*self.out_dir.glob(".plans*.spool"), *self.out_dir.glob(".stnu*.spool"),
+                     *self.out_dir.glob(".form*.spool")]:
             with contextlib.suppress(FileNotFoundError):
                 path.unlink()
 

@@ -88,7 +88,8 @@ def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     a pipe twice and pass through the parent, whose CPU the workers share. `stnu_to` (`PlanSink.stnu_to`)
     says where a GraphML goes then: its file in ``stnu/``, a spool, or nowhere.
 
-    A plan that cannot be kept at all gets neither line nor GraphML (empty texts: never written out)."""
+    A plan that cannot be kept at all gets neither line nor GraphML nor dispatch form record (empty texts:
+    never written out)."""
     (top, best, among), families = work
     out: list[Record] = []
     compiled = _compiled(options, stnu, task, paths, families)
@@ -104,8 +105,8 @@ def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     for cp, key, k, text, tail in zip(compiled, keys, kept, graphml, tails, strict=True):
         cls = cp.plan_class.value
         full = k and ((top is None or key < top) or cls not in best or key < best[cls])
-        out.append((key, cp.plan.id, cls, text, tail, replace(cp, graphml="") if full else None,
-                    plan_code(task, cp.plan)))
+        out.append((key, cp.plan.id, cls, text, tail, replace(cp, graphml="", form=b"") if full else None,
+                    plan_code(task, cp.plan), cp.form if k else b""))
     return out
 
 

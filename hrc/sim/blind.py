@@ -24,6 +24,7 @@ from dataclasses import replace
 
 from hrc.compile.classify import classify
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, rank_key, task_digest
+from hrc.compile.dispatch_form import plan_record
 from hrc.compile.executors import make_executor
 from hrc.compile.motion_pattern import MotionPattern
 from hrc.compile.preferences import plan_preference
@@ -55,7 +56,8 @@ def blind_plan(task: Task, plan: Plan, paths: PathLibrary) -> CompiledPlan:
     stnu = net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
     return CompiledPlan(plan=plan, pattern=MotionPattern(motions, (), 1, True), classification=classify(task, net),
-                        stnu_size=size, graphml=write_graphml(stnu), preference=plan_preference(task, plan, net))
+                        stnu_size=size, graphml=write_graphml(stnu), preference=plan_preference(task, plan, net),
+                        form=plan_record(task, plan, stnu, blocked=False))
 
 
 def _blind_chunk(task: Task, paths: PathLibrary, plans: list[Plan]) -> list[CompiledPlan]:
