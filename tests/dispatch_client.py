@@ -27,6 +27,16 @@ from hrc.temporal import STNU
 from hrc.temporal.graphml import tool_name
 
 
+class _ById:
+    """A plan's entry by its id, made when asked for (a large set has tens of thousands)."""
+
+    def __init__(self, plan_set: PlanSet) -> None:
+        self.plan_set = plan_set
+
+    def __getitem__(self, plan_id: str):  # noqa: ANN204
+        return self.plan_set.entry(self.plan_set.index(plan_id))
+
+
 @dataclass
 class Outcome:
     times: dict[tuple[str, str, str, str], float] = field(default_factory=dict)  # (agent, action, phase, event)
@@ -48,7 +58,7 @@ class Run:
         self.timing = timing
         self.follow = follow  # the plan whose order the human follows ("plan" choice)
         self.away_after = away_after
-        self.by_id = {e.id: e for e in plan_set.plans}
+        self.by_id = _ById(plan_set)
         self.human = next(a.id for a in self.task.agents if a.is_human)
         self.robot = next(a.id for a in self.task.agents if not a.is_human)
         self.out = Outcome()

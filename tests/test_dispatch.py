@@ -13,6 +13,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from conftest import ROOT
 from dispatch_client import Run, broken_links
@@ -264,7 +265,8 @@ def test_a_plan_the_compile_found_blocked_is_never_promised():
     from dataclasses import replace as dc_replace
 
     from hrc.compile.compiler import CompiledPlanSet, CompileOptions, compile_plan, rank_key, task_digest
-    from hrc.dispatch.ranking import evaluate, reference_evaluate
+    from hrc.dispatch.ranking import CLASS_ORDER, reference_evaluate
+    from hrc.dispatch.validation import History, seen_arrays
     from hrc.motion import plan_paths
     from hrc.plans import generate_plans
     from hrc.temporal import check_dc
@@ -279,8 +281,10 @@ def test_a_plan_the_compile_found_blocked_is_never_promised():
     blocked = [e for e in d.plan_set.plans if e.blocked]
     assert blocked and all(e.compiled_class == "inconsistent" for e in blocked)
     assert any(check_dc(e.stnu).is_dc for e in blocked)  # what the STNU alone would promise
+    seen, legs_seen = seen_arrays(History.start(task), d.plan_set.form.nodes.shape[2])
     for e in blocked:
-        assert evaluate(e, {}, 0).plan_class == reference_evaluate(e, {}, 0).plan_class == "inconsistent"
+        cls, _, _ = d.ranker.evaluate(np.array([d.plan_set.index(e.id)]), seen, legs_seen, 0)
+        assert CLASS_ORDER[int(cls[0])] == reference_evaluate(e, {}, 0).plan_class == "inconsistent"
     ranked = [c.plan for c in d.candidates]
     ids = {e.id for e in blocked}
     assert d.decision.plan not in ids and d.decision.plan_class == "DC"

@@ -32,19 +32,21 @@ from __future__ import annotations
 
 import copy
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Literal
 
+import numpy as np
+
 from hrc.errors import DispatchError, HrcError
 from hrc.model import Task
-from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
+from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state, residual_network
 
 from .messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor
+from .native import NO_BOUND
 from .plan_set import EventKey, PlanEntry, PlanSet, load_plan_set, plan_set_from_compiled
-from .ranking import Evaluation, evaluate, rank_key, schedule
-from .validation import History, agrees, executed, ticks
+from .ranking import CLASS_ORDER, NO_FINISH, Ranker
+from .validation import History, agreeing, executed, seen_arrays, ticks
 
 __all__ = ["UNDO_SECONDS", "Dispatcher"]
 
@@ -52,6 +54,8 @@ UNDO_SECONDS = 10.0
 """How long after a human observation it may still be withdrawn with ``undo``."""
 
 _MODES = {"DC": ExecutionMode.DC, "consistent": ExecutionMode.STN, "inconsistent": ExecutionMode.EARLIEST}
+_CORE_MODES = {ExecutionMode.DC: "DC", ExecutionMode.STN: "STN", ExecutionMode.EARLIEST: "EARLIEST"}
+_FROM_CORE = {name: mode for mode, name in _CORE_MODES.items()}
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,10 +65,16 @@ class _State:
     history: History
     accepted: tuple[Observation, ...]  # every accepted message, undo included (the log's order)
     effective: tuple[Observation, ...]  # the observations that stand (withdrawn ones removed)
-    ranked: tuple[int, ...]  # indices into the plan set, best first
-    evaluations: MappingProxyType  # index -> (key, Evaluation)
+    plans: np.ndarray  # the candidates: indices into the plan set, ascending (compile rank order)
+    cls: np.ndarray  # their class codes (`CLASS_ORDER`), finish ticks (`NO_FINISH`: none) and idle ticks
+    finish: np.ndarray
+    idle: np.ndarray
+    best: int  # the best candidate's index in the plan set, -1 when none is left
     decision: Decision
     do_forms: MappingProxyType  # plan index -> APA's DO form of the plan (`_do_form`), or False
+    seen: np.ndarray  # the history as the core reads it (`seen_arrays`), and now in ticks
+    legs_seen: np.ndarray
+    now: int
 
 
 class Dispatcher:
@@ -74,23 +84,27 @@ class Dispatcher:
     `feasible_only` drops plans that are not DC or consistent; when none is left the robot is told
     nothing more (``Decision.stopped``), as Chaski-style dispatchers do (for comparisons).
     `use_preferences`: where the task has preferences, the robot's window is narrowed to APA's DO window
-    (`_preferred`), at the cost of one small QP per decision.
+    (`_preferred`), at the cost of one small QP per decision. `threads`: how many threads set ranking may
+    use on a large message (default: up to 4, as the machine has cores; 1 where processes share the cores,
+    as the simulator's workers do). `ranker`: share the set ranking of another dispatcher on the same set.
     """
 
-    def __init__(self, plan_set: PlanSet, *, feasible_only: bool = False, use_preferences: bool = True) -> None:
+    def __init__(self, plan_set: PlanSet, *, feasible_only: bool = False, use_preferences: bool = True,
+                 ranker: Ranker | None = None, threads: int | None = None) -> None:
         self.plan_set = plan_set
         self.feasible_only = feasible_only
         self.use_preferences = use_preferences
-        human = _human(plan_set.task)
-        self._human_nodes = [frozenset(n for n, ev in e.events.items() if ev[0] == human) for e in plan_set.plans]
-        self._robot_nodes = [frozenset(n for n, ev in e.events.items() if ev[0] != human) for e in plan_set.plans]
+        self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
         history = History.start(plan_set.task)
-        self._state = self._settle(history, (), (), tuple(range(len(plan_set.plans))), {}, {})
+        everything = np.arange(len(plan_set), dtype=np.int64)
+        self._state = self._settle(history, (), (), everything, {}, None)
 
     @classmethod
-    def from_folder(cls, out_dir: str | os.PathLike[str], **options: Any) -> Dispatcher:
-        """Load an `hrc compile` output folder (raises `hrc.errors.InputError` naming the file at fault)."""
-        return cls(load_plan_set(out_dir), **options)
+    def from_folder(cls, out_dir: str | os.PathLike[str], *, allow_partial: bool = False,
+                    **options: Any) -> Dispatcher:
+        """Load an `hrc compile` output folder (raises `hrc.errors.InputError` naming the file at fault;
+        a partial output only with `allow_partial`)."""
+        return cls(load_plan_set(out_dir, allow_partial=allow_partial), **options)
 
     @classmethod
     def from_compiled(cls, cps: Any, **options: Any) -> Dispatcher:
@@ -131,15 +145,37 @@ class Dispatcher:
         return self._state.history
 
     @property
+    def candidate_indices(self) -> np.ndarray:
+        """The remaining plans' indices in the plan set, best first."""
+        st = self._state
+        return st.plans[self.ranker.order(st.plans, st.cls, st.finish, st.idle)]
+
+    def _candidate(self, at: int) -> Candidate:
+        st = self._state
+        p = int(st.plans[at])
+        form = self.plan_set.form
+        plan = form.plan(p)
+        pref = float(form.plans["preference"][p])
+        finish = int(st.finish[at])
+        return Candidate(self.plan_set.id(p), CLASS_ORDER[int(st.cls[at])],
+                         None if finish == NO_FINISH else finish / 1000, int(st.idle[at]) / 1000,
+                         None if pref != pref else pref, MappingProxyType(dict(plan.allocation)),
+                         MappingProxyType(dict(plan.sequences)))
+
+    @property
+    def best(self) -> Candidate | None:
+        """The best remaining plan, as `candidates` would list it first (None: no plan left)."""
+        st = self._state
+        if st.best < 0:
+            return None
+        return self._candidate(int(np.searchsorted(st.plans, st.best)))
+
+    @property
     def candidates(self) -> tuple[Candidate, ...]:
-        """The remaining plans, ranked best first."""
-        out = []
-        for i in self._state.ranked:
-            entry, ev = self.plan_set.plans[i], self._state.evaluations[i][1]
-            out.append(Candidate(entry.id, ev.plan_class, None if ev.finish is None else ev.finish / 1000,
-                                 ev.idle / 1000, entry.preference, MappingProxyType(dict(entry.plan.allocation)),
-                                 MappingProxyType(dict(entry.plan.sequences))))
-        return tuple(out)
+        """The remaining plans, ranked best first (one value per plan: for a large set, `best` and
+        `Decision.candidates` say the same for less)."""
+        st = self._state
+        return tuple(self._candidate(int(at)) for at in self.ranker.order(st.plans, st.cls, st.finish, st.idle))
 
     def human_options(self) -> tuple[HumanOption, ...]:
         """Leg events the human may report now that the task and some remaining plan allow, in task order
@@ -149,14 +185,12 @@ class Dispatcher:
         if not human or history.away:
             return ()
         found: set[tuple[str, str, str]] = set()
-        for i in self._state.ranked:
-            entry = self.plan_set.plans[i]
-            for obs in self._next_events(entry, human, history):
-                try:
-                    history.add(obs)
-                except DispatchError:
-                    continue
-                found.add((obs.action or "", obs.phase or "", obs.event))
+        for obs in self._next_events(human, history):
+            try:
+                history.add(obs)
+            except DispatchError:
+                continue
+            found.add((obs.action or "", obs.phase or "", obs.event))
         order = {(a.id, p.id): k for k, (a, p) in enumerate((a, p) for a in self.task.actions for p in a.phases)}
         return tuple(HumanOption(*f) for f in sorted(found, key=lambda f: (order[(f[0], f[1])],
                                                                             LEG_EVENTS.index(f[2]))))
@@ -164,22 +198,30 @@ class Dispatcher:
     def planned_times(self, plan_id: str | None = None) -> dict[EventKey, float]:
         """Seen times where seen, else the plan's earliest schedule given the history (seconds), for
         every event of the plan (default: the best plan). `KeyError` for a plan not in the set."""
-        index = self._state.ranked[0] if plan_id is None else next(
-            i for i, e in enumerate(self.plan_set.plans) if e.id == plan_id)
-        entry = self.plan_set.plans[index]
-        history = self._state.history
-        done = executed(entry, history)
-        from hrc.temporal import residual_network
-
-        found = schedule(residual_network(entry.stnu, done, ticks(history.now)), self.plan_set.rank_by) or {}
+        st = self._state
+        p = st.best if plan_id is None else self.plan_set.index(plan_id)
+        if p < 0:
+            return {}
+        history = st.history
+        form = self.plan_set.form
+        times = self.ranker.schedule(p, st.seen, st.legs_seen, st.now)
+        if times is None:  # no schedule: what happened, unreported events at their next reported one
+            entry = self.plan_set.entry(p)
+            done = executed(entry, history)
+            return {key: history.times.get(key, done[node] / 1000 if node in done else 0.0)
+                    for node, key in entry.events.items() if key in history.times or node in done}
         out: dict[EventKey, float] = {}
-        for node, key in entry.events.items():
-            if key in history.times:
-                out[key] = history.times[key]
-            elif node in done:
-                out[key] = done[node] / 1000
-            elif node in found:
-                out[key] = found[node] / 1000
+        plan = form.plan(p)
+        from hrc.plans import agent_legs
+
+        for g, agent in enumerate(self.task.agents):
+            for k, leg in enumerate(agent_legs(self.task, plan, agent.id)):
+                for e, event in enumerate(LEG_EVENTS):
+                    x = int(form.nodes[p, g, k, e])
+                    if x >= 0:
+                        key = (agent.id, leg.action, leg.phase, event)
+                        seen_t = history.times.get(key)
+                        out[key] = seen_t if seen_t is not None else times[x] / 1000
         return out
 
     # ------------------------------------------------------------------ the cycle
@@ -189,23 +231,23 @@ class Dispatcher:
         if obs.event == "undo":
             return self._undo(obs)
         history = state.history.add(obs)
-        plans = self.plan_set.plans
+        form = self.plan_set.form
         if obs.event == "tick":
-            kept: tuple[int, ...] = state.ranked
+            kept = state.plans
         else:  # "back" brings back every plan that agrees with the history
-            pool: Sequence[int] = range(len(plans)) if obs.event == "back" else state.ranked
-            kept = tuple(i for i in pool if agrees(plans[i], history))
-            if not kept and history.away:
+            pool = np.arange(len(self.plan_set), dtype=np.int64) if obs.event == "back" else state.plans
+            kept = agreeing(form, history, pool)
+            if not len(kept) and history.away:
                 # no plan lets the robot finish alone from here (say it is on its way to a leg that needs
                 # the person's work first): "away" is a fact, not a request, and so is what the robot does
                 # meanwhile; it goes on with the plans that agree with what was seen, and waits for the
                 # person where they need them (refusing its own arrival left it standing for good)
-                kept = tuple(i for i in pool if agrees(plans[i], _present(history)))
-        if not kept:
+                kept = agreeing(form, _present(history), pool)
+        if not len(kept):
             raise DispatchError(f"no remaining plan allows {_describe(obs)} "
-                                f"({len(state.ranked)} plans agreed with what was seen before)")
-        self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept,
-                                   state.evaluations, state.do_forms)
+                                f"({len(state.plans)} plans agreed with what was seen before)")
+        self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
+                                   state)
         return self._state.decision
 
     def _undo(self, obs: Observation) -> Decision:
@@ -227,88 +269,123 @@ class Dispatcher:
         for o in effective:
             history = history.add(o)
         history = history.add(Observation(obs.t, "tick"))
-        kept = tuple(i for i in range(len(self.plan_set.plans)) if agrees(self.plan_set.plans[i], history))
-        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.evaluations,
-                                   state.do_forms)
+        kept = agreeing(self.plan_set.form, history, np.arange(len(self.plan_set), dtype=np.int64))
+        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.do_forms, state)
         return self._state.decision
 
     def _settle(self, history: History, accepted: tuple[Observation, ...], effective: tuple[Observation, ...],
-                kept: Sequence[int], previous: Any, do_forms: Any) -> _State:
-        """Rank `kept` under `history` (re-checking only plans whose evaluation inputs changed), decide."""
-        plans = self.plan_set.plans
+                kept: np.ndarray, do_forms: Any, previous: _State | None) -> _State:
+        """Rank `kept` under `history` (set ranking, `Ranker`), decide. A plan's evaluation is taken from
+        the `previous` state when what enters it is the same (the seen events and now: a tick at the same
+        time, an announced next action, away), else made again."""
+        form = self.plan_set.form
+        seen, legs_seen = seen_arrays(history, form.nodes.shape[2])
         now = ticks(history.now)
-        evaluations: dict[int, tuple[Any, Evaluation]] = {}
-        done_of: dict[int, dict[str, int]] = {}
-        for i in kept:
-            done = executed(plans[i], history)
-            done_of[i] = done
-            finished = len(done) == len(plans[i].stnu.timepoints)
-            key = (done, None if finished else now)  # what enters its residual network
-            old = previous.get(i)
-            if old is not None and old[0] == key:
-                evaluations[i] = old
-            else:
-                evaluations[i] = (key, evaluate(plans[i], done, now, self.plan_set.rank_by))
-        if self.feasible_only:
-            kept = [i for i in kept if evaluations[i][1].plan_class != "inconsistent"]
-        ranked = tuple(sorted(kept, key=lambda i: rank_key(plans[i], evaluations[i][1])))
-        counts = {"DC": 0, "consistent": 0, "inconsistent": 0}
-        for i in ranked:
-            counts[evaluations[i][1].plan_class] += 1
-        if not ranked:
-            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True)
+        if previous is not None and previous.now == now and np.array_equal(previous.seen, seen) and \
+                np.array_equal(previous.legs_seen, legs_seen) and len(previous.plans):
+            where = np.minimum(np.searchsorted(previous.plans, kept), len(previous.plans) - 1)
+            known = previous.plans[where] == kept
+            cls, finish, idle = previous.cls[where], previous.finish[where], previous.idle[where]
+            if not known.all():
+                fresh = self.ranker.evaluate(kept[~known], seen, legs_seen, now)
+                for column, values in zip((cls, finish, idle), fresh, strict=True):
+                    column[~known] = values
         else:
-            best = ranked[0]
+            cls, finish, idle = self.ranker.evaluate(kept, seen, legs_seen, now)
+        if self.feasible_only:
+            feasible = cls != CLASS_ORDER.index("inconsistent")
+            kept, cls, finish, idle = kept[feasible], cls[feasible], finish[feasible], idle[feasible]
+        counts = dict(zip(CLASS_ORDER, np.bincount(cls, minlength=3).tolist(), strict=True))
+        at = self.ranker.best(kept, cls, finish, idle)
+        if at < 0:
+            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True)
+            best = -1
+        else:
+            best = int(kept[at])
+            plan_class = CLASS_ORDER[int(cls[at])]
+            entry = self.plan_set.entry(best)
             do = dict(do_forms)
-            robot, human = self._steps(plans[best], done_of[best], history, evaluations[best][1].plan_class, best,
-                                       do)
+            robot, human = self._steps(entry, executed(entry, history), history, plan_class, best, do,
+                                       (seen, legs_seen))
             do_forms = MappingProxyType(do)
-            decision = Decision(history.now, plans[best].id, evaluations[best][1].plan_class,
-                                MappingProxyType(counts), robot, history.away, False, human)
-        return _State(history, accepted, effective, ranked, MappingProxyType(evaluations), decision,
-                      MappingProxyType(dict(do_forms)))
+            decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
+                                False, human)
+        return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
+                      MappingProxyType(dict(do_forms)), seen, legs_seen, now)
 
     def _steps(self, entry: PlanEntry, done: dict[str, int], history: History, plan_class: str,
-               index: int, do: dict[int, Any]) -> tuple[RobotStep | WaitFor | None, RobotStep | WaitFor | None]:
-        """The robot's next step in `entry` (module docstring) and the human's hint (`Decision.human`)."""
+               index: int, do: dict[int, Any], seen: tuple[np.ndarray, np.ndarray]
+               ) -> tuple[RobotStep | WaitFor | None, RobotStep | WaitFor | None]:
+        """The robot's next step in `entry` (module docstring) and the human's hint (`Decision.human`);
+        `seen`: the history as the core reads it (`seen_arrays`)."""
         robot = next((a.id for a in self.task.agents if not a.is_human), "")
         human = history.human
         now = ticks(history.now)
-        state = None
-        mode = _MODES[plan_class]
-        out: list[RobotStep | WaitFor | None] = []
+        out: list[RobotStep | WaitFor | None] = [None, None]
         contingent = entry.stnu.contingent_timepoints
-        for agent, other_nodes in ((robot, self._human_nodes[index]), (human, self._robot_nodes[index])):
+        human_nodes = frozenset(n for n, ev in entry.events.items() if ev[0] == human)
+        robot_nodes = frozenset(entry.events) - human_nodes
+        asks: list[tuple[int, str, str, str, str, str, frozenset[str]]] = []
+        for slot, (agent, other_nodes) in enumerate(((robot, human_nodes), (human, robot_nodes))):
             nxt = next(((action, phase, event, node) for action, phase in entry.legs.get(agent, ())
                         for event, node in entry.leg_points[(agent, action, phase)] if node not in done), None)
             if nxt is None or nxt[3] in contingent or (agent == human and history.away):
-                out.append(None)
                 continue
             action, phase, event, node = nxt
             arrival = self._arrival(entry, agent, action, phase, event, node, done, now)
             if arrival is not None:  # under way: it gets there when its drive says
-                out.append(arrival)
+                out[slot] = arrival
                 continue
-            if state is None:
-                state = real_time_state(entry.stnu, done, now)
-                if _rank(state.default_mode()) > _rank(mode):  # the two DC checks disagree: the stricter reading
-                    mode = state.default_mode()
-            uncontrolled = [n for n in other_nodes if n not in done and n not in contingent]
-            step = state.step(node, mode, uncontrolled=uncontrolled)
-            if isinstance(step, ExecutionWindow):
-                latest = None if step.latest is None or mode is ExecutionMode.EARLIEST else step.latest / 1000
-                found = RobotStep(action, phase, event, step.earliest / 1000, latest)
+            uncontrolled = frozenset(n for n in other_nodes if n not in done and n not in contingent)
+            asks.append((slot, agent, action, phase, event, node, uncontrolled))
+        if not asks:
+            return out[0], out[1]
+        mode, found = self._windows(entry, index, done, history, _MODES[plan_class], asks, seen)
+        for (slot, agent, action, phase, event, node, _), step in zip(asks, found, strict=True):
+            if isinstance(step, tuple):
+                earliest, latest = step
+                step_ = RobotStep(action, phase, event, earliest / 1000,
+                                  None if latest is None or mode is ExecutionMode.EARLIEST else latest / 1000)
                 if agent == robot and mode is not ExecutionMode.EARLIEST and self.use_preferences:
-                    found = self._preferred(entry, index, do, state.residual, done, now, node, found)
-                out.append(found)
+                    step_ = self._preferred(entry, index, do, done, now, node, step_)
+                out[slot] = step_
                 continue
-            waits = sorted(step.until, key=lambda n: (entry.events.get(n, ("",))[0] == agent, n))
+            waits = sorted(step, key=lambda n: (entry.events.get(n, ("",))[0] == agent, n))
             w_agent, w_action, w_phase, w_event = entry.events.get(waits[0], ("", "", "", waits[0]))
-            out.append(WaitFor(w_agent, w_action, w_phase, w_event))
+            out[slot] = WaitFor(w_agent, w_action, w_phase, w_event)
         return out[0], out[1]
 
-    def _preferred(self, entry: PlanEntry, index: int, do: dict[int, Any], residual: Any, done: dict[str, int],
-                   now: int, node: str, step: RobotStep) -> RobotStep:
+    def _windows(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
+                 asks: list[tuple[int, str, str, str, str, str, frozenset[str]]], seen: tuple[np.ndarray, np.ndarray]
+                 ) -> tuple[ExecutionMode, list[tuple[int, int | None] | list[str]]]:
+        """The mode (`mode`, or stricter where the residual's own checks say so: the two DC checks never
+        disagree, but the stricter reading wins if they did) and, per ask, its timepoint's execution
+        window ``(earliest, latest)`` in ticks or the timepoints it must wait for
+        (`hrc.temporal.execution.RealTimeState.step`): in the C core when it is built, else in Python."""
+        native = self.ranker.native
+        if native is not None:
+            names = entry.stnu.timepoints  # the form's numbering (`PlanSet.entry`)
+            at = {name: i for i, name in enumerate(names)}
+            unc = np.zeros((len(asks), len(names)), dtype=bool)
+            for i, ask in enumerate(asks):
+                unc[i, [at[name] for name in ask[6]]] = True
+            got = native.windows(p, seen[0], seen[1], ticks(history.now), _CORE_MODES[mode],
+                                 [at[ask[5]] for ask in asks], unc)
+            if got is not None:
+                used, results = got
+                return _FROM_CORE[used], [[names[v] for v in r] if isinstance(r, list)
+                                          else (r[0], None if r[1] == NO_BOUND else r[1]) for r in results]
+        state = real_time_state(entry.stnu, done, ticks(history.now))
+        if _rank(state.default_mode()) > _rank(mode):
+            mode = state.default_mode()
+        out: list[tuple[int, int | None] | list[str]] = []
+        for ask in asks:
+            step = state.step(ask[5], mode, uncontrolled=ask[6])
+            out.append((step.earliest, step.latest) if isinstance(step, ExecutionWindow) else list(step.until))
+        return mode, out
+
+    def _preferred(self, entry: PlanEntry, index: int, do: dict[int, Any], done: dict[str, int], now: int,
+                   node: str, step: RobotStep) -> RobotStep:
         """`step` narrowed to the DO window of its timepoint where the two meet (Wilcox, Nikolaidis & Shah
         2012): the plan's DO form (Fig. 5, APA on its residual network read as an STP with the task's
         preferences) dispatched by propagation from what has happened, and compiled again (Fig. 8, line 7)
@@ -319,7 +396,7 @@ class Dispatcher:
             return step
         form = do.get(index)
         if form is None or (form is not False and not _within(form, done)):
-            form = do[index] = _do_form(entry, residual, task.preferences)
+            form = do[index] = _do_form(entry, residual_network(entry.stnu, done, now), task.preferences)
         if form is False:
             return step
         events, apsp = form
@@ -363,27 +440,42 @@ class Dispatcher:
         latest = None if hi is None else max(earliest, start + hi)
         return RobotStep(action, phase, event, earliest / 1000, None if latest is None else latest / 1000)
 
-    @staticmethod
-    def _next_events(entry: PlanEntry, agent: str, history: History) -> list[Observation]:
-        """The events `agent` could report next in `entry`: later events of its leg under way, or the
-        events of its next leg (start included: depart and arrive may go unreported)."""
+    def _next_events(self, agent: str, history: History) -> list[Observation]:
+        """The events `agent` could report next in some remaining plan: later events of its leg under way
+        (up to its start: depart and arrive may go unreported), or the depart and start of its next leg."""
+        st = self._state
+        if not len(st.plans):
+            return []
+        form = self.plan_set.form
+        g = self.task.agent_ids.index(agent)
         seen = history.legs.get(agent, ())
-        legs = entry.legs[agent]
         current = history.current(agent)
         t = history.now
         if current is not None:
             last = history.last_event(agent, *current)
             order = LEG_EVENTS.index(last) if last else -1
-            events = [e for e, _ in entry.leg_points[(agent, *current)] if LEG_EVENTS.index(e) > order]
-            if "start" in events:
-                events = events[:events.index("start") + 1]
-            else:
-                events = events[:1]
+            out: dict[str, None] = {}
+            # the events each plan has on this leg (park and unpark only where it stops on the way)
+            for has in np.unique(form.nodes[st.plans, g, len(seen) - 1, :] >= 0, axis=0):
+                events = [e for e, present in zip(LEG_EVENTS, has.tolist(), strict=True)
+                          if present and LEG_EVENTS.index(e) > order]
+                events = events[:events.index("start") + 1] if "start" in events else events[:1]
+                out.update(dict.fromkeys(events))
+            events = sorted(out, key=LEG_EVENTS.index)
             return [Observation(t, e, agent, current[0], current[1]) for e in events]
-        if len(seen) >= len(legs):
-            return []
-        action, phase = legs[len(seen)]
-        return [Observation(t, e, agent, action, phase) for e in ("depart", "start")]
+        legs: set[tuple[str, str]] = set()
+        done = history.actions_seen(agent)
+        if seen:  # an action's next phase comes next, in every remaining plan
+            action, phase = seen[-1]
+            phases = [p.id for p in self.task.action(action).phases]
+            if phase != phases[-1]:
+                legs.add((action, phases[phases.index(phase) + 1]))
+        if not legs and len(done) < form.seq.shape[2]:
+            for a in np.unique(form.seq[st.plans, g, len(done)]).tolist():
+                if a >= 0:
+                    action = self.task.action_ids[a]
+                    legs.add((action, self.task.action(action).phases[0].id))
+        return [Observation(t, e, agent, action, phase) for action, phase in sorted(legs) for e in ("depart", "start")]
 
 
 _DOForm = tuple[dict[str, int], Any]  # event -> index, the DO form's APSP matrix (ticks); index 0: its origin

@@ -1,23 +1,27 @@
-"""One plan's STNU in the shape the dispatcher re-checks it at every message: index arrays, no objects.
+"""One plan's residual evaluation on the dispatch form's arrays, in Python: the twin of the C core
+(``hrc/dispatch/_dispatchcore.c``, `hrc.dispatch.native`), used where the core is not built and by the
+tests as a second implementation.
 
 `PlanNet.evaluate` computes what `hrc.dispatch.ranking.reference_evaluate` computes from the residual
 network (`hrc.temporal.execution.residual_network`) — class, finish and idle time — without building
-`STNU` values: the residual is the plan's own network with its origin ``Z`` as the residual's origin
-(``Z`` is executed at 0), so its distance edges are the plan's edges minus the links history closed,
-plus one pin per executed timepoint and one "at ``now`` or later" edge per unexecuted executable. The
-DC verdict comes from the C core of RUL2021 (`hrc.temporal.rul.core_verdict`; without it, from
-`check_dc` on the residual network). The earliest schedule is a longest-path computation over the same
-constraints read as ``T(v) >= T(u) + L``, edges visited in a topological order of the plan's orderings
-(one or two passes on plan networks; a pass limit finds a positive cycle, i.e. no schedule); when no
-schedule keeps every bound, the orderings and lower bounds still to come alone, as
-`hrc.temporal.execution.ExecutionMode.EARLIEST` reads them. tests/test_dispatch_fastnet.py checks that
-both ways agree on random histories.
+`STNU` values: the residual is the plan's own network with its origin (timepoint 0 of the form) as the
+residual's origin, executed at 0, so its distance edges are the plan's edges minus those between two
+executed timepoints, plus one pin per executed timepoint and one "at now or later" edge per unexecuted
+executable. The DC verdict comes from the C verdict of RUL2021 (`hrc.temporal.rul.core_verdict`) when
+that is built, else from `check_dc` on the residual network. The earliest schedule is a longest-path
+computation over the same constraints read as ``T(v) >= T(u) + L``, swept in the form's topological
+numbering (one or two sweeps on plan networks; a sweep limit finds a positive cycle, i.e. no schedule);
+when no schedule keeps every bound, the orderings and lower bounds still to come alone, as
+`hrc.temporal.execution.ExecutionMode.EARLIEST` reads them.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable
 
+import numpy as np
+
+from hrc.compile.dispatch_form import PlanArrays
 from hrc.temporal.rul import core_verdict
 
 __all__ = ["PlanNet"]
@@ -26,122 +30,44 @@ _VERDICT_CLASS = {"DC": "DC", "not DC": "consistent", "inconsistent": "inconsist
 
 
 class PlanNet:
-    """A plan's network as arrays (see the module docstring). `legs`: per agent, the indices of each
-    leg's ``(depart, arrive, park or -1, unpark or -1, start, end)`` timepoints, for idle time."""
+    """A plan's network as lists (see the module docstring), from its `PlanArrays`."""
 
-    __slots__ = ("cont", "contingent", "dist", "executables", "index", "legs", "lp", "lp_all", "n",
-                 "names", "req", "z")
+    __slots__ = ("conts", "contingent", "edges", "executables", "legs", "n")
 
-    def __init__(self, names: tuple[str, ...], requirements, contingents, origin: str,  # noqa: ANN001
-                 legs: Mapping[str, list[tuple[int, int, int, int, int, int]]]) -> None:
-        self.names = names
-        self.index = {v: i for i, v in enumerate(names)}
-        self.n = len(names)
-        self.z = self.index[origin]
-        ix = self.index
-        self.req = [(ix[r.source], ix[r.target], r.lb, r.ub) for r in requirements]
-        self.cont = [(ix[c.source], ix[c.target], c.lb, c.ub) for c in contingents]
-        self.contingent = frozenset(c for _, c, _, _ in self.cont)
-        self.executables = [x for x in range(self.n) if x not in self.contingent and x != self.z]
-        self.legs = legs
-        # longest-path edges (u, v, L, link): T(v) >= T(u) + L, from requirement link `link` (>= 0) or from
-        # contingent link -1 - k; in a topological order of the non-negative ones (ties: index order)
-        lp: list[tuple[int, int, int, int, int]] = []  # (u, v, sign, link, which) resolved at evaluation
-        for k, (s, t, lb, ub) in enumerate(self.req):
-            if lb is not None:
-                lp.append((s, t, 1, k, 0))  # T(t) >= T(s) + lb
-            if ub is not None:
-                lp.append((t, s, -1, k, 1))  # T(s) >= T(t) - ub
-        for k, (a, c, _lb, _ub) in enumerate(self.cont):
-            lp.append((a, c, 1, -1 - k, 0))
-            lp.append((c, a, -1, -1 - k, 1))
-        order = self._order(lp)
-        lp.sort(key=lambda e: (order[e[0]], order[e[1]]))
-        self.lp = lp
-        # the same, resolved once: distance edges (s, t, w, link endpoints) for the verdict, and
-        # longest-path edges (u, v, length or None, contingent k or -1, link endpoints) for the schedule
-        self.dist = [(s, t, ub, s, t) for s, t, _lb, ub in self.req if ub is not None] + \
-                    [(t, s, -lb, s, t) for s, t, lb, _ub in self.req if lb is not None]
-        # (u, v, length, j, sign, a, b) in that order: a requirement edge has j = -1 and its length; the edge
-        # of contingent link j has length sign * (its duration, fixed at evaluation); a, b: the link's ends
-        # back: v comes no later than u in that order, so a move of v needs another sweep
-        self.lp_all: list[tuple[int, int, int, int, int, int, int, bool]] = []
-        for u, v, sign, k, which in lp:
-            back = order[v] <= order[u]
-            if k >= 0:
-                s, t, lb, ub = self.req[k]
-                bound = lb if which == 0 else ub
-                if bound is not None:
-                    self.lp_all.append((u, v, bound * sign, -1, sign, s, t, back))
-            else:
-                j = -1 - k
-                a, c = self.cont[j][:2]
-                self.lp_all.append((u, v, 0, j, sign, a, c, back))
+    def __init__(self, arrays: PlanArrays) -> None:
+        self.n = n = arrays.n
+        self.edges = [tuple(int(x) for x in row) for row in arrays.edges.tolist()]  # (u, v, w): T(v) - T(u) <= w
+        self.conts = [tuple(int(x) for x in row) for row in arrays.conts.tolist()]  # (a, c, lb, ub)
+        self.contingent = frozenset(c for _, c, _, _ in self.conts)
+        self.executables = [x for x in range(1, n) if x not in self.contingent]
+        # per agent, each leg's (depart, park, unpark, arrive, start, end) timepoints (-1: none)
+        self.legs = [[tuple(int(x) for x in leg) for leg in agent if leg[0] >= 0] for agent in arrays.nodes.tolist()]
 
-    def _order(self, lp: list[tuple[int, int, int, int, int]]) -> list[int]:
-        """Position of each node in a topological order of the orderings (edges whose length is >= 0
-        whatever the bounds: lower bounds >= 0, upper bounds <= 0); nodes on zero cycles keep index order."""
-        succ: list[list[int]] = [[] for _ in range(self.n)]
-        indeg = [0] * self.n
-        for u, v, sign, k, which in lp:
-            if k >= 0:
-                bound = self.req[k][2 + which]
-                length = bound if sign > 0 else -bound  # type: ignore[operator]
-            else:
-                length = self.cont[-1 - k][2] if which == 0 else -1
-            if length is not None and length >= 0:
-                succ[u].append(v)
-                indeg[v] += 1
-        ready = [i for i in range(self.n) if indeg[i] == 0]
-        seen: list[int] = []
-        while ready:
-            u = ready.pop(0)
-            seen.append(u)
-            for v in succ[u]:
-                indeg[v] -= 1
-                if indeg[v] == 0:
-                    ready.append(v)
-        rest = [i for i in range(self.n) if i not in set(seen)]
-        pos = [0] * self.n
-        for p, i in enumerate(seen + rest):
-            pos[i] = p
-        return pos
+    def executed(self, seen: np.ndarray, legs_seen: np.ndarray) -> list[int | None]:
+        """The executed timepoints' ticks (None: not executed) under the state `seen`, `legs_seen` (see
+        `hrc.dispatch.native.NativeForm.evaluate`): each seen event at its tick, an unseen earlier event
+        of a seen leg at the tick of the next seen one."""
+        ex: list[int | None] = [None] * self.n
+        ex[0] = 0
+        for g, legs in enumerate(self.legs):
+            for k in range(min(int(legs_seen[g]), len(legs))):
+                pending: list[int] = []
+                for x, t in zip(legs[k], seen[g, k].tolist(), strict=True):
+                    if x < 0:
+                        continue
+                    if t < 0:
+                        pending.append(x)
+                        continue
+                    for y in pending:
+                        ex[y] = t
+                    pending.clear()
+                    ex[x] = t
+        return ex
 
-    # ------------------------------------------------------------------------------------------------
-    def verdict(self, ex: list[int | None], now: int) -> str | None:
-        """The residual's class name, or None when the C core cannot say (not built, huge numbers)."""
-        z = self.z
-        edges = [e for e in self.dist if ex[e[3]] is None or ex[e[4]] is None]  # links history closed go
-        src = [e[0] for e in edges]
-        dst = [e[1] for e in edges]
-        wt = [e[2] for e in edges]
-        pinned = [(x, tx) for x, tx in enumerate(ex) if tx is not None and x != z]
-        waiting = [x for x in self.executables if ex[x] is None]
-        src += [z] * len(pinned) + [x for x, _ in pinned] + waiting
-        dst += [x for x, _ in pinned] + [z] * (len(pinned) + len(waiting))
-        wt += [tx for _, tx in pinned] + [-tx for _, tx in pinned] + [-now] * len(waiting)
-        ca: list[int] = []
-        cc: list[int] = []
-        xs: list[int] = []
-        ys: list[int] = []
-        for a, c, lb, ub in self.cont:
-            if ex[c] is not None:
-                continue
-            ta = ex[a]
-            if ta is not None:
-                e = now - ta
-                lb, ub = max(lb, e), max(ub, e)
-            ca.append(a)
-            cc.append(c)
-            xs.append(lb)
-            ys.append(ub)
-        found = core_verdict(self.n, src, dst, wt, ca, cc, xs, ys)
-        return None if found is None else _VERDICT_CLASS[found]
-
-    def _durations(self, ex: list[int | None], now: int) -> list[tuple[int, int]]:
+    def ranges(self, ex: list[int | None], now: int) -> list[tuple[int, int]]:
         """Each contingent link's range now: shortened by what it has lasted when in progress."""
         out = []
-        for a, c, lb, ub in self.cont:
+        for a, c, lb, ub in self.conts:
             ta = ex[a]
             if ta is not None and ex[c] is None:
                 e = now - ta
@@ -149,42 +75,67 @@ class PlanNet:
             out.append((lb, ub))
         return out
 
+    def verdict(self, ex: list[int | None], now: int, check: Callable[[], str]) -> str:
+        """The residual's class name: the C verdict, else `check` (the residual network's DC check)."""
+        edges = [(u, v, w) for u, v, w in self.edges if ex[u] is None or ex[v] is None]
+        src = [u for u, _, _ in edges]
+        dst = [v for _, v, _ in edges]
+        wt = [w for _, _, w in edges]
+        pinned = [(x, tx) for x, tx in enumerate(ex) if tx is not None and x != 0]
+        waiting = [x for x in self.executables if ex[x] is None]
+        src += [0] * len(pinned) + [x for x, _ in pinned] + waiting
+        dst += [x for x, _ in pinned] + [0] * (len(pinned) + len(waiting))
+        wt += [tx for _, tx in pinned] + [-tx for _, tx in pinned] + [-now] * len(waiting)
+        links = [(a, c, lb, ub) for (a, c, _, _), (lb, ub) in zip(self.conts, self.ranges(ex, now), strict=True)
+                 if ex[c] is None]
+        found = core_verdict(self.n, src, dst, wt, [x[0] for x in links], [x[1] for x in links],
+                             [x[2] for x in links], [x[3] for x in links])
+        return check() if found is None else _VERDICT_CLASS[found]
+
     def schedule(self, ex: list[int | None], now: int, rank_by: str) -> list[int] | None:
         """Earliest times (ticks) with unrevealed durations read as `rank_by` says; the fallback on the
         orderings and lower bounds still to come; None if even that has none."""
         fixed = [lb if rank_by == "earliest" else (lb + ub) // 2 if rank_by == "nominal" else ub
-                 for lb, ub in self._durations(ex, now)]
+                 for lb, ub in self.ranges(ex, now)]
         for strict in (True, False):
-            times = self._longest(ex, now, fixed, fixed, strict)
+            times = self._longest(ex, now, fixed, strict)
             if times is not None:
                 return times
         return None
 
-    def _longest(self, ex: list[int | None], now: int, fwd: list[int], bwd: list[int],
-                 strict: bool) -> list[int] | None:
-        n, z = self.n, self.z
+    def _longest(self, ex: list[int | None], now: int, fixed: list[int], strict: bool) -> list[int] | None:
+        n = self.n
         contingent = self.contingent
         t = [tx if tx is not None else 0 if x in contingent else now for x, tx in enumerate(ex)]
-        t[z] = 0
-        # links history closed go; an edge into history is a check (strict) or nothing (the fallback: an
-        # ordering history broke says nothing about what comes next, and it keeps lengths >= 0 only)
-        if strict:
-            edges = [(u, v, length if j < 0 else fwd[j] if sign > 0 else -bwd[j], back)
-                     for u, v, length, j, sign, a, b, back in self.lp_all if ex[a] is None or ex[b] is None]
-        else:
-            edges = [(u, v, length if j < 0 else fwd[j], back) for u, v, length, j, sign, a, b, back in self.lp_all
-                     if (ex[a] is None or ex[b] is None) and ex[v] is None and (length >= 0 if j < 0 else sign > 0)]
-        # Bellman-Ford in the orderings' topological order: one sweep settles it unless an edge moved a
-        # timepoint whose outgoing edges that sweep had already visited (a "back" edge)
+        t[0] = 0
+        # longest-path edges u -> v: T(v) >= T(u) + length; links history closed go; an edge into history
+        # is a check (strict) or nothing (the fallback keeps orderings and lower bounds into what is left)
+        out: list[list[tuple[int, int]]] = [[] for _ in range(n)]
+        for u, v, w in self.edges:  # T(v) - T(u) <= w: T(u) >= T(v) - w
+            if ex[u] is not None and ex[v] is not None:
+                continue
+            if strict or (ex[u] is None and -w >= 0):
+                out[v].append((u, -w))
+        for (a, c, _, _), d in zip(self.conts, fixed, strict=True):
+            if ex[a] is not None and ex[c] is not None:
+                continue
+            if strict or ex[c] is None:
+                out[a].append((c, d))
+            if strict:
+                out[c].append((a, -d))
+        # Bellman-Ford in index order (the form's topological numbering): one sweep settles it unless an
+        # edge moved a timepoint whose outgoing edges that sweep had already visited (v <= u)
         for _sweep in range(n + 1):
             again = False
-            for u, v, length, back in edges:
-                w = t[u] + length
-                if w > t[v]:
-                    if ex[v] is not None or v == z:
-                        return None  # a pinned timepoint would have to move: no schedule
-                    t[v] = w
-                    again = again or back
+            for u in range(n):
+                tu = t[u]
+                for v, length in out[u]:
+                    val = tu + length
+                    if val > t[v]:
+                        if ex[v] is not None or v == 0:
+                            return None  # a pinned timepoint would have to move: no schedule
+                        t[v] = val
+                        again = again or v <= u
             if not again:
                 return t
         return None
@@ -192,11 +143,11 @@ class PlanNet:
     def idle(self, times: list[int]) -> int:
         """Ticks the agents stand still between the start and their last end, summed over agents."""
         total = 0
-        for legs in self.legs.values():
+        for legs in self.legs:
             if not legs:
                 continue
             busy = 0
-            for dep, arr, park, unpark, start, end in legs:
+            for dep, park, unpark, arr, start, end in legs:
                 busy += times[arr] - times[dep] + times[end] - times[start]
                 if park >= 0:
                     busy -= times[unpark] - times[park]

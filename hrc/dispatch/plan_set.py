@@ -1,24 +1,35 @@
-"""The compiled plan set as the dispatcher reads it: each plan with its STNU and the names of its events.
+"""The compiled plan set as the dispatcher reads it: the compile's dispatch form, and each plan's STNU and
+events on demand.
 
-Loaded from an `hrc compile` output folder (``compiled.json``, ``stnu/*.graphml``, ``input/``: no
-re-compile) or taken from an in-memory `hrc.compile.compiler.CompiledPlanSet`. For each plan the
-dispatcher needs its allocation and sequences (set validation), its STNU (set ranking, decisions) and
-which timepoint of that STNU each observable event is: the timepoint of ``AGENT``'s ``EVENT`` on
-``ACTION.PHASE`` is ``tool_name("AGENT.PHASE.ACTION.EVENT")`` (`hrc.compile.temporal_net_creator`
-names it, `hrc.temporal.graphml.tool_name` writes it), present for depart, arrive, start and end, and
-for park/unpark where the plan stops at a waiting place.
+Loaded from an `hrc compile` output folder (`load_plan_set`: ``dispatch/``, the form the compile wrote,
+checked against ``compiled.json``'s header; ``input/`` for the task; nothing compiled again) or made from
+an in-memory `hrc.compile.compiler.CompiledPlanSet` (`plan_set_from_compiled`: the simulator). Either way
+the dispatcher works on the same arrays (`hrc.compile.dispatch_form.DispatchForm`), and builds no Python
+object per plan: set validation and set ranking read the arrays; a plan's `PlanEntry` (its STNU as an
+`STNU` value, its legs and the event each timepoint stands for) is made only for the plans a decision or
+a caller looks at (`PlanSet.entry`), and a few are kept.
+
+An output written before the form existed (no ``dispatch_form`` in ``compiled.json``) is read the old
+way, its GraphML files parsed and the form built from them in memory: slower, the same answers.
+
+The timepoint of ``AGENT``'s ``EVENT`` on ``ACTION.PHASE`` is ``tool_name("AGENT.PHASE.ACTION.EVENT")``
+(`hrc.compile.temporal_net_creator` names it, `hrc.temporal.graphml.tool_name` writes it), present for
+depart, arrive, start and end, and for park/unpark where the plan stops at a waiting place.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import zipfile
-from collections.abc import Mapping
+from collections import OrderedDict
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
+from hrc.compile.dispatch_form import DispatchForm, build_form, plan_record, read_form
 from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.errors import InputError
 from hrc.model import Plan, Task
@@ -27,13 +38,15 @@ from hrc.temporal import STNU
 from hrc.temporal.graphml import read_graphml, read_network, tool_name
 from hrc.temporal.limits import MAX_FILE_BYTES
 
-from .fastnet import PlanNet
 from .messages import LEG_EVENTS
 
 __all__ = ["PlanEntry", "PlanSet", "load_plan_set", "plan_set_from_compiled"]
 
 LegKey = tuple[str, str, str]  # (agent, action, phase)
 EventKey = tuple[str, str, str, str]  # (agent, action, phase, event)
+
+_CLASSES = ("DC", "consistent", "inconsistent")
+_ENTRIES_KEPT = 64  # PlanEntry values kept (a decision looks at one or two plans a message)
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,7 +66,6 @@ class PlanEntry:
     legs: Mapping[str, tuple[tuple[str, str], ...]]
     leg_points: Mapping[LegKey, tuple[tuple[str, str], ...]]
     events: Mapping[str, EventKey]
-    net: PlanNet  # the same network as index arrays, for re-checking it at every message
     blocked: bool = False
 
     @property
@@ -61,18 +73,10 @@ class PlanEntry:
         return self.plan.id
 
 
-@dataclass(frozen=True, slots=True)
-class PlanSet:
-    """Every plan of a compile, in compile rank order, with the task and the compile's ``rank_by``."""
-
-    task: Task
-    plans: tuple[PlanEntry, ...]
-    rank_by: str = "worst"
-    source: str = ""
-
-
-def _entry(task: Task, plan: Plan, rank: int, compiled_class: str, preference: float | None,
-           stnu: STNU, where: str, blocked: bool = False) -> PlanEntry:
+def plan_entry(task: Task, plan: Plan, rank: int, compiled_class: str, preference: float | None, stnu: STNU,
+               where: str, blocked: bool = False) -> PlanEntry:
+    """A `PlanEntry` of `plan` with its `stnu` (timepoints named as its GraphML file names them). Raises
+    `InputError` naming `where` when the STNU lacks a leg's timepoints."""
     known = set(stnu.timepoints)
     if ORIGIN not in known:
         raise InputError(where, "", f"the STNU has no origin timepoint {ORIGIN!r}")
@@ -94,28 +98,106 @@ def _entry(task: Task, plan: Plan, rank: int, compiled_class: str, preference: f
                 raise InputError(where, "", f"the STNU lacks the timepoints of {agent.id}'s "
                                             f"{leg.action}.{leg.phase} (not compiled from this task?)")
             points[(agent.id, leg.action, leg.phase)] = tuple(found)
-    index = {v: i for i, v in enumerate(stnu.timepoints)}
-    net_legs: dict[str, list[tuple[int, int, int, int, int, int]]] = {}
-    for (agent_id, _action, _phase), found_points in points.items():
-        at = dict(found_points)
-        net_legs.setdefault(agent_id, []).append(tuple(  # type: ignore[arg-type]
-            index[at[e]] if e in at else -1 for e in ("depart", "arrive", "park", "unpark", "start", "end")))
-    for agent_id in legs:  # in each agent's order (points were filled agent by agent)
-        net_legs.setdefault(agent_id, [])
-    net = PlanNet(stnu.timepoints, stnu.requirements, stnu.contingents, ORIGIN, net_legs)
-    return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events, net, blocked)
+    return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events, blocked)
+
+
+class PlanSet:
+    """Every plan of a compile, in compile rank order (index 0 the best), as its dispatch `form`; with the
+    task, the compile's ``rank_by`` and where it came from. ``len`` is the plan count; `entry` (and the
+    `plans` view) make a plan's `PlanEntry` when asked for one."""
+
+    def __init__(self, form: DispatchForm, source: str = "") -> None:
+        self.form = form
+        self.task: Task = form.task
+        self.rank_by: str = form.rank_by
+        self.source = source or form.source
+        self._index: dict[str, int] | None = None
+        self._entries: OrderedDict[int, PlanEntry] = OrderedDict()
+        self._digest: str | None = None
+
+    def __len__(self) -> int:
+        return len(self.form)
+
+    def id(self, p: int) -> str:
+        return self.form.plan_id(p)
+
+    def index(self, plan_id: str) -> int:
+        """The index of the plan with this id; `KeyError` if there is none."""
+        if self._index is None:
+            self._index = {raw.decode("ascii").rstrip(): p for p, raw in enumerate(self.form.plans["id"].tolist())}
+        return self._index[plan_id]
+
+    @property
+    def digest(self) -> str:
+        """What a log names the set by: SHA-256 of the task's digest and every plan id in rank order."""
+        if self._digest is None:
+            from hrc.compile.compiler import task_digest
+
+            ids = ",".join(raw.decode("ascii").rstrip() for raw in self.form.plans["id"].tolist())
+            self._digest = hashlib.sha256(f"{task_digest(self.task)}:{ids}".encode()).hexdigest()[:16]
+        return self._digest
+
+    def entry(self, p: int) -> PlanEntry:
+        """Plan `p`'s `PlanEntry`, its STNU made from the form's arrays (a few are kept)."""
+        found = self._entries.get(p)
+        if found is not None:
+            self._entries.move_to_end(p)
+            return found
+        form = self.form
+        row = form.plans[p]
+        pref = float(row["preference"])
+        entry = plan_entry(self.task, form.plan(p), int(row["rank"]), _CLASSES[int(row["cls"])],
+                           None if pref != pref else pref, form.stnu(p), f"{self.source}: plan {form.plan_id(p)}",
+                           bool(row["blocked"]))
+        self._entries[p] = entry
+        if len(self._entries) > _ENTRIES_KEPT:
+            self._entries.popitem(last=False)
+        return entry
+
+    @property
+    def plans(self) -> _Entries:
+        """Every plan's `PlanEntry`, made as they are read (a sequence view: index it, or iterate)."""
+        return _Entries(self)
+
+
+class _Entries(Sequence[PlanEntry]):
+    def __init__(self, plan_set: PlanSet) -> None:
+        self._set = plan_set
+
+    def __len__(self) -> int:
+        return len(self._set)
+
+    @overload
+    def __getitem__(self, i: int) -> PlanEntry: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[PlanEntry]: ...
+
+    def __getitem__(self, i: int | slice) -> PlanEntry | list[PlanEntry]:
+        if isinstance(i, slice):
+            return [self._set.entry(k) for k in range(len(self._set))[i]]
+        if not -len(self._set) <= i < len(self._set):
+            raise IndexError(i)
+        return self._set.entry(i % len(self._set))
+
+    def __iter__(self) -> Iterator[PlanEntry]:
+        return (self._set.entry(k) for k in range(len(self._set)))
 
 
 def plan_set_from_compiled(cps: Any) -> PlanSet:
-    """The plan set of an in-memory `hrc.compile.compiler.CompiledPlanSet` (its GraphML text is read
-    back, so the dispatcher sees exactly what the folder would hold)."""
-    entries = []
-    for cp in cps.plans:
+    """The plan set of an in-memory `hrc.compile.compiler.CompiledPlanSet` (its plans' dispatch form
+    records, or where a plan has none, its GraphML text read back: the same arrays the folder would
+    hold)."""
+    task = cps.task
+
+    def record(cp: Any) -> bytes:
+        if cp.form:
+            return bytes(cp.form)
         where = f"<compiled plan {cp.plan.id}>"
-        stnu = read_graphml(cp.graphml.encode(), where)
-        entries.append(_entry(cps.task, cp.plan, cp.rank, cp.plan_class.value, cp.preference, stnu, where,
-                              blocked=cp.pattern.candidates == 0))
-    return PlanSet(cps.task, tuple(entries), cps.options.rank_by, "<memory>")
+        return plan_record(task, cp.plan, read_graphml(cp.graphml.encode(), where), cp.pattern.candidates == 0,
+                           graphml_names=True, where=where)
+
+    entries = ((cp.plan.id, cp.plan_class.value, cp.preference, cp.plan, record(cp)) for cp in cps.plans)
+    return PlanSet(build_form(task, cps.options.rank_by, entries, "<memory>"), "<memory>")
 
 
 def _need(obj: Any, key: str, kind: type | tuple[type, ...], file: str, path: str) -> Any:
@@ -152,27 +234,50 @@ class _Archive:
         return read_graphml(data, f"{self.path}:{member}")
 
 
-def load_plan_set(out_dir: str | os.PathLike[str]) -> PlanSet:
-    """Read an `hrc compile` output folder. Raises `InputError` naming the file and key at fault."""
-    from hrc.compile.output import STNU_ARCHIVE, load_compiled_task  # the compiler's own reader of input/
+def load_plan_set(out_dir: str | os.PathLike[str], *, allow_partial: bool = False) -> PlanSet:
+    """Read an `hrc compile` output folder. Raises `InputError` naming the file and key at fault: not such
+    a folder, compiled with ``--stnu none``, a partial output (interrupted; unless `allow_partial`), a
+    dispatch form that does not match ``compiled.json`` (truncated, swapped, from another compile)."""
+    from hrc.compile.output import load_compiled_task, read_header
 
     folder = Path(out_dir)
     if not folder.is_dir():
         raise InputError(str(folder), "", "not a folder (give the --out folder of hrc compile)")
     file = str(folder / "compiled.json")
+    header = read_header(folder)
     task = load_compiled_task(folder)
+    options = header.get("options")
+    rank_by = options.get("rank_by", "worst") if isinstance(options, dict) else "worst"
+    rank_by = rank_by if rank_by in ("worst", "earliest", "nominal") else "worst"
+    if header.get("partial") and not allow_partial:
+        raise InputError(file, "partial", "a partial output (the compile was interrupted): finish it with hrc "
+                                          "compile --resume, or dispatch what it holds with --allow-partial")
+    mode = header.get("stnu_files", "graphml")
+    if mode == "none":
+        raise InputError(file, "stnu_files", "compiled with --stnu none: no STNUs to dispatch with (compile "
+                                             "again with --stnu graphml or --stnu archive)")
+    meta = header.get("dispatch_form")
+    if isinstance(meta, dict):
+        form = read_form(folder, task, rank_by, expected=str(meta.get("sha256")))
+        if len(form) == 0:
+            raise InputError(file, "plans", "no plans: nothing to dispatch")
+        return PlanSet(form, str(folder))
+    return _from_graphml(folder, task, rank_by, header)
+
+
+def _from_graphml(folder: Path, task: Task, rank_by: str, header: Mapping[str, Any]) -> PlanSet:
+    """An output without a dispatch form (written before there was one): ``compiled.json`` and every
+    STNU file read, and the form built from them in memory."""
+    from hrc.compile.output import STNU_ARCHIVE
+
+    file = str(folder / "compiled.json")
     try:
         data = json.loads((folder / "compiled.json").read_text(encoding="utf-8"))
     except (OSError, ValueError) as err:
         raise InputError(file, "", f"cannot read: {err}") from err
-    options = data.get("options") if isinstance(data, dict) else None
-    rank_by = options.get("rank_by", "worst") if isinstance(options, dict) else "worst"
     plans = _need(data, "plans", list, file, "")
-    mode = data.get("stnu_files", "graphml")
-    if mode == "none":
-        raise InputError(file, "stnu_files", "compiled with --stnu none: no STNUs to dispatch with (compile "
-                                             "again with --stnu graphml or --stnu archive)")
-    archive = _Archive(folder, file, str(data.get("stnu_archive", STNU_ARCHIVE))) if mode == "archive" else None
+    mode = header.get("stnu_files", "graphml")
+    archive = _Archive(folder, file, str(header.get("stnu_archive", STNU_ARCHIVE))) if mode == "archive" else None
     agents = {a.id for a in task.agents}
     entries = []
     for i, p in enumerate(plans):
@@ -191,11 +296,14 @@ def load_plan_set(out_dir: str | os.PathLike[str]) -> PlanSet:
         if folder.resolve() not in stnu_path.parents:
             raise InputError(file, f"{path}.stnu", "must name a file inside the output folder")
         stnu = archive.read(stnu_rel, f"{path}.stnu") if archive is not None else read_network(stnu_path)
+        cls = str(_need(p, "class", str, file, path))
+        if cls not in _CLASSES:
+            raise InputError(file, f"{path}.class", f"{cls!r} is not one of {', '.join(_CLASSES)}")
         pref = p.get("preference")
         pattern = p.get("pattern")
         blocked = isinstance(pattern, dict) and pattern.get("candidates") == 0  # no motion pattern was found
-        entries.append(_entry(task, plan, int(p.get("rank", i + 1)), str(_need(p, "class", str, file, path)),
-                              float(pref) if isinstance(pref, int | float) else None, stnu, str(stnu_path), blocked))
+        record = plan_record(task, plan, stnu, blocked, graphml_names=True, where=str(stnu_path))
+        entries.append((plan.id, cls, float(pref) if isinstance(pref, int | float) else None, plan, record))
     if not entries:
         raise InputError(file, "plans", "no plans: nothing to dispatch")
-    return PlanSet(task, tuple(entries), rank_by if isinstance(rank_by, str) else "worst", str(folder))
+    return PlanSet(build_form(task, rank_by, entries, str(folder)), str(folder))

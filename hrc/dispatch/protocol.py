@@ -58,12 +58,7 @@ def handle_line(dispatcher: Dispatcher, line: str) -> str:
 
 
 def _digest(dispatcher: Dispatcher) -> str:
-    ids = ",".join(e.id for e in dispatcher.plan_set.plans)
-    import hashlib
-
-    from hrc.compile.compiler import task_digest
-
-    return hashlib.sha256(f"{task_digest(dispatcher.task)}:{ids}".encode()).hexdigest()[:16]
+    return dispatcher.plan_set.digest
 
 
 class Log:
@@ -74,7 +69,7 @@ class Log:
         if self.path.exists() and not self.path.is_file():
             raise InputError(str(self.path), "", "the log must be a regular file")
         header = {"hrc_dispatch_log": LOG_VERSION, "compiled": _digest(dispatcher),
-                  "plans": len(dispatcher.plan_set.plans)}
+                  "plans": len(dispatcher.plan_set)}
         self._file: IO[str] = open(self.path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
         self._write(_dumps(header))
 

@@ -19,12 +19,16 @@ carries none of its conflicts, and comes after every other inconsistent plan: ke
 can still finish when nothing else is left, but never promised (found by `hrc simulate` on kitting,
 whose dispatcher used to start every run on such a plan, re-checked as DC).
 
-What an observation can change. Only the plans still in the set are looked at, and their number falls
-fast as the human's choices come in. A plan is re-checked only when something that enters its residual
-network changed: the executed timepoints of *that* plan, or ``now`` for a plan with something still to
-do (`evaluation_key`); a tick when every remaining timepoint of a plan is already pinned changes nothing.
-Cost per re-check: one residual network, one DC check (the RUL2021 verdict, in C where built) and one
-earliest-schedule search; see scripts/bench_dispatch.py.
+What an observation can change. Only the plans still in the set are looked at (set validation drops the
+rest by index, `hrc.dispatch.validation.agreeing`), and their number falls fast as the human's choices
+come in. Plans whose networks are the same arrays (the compile's `shape`: plans that differ only by which
+of two identical actions comes where) have the same residual network under any history they both agree
+with (an observed leg is at the same position in both), so each shape among the candidates is evaluated
+once (`Ranker.evaluate`). An evaluation is one residual network, one DC check and one or two longest-path
+searches, in the C core over the dispatch form's arrays (`hrc.dispatch.native`, many plans per call),
+else in Python (`hrc.dispatch.fastnet`): the same results as `reference_evaluate`, the definition on the
+residual network, which the tests compare on every message of many runs. The best plan is found by
+successive minima over the rank key's columns, the full ranking only when asked for (`Ranker.order`).
 """
 
 from __future__ import annotations
@@ -32,14 +36,23 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+import numpy as np
+
 from hrc.temporal import STNU, ContingentLink, RequirementLink, Verdict, check_dc, earliest_times, residual_network
 
-from .plan_set import PlanEntry
+from . import native
+from .fastnet import PlanNet
+from .plan_set import PlanEntry, PlanSet
 
-__all__ = ["CLASS_NAMES", "Evaluation", "evaluate", "rank_key", "reference_evaluate", "schedule"]
+__all__ = ["CLASS_NAMES", "CLASS_ORDER", "NO_FINISH", "Evaluation", "Ranker", "rank_key", "reference_evaluate",
+           "schedule"]
 
 CLASS_NAMES = {Verdict.DC: "DC", Verdict.NOT_DC: "consistent", Verdict.INCONSISTENT: "inconsistent"}
-_CLASS_ORDER = {"DC": 0, "consistent": 1, "inconsistent": 2}
+CLASS_ORDER = ("DC", "consistent", "inconsistent")
+"""Class names by their code in the arrays (0 best)."""
+_CLASS_ORDER = {c: i for i, c in enumerate(CLASS_ORDER)}
+NO_FINISH = native.NO_FINISH
+"""The finish of a plan with no schedule at all, in the arrays (ranks after every finish)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,22 +119,6 @@ def _idle(entry: PlanEntry, times: Mapping[str, int]) -> int:
     return total
 
 
-def evaluate(entry: PlanEntry, executed: Mapping[str, int], now: int, rank_by: str = "worst") -> Evaluation:
-    """The plan's class, finish and idle time with `executed` seen by tick `now` (module docstring),
-    on the plan's index arrays (`hrc.dispatch.fastnet.PlanNet`); the same as `reference_evaluate`."""
-    net = entry.net
-    ex: list[int | None] = [None] * net.n
-    for name, t in executed.items():
-        ex[net.index[name]] = t
-    plan_class = "inconsistent" if entry.blocked else net.verdict(ex, now)
-    if plan_class is None:  # no C core: the residual network's DC check
-        plan_class = CLASS_NAMES[check_dc(residual_network(entry.stnu, executed, now)).verdict]
-    times = net.schedule(ex, now, rank_by)
-    if times is None:
-        return Evaluation(plan_class, None, 0)
-    return Evaluation(plan_class, max(times), net.idle(times))
-
-
 def reference_evaluate(entry: PlanEntry, executed: Mapping[str, int], now: int,
                        rank_by: str = "worst") -> Evaluation:
     """`evaluate` from the residual network (`residual_network`, `check_dc`, `schedule`): slower, and
@@ -142,3 +139,107 @@ def rank_key(entry: PlanEntry, ev: Evaluation) -> tuple:
     finish = ev.finish if ev.finish is not None else float("inf")
     pref = -entry.preference if entry.preference is not None else float("inf")
     return (_CLASS_ORDER[ev.plan_class], entry.blocked, finish, ev.idle, pref, entry.id)
+
+
+class Ranker:
+    """Set ranking over one plan set (see the module docstring): `evaluate` many candidates under one
+    state, `best` and `order` them by the rank key. Read-only after it is made; forks of a dispatcher
+    share one."""
+
+    def __init__(self, plan_set: PlanSet, threads: int | None = None) -> None:
+        self.plan_set = plan_set
+        self.threads = native.default_threads() if threads is None else max(1, threads)
+        form = plan_set.form
+        self.native = native.NativeForm(form) if native.available() else None
+        self._nets: dict[int, PlanNet] = {}  # the Python path's, made as needed
+        rows = form.plans
+        self.shape = np.ascontiguousarray(rows["shape"], dtype=np.int64)
+        self.blocked = np.ascontiguousarray(rows["blocked"], dtype=np.int8)
+        pref = np.asarray(rows["preference"], dtype=np.float64)
+        self.pref_key = np.where(np.isnan(pref), np.inf, -pref)  # higher preference first; none last
+        ids = rows["id"]
+        self.id_rank = np.empty(len(ids), dtype=np.int64)  # plans ordered by id (the last tie-break)
+        self.id_rank[np.argsort(ids, kind="stable")] = np.arange(len(ids))
+
+    def evaluate(self, plans: np.ndarray, seen: np.ndarray, legs_seen: np.ndarray,
+                 now: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(cls, finish, idle)`` of each of `plans` (indices) under the state (`seen`, `legs_seen`: what
+        `hrc.dispatch.validation.seen_arrays` makes of the history; `now` in ticks): class codes
+        (`CLASS_ORDER`), finish ticks (`NO_FINISH`: no schedule at all), idle ticks. The plans must agree
+        with the history (set validation): twins by shape are evaluated once."""
+        plans = np.asarray(plans, dtype=np.int64)
+        if not len(plans):
+            empty = np.zeros(0, dtype=np.int64)
+            return empty.astype(np.int8), empty, empty
+        shapes, first, back = np.unique(self.shape[plans], return_index=True, return_inverse=True)
+        reps = plans[first]
+        if self.native is not None:
+            cls, finish, idle = self.native.evaluate(reps, seen, legs_seen, now, self.plan_set.rank_by,
+                                                     threads=self.threads)
+            for k in np.flatnonzero(cls < 0):  # the core ran out of memory: this plan in Python
+                cls[k], finish[k], idle[k] = self._python(int(reps[k]), seen, legs_seen, now)
+        else:
+            found = [self._python(int(p), seen, legs_seen, now) for p in reps.tolist()]
+            cls = np.array([f[0] for f in found], dtype=np.int8)
+            finish = np.array([f[1] for f in found], dtype=np.int64)
+            idle = np.array([f[2] for f in found], dtype=np.int64)
+        return cls[back], finish[back], idle[back]
+
+    def _net(self, p: int) -> PlanNet:
+        net = self._nets.get(p)
+        if net is None:
+            if len(self._nets) > 4096:
+                self._nets.clear()
+            net = self._nets[p] = PlanNet(self.plan_set.form.arrays(p))
+        return net
+
+    def _python(self, p: int, seen: np.ndarray, legs_seen: np.ndarray, now: int) -> tuple[int, int, int]:
+        """Plan `p`'s evaluation in Python (`hrc.dispatch.fastnet`); the verdict from the C verdict alone,
+        else from `check_dc` on its residual network."""
+        net = self._net(p)
+        ex = net.executed(seen, legs_seen)
+
+        def check() -> str:
+            names = self.plan_set.form.timepoint_names(p)
+            done = {names[x]: t for x, t in enumerate(ex) if t is not None}
+            return CLASS_NAMES[check_dc(residual_network(self.plan_set.entry(p).stnu, done, now)).verdict]
+
+        cls = "inconsistent" if self.blocked[p] else net.verdict(ex, now, check)
+        times = net.schedule(ex, now, self.plan_set.rank_by)
+        if times is None:
+            return _CLASS_ORDER[cls], int(NO_FINISH), 0
+        return _CLASS_ORDER[cls], max(times), net.idle(times)
+
+    def schedule(self, p: int, seen: np.ndarray, legs_seen: np.ndarray, now: int) -> list[int] | None:
+        """Plan `p`'s earliest schedule under the state (ticks per timepoint, in the form's numbering), as
+        its evaluation computes it; None when it has none."""
+        if self.native is not None:
+            times = np.zeros(int(self.plan_set.form.plans["n"][p]), dtype=np.int64)
+            cls, finish, _ = self.native.evaluate(np.array([p]), seen, legs_seen, now, self.plan_set.rank_by, times)
+            if cls[0] >= 0:
+                return None if finish[0] == NO_FINISH else times.tolist()
+        net = self._net(p)
+        return net.schedule(net.executed(seen, legs_seen), now, self.plan_set.rank_by)
+
+    def _columns(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray,
+                 idle: np.ndarray) -> list[np.ndarray]:
+        """The rank key's columns (`rank_key`), most significant first."""
+        fin = np.where(finish == NO_FINISH, np.iinfo(np.int64).max, finish)
+        return [cls.astype(np.int64), self.blocked[plans], fin, idle, self.pref_key[plans], self.id_rank[plans]]
+
+    def best(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray, idle: np.ndarray) -> int:
+        """The position in `plans` of the best plan by `rank_key` (-1 if `plans` is empty): successive
+        minima over the key's columns, O(len(plans))."""
+        if not len(plans):
+            return -1
+        at = np.arange(len(plans))
+        for column in self._columns(plans, cls, finish, idle):
+            values = column[at]
+            at = at[values == values.min()]
+            if len(at) == 1:
+                break
+        return int(at[0])
+
+    def order(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray, idle: np.ndarray) -> np.ndarray:
+        """Positions in `plans`, best first by `rank_key`."""
+        return np.lexsort(list(reversed(self._columns(plans, cls, finish, idle))))

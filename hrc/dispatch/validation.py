@@ -10,10 +10,19 @@ while its allocation and each agent's order of legs extend what was seen (and, w
 it gives the robot every action the human has not started). Timing never drops a plan: a plan whose
 timing history broke is still an instruction for finishing the task (section V.B); ranking deals with it.
 
+`agreeing` is set validation by index: which plans of a pool agree with the history, from the dispatch
+form's sequences (``seq``: each agent's actions in order), as a few vectorised comparisons of the seen
+prefixes, never a Python loop over the plans. A plan's legs are its actions' phases, action after action,
+so a plan agrees exactly when each agent's sequence starts with the actions it was seen doing and the
+legs it was seen on are those actions' phases in that order (which depends on the history alone: an
+agent who left an action half done for another agrees with no plan).
+
 `executed` turns a history into one plan's executed timepoints (ticks): each seen event pins its
 timepoint; an unreported earlier event of the same leg (a depart, an arrival, a stop at a waiting place
 that the detector does not report) is pinned at the time of the next reported one, which is when it is
-known to have happened at the latest.
+known to have happened at the latest. `seen_arrays` is the same history as the dispatch form's core reads
+it: the seen events' ticks by agent, leg position and event (every candidate has the same legs at those
+positions).
 """
 
 from __future__ import annotations
@@ -22,6 +31,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
+import numpy as np
+
+from hrc.compile.dispatch_form import DispatchForm
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND
 from hrc.errors import DispatchError
 from hrc.model import Task
@@ -29,7 +41,7 @@ from hrc.model import Task
 from .messages import LEG_EVENTS, Observation
 from .plan_set import EventKey, PlanEntry
 
-__all__ = ["History", "agrees", "executed", "ticks"]
+__all__ = ["History", "agreeing", "agrees", "executed", "seen_arrays", "ticks"]
 
 _ORDER = {e: i for i, e in enumerate(LEG_EVENTS)}
 _EMPTY: Mapping = MappingProxyType({})
@@ -190,3 +202,44 @@ def executed(entry: PlanEntry, history: History) -> dict[str, int]:
                 pending.clear()
                 out[node] = tick
     return out
+
+
+def agreeing(form: DispatchForm, history: History, pool: np.ndarray) -> np.ndarray:
+    """The plans of `pool` (indices, kept in their order) whose allocation and per-agent order extend what
+    was seen: `agrees` for many plans at once (see the module docstring)."""
+    pool = np.asarray(pool, dtype=np.int64)
+    task = form.task
+    action_index = {a: i for i, a in enumerate(task.action_ids)}
+    A = form.seq.shape[2]
+    keep = np.ones(len(pool), dtype=bool)
+    for g, agent in enumerate(task.agent_ids):
+        actions = history.actions_seen(agent)
+        legs = history.legs.get(agent, ())
+        if [(a, p.id) for a in actions for p in task.action(a).phases][:len(legs)] != list(legs):
+            return pool[:0]  # its legs are not its actions' phases in order: no plan has them so
+        seen = [action_index[a] for a in actions]
+        if seen:
+            keep &= np.all(form.seq[pool, g, :len(seen)] == np.array(seen, dtype=np.int16), axis=1)
+        nxt = history.announced.get(agent)
+        if nxt is not None:
+            keep &= form.seq[pool, g, len(seen)] == action_index[nxt] if len(seen) < A else False
+        if history.away and agent == history.human and len(seen) < A:
+            keep &= form.seq[pool, g, len(seen)] < 0  # the robot does every action the human has not begun
+    return pool[keep]
+
+
+def seen_arrays(history: History, legs: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(seen, legs_seen)``: the tick of each seen event by agent, leg position and event (`LEG_EVENTS`;
+    -1: not seen), shape (agents, `legs`, 6), and how many legs of each agent were seen."""
+    agents = history.task.agent_ids
+    seen = np.full((len(agents), legs, len(LEG_EVENTS)), -1, dtype=np.int64)
+    counts = np.zeros(len(agents), dtype=np.int32)
+    times = history.times
+    for g, agent in enumerate(agents):
+        for k, (action, phase) in enumerate(history.legs.get(agent, ())):
+            counts[g] = k + 1
+            for e, event in enumerate(LEG_EVENTS):
+                t = times.get((agent, action, phase, event))
+                if t is not None:
+                    seen[g, k, e] = ticks(t)
+    return seen, counts

@@ -1,0 +1,800 @@
+/*
+ * The dispatcher's set ranking in C (loaded with ctypes by hrc.dispatch.native; no Python headers):
+ * each plan of a dispatch form (hrc/compile/dispatch_form.py) evaluated under what has been seen, as
+ * hrc.dispatch.ranking.reference_evaluate defines it on the plan's residual network
+ * (hrc.temporal.execution.residual_network), many plans per call:
+ *
+ *   - executed timepoints: the origin (0) at 0; each seen event of the agents' legs at its tick; an
+ *     unseen earlier event of a seen leg at the tick of the next seen one (hrc.dispatch.validation.executed);
+ *   - class: the residual's DC verdict (the RUL2021 core of hrc/temporal/_rulcore.c, through its reusable
+ *     workspace): its distance edges are the plan's edges but those between two executed timepoints,
+ *     a pin for each executed timepoint, "at now or later" for every other executable, and its contingent
+ *     links but those observed, one in progress shortened by what it has lasted (past its upper bound an
+ *     overrun: [e, e]); a blocked plan is inconsistent whatever the verdict;
+ *   - finish: the end of the earliest schedule with each unrevealed duration fixed as rank_by reads it
+ *     (0 worst: upper bound, 1 earliest: lower bound, 2 nominal: midpoint, floored), a longest-path
+ *     computation (Bellman-Ford swept in the plan's topological numbering: one or two sweeps); when no
+ *     schedule keeps every bound, the same on the orderings and lower bounds still to come alone;
+ *   - idle: per agent, the time from the start to its last end that it neither travels (a stop at a
+ *     waiting place counts as idle) nor works, summed.
+ *
+ * Returns, per plan, class 0 DC, 1 consistent, 2 inconsistent (or -1: out of memory, the caller falls
+ * back), finish in ticks (INT64_MIN: no schedule at all) and idle ticks. A workspace (hrc_dispatch_work_new)
+ * belongs to one thread at a time; the form and the state are only read.
+ */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../temporal/_rulcore.h"
+
+#define NONE INT64_MIN
+#define EVENTS 6 /* depart, park, unpark, arrive, start, end */
+
+typedef struct {
+    int32_t plans, agents, legs;
+    const uint16_t *n;          /* timepoints of each plan */
+    const uint8_t *blocked;     /* 1: no motion pattern, never promised */
+    const int16_t *nodes;       /* plans x agents x legs x EVENTS: a leg's timepoints, -1 none */
+    const int64_t *edges_ptr;   /* plans + 1 */
+    const uint16_t *eu, *ev;    /* T(v) - T(u) <= w */
+    const int32_t *ew32;        /* the weights: one of these two is set */
+    const int64_t *ew64;
+    const int64_t *conts_ptr;   /* plans + 1 */
+    const uint16_t *ca, *cc;    /* a --[lb, ub]--> c */
+    const int32_t *clb32, *cub32;
+    const int64_t *clb64, *cub64;
+} HrcForm;
+
+typedef struct {
+    const int64_t *seen;       /* agents x legs x EVENTS: the tick of agent g's k-th leg's event, -1 unseen */
+    const int32_t *legs_seen;  /* agents: how many of each agent's legs were seen (its first ones) */
+    int64_t now;
+    int32_t rank_by;           /* 0 worst, 1 earliest, 2 nominal */
+} HrcState;
+
+typedef struct {
+    HrcRul *rul;
+    int ncap, mcap;
+    int64_t *ex, *t, *pot, now;
+    uint8_t *contingent;
+    int *first, *next_src;          /* longest-path edges by source: counting sort */
+    int *lu, *lv, *order;
+    int64_t *len;
+    int64_t *lb, *ub, *fixed;       /* per contingent link: its range now, its fixed duration */
+} HrcWork;
+
+HrcWork *hrc_dispatch_work_new(void) {
+    HrcWork *w = calloc(1, sizeof *w);
+    if (w && !(w->rul = hrc_rul_new())) { free(w); return NULL; }
+    return w;
+}
+
+void hrc_dispatch_work_free(HrcWork *w) {
+    if (!w) return;
+    hrc_rul_free(w->rul);
+    free(w->ex); free(w->t); free(w->pot); free(w->contingent); free(w->first); free(w->next_src); free(w->lu);
+    free(w->lv);
+    free(w->order); free(w->len); free(w->lb); free(w->ub); free(w->fixed);
+    free(w);
+}
+
+static int reserve(HrcWork *w, int n, int m) {
+    if (n > w->ncap) {
+        free(w->ex); free(w->t); free(w->pot); free(w->contingent); free(w->first);
+        w->ex = malloc(sizeof(int64_t) * (size_t)n); w->t = malloc(sizeof(int64_t) * (size_t)n);
+        w->pot = malloc(sizeof(int64_t) * (size_t)n);
+        w->contingent = malloc((size_t)n); w->first = malloc(sizeof(int) * (size_t)(n + 1));
+        if (!w->ex || !w->t || !w->pot || !w->contingent || !w->first) { w->ncap = 0; return -1; }
+        w->ncap = n;
+    }
+    if (m > w->mcap) {
+        free(w->next_src); free(w->lu); free(w->lv); free(w->order); free(w->len); free(w->lb); free(w->ub);
+        free(w->fixed);
+        size_t c = (size_t)m;
+        w->next_src = malloc(sizeof(int) * c); w->lu = malloc(sizeof(int) * c); w->lv = malloc(sizeof(int) * c);
+        w->order = malloc(sizeof(int) * c); w->len = malloc(sizeof(int64_t) * c);
+        w->lb = malloc(sizeof(int64_t) * c); w->ub = malloc(sizeof(int64_t) * c); w->fixed = malloc(sizeof(int64_t) * c);
+        if (!w->next_src || !w->lu || !w->lv || !w->order || !w->len || !w->lb || !w->ub || !w->fixed) {
+            w->mcap = 0;
+            return -1;
+        }
+        w->mcap = m;
+    }
+    return 0;
+}
+
+static int64_t max64(int64_t a, int64_t b) { return a > b ? a : b; }
+
+static int64_t floor_half(int64_t x) { return x >= 0 ? x / 2 : -((-x + 1) / 2); }
+
+static int64_t weight(const int32_t *w32, const int64_t *w64, int64_t i) { return w32 ? (int64_t)w32[i] : w64[i]; }
+
+/* Longest paths from the initial times in w->t over the nl edges in w->lu/lv/len, swept by source in
+ * index order (the plan's topological numbering) until a sweep moves nothing along an edge that goes back
+ * in that order. 0 done; 1 no schedule (an executed timepoint or the origin would have to move, or a
+ * positive cycle: no end after n + 1 sweeps). */
+static int longest(HrcWork *w, int n, int nl) {
+    int *first = w->first, *nxt = w->next_src;
+    for (int x = 0; x <= n; x++) first[x] = -1;
+    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
+    int64_t *t = w->t, *ex = w->ex;
+    for (int sweep = 0; sweep <= n; sweep++) {
+        int again = 0;
+        for (int u = 0; u < n; u++) {
+            int64_t tu = t[u];
+            for (int i = first[u]; i >= 0; i = nxt[i]) {
+                int v = w->lv[i];
+                int64_t val = tu + w->len[i];
+                if (val > t[v]) {
+                    if (ex[v] != NONE || v == 0) return 1;
+                    t[v] = val;
+                    if (v <= u) again = 1;
+                }
+            }
+        }
+        if (!again) return 0;
+    }
+    return 1;
+}
+
+/* The earliest schedule of plan p's residual into w->t, each contingent link's duration fixed at
+ * durations[j]: strict (every constraint not yet history; a duration exactly), or not (only the orderings
+ * and lower bounds into timepoints still to come). 0 found, 1 none. w->ex, w->contingent set. */
+static int schedule(const HrcForm *f, HrcWork *w, int64_t p, int n, int strict, const int64_t *durations) {
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int k = (int)(c1 - c0), nl = 0;
+    int64_t *ex = w->ex, *t = w->t;
+    for (int64_t i = e0; i < e1; i++) {
+        int u = f->eu[i], v = f->ev[i];  /* T(v) - T(u) <= w: T(u) >= T(v) - w */
+        if (ex[u] != NONE && ex[v] != NONE) continue;
+        int64_t len = -weight(f->ew32, f->ew64, i);
+        if (!strict && (ex[u] != NONE || len < 0)) continue;
+        w->lu[nl] = v; w->lv[nl] = u; w->len[nl] = len; nl++;
+    }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (ex[a] != NONE && ex[c] != NONE) continue;
+        if (!strict && ex[c] != NONE) continue;
+        w->lu[nl] = a; w->lv[nl] = c; w->len[nl] = durations[j]; nl++;
+        if (strict) { w->lu[nl] = c; w->lv[nl] = a; w->len[nl] = -durations[j]; nl++; }
+    }
+    for (int x = 0; x < n; x++) t[x] = ex[x] != NONE ? ex[x] : w->contingent[x] ? 0 : w->now;
+    t[0] = 0;
+    return longest(w, n, nl);
+}
+
+/* Plan p's executed timepoints (w->ex) and contingent timepoints (w->contingent), each contingent link's
+ * range now (w->lb, w->ub) and its duration as rank_by reads it (w->fixed); returns the number of
+ * contingent links not yet observed, or -1 (out of memory, or an index out of range in the form). */
+static int prepare(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w) {
+    int n = f->n[p];
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int m = (int)(e1 - e0), k = (int)(c1 - c0);
+    if (n < 1 || reserve(w, n, 2 * m + 2 * k + 1)) return -1;
+    int64_t *ex = w->ex, now = s->now;
+    w->now = now;
+    for (int x = 0; x < n; x++) { ex[x] = NONE; w->contingent[x] = 0; }
+    ex[0] = 0;
+    int G = f->agents, L = f->legs;
+    const int16_t *nodes = f->nodes + (int64_t)p * G * L * EVENTS;
+    for (int g = 0; g < G; g++) {
+        for (int leg = 0; leg < s->legs_seen[g] && leg < L; leg++) {
+            const int16_t *nd = nodes + (g * L + leg) * EVENTS;
+            const int64_t *tm = s->seen + (g * L + leg) * EVENTS;
+            int pending[EVENTS], np = 0;
+            for (int e = 0; e < EVENTS; e++) {
+                int x = nd[e];
+                if (x < 0 || x >= n) continue;
+                if (tm[e] < 0) { pending[np++] = x; continue; }
+                for (int i = 0; i < np; i++) ex[pending[i]] = tm[e];
+                np = 0;
+                ex[x] = tm[e];
+            }
+        }
+    }
+    for (int64_t i = e0; i < e1; i++) if (f->eu[i] >= n || f->ev[i] >= n) return -1;
+    int active = 0;
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (a >= n || c >= n) return -1;
+        w->contingent[c] = 1;
+        int64_t lb = weight(f->clb32, f->clb64, c0 + j), ub = weight(f->cub32, f->cub64, c0 + j);
+        if (ex[a] != NONE && ex[c] == NONE) {  /* in progress: it has lasted now - T(a) already */
+            int64_t el = now - ex[a];
+            lb = max64(lb, el);
+            ub = max64(ub, el);
+        }
+        w->lb[j] = lb; w->ub[j] = ub;
+        w->fixed[j] = s->rank_by == 1 ? lb : s->rank_by == 2 ? floor_half(lb + ub) : ub;
+        if (ex[c] == NONE) active++;
+    }
+    return active;
+}
+
+static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, int8_t *cls, int64_t *finish,
+                    int64_t *idle, int64_t *times) {
+    int n = f->n[p];
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int k = (int)(c1 - c0);
+    int active = prepare(f, s, p, w);
+    if (active < 0) return -1;
+    int64_t *ex = w->ex, *t = w->t, now = s->now;
+    int G = f->agents, L = f->legs;
+    const int16_t *nodes = f->nodes + (int64_t)p * G * L * EVENTS;
+    /* a schedule with every unrevealed duration at its lower bound: if there is one, it is a feasible
+     * potential for the DC check's step 1 (hrc/temporal/_rulcore.h), and the residual is DC when no
+     * contingent link is left; if there is none, the residual's LO-graph has a negative cycle: not DC */
+    int lb_found = schedule(f, w, p, n, 1, w->lb) == 0;
+    if (lb_found) memcpy(w->pot, t, sizeof(int64_t) * (size_t)n);
+    if (f->blocked[p]) {
+        *cls = 2;
+    } else if (lb_found && active == 0) {
+        *cls = 0;
+    } else {
+        if (hrc_rul_begin(w->rul, n, active)) return -1;
+        for (int64_t i = e0; i < e1; i++) {
+            int u = f->eu[i], v = f->ev[i];
+            if (ex[u] != NONE && ex[v] != NONE) continue;
+            if (hrc_rul_edge(w->rul, u, v, weight(f->ew32, f->ew64, i))) return -1;
+        }
+        for (int x = 1; x < n; x++) {
+            if (ex[x] != NONE) {
+                if (hrc_rul_edge(w->rul, 0, x, ex[x]) || hrc_rul_edge(w->rul, x, 0, -ex[x])) return -1;
+            } else if (!w->contingent[x]) {
+                if (hrc_rul_edge(w->rul, x, 0, -now)) return -1;
+            }
+        }
+        int l = 0;
+        for (int j = 0; j < k; j++) {
+            int c = f->cc[c0 + j];
+            if (ex[c] == NONE) hrc_rul_link(w->rul, l++, f->ca[c0 + j], c, w->lb[j], w->ub[j]);
+        }
+        int verdict = hrc_rul_run(w->rul, lb_found ? w->pot : NULL);
+        if (verdict < 0) return -1;
+        *cls = (int8_t)verdict;
+    }
+    /* the schedule: strict, then on the orderings and lower bounds still to come */
+    int found;
+    if (s->rank_by == 1 && lb_found) {
+        memcpy(t, w->pot, sizeof(int64_t) * (size_t)n);
+        found = 0;
+    } else {
+        found = schedule(f, w, p, n, 1, w->fixed);
+        if (found) found = schedule(f, w, p, n, 0, w->fixed);
+    }
+    if (found) {
+        *finish = NONE;
+        *idle = 0;
+        return 0;
+    }
+    int64_t last = t[0];
+    for (int x = 1; x < n; x++) if (t[x] > last) last = t[x];
+    *finish = last;
+    int64_t total = 0;
+    for (int g = 0; g < G; g++) {
+        int64_t busy = 0, end = NONE;
+        for (int leg = 0; leg < L; leg++) {
+            const int16_t *nd = nodes + (g * L + leg) * EVENTS;
+            if (nd[0] < 0) break;
+            busy += t[nd[3]] - t[nd[0]] + t[nd[5]] - t[nd[4]];
+            if (nd[1] >= 0) busy -= t[nd[2]] - t[nd[1]];
+            end = t[nd[5]];
+        }
+        if (end != NONE) total += max64(0, end - busy);
+    }
+    *idle = total;
+    if (times) memcpy(times, t, sizeof(int64_t) * (size_t)n);
+    return 0;
+}
+
+/* Evaluate plans[0..count-1] (see the file's comment); returns how many could not be (-1 class: out of
+ * memory, or an index out of range in the form). `times`, when set, receives the schedule of the last
+ * plan evaluated (its n timepoints' ticks). */
+int hrc_dispatch_evaluate(const HrcForm *f, const HrcState *s, HrcWork *w, int count, const int64_t *plans,
+                          int8_t *cls, int64_t *finish, int64_t *idle, int64_t *times) {
+    int failed = 0;
+    for (int i = 0; i < count; i++) {
+        int64_t p = plans[i];
+        if (p < 0 || p >= f->plans || evaluate(f, s, p, w, cls + i, finish + i, idle + i, times) < 0) {
+            cls[i] = -1; finish[i] = NONE; idle[i] = 0;
+            failed++;
+        }
+    }
+    return failed;
+}
+
+/* ================================================================ the decision: execution windows
+ *
+ * hrc.temporal.execution's RealTimeState.step for the plan the dispatcher follows, on its residual
+ * network (the origin is timepoint 0: the residual's own origin and Z, executed at 0, tied by [0, 0]):
+ *
+ *   - the residual's verdict by the bypass closure (hrc.temporal.bypass: lower-case edges bypassed
+ *     round by round, Dijkstra under a potential), after its STN consistency check; the mode asked for
+ *     is made stricter when the verdict says so (DC -> STN -> EARLIEST);
+ *   - the mode's graph: DC: the residual's ordinary edges, each contingent link's lower bound, its upper
+ *     bound unless in progress, its upper-case edge and every derived bypass read as ordinary (AllMax);
+ *     STN: contingent links as requirements; EARLIEST: orderings and lower bounds still binding (edges of
+ *     weight <= 0 not from an executed timepoint to an unexecuted one; pins kept; contingent lower bounds);
+ *   - for each timepoint x asked for: wait for every unexecuted v with d(x, v) < 0 (<= 0 when v is
+ *     contingent or uncontrolled), else the window [max(now, -d(x, O)), min over unexecuted v of d(O, v)]
+ *     (EARLIEST: [earliest, earliest]); a negative cycle in EARLIEST's graph gives [now, now].
+ *
+ * Distances are queue-based Bellman-Ford with 64-bit sums: the caller keeps every weight below 2^40.
+ */
+
+#define INF INT64_MAX
+
+typedef struct {
+    int n, m, cap;
+    int *src, *dst, *lab, *nxt, *head;  /* lab: -1 ordinary, else the contingent timepoint of an upper-case edge */
+    int64_t *w;
+} Arcs;
+
+static void arcs_free(Arcs *g) { free(g->src); free(g->dst); free(g->lab); free(g->nxt); free(g->head); free(g->w); }
+
+static int arcs_init(Arcs *g, int n) {
+    memset(g, 0, sizeof *g);
+    g->n = n;
+    g->head = malloc(sizeof(int) * (size_t)n);
+    if (!g->head) return -1;
+    for (int v = 0; v < n; v++) g->head[v] = -1;
+    return 0;
+}
+
+static int arcs_add(Arcs *g, int s, int t, int64_t w, int lab) {
+    if (g->m == g->cap) {
+        int cap = g->cap ? 2 * g->cap : 256;
+        int *a = realloc(g->src, sizeof(int) * (size_t)cap);
+        if (!a) return -1;
+        g->src = a;
+        if (!(a = realloc(g->dst, sizeof(int) * (size_t)cap))) return -1;
+        g->dst = a;
+        if (!(a = realloc(g->lab, sizeof(int) * (size_t)cap))) return -1;
+        g->lab = a;
+        if (!(a = realloc(g->nxt, sizeof(int) * (size_t)cap))) return -1;
+        g->nxt = a;
+        int64_t *b = realloc(g->w, sizeof(int64_t) * (size_t)cap);
+        if (!b) return -1;
+        g->w = b;
+        g->cap = cap;
+    }
+    int e = g->m++;
+    g->src[e] = s; g->dst[e] = t; g->w[e] = w; g->lab[e] = lab;
+    g->nxt[e] = g->head[s]; g->head[s] = e;
+    return e;
+}
+
+/* `g` with every edge turned round (labels dropped). */
+static int arcs_reversed(const Arcs *g, Arcs *r) {
+    if (arcs_init(r, g->n)) return -1;
+    for (int e = 0; e < g->m; e++) if (arcs_add(r, g->dst[e], g->src[e], g->w[e], -1) < 0) return -1;
+    return 0;
+}
+
+/* Shortest distances from `from` (INF: not reached) by queue-based Bellman-Ford; 1 when a negative cycle
+ * is reachable (a path of n edges), -1 out of memory, 0 done. */
+static int distances(const Arcs *g, int from, int64_t *dist) {
+    int n = g->n, *hops = malloc(sizeof(int) * (size_t)n), *queue = malloc(sizeof(int) * (size_t)(n + 1));
+    char *queued = calloc((size_t)n, 1);
+    if (!hops || !queue || !queued) { free(hops); free(queue); free(queued); return -1; }
+    for (int v = 0; v < n; v++) { dist[v] = INF; hops[v] = 0; }
+    dist[from] = 0;
+    int qh = 0, qt = 0, count = 1, result = 0;
+    queue[qt++] = from; queued[from] = 1;
+    while (count && !result) {
+        int u = queue[qh]; qh = (qh + 1) % (n + 1); count--;
+        queued[u] = 0;
+        for (int e = g->head[u]; e >= 0; e = g->nxt[e]) {
+            int v = g->dst[e];
+            if (dist[u] + g->w[e] < dist[v]) {
+                dist[v] = dist[u] + g->w[e];
+                hops[v] = hops[u] + 1;
+                if (hops[v] >= n) { result = 1; break; }
+                if (!queued[v]) { queued[v] = 1; queue[qt] = v; qt = (qt + 1) % (n + 1); count++; }
+            }
+        }
+    }
+    free(hops); free(queue); free(queued);
+    return result;
+}
+
+/* ---------------------------------------------------------------- the bypass closure */
+typedef struct {
+    Arcs g;                  /* the OU-graph: ordinary and upper-case edges */
+    int k, *la, *lc;         /* lower-case edges a --c:x--> c */
+    int64_t *lx, *min_lb;    /* min_lb[c]: the lower bound of the link whose contingent timepoint is c */
+    int *link_of;            /* contingent timepoint -> its link, -1 */
+    int64_t *p;              /* a feasible potential of the OU-graph */
+    int64_t *hkeys, *hvals, hcap, hcount;  /* best weight present per (source, target, label) */
+} Closure;
+
+static int64_t best_key(const Closure *c, int s, int t, int lab) {
+    return ((int64_t)s * c->g.n + t) * (c->g.n + 1) + (lab + 1);
+}
+
+static int64_t *best_slot(Closure *c, int64_t key) {
+    uint64_t h = (uint64_t)key * 0x9E3779B97F4A7C15ULL;
+    int64_t i = (int64_t)(h >> 1) & (c->hcap - 1);
+    while (c->hkeys[i] != -1 && c->hkeys[i] != key) i = (i + 1) & (c->hcap - 1);
+    return &c->hkeys[i];
+}
+
+static int64_t best_get(Closure *c, int s, int t, int lab) {
+    int64_t key = best_key(c, s, t, lab);
+    int64_t *slot = best_slot(c, key);
+    return *slot == key ? c->hvals[slot - c->hkeys] : INF;
+}
+
+static int best_grow(Closure *c) {
+    int64_t old = c->hcap, *ok = c->hkeys, *ov = c->hvals;
+    c->hcap = old ? 2 * old : 1024;
+    c->hkeys = malloc(sizeof(int64_t) * (size_t)c->hcap);
+    c->hvals = malloc(sizeof(int64_t) * (size_t)c->hcap);
+    if (!c->hkeys || !c->hvals) return -1;
+    memset(c->hkeys, 0xff, sizeof(int64_t) * (size_t)c->hcap);
+    for (int64_t i = 0; i < old; i++) {
+        if (ok[i] == -1) continue;
+        int64_t *slot = best_slot(c, ok[i]);
+        *slot = ok[i];
+        c->hvals[slot - c->hkeys] = ov[i];
+    }
+    free(ok); free(ov);
+    return 0;
+}
+
+/* bypass.py's _add: the edge unless one at least as strong is present (an ordinary one dominates a
+ * labelled one). 1 added, 0 not, -1 memory. */
+static int closure_add(Closure *c, int s, int t, int64_t w, int lab) {
+    if (w >= best_get(c, s, t, lab) || w >= best_get(c, s, t, -1)) return 0;
+    if ((c->hcount + 1) * 2 > c->hcap && best_grow(c)) return -1;
+    int64_t key = best_key(c, s, t, lab), *slot = best_slot(c, key);
+    if (*slot != key) { *slot = key; c->hcount++; }
+    c->hvals[slot - c->hkeys] = w;
+    return arcs_add(&c->g, s, t, w, lab) < 0 ? -1 : 1;
+}
+
+static void closure_free(Closure *c) {
+    arcs_free(&c->g);
+    free(c->la); free(c->lc); free(c->lx); free(c->min_lb); free(c->link_of); free(c->p); free(c->hkeys); free(c->hvals);
+}
+
+/* Queue-based Bellman-Ford from the current potential, from the `nd` nodes of `dirty`: 0 done, 1 a
+ * negative cycle (parent pointers closing a cycle), -1 memory. */
+static int relax(Closure *c, const int *dirty, int nd) {
+    int n = c->g.n;
+    int *pred = malloc(sizeof(int) * (size_t)n), *len = calloc((size_t)n, sizeof(int));
+    int *queue = malloc(sizeof(int) * (size_t)(n + 1)), *seen = malloc(sizeof(int) * (size_t)n);
+    char *queued = calloc((size_t)n, 1);
+    int result = 0;
+    if (!pred || !len || !queue || !queued || !seen) { result = -1; goto done; }
+    for (int v = 0; v < n; v++) pred[v] = -1;
+    int qh = 0, qt = 0, count = 0;
+    for (int i = 0; i < nd; i++) {
+        if (!queued[dirty[i]]) { queued[dirty[i]] = 1; queue[qt] = dirty[i]; qt = (qt + 1) % (n + 1); count++; }
+    }
+    int64_t *dist = c->p;
+    while (count && !result) {
+        int u = queue[qh]; qh = (qh + 1) % (n + 1); count--;
+        queued[u] = 0;
+        for (int e = c->g.head[u]; e >= 0; e = c->g.nxt[e]) {
+            int v = c->g.dst[e];
+            if (dist[u] + c->g.w[e] < dist[v]) {
+                dist[v] = dist[u] + c->g.w[e];
+                pred[v] = e;
+                len[v] = len[u] + 1;
+                if (len[v] >= n) {
+                    /* a cycle among the parent pointers is a negative cycle; none: go on */
+                    for (int x = 0; x < n; x++) seen[x] = 0;
+                    int x = v, cycle = 0;
+                    while (x >= 0 && !seen[x]) { seen[x] = 1; x = pred[x] >= 0 ? c->g.src[pred[x]] : -1; }
+                    if (x >= 0) cycle = 1;
+                    if (cycle) { result = 1; break; }
+                    len[v] = 0;
+                }
+                if (!queued[v]) { queued[v] = 1; queue[qt] = v; qt = (qt + 1) % (n + 1); count++; }
+            }
+        }
+    }
+done:
+    free(pred); free(len); free(queue); free(queued); free(seen);
+    return result;
+}
+
+typedef struct { int64_t key; int node; } HeapItem;
+
+static void heap_push(HeapItem *h, int *size, int64_t key, int node) {
+    int i = (*size)++;
+    while (i > 0) {
+        int parent = (i - 1) / 2;
+        if (h[parent].key < key || (h[parent].key == key && h[parent].node <= node)) break;
+        h[i] = h[parent];
+        i = parent;
+    }
+    h[i].key = key; h[i].node = node;
+}
+
+static HeapItem heap_pop(HeapItem *h, int *size) {
+    HeapItem top = h[0], last = h[--(*size)];
+    int i = 0, n = *size;
+    for (;;) {
+        int ch = 2 * i + 1;
+        if (ch >= n) break;
+        if (ch + 1 < n && (h[ch + 1].key < h[ch].key || (h[ch + 1].key == h[ch].key && h[ch + 1].node < h[ch].node))) ch++;
+        if (last.key < h[ch].key || (last.key == h[ch].key && last.node <= h[ch].node)) break;
+        h[i] = h[ch];
+        i = ch;
+    }
+    if (n) h[i] = last;
+    return top;
+}
+
+/* The bypass closure (bypass.py's _Closure.run): 0 DC (the derived edges are in c->g), 1 not DC, -1 memory. */
+static int closure_run(Closure *c) {
+    int n = c->g.n, k = c->k, result = 0;
+    int *all = malloc(sizeof(int) * (size_t)n);
+    int64_t *searched = malloc(sizeof(int64_t) * (size_t)(k + 1)), *touched = calloc((size_t)n, sizeof(int64_t));
+    char *region = calloc((size_t)(k + 1) * (size_t)n, 1);
+    int64_t *dist = malloc(sizeof(int64_t) * (size_t)n);
+    int *found = malloc(sizeof(int) * (size_t)n);
+    int64_t *uc_t = malloc(sizeof(int64_t) * (size_t)n * (size_t)(k + 1));
+    int *uc_list = malloc(sizeof(int) * (size_t)n * (size_t)(k + 1));
+    HeapItem *heap = NULL;
+    int heap_cap = 0;
+    if (!all || !searched || !touched || !region || !dist || !found || !uc_t || !uc_list) { result = -1; goto done; }
+    for (int v = 0; v < n; v++) all[v] = v;
+    for (int64_t i = 0; i < (int64_t)n * (k + 1); i++) uc_t[i] = INF;
+    result = relax(c, all, n);
+    if (result) goto done;
+    for (int i = 0; i < k; i++) searched[i] = -1;
+    int64_t clock = 0;
+    int again = 1;
+    while (again && !result) {
+        again = 0;
+        for (int i = 0; i < k && !result; i++) {
+            int a = c->la[i], cc = c->lc[i];
+            int64_t x = c->lx[i];
+            if (searched[i] >= 0) {
+                int stale = 0;
+                for (int v = 0; v < n && !stale; v++) if (region[(size_t)i * n + v] && touched[v] > searched[i]) stale = 1;
+                if (!stale) continue;
+            }
+            searched[i] = ++clock;
+            /* Dijkstra from cc on reduced weights, expanding nodes at a non-negative true distance */
+            memset(region + (size_t)i * n, 0, (size_t)n);
+            for (int v = 0; v < n; v++) dist[v] = INF;
+            int nfound = 0, nuc = 0, size = 0;
+            if (heap_cap < c->g.m + 1) {
+                heap_cap = 2 * (c->g.m + 1);
+                HeapItem *h = realloc(heap, sizeof(HeapItem) * (size_t)heap_cap);
+                if (!h) { result = -1; break; }
+                heap = h;
+            }
+            int64_t *p = c->p, pc = p[cc];
+            dist[cc] = 0;
+            heap_push(heap, &size, 0, cc);
+            while (size) {
+                HeapItem it = heap_pop(heap, &size);
+                int u = it.node;
+                if (it.key > dist[u]) continue;
+                int64_t true_u = it.key - pc + p[u];
+                if (true_u < 0) { found[nfound++] = u; continue; }
+                region[(size_t)i * n + u] = 1;
+                for (int e = c->g.head[u]; e >= 0; e = c->g.nxt[e]) {
+                    int v = c->g.dst[e], lab = c->g.lab[e];
+                    int64_t w = c->g.w[e];
+                    if (lab >= 0) {
+                        int64_t t = true_u + w;
+                        if (t < 0) {  /* a negative upper-case ending: a cross-case candidate, never expanded */
+                            if (lab != cc) {
+                                int l = c->link_of[lab];
+                                int64_t *slot = &uc_t[(size_t)v * (k + 1) + l];
+                                if (*slot == INF) uc_list[nuc++] = v * (k + 1) + l;
+                                if (t < *slot) *slot = t;
+                            }
+                            continue;
+                        }
+                    }
+                    int64_t nd = it.key + w + p[u] - p[v];
+                    if (nd < dist[v]) {
+                        dist[v] = nd;
+                        if (size + 1 > heap_cap) {
+                            heap_cap *= 2;
+                            HeapItem *h = realloc(heap, sizeof(HeapItem) * (size_t)heap_cap);
+                            if (!h) { result = -1; break; }
+                            heap = h;
+                        }
+                        heap_push(heap, &size, nd, v);
+                    }
+                }
+                if (result) break;
+            }
+            if (result) break;
+            /* the bypasses: ordinary ones to the nodes found, cross-case ones to upper-case endings */
+            int changed = 0;
+            for (int j = 0; j < nfound + nuc && result >= 0; j++) {
+                int v, lab;
+                int64_t wv;
+                if (j < nfound) {
+                    v = found[j]; lab = -1;
+                    wv = x + dist[v] - pc + p[v];
+                } else {
+                    int slot = uc_list[j - nfound];
+                    v = slot / (k + 1);
+                    int l = slot % (k + 1);
+                    lab = c->lc[l];
+                    wv = x + uc_t[slot];
+                    uc_t[slot] = INF;
+                    if (wv >= -c->min_lb[lab]) lab = -1;  /* label removal */
+                }
+                if (v == a && wv >= 0) continue;
+                int added = closure_add(c, a, v, wv, lab);
+                if (added < 0) result = -1;
+                else if (added) changed = 1;
+            }
+            if (result) break;
+            if (changed) {
+                touched[a] = ++clock;
+                again = 1;
+                result = relax(c, &a, 1);
+            }
+        }
+    }
+done:
+    free(all); free(searched); free(touched); free(region); free(dist); free(found); free(uc_t); free(uc_list); free(heap);
+    return result;
+}
+
+/* 0 consistent, 1 a negative cycle, -1 memory: the graph `g` from a virtual source (all potentials 0). */
+static int consistent(const Arcs *g) {
+    Closure c;
+    memset(&c, 0, sizeof c);
+    c.g = *g;
+    c.p = calloc((size_t)g->n, sizeof(int64_t));
+    if (!c.p) return -1;
+    int *all = malloc(sizeof(int) * (size_t)g->n);
+    if (!all) { free(c.p); return -1; }
+    for (int v = 0; v < g->n; v++) all[v] = v;
+    int r = relax(&c, all, g->n);
+    free(all); free(c.p);
+    return r;
+}
+
+/* Modes: 0 DC, 1 STN, 2 EARLIEST. For plan p under the state: the mode made stricter where the residual's
+ * own checks say so (*mode in and out), then for each of the nq timepoints of `query` either its window
+ * [earliest[i], latest[i]] (INT64_MAX: no bound) with waits[i] = 0, or waits[i] > 0 timepoints it must
+ * wait for first, listed in until[i * n ...] (n: the plan's timepoints). `uncontrolled[i * n + v]`: 1 when
+ * timepoint v is, for query i, a co-worker's own executable (waited for at d <= 0, like a contingent one),
+ * so the query's agent never goes together with an event it cannot make happen. Returns 0, or -1 (out of
+ * memory, or weights too large for 64-bit sums: the caller uses the Python implementation). */
+int hrc_dispatch_windows(const HrcForm *f, const HrcState *s, HrcWork *w, int64_t p, int *mode, int nq,
+                         const int *query, const uint8_t *uncontrolled, int64_t *earliest, int64_t *latest,
+                         int *waits, int *until) {
+    if (p < 0 || p >= f->plans || prepare(f, s, p, w) < 0) return -1;
+    int n = f->n[p];
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int k = (int)(c1 - c0);
+    int64_t *ex = w->ex, now = s->now;
+    const int64_t big = (int64_t)1 << 40;
+    for (int64_t i = e0; i < e1; i++) {
+        int64_t wt = weight(f->ew32, f->ew64, i);
+        if (wt >= big || wt <= -big) return -1;
+    }
+    for (int j = 0; j < k; j++) if (w->ub[j] >= big || w->lb[j] < 0) return -1;
+    for (int x = 0; x < n; x++) if (ex[x] != NONE && (ex[x] >= big || ex[x] <= -big)) return -1;
+    if (now >= big || now < 0) return -1;
+    for (int i = 0; i < nq; i++) if (query[i] < 1 || query[i] >= n) return -1;
+    int result = 0, derived_from = 0;
+    Closure c;
+    memset(&c, 0, sizeof c);
+    Arcs stn, modal, rev;
+    memset(&stn, 0, sizeof stn); memset(&modal, 0, sizeof modal); memset(&rev, 0, sizeof rev);
+    int64_t *d_to = malloc(sizeof(int64_t) * (size_t)n), *d_from = malloc(sizeof(int64_t) * (size_t)n);
+    int64_t *d_x = malloc(sizeof(int64_t) * (size_t)n);
+    if (!d_to || !d_from || !d_x || arcs_init(&c.g, n) || arcs_init(&stn, n) || arcs_init(&modal, n) ||
+        best_grow(&c)) { result = -1; goto done; }
+    c.la = malloc(sizeof(int) * (size_t)(k + 1)); c.lc = malloc(sizeof(int) * (size_t)(k + 1));
+    c.lx = malloc(sizeof(int64_t) * (size_t)(k + 1)); c.min_lb = calloc((size_t)n, sizeof(int64_t));
+    c.link_of = malloc(sizeof(int) * (size_t)n); c.p = calloc((size_t)n, sizeof(int64_t));
+    if (!c.la || !c.lc || !c.lx || !c.min_lb || !c.link_of || !c.p) { result = -1; goto done; }
+    for (int v = 0; v < n; v++) c.link_of[v] = -1;
+    /* the residual's labelled graph: its ordinary edges (requirements, pins, "now or later", contingent
+     * links as pairs) into the STN check's graph and the closure's, its upper-case edges into the closure's */
+#define BOTH(u, v, wt) do { if (arcs_add(&stn, u, v, wt, -1) < 0 || closure_add(&c, u, v, wt, -1) < 0) \
+                                { result = -1; goto done; } } while (0)
+    for (int64_t i = e0; i < e1; i++) {
+        int u = f->eu[i], v = f->ev[i];
+        if (ex[u] != NONE && ex[v] != NONE) continue;
+        BOTH(u, v, weight(f->ew32, f->ew64, i));
+    }
+    for (int x = 1; x < n; x++) {
+        if (ex[x] != NONE) { BOTH(0, x, ex[x]); BOTH(x, 0, -ex[x]); }
+        else if (!w->contingent[x]) BOTH(x, 0, -now);
+    }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], cc = f->cc[c0 + j];
+        if (ex[cc] != NONE) continue;
+        BOTH(a, cc, w->ub[j]);
+        BOTH(cc, a, -w->lb[j]);
+        c.la[c.k] = a; c.lc[c.k] = cc; c.lx[c.k] = w->lb[j]; c.link_of[cc] = c.k; c.min_lb[cc] = w->lb[j];
+        c.k++;
+    }
+#undef BOTH
+    for (int j = 0; j < k; j++) {
+        int cc = f->cc[c0 + j];
+        if (ex[cc] != NONE) continue;
+        if (closure_add(&c, cc, f->ca[c0 + j], -w->ub[j], cc) < 0) { result = -1; goto done; }
+    }
+    /* the residual's verdict, as far as the mode asked for needs it */
+    if (*mode <= 1) {
+        int r = consistent(&stn);
+        if (r < 0) { result = -1; goto done; }
+        if (r) *mode = 2;
+    }
+    derived_from = c.g.m;
+    if (*mode == 0 && c.k) {
+        int r = closure_run(&c);
+        if (r < 0) { result = -1; goto done; }
+        if (r) *mode = 1;
+    }
+    /* the mode's graph */
+    for (int64_t i = e0; i < e1; i++) {
+        int u = f->eu[i], v = f->ev[i];
+        if (ex[u] != NONE && ex[v] != NONE) continue;
+        int64_t wt = weight(f->ew32, f->ew64, i);
+        if (*mode == 2 && (wt > 0 || (ex[u] != NONE && ex[v] == NONE))) continue;
+        if (arcs_add(&modal, u, v, wt, -1) < 0) { result = -1; goto done; }
+    }
+    for (int x = 1; x < n; x++) {
+        if (ex[x] != NONE) {
+            if (arcs_add(&modal, 0, x, ex[x], -1) < 0 || arcs_add(&modal, x, 0, -ex[x], -1) < 0) { result = -1; goto done; }
+        } else if (!w->contingent[x] && arcs_add(&modal, x, 0, -now, -1) < 0) { result = -1; goto done; }
+    }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], cc = f->cc[c0 + j];
+        if (ex[cc] != NONE) continue;
+        int in_progress = ex[a] != NONE;
+        if (arcs_add(&modal, cc, a, -w->lb[j], -1) < 0) { result = -1; goto done; }
+        if ((*mode == 1 || (*mode == 0 && !in_progress)) && arcs_add(&modal, a, cc, w->ub[j], -1) < 0) {
+            result = -1; goto done;
+        }
+        if (*mode == 0 && arcs_add(&modal, cc, a, -w->ub[j], -1) < 0) { result = -1; goto done; }
+    }
+    if (*mode == 0) {  /* every bypass the closure derived, upper-case ones read as ordinary (AllMax) */
+        for (int e = derived_from; e < c.g.m; e++) {
+            if (arcs_add(&modal, c.g.src[e], c.g.dst[e], c.g.w[e], -1) < 0) { result = -1; goto done; }
+        }
+    }
+    /* distances to the origin (earliest), from it (latest), from each timepoint asked for (waits) */
+    if (arcs_reversed(&modal, &rev)) { result = -1; goto done; }
+    int r_to = distances(&rev, 0, d_to);
+    if (r_to < 0) { result = -1; goto done; }
+    int64_t last = INF;
+    if (!r_to && *mode != 2) {
+        int r = distances(&modal, 0, d_from);
+        if (r < 0) { result = -1; goto done; }
+        for (int v = 1; v < n; v++) if (ex[v] == NONE && d_from[v] < last) last = d_from[v];
+    }
+    for (int i = 0; i < nq; i++) {
+        int x = query[i];
+        int r_x = r_to ? 1 : distances(&modal, x, d_x);
+        if (r_x < 0) { result = -1; goto done; }
+        waits[i] = 0;
+        if (r_x) {  /* a negative cycle (EARLIEST only): now */
+            earliest[i] = now; latest[i] = now;
+            continue;
+        }
+        for (int v = 1; v < n; v++) {
+            if (v == x || ex[v] != NONE || d_x[v] == INF) continue;
+            int weak = w->contingent[v] || uncontrolled[(int64_t)i * n + v];
+            if (d_x[v] < 0 || (weak && d_x[v] <= 0)) until[(int64_t)i * n + waits[i]++] = v;
+        }
+        earliest[i] = d_to[x] == INF ? now : max64(now, -d_to[x]);
+        latest[i] = *mode == 2 ? earliest[i] : last;
+    }
+done:
+    closure_free(&c);
+    arcs_free(&stn); arcs_free(&modal); arcs_free(&rev);
+    free(d_to); free(d_from); free(d_x);
+    return result;
+}

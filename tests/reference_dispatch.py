@@ -1,0 +1,295 @@
+"""The dispatcher by its definitions, plan by plan, for the tests: the oracle `hrc.dispatch.Dispatcher` is
+compared with on every message.
+
+It reads an output folder the way the dispatcher read it before the dispatch form existed: ``compiled.json``
+and every plan's GraphML file (or ``stnu.zip`` member), parsed into `STNU` values, independently of the
+form's arrays. Each message then runs the paper's cycle on those objects, one plan at a time:
+
+- set validation: `agrees` on every plan of the pool (the plans left, every plan on ``back``/``undo``);
+- set ranking: `reference_evaluate` (the residual network's DC check and earliest schedule) of every plan
+  left, sorted by `rank_key`;
+- the decision: `real_time_state` (the residual network, the bypass DC check, full propagation in Python)
+  for the best plan's next robot and human events, and APA's DO form compiled on the residual network
+  through `plan_preference_value` (objects, `Fraction` conversions and all) where the task has preferences.
+
+It is slow on purpose (no arrays, no C, no sharing between plans): what it computes is easy to check
+against the definitions in docs/dispatch.md.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from hrc.compile.output import load_compiled_task
+from hrc.dispatch import UNDO_SECONDS
+from hrc.dispatch.dispatcher import _do_form, _past, _rank, _within
+from hrc.dispatch.messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor
+from hrc.dispatch.plan_set import PlanEntry, _Archive, plan_entry
+from hrc.dispatch.ranking import rank_key, reference_evaluate
+from hrc.dispatch.validation import History, agrees, executed, ticks
+from hrc.errors import DispatchError
+from hrc.model import Plan
+from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state, residual_network
+from hrc.temporal.graphml import read_network
+
+_MODES = {"DC": ExecutionMode.DC, "consistent": ExecutionMode.STN, "inconsistent": ExecutionMode.EARLIEST}
+
+
+def read_entries(folder: str | Path) -> tuple[Any, list[PlanEntry], str]:
+    """The task, every plan's `PlanEntry` from ``compiled.json`` and the GraphML files, and ``rank_by``."""
+    folder = Path(folder)
+    task = load_compiled_task(folder)
+    data = json.loads((folder / "compiled.json").read_text(encoding="utf-8"))
+    archive = (_Archive(folder, str(folder / "compiled.json"), data.get("stnu_archive", "stnu.zip"))
+               if data.get("stnu_files") == "archive" else None)
+    entries = []
+    for i, p in enumerate(data["plans"]):
+        plan = Plan(tuple((a.id, p["allocation"][a.id]) for a in task.actions),
+                    tuple((g.id, tuple(p["sequences"][g.id])) for g in task.agents))
+        stnu = archive.read(p["stnu"], f"plans[{i}]") if archive else read_network(folder / p["stnu"])
+        blocked = p["pattern"]["candidates"] == 0
+        entries.append(plan_entry(task, plan, p["rank"], p["class"], p["preference"], stnu, p["stnu"], blocked))
+    return task, entries, data["options"]["rank_by"]
+
+
+class ReferenceDispatcher:
+    """`hrc.dispatch.Dispatcher`'s behaviour from its definitions (the module docstring); `observe` as
+    there, so `hrc.dispatch.protocol.handle_line` drives it too."""
+
+    def __init__(self, task: Any, plans: Sequence[PlanEntry], rank_by: str, *, feasible_only: bool = False,
+                 use_preferences: bool = True, memo: dict | None = None) -> None:
+        self.task, self.plans, self.rank_by = task, list(plans), rank_by
+        self.memo = {} if memo is None else memo  # (plan, executed, now) -> evaluation: runs share their start
+        self.feasible_only, self.use_preferences = feasible_only, use_preferences
+        self.history = History.start(task)
+        self.effective: tuple[Observation, ...] = ()
+        self.ranked: list[int] = []
+        self.evals: dict[int, Any] = {}
+        self.do_forms: dict[int, Any] = {}
+        self.decision = self._settle(self.history, list(range(len(self.plans))))
+
+    # --------------------------------------------------------------------------------- the cycle
+    def observe(self, obs: Observation) -> Decision:
+        if obs.event == "undo":
+            return self._undo(obs)
+        history = self.history.add(obs)
+        if obs.event == "tick":
+            kept = list(self.ranked)
+        else:
+            pool = range(len(self.plans)) if obs.event == "back" else self.ranked
+            kept = [i for i in pool if agrees(self.plans[i], history)]
+            if not kept and history.away:
+                kept = [i for i in pool if agrees(self.plans[i], replace(history, away=False))]
+        if not kept:
+            what = obs.event if obs.action is None else \
+                f"{obs.agent} {obs.action}.{obs.phase} {obs.event}" + (f" (next {obs.next})" if obs.next else "")
+            raise DispatchError(f"no remaining plan allows {what} ({len(self.ranked)} plans agreed with what was "
+                                "seen before)")
+        self.effective = (*self.effective, obs)
+        self.decision = self._settle(history, kept)
+        return self.decision
+
+    def _undo(self, obs: Observation) -> Decision:
+        if obs.t < self.history.now:
+            raise DispatchError(f"time goes backwards: t = {obs.t:g} s is before the last message "
+                                f"({self.history.now:g} s)")
+        human = self.history.human
+        last = next((k for k in range(len(self.effective) - 1, -1, -1) if self.effective[k].event != "tick"), None)
+        if last is None or self.effective[last].agent not in (human, None):
+            raise DispatchError("nothing to undo: the last observation is not the human's")
+        target = self.effective[last]
+        if obs.t - target.t > UNDO_SECONDS:
+            raise DispatchError(f"too late to undo: the last human observation was {obs.t - target.t:g} s ago "
+                                f"(at most {UNDO_SECONDS:g} s)")
+        effective = self.effective[:last] + self.effective[last + 1:]
+        history = History.start(self.task)
+        for o in effective:
+            history = history.add(o)
+        history = history.add(Observation(obs.t, "tick"))
+        kept = [i for i in range(len(self.plans)) if agrees(self.plans[i], history)]
+        self.effective = effective
+        self.decision = self._settle(history, kept)
+        return self.decision
+
+    def _settle(self, history: History, kept: list[int]) -> Decision:
+        now = ticks(history.now)
+        evals = {i: self._evaluate(i, history, now) for i in kept}
+        if self.feasible_only:
+            kept = [i for i in kept if evals[i].plan_class != "inconsistent"]
+        ranked = sorted(kept, key=lambda i: rank_key(self.plans[i], evals[i]))
+        counts = {"DC": 0, "consistent": 0, "inconsistent": 0}
+        for i in ranked:
+            counts[evals[i].plan_class] += 1
+        self.history, self.ranked, self.evals = history, ranked, evals
+        if not ranked:
+            return Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True)
+        best = ranked[0]
+        entry = self.plans[best]
+        robot, human = self._steps(entry, executed(entry, history), history, evals[best].plan_class, best)
+        return Decision(history.now, entry.id, evals[best].plan_class, MappingProxyType(counts), robot,
+                        history.away, False, human)
+
+    def _evaluate(self, i: int, history: History, now: int) -> Any:
+        done = executed(self.plans[i], history)
+        key = (i, frozenset(done.items()), now)
+        found = self.memo.get(key)
+        if found is None:
+            found = self.memo[key] = reference_evaluate(self.plans[i], done, now, self.rank_by)
+            if len(self.memo) > 200_000:
+                self.memo.clear()
+        return found
+
+    def _steps(self, entry: PlanEntry, done: dict[str, int], history: History, plan_class: str, index: int) -> tuple:
+        robot = next(a.id for a in self.task.agents if not a.is_human)
+        human = history.human
+        now = ticks(history.now)
+        state = None
+        mode = _MODES[plan_class]
+        out: list[Any] = []
+        contingent = entry.stnu.contingent_timepoints
+        human_nodes = {n for n, ev in entry.events.items() if ev[0] == human}
+        robot_nodes = set(entry.events) - human_nodes
+        for agent, other in ((robot, human_nodes), (human, robot_nodes)):
+            nxt = next(((a, p, e, n) for a, p in entry.legs.get(agent, ()) for e, n in entry.leg_points[(agent, a, p)]
+                        if n not in done), None)
+            if nxt is None or nxt[3] in contingent or (agent == human and history.away):
+                out.append(None)
+                continue
+            action, phase, event, node = nxt
+            arrival = _arrival(entry, agent, action, phase, event, node, done, now)
+            if arrival is not None:
+                out.append(arrival)
+                continue
+            if state is None:
+                state = real_time_state(entry.stnu, done, now)
+                if _rank(state.default_mode()) > _rank(mode):
+                    mode = state.default_mode()
+            step = state.step(node, mode, uncontrolled=[n for n in other if n not in done and n not in contingent])
+            if isinstance(step, ExecutionWindow):
+                latest = None if step.latest is None or mode is ExecutionMode.EARLIEST else step.latest / 1000
+                found = RobotStep(action, phase, event, step.earliest / 1000, latest)
+                if agent == robot and mode is not ExecutionMode.EARLIEST and self.use_preferences:
+                    found = self._preferred(entry, index, state.residual, done, now, node, found)
+                out.append(found)
+                continue
+            waits = sorted(step.until, key=lambda n: (entry.events.get(n, ("",))[0] == agent, n))
+            out.append(WaitFor(*entry.events.get(waits[0], ("", "", "", waits[0]))))
+        return out[0], out[1]
+
+    def _preferred(self, entry: PlanEntry, index: int, residual: Any, done: dict[str, int], now: int, node: str,
+                   step: RobotStep) -> RobotStep:
+        if not self.task.preferences:
+            return step
+        form = self.do_forms.get(index)
+        if form is None or (form is not False and not _within(form, done)):
+            form = self.do_forms[index] = _do_form(entry, residual, self.task.preferences)
+        if form is False:
+            return step
+        events, apsp = form
+        past = _past(form, done)
+        i = events[node]
+        lo = max(t - apsp[i, j] for j, t in past)
+        hi = min(t + apsp[j, i] for j, t in past)
+        earliest = max(step.earliest, round(max(lo, now) / 1000, 3))
+        latest = step.latest
+        if hi != float("inf"):
+            latest = round(hi / 1000, 3) if latest is None else min(latest, round(hi / 1000, 3))
+        if latest is not None and latest < earliest:
+            return step
+        return RobotStep(step.action, step.phase, step.event, earliest, latest)
+
+    # --------------------------------------------------------------------------------- views
+    @property
+    def now(self) -> float:
+        return self.history.now
+
+    @property
+    def candidates(self) -> tuple[Candidate, ...]:
+        out = []
+        for i in self.ranked:
+            e, ev = self.plans[i], self.evals[i]
+            out.append(Candidate(e.id, ev.plan_class, None if ev.finish is None else ev.finish / 1000, ev.idle / 1000,
+                                 e.preference, MappingProxyType(dict(e.plan.allocation)),
+                                 MappingProxyType(dict(e.plan.sequences))))
+        return tuple(out)
+
+    def human_options(self) -> tuple[HumanOption, ...]:
+        history = self.history
+        human = history.human
+        if not human or history.away:
+            return ()
+        found = set()
+        for i in self.ranked:
+            for obs in _next_events(self.plans[i], human, history):
+                try:
+                    history.add(obs)
+                except DispatchError:
+                    continue
+                found.add((obs.action, obs.phase, obs.event))
+        order = {(a.id, p.id): k for k, (a, p) in enumerate((a, p) for a in self.task.actions for p in a.phases)}
+        ordered = sorted(found, key=lambda f: (order[(f[0], f[1])], LEG_EVENTS.index(f[2])))
+        return tuple(HumanOption(*f) for f in ordered)
+
+    def planned_times(self, plan_id: str | None = None) -> dict:
+        index = self.ranked[0] if plan_id is None else next(i for i, e in enumerate(self.plans) if e.id == plan_id)
+        entry = self.plans[index]
+        history = self.history
+        done = executed(entry, history)
+        from hrc.dispatch.ranking import schedule
+
+        found = schedule(residual_network(entry.stnu, done, ticks(history.now)), self.rank_by) or {}
+        out = {}
+        for node, key in entry.events.items():
+            if key in history.times:
+                out[key] = history.times[key]
+            elif node in done:
+                out[key] = done[node] / 1000
+            elif node in found:
+                out[key] = found[node] / 1000
+        return out
+
+
+def _arrival(entry: PlanEntry, agent: str, action: str, phase: str, event: str, node: str, done: dict[str, int],
+             now: int) -> RobotStep | None:
+    if event not in ("arrive", "park"):
+        return None
+    names = [n for _, n in entry.leg_points[(agent, action, phase)]]
+    prev = names[names.index(node) - 1]
+    if prev not in done:
+        return None
+    lo, hi = 0, None
+    for r in entry.stnu.requirements:
+        if (r.source, r.target) == (prev, node):
+            lo = max(lo, r.lb or 0)
+            hi = r.ub if hi is None or (r.ub is not None and r.ub < hi) else hi
+        elif (r.source, r.target) == (node, prev):
+            if r.ub is not None:
+                lo = max(lo, -r.ub)
+            if r.lb is not None:
+                hi = -r.lb if hi is None else min(hi, -r.lb)
+    start = done[prev]
+    earliest = max(now, start + lo)
+    latest = None if hi is None else max(earliest, start + hi)
+    return RobotStep(action, phase, event, earliest / 1000, None if latest is None else latest / 1000)
+
+
+def _next_events(entry: PlanEntry, agent: str, history: History) -> list[Observation]:
+    seen = history.legs.get(agent, ())
+    legs = entry.legs[agent]
+    current = history.current(agent)
+    t = history.now
+    if current is not None:
+        last = history.last_event(agent, *current)
+        order = LEG_EVENTS.index(last) if last else -1
+        events = [e for e, _ in entry.leg_points[(agent, *current)] if LEG_EVENTS.index(e) > order]
+        events = events[:events.index("start") + 1] if "start" in events else events[:1]
+        return [Observation(t, e, agent, current[0], current[1]) for e in events]
+    if len(seen) >= len(legs):
+        return []
+    action, phase = legs[len(seen)]
+    return [Observation(t, e, agent, action, phase) for e in ("depart", "start")]

@@ -1,0 +1,158 @@
+"""Every answer of the dispatcher equals its definition's, on every message of many random runs.
+
+The dispatcher (`hrc.dispatch.Dispatcher`: the compile's dispatch form, set validation by index, set
+ranking in the C core over arrays, shared between twin plans, windows in the C core, APA's DO form on
+arrays) is driven side by side with `reference_dispatch.ReferenceDispatcher` (the same cycle on the GraphML
+files, plan by plan, from the residual networks' definitions) through the JSON-lines protocol. A random
+driver plays the person and the robot from the dispatcher's own options, with unreported departures and
+arrivals, overruns, robot acknowledgements early, late and on time, ticks, announced next actions,
+away/back, undo and messages no plan allows; after every message the two answers must be the same
+bytes, and so must the person's options, and now and then the whole ranking and the best plan's
+planned times. Run with the Python evaluator as well as the C core (`native=False`).
+"""
+
+from __future__ import annotations
+
+import json
+import random
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+from reference_dispatch import ReferenceDispatcher, read_entries
+
+from hrc.cli import main
+from hrc.dispatch import Dispatcher
+from hrc.dispatch.protocol import handle_line
+
+
+def _compile(out: Path, task: str, *args: str) -> Path:
+    assert main(["compile", str(ROOT / "tasks" / task), "--out", str(out), "--no-report", "-q", *args]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def workshop(tmp_path_factory) -> Path:
+    return _compile(tmp_path_factory.mktemp("oracle") / "ws", "cube_stacking.yaml")
+
+
+@pytest.fixture(scope="module")
+def kitting_part(tmp_path_factory) -> Path:
+    """Kitting with three actions pinned (360 of its 2,880 plans), its STNUs in an archive."""
+    return _compile(tmp_path_factory.mktemp("oracle") / "kit", "kitting.yaml", "--pin", "pick_a=human",
+                    "--pin", "pick_c=robot", "--pin", "inspect=human", "--stnu", "archive")
+
+
+class Driver:
+    """Random messages for both dispatchers, from the fast one's options (see the module docstring)."""
+
+    def __init__(self, fast: Dispatcher, ref: ReferenceDispatcher, seed: int) -> None:
+        self.fast, self.ref, self.rng = fast, ref, random.Random(seed)
+        self.task = fast.task
+        self.human = next(a.id for a in self.task.agents if a.is_human)
+        self.robot = next(a.id for a in self.task.agents if not a.is_human)
+        self.sent = 0
+
+    def send(self, msg: dict) -> dict:
+        line = json.dumps(msg)
+        got, want = handle_line(self.fast, line), handle_line(self.ref, line)
+        assert got == want, f"message {self.sent}: {line}\n fast: {got}\n  ref: {want}"
+        self.sent += 1
+        options = self.fast.human_options()
+        assert options == self.ref.human_options(), f"options after {line}"
+        if self.rng.random() < 0.1:
+            assert self.fast.candidates == self.ref.candidates, f"candidates after {line}"
+            if self.fast.decision.plan is not None:
+                assert self.fast.planned_times() == self.ref.planned_times(), f"planned times after {line}"
+        return json.loads(got)
+
+    def _later(self, now: float) -> float:
+        r = self.rng.random()
+        if r < 0.25:
+            return now
+        if r < 0.9:
+            return round(now + self.rng.uniform(0, 6), 3)
+        return round(now + self.rng.uniform(10, 60), 3)  # an overrun, a long pause
+
+    def play(self, messages: int) -> None:
+        rng = self.rng
+        answer = self.send({"t": 0, "event": "tick"})
+        for _ in range(messages):
+            now = self.fast.now
+            decision = answer if answer.get("ok") else self.fast.decision.to_json()
+            robot = decision.get("robot")
+            options = self.fast.human_options()
+            if robot is None and not options and not decision.get("human_away"):
+                break
+            r = rng.random()
+            if r < 0.35 and robot and "wait_for" not in robot:
+                lo, hi = robot["earliest"], robot["latest"]
+                pick = rng.random()
+                if pick < 0.7:
+                    t = rng.uniform(lo, lo + 2 if hi is None else min(hi, lo + 2))
+                elif pick < 0.85:
+                    t = lo - rng.uniform(0, 3)  # early
+                else:
+                    t = (lo if hi is None else hi) + rng.uniform(0, 5)  # late
+                msg = {"t": round(max(now, t), 3), "agent": self.robot, "action": robot["action"],
+                       "phase": robot["phase"], "event": robot["event"]}
+            elif r < 0.75 and options:
+                o = rng.choice(options)
+                msg = {"t": self._later(now), "agent": self.human, "action": o.action, "phase": o.phase,
+                       "event": o.event}
+                if o.event in ("depart", "start") and rng.random() < 0.15:
+                    msg["next"] = rng.choice(self.task.action_ids)
+            elif r < 0.82:
+                msg = {"t": self._later(now), "event": "tick"}
+            elif r < 0.86:
+                msg = {"t": self._later(now), "agent": self.human, "event": "back" if decision.get("human_away")
+                       else "away"}
+            elif r < 0.92:
+                msg = {"t": round(now + rng.uniform(0, 4), 3), "event": "undo"}
+            else:  # anything: most of it no plan allows
+                action = rng.choice(self.task.actions)
+                msg = {"t": self._later(now), "agent": rng.choice([self.human, self.robot]), "action": action.id,
+                       "phase": rng.choice(action.phases).id, "event": rng.choice(["depart", "arrive", "start", "end"])}
+            answer = self.send(msg)
+
+
+def _run(folder: Path, seeds: range, messages: int, native: bool = True) -> int:
+    task, entries, rank_by = read_entries(folder)
+    base = Dispatcher.from_folder(folder, threads=2)
+    if not native:
+        base.ranker.native = None
+    sent = 0
+    memo: dict = {}
+    for seed in seeds:
+        options = {"feasible_only": seed % 7 == 3, "use_preferences": seed % 5 != 4}
+        fast = Dispatcher(base.plan_set, ranker=base.ranker, **options)
+        ref = ReferenceDispatcher(task, entries, rank_by, memo=memo, **options)
+        assert fast.decision == ref.decision
+        driver = Driver(fast, ref, seed)
+        driver.play(messages)
+        sent += driver.sent
+    return sent
+
+
+def test_the_workshop_answers_as_defined(workshop):
+    """The workshop, with its APA preference: 260 random runs (300 in all with the two tests below)."""
+    assert _run(workshop, range(260), 30) > 5000
+
+
+def test_kitting_answers_as_defined(kitting_part):
+    """Kitting (parks at waiting places, detours, blocked plans), three actions pinned: 20 random runs."""
+    assert _run(kitting_part, range(1000, 1020), 60) > 700
+
+
+def test_the_python_evaluator_answers_as_defined(workshop):
+    """Without the C core: the same answers from the Python twin (`hrc.dispatch.fastnet`): 20 runs."""
+    assert _run(workshop, range(2000, 2020), 40, native=False) > 400
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", ["kitting.yaml", "kitting_6picks.yaml"])
+def test_large_sets_answer_as_defined(tmp_path, task):
+    """The whole of kitting (2,880 plans) and kitting_6picks (5,040 plans, twins by identical actions):
+    60 random runs each."""
+    folder = _compile(tmp_path / "out", task, "--stnu", "archive")
+    assert _run(folder, range(3000, 3060), 80) > 2500
