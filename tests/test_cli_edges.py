@@ -79,13 +79,16 @@ def test_out_in_a_read_only_folder(tmp_path, capsys):
 
 
 def test_out_where_the_machine_refuses_a_folder(tmp_path, monkeypatch, capsys):
-    """As a read-only place does for a user who is not root: the staging folder cannot be made."""
-    import hrc.io.atomic as atomic
+    """As a read-only place does for a user who is not root: nothing can be made beside the output (its
+    claim file, first: `hrc.io.claim`)."""
+    real = os.open
 
-    def refuse(prefix: str, dir: str) -> str:
-        raise PermissionError(13, "Permission denied", dir)
+    def refuse(path, *args, **kwargs):
+        if str(path).startswith(str(tmp_path)):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real(path, *args, **kwargs)
 
-    monkeypatch.setattr(atomic.tempfile, "mkdtemp", refuse)
+    monkeypatch.setattr(os, "open", refuse)
     assert _compile(str(WORKSHOP_TASK), "--out", str(tmp_path / "new" / "out")) == 2
     _one_error_line(capsys, "Permission denied")
     assert list(tmp_path.iterdir()) == []  # the folder made for it is gone again
@@ -147,21 +150,30 @@ def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path, earlier
     assert sorted(p.name for p in (out / "stnu").iterdir()) == sorted(f"{p['id']}.graphml" for p in data["plans"])
 
 
-def test_a_failed_rename_leaves_no_staging_folder_and_the_old_output(tmp_path, monkeypatch):
-    import hrc.io.atomic as atomic
+@pytest.mark.parametrize("exchange", [True, False])
+def test_a_failed_swap_leaves_no_staging_folder_and_the_old_output(tmp_path, monkeypatch, exchange):
+    """The swap fails: the exchange of the two folders (`exchange`), or, on a file system without it, the
+    rename of the staging folder into place (putting the old one back works)."""
+    import hrc.io.claim as claim
 
     target = tmp_path / "out"
     target.mkdir()
     (target / "compiled.json").write_text("old")
-    real = os.replace
 
-    def failing(src, dst):  # the staging folder cannot be renamed into place (putting the old one back can)
-        if Path(dst) == target and ".old." not in str(src):
-            raise OSError(28, "No space left on device", str(dst))
-        return real(src, dst)
+    def full(*args):
+        raise OSError(28, "No space left on device", str(target))
 
-    monkeypatch.setattr(atomic.os, "replace", failing)
-    with pytest.raises(OSError), atomic_dir(target) as stage:
+    if exchange:
+        monkeypatch.setattr(claim, "exchange", full)
+    else:
+        real = os.rename
+        monkeypatch.setattr(claim, "exchange", lambda a, b: False)  # a file system that cannot exchange
+
+        def failing(src, dst):
+            return full() if Path(dst) == target and ".aside-" not in str(src) else real(src, dst)
+
+        monkeypatch.setattr(os, "rename", failing)
+    with pytest.raises(OSError, match="No space"), atomic_dir(target) as stage:
         (stage / "compiled.json").write_text("new")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
     assert (target / "compiled.json").read_text() == "old"

@@ -1,29 +1,48 @@
 """`hrc compile TASK.yaml --out DIR [--seed N] [--jobs N] [--executor URL]`: the compiler's main job.
 
-Before any work (issue 12) it checks every argument and the output folder (a staging folder is made
-beside it at once, so that a read-only place, ``/proc/...`` or a parent that is a file fail now, not
-after the compile), counts the plans in bounded time (or bounds them) and refuses more than
+Before any work (issue 12) it checks every argument and the output folder: it claims the folder
+(`hrc.io.claim`: a lock file beside it, so that a read-only place, ``/proc/...`` or a parent that is a
+file fail now, not after the compile, and a second compile into the same folder is refused), removes
+what a killed run left beside it, and refuses a folder holding anything a compile does not write
+(`_check_entries`). It counts the plans in bounded time (or bounds them) and refuses more than
 ``--max-plans`` with one line that says how to go on; it then says what the compile will cost, plans
 the paths, measures its first plans and says how long the rest will take. Plans are compiled streaming
-(`hrc.compile.stream`); progress is a bar with ETA on a terminal, a line every `PROGRESS_EVERY` seconds
-otherwise. Interrupted (Ctrl-C or SIGTERM), it writes the plans compiled so far as a partial output
-(``"partial": true`` in compiled.json, and ``resume.npy``) into a new or empty ``--out`` (an earlier
-complete output there is kept instead) and exits 130; nothing else is left behind. ``--resume`` goes on
-with such an output (its plans are taken as they are) and ends with the output an uninterrupted run
-writes.
+(`hrc.compile.stream`) into a staging folder beside ``--out``, swapped into place at the end; progress
+is a bar with ETA on a terminal, a line every `PROGRESS_EVERY` seconds otherwise.
+
+Signals and kills (issue 26; the README says the same):
+
+- SIGINT (Ctrl-C) or SIGTERM is acted on only where it is safe (`hrc.cli.interrupt`), and the process
+  always ends with status 130. Before the first plan: nothing is written, ``--out`` is as it was. While
+  plans are compiled: the workers end their unit of work, and the plans so far are written as a partial
+  output (``"partial": true`` in compiled.json, and ``resume.npy``) into a new or empty ``--out``, or the
+  one being resumed; an earlier complete output there is kept instead, and nothing is written. Once every
+  plan is compiled (compiled.json being written, the report, the swap): that is finished first, and
+  ``--out`` holds the complete output.
+- SIGKILL (or a power cut): ``--out`` holds the earlier output, or none, never a part; the workers die
+  with the parent (`hrc.compile.executors`); the next compile into the same ``--out`` removes the staging
+  folder left beside it.
+
+``--resume`` goes on with a partial output (its plans are taken as they are) and ends with the output an
+uninterrupted run writes, byte for byte.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hrc.errors import InputError
-from hrc.io.atomic import atomic_dir
+from hrc.io.claim import FolderClaim
 from hrc.io.task_file import load_task
+
+if TYPE_CHECKING:
+    from hrc.cli.interrupt import DeferredInterrupt
 
 __all__ = ["PROGRESS_EVERY", "add_parser", "run"]
 
@@ -137,8 +156,8 @@ class _Progress:
 
 
 def _check_out(out: str) -> None:
-    """The output folder is replaced whole, so it must be new, empty, or an earlier compile's output,
-    and must not hold the current folder (``--out .``)."""
+    """The output folder is replaced whole: it must not be a file, nor hold the current folder
+    (``--out .``). What it holds is checked once it is claimed (`_check_entries`)."""
     path = Path(out)
     if path.exists() and not path.is_dir():
         raise InputError(out, "--out", "exists and is not a folder")
@@ -147,9 +166,57 @@ def _check_out(out: str) -> None:
     if resolved == here or resolved in here.parents:
         raise InputError(out, "--out", "is the current folder or holds it; the output folder is replaced "
                                        "whole: name a new folder, e.g. --out out/NAME")
-    if path.is_dir() and any(path.iterdir()) and not (path / "compiled.json").is_file():
+
+
+def _foreign(folder: Path, also: tuple[str, ...] = ()) -> list[str]:
+    """What `folder` holds that a compile does not write (`OUTPUT_FILES`, `REPORT_FILES`) nor `also` names,
+    sorted, folders with a ``/``."""
+    from hrc.compile.stream import OUTPUT_FILES
+    from hrc.report import REPORT_FILES
+
+    ours = {*OUTPUT_FILES, *REPORT_FILES, *also}
+    return sorted(f"{e.name}/" if e.is_dir() and not e.is_symlink() else e.name
+                  for e in os.scandir(folder) if e.name not in ours)
+
+
+def _named(names: list[str]) -> str:
+    shown = ", ".join(names[:4])
+    return shown + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+
+
+def _check_entries(out: str) -> None:
+    """Refuse, before any work, an ``--out`` that holds anything an ``hrc compile`` does not write: it
+    would be lost when the folder is replaced (console run logs in ``runs/``, notes, another program's
+    output). Why refuse rather than carry them into the new output: a run log records runs of the plans
+    it was dispatched from, and beside a new plan set ``--replay`` would replay it against plans it was
+    not recorded with; where such files belong is the user's call."""
+    path = Path(out)
+    if not path.is_dir():
+        return
+    if any(path.iterdir()) and not (path / "compiled.json").is_file():
         raise InputError(out, "--out", "refusing to replace a folder that is not empty and holds no "
                                        "compiled.json (not an earlier hrc compile output)")
+    foreign = _foreign(path)
+    if foreign:
+        raise InputError(out, "--out", f"holds {_named(foreign)}, which hrc compile did not write; the output "
+                                       "folder is replaced whole, so they would be lost: move them out of it, "
+                                       "or compile into another --out")
+
+
+def _check_earlier(out: str) -> Callable[[Path, Path], None]:
+    """`FolderClaim.staging`'s last look at the earlier output, once it is out of the way: anything that
+    appeared in it during the compile and that no compile writes (the new output's names count as
+    ours) stops the swap."""
+
+    def check(earlier: Path, new: Path) -> None:
+        foreign = _foreign(earlier, also=tuple(os.listdir(new)))
+        if foreign:
+            raise InputError(out, "--out", f"{_named(foreign)} appeared in it during the compile, and hrc "
+                                           "compile did not write them; the output folder is replaced whole, "
+                                           "so the new output was not put in place: move them out of it and "
+                                           "compile again")
+
+    return check
 
 
 def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
@@ -164,11 +231,22 @@ def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hrc.compile.compiler import CompileOptions
-    from hrc.compile.estimate import estimate, fmt_bytes, fmt_span
+    """The command (module docstring). SIGINT and SIGTERM are deferred to safe points for its whole run
+    (`DeferredInterrupt`), and looked at once more at the end."""
+    from hrc.cli.interrupt import DeferredInterrupt
+
+    with DeferredInterrupt() as interrupt:
+        try:
+            return _run(args, interrupt)
+        except KeyboardInterrupt:  # `interrupt.check` before the first plan: nothing was written
+            print(f"error: interrupted ({interrupt.name}) before any plan was compiled; the output folder is as "
+                  "it was", file=sys.stderr)
+            return 130
+
+
+def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
-    from hrc.compile.stream import Sample
-    from hrc.plans import allocation_count, pin_actions
+    from hrc.plans import pin_actions
 
     task = load_task(args.task)
     if args.pin:
@@ -181,6 +259,28 @@ def run(args: argparse.Namespace) -> int:
         workers = default_jobs()
     else:
         workers = check_jobs(args.jobs) if args.jobs is not None else default_jobs()
+    interrupt.check()
+    quiet = args.quiet
+    say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+    try:
+        with FolderClaim(out) as claim:
+            for line in claim.recovered:  # a killed run's leftovers, cleaned up: said even with --quiet
+                print(f"{out}: {line}", file=sys.stderr, flush=True)
+            _check_entries(out)
+            return _compile(args, interrupt, task, out, workers, claim, say)
+    except OSError as err:  # writing the output (a full disk: a write names no file); said by `hrc.cli.main`
+        if not err.filename:
+            err.filename = str(out)
+        raise
+
+
+def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, out: str, workers: int,
+             claim: FolderClaim, say: Callable[[str], None]) -> int:
+    from hrc.compile.compiler import CompileOptions
+    from hrc.compile.estimate import estimate, fmt_bytes, fmt_span
+    from hrc.compile.stream import Sample
+    from hrc.plans import allocation_count
+
     options = CompileOptions(human_waits=args.human_waits == "yes", rank_by=args.rank_by)
     resume = None
     if args.resume:
@@ -193,10 +293,10 @@ def run(args: argparse.Namespace) -> int:
     est = estimate(task, symmetry=args.symmetry)
     if est.plans.value > args.max_plans:
         raise _refusal(args.task, est, args.max_plans, workers)
+    interrupt.check()
     total = est.plans.value
     jobs = None if args.executor is not None else max(1, min(workers, total))  # no idle worker processes
     quiet = args.quiet
-    say = (lambda text: None) if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
     lo, hi = est.wall(jobs or workers)
     best = args.best_per_allocation
     keeping = "" if best is None else (f", keeping the best {best} of each of {allocation_count(task):,} allocations "
@@ -224,14 +324,16 @@ def run(args: argparse.Namespace) -> int:
     # an earlier output is not replaced by a partial one (but the one resumed is: it holds fewer plans)
     earlier = Path(out).is_dir() and any(Path(out).iterdir()) and resume is None
     try:
-        with atomic_dir(out) as stage:
+        with claim.staging(check_earlier=_check_earlier(out)) as stage:
             try:
                 result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
                                         options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
                                         estimate=on_estimate, symmetry=args.symmetry, best=best,
-                                        resume=resume, keep_partial=not earlier)
+                                        resume=resume, keep_partial=not earlier, stop=interrupt.check)
             finally:
                 progress.close()
+            # from here on a signal only is noted: the report and the swap are finished first (the output
+            # is complete; throwing it away would lose every plan)
             if not args.no_report and not result.partial:
                 from hrc.report import write_report
 
@@ -240,16 +342,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
               "(a partial output replaces only a new or empty folder)", file=sys.stderr)
         return 130
-    except OSError as err:  # writing the output (a full disk: a write names no file); said by `hrc.cli.main`
-        if not err.filename:
-            err.filename = str(out)
-        raise
     cps = result.plan_set
     kept_text = None if best is None else f"the best {best} of each allocation, {cps.total:,} plans"
     if result.partial:
         wrote = "them" if kept_text is None else f"{kept_text},"
         print(f"error: interrupted after {result.compiled:,} of {total:,} plans: wrote {wrote} as a partial output "
-              f"to {out} (\"partial\": true in compiled.json, no report)", file=sys.stderr)
+              f"to {out} (\"partial\": true in compiled.json, no report); --resume goes on", file=sys.stderr)
+        return 130
+    if interrupt.requested:  # came after the last plan: the output was finished, and is complete
+        print(f"error: interrupted ({interrupt.name}) once all {result.compiled:,} plans were compiled: finished "
+              f"writing them; the output in {out} is complete", file=sys.stderr)
         return 130
     if not quiet:
         counts = cps.counts()

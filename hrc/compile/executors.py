@@ -3,16 +3,27 @@
 `EXECUTORS` is the registry the CLI offers (``--jobs N`` picks serial or a pool; ``--executor URL``
 picks by scheme). Every executor has the same interface, ``map_chunks(fn, task, paths, chunks)``,
 yielding ``fn(task, paths, chunk)`` results in completion order, with at most a few chunks in flight
-so that plan generation stays a stream. No home-made cluster code: Dask's `distributed` does the rest.
+so that plan generation stays a stream, and calling ``poll()`` (when given) between results (a local
+pool: at least every `POLL_EVERY` seconds while it waits): the caller's chance to stop safely
+(`hrc.cli.interrupt`). No
+home-made cluster code: Dask's `distributed` does the rest.
+
+A local pool's workers never outlive the compile: they ignore SIGINT and SIGTERM (the parent alone
+decides how to stop, and stops them after their unit of work), and die with the parent when it is killed
+(`_die_with_parent`).
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import ctypes
 import gc
+import multiprocessing as mp
 import os
 import signal
 import socket
+import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
@@ -20,8 +31,14 @@ from urllib.parse import urlparse
 
 from hrc.errors import ExecutorError
 
-__all__ = ["EXECUTORS", "STOP_GRACE", "WORKER_GC_THRESHOLD", "DaskExecutor", "PoolExecutor", "SerialExecutor",
-           "check_jobs", "default_jobs", "make_executor", "parse_executor_url", "probe_scheduler"]
+__all__ = ["EXECUTORS", "PARENT_POLL", "POLL_EVERY", "STOP_GRACE", "WORKER_GC_THRESHOLD", "DaskExecutor",
+           "PoolExecutor", "SerialExecutor", "check_jobs", "default_jobs", "make_executor", "parse_executor_url",
+           "probe_scheduler"]
+
+Poll = Callable[[], None]
+
+POLL_EVERY = 0.5
+"""Seconds at most between two calls of ``poll`` while an executor waits for results."""
 
 
 def default_jobs() -> int:
@@ -47,12 +64,15 @@ class SerialExecutor:
     def __exit__(self, *exc: object) -> None:
         return None
 
-    def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
+    def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any],
+                   poll: Poll | None = None) -> Iterator[Any]:
         # the pool workers' threshold for the young objects (`_init_worker`), for as long as this runs
         threshold = gc.get_threshold()
         gc.set_threshold(WORKER_GC_THRESHOLD, *threshold[1:])
         try:
             for chunk in chunks:
+                if poll is not None:
+                    poll()
                 yield fn(task, paths, chunk)
         finally:
             gc.set_threshold(*threshold)
@@ -63,11 +83,51 @@ class SerialExecutor:
 _WORKER_SHARED: dict[str, Any] = {}
 
 
-def _init_worker(task: Any, paths: Any) -> None:
-    # Ctrl-C reaches the whole process group: the parent alone handles it (and stops the workers), so
-    # workers ignore SIGINT and die quietly on SIGTERM (not through a handler inherited from the parent)
+PARENT_POLL = 0.5
+"""Seconds between a worker's looks at its parent where the system cannot signal it (`_die_with_parent`)."""
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int, direct: bool) -> None:
+    """Make this worker process die (SIGKILL) as soon as its parent process `parent` does.
+
+    A worker's work is worth nothing without its parent (results go to the parent's pipe; its files are
+    in a staging folder the next compile removes), and a worker left behind holds ~120 MB and waits on
+    that pipe for ever (issue 26). On Linux, for a worker the parent started itself (`direct`: fork or
+    spawn), the kernel sends the signal (``prctl(PR_SET_PDEATHSIG)``, through ctypes; it fires when the
+    thread that started the worker ends: here the main thread, which submits the work and lives as long
+    as the process). A parent that died before the call is caught by `os.getppid`: the worker was adopted
+    by then. Elsewhere (another system, or a fork server between the two) a daemon thread watches
+    `os.getppid` every `PARENT_POLL` seconds: the worker is adopted when the process above it dies."""
+    first = os.getppid()
+    if direct and first != parent:  # the parent is gone already
+        os.kill(os.getpid(), signal.SIGKILL)
+    if direct and sys.platform.startswith("linux"):
+        try:
+            armed = ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+        except (OSError, AttributeError):  # pragma: no cover - every Linux C library has prctl
+            armed = False
+        if armed:
+            if os.getppid() != parent:  # it died between the two looks
+                os.kill(os.getpid(), signal.SIGKILL)
+            return
+    threading.Thread(target=_watch_parent, args=(first,), name="hrc-parent-watch", daemon=True).start()
+
+
+def _watch_parent(first: int) -> None:
+    while os.getppid() == first:
+        time.sleep(PARENT_POLL)
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def _init_worker(task: Any, paths: Any, parent: int, direct: bool) -> None:
+    # Ctrl-C reaches the whole process group, and a service manager's stop sends SIGTERM to every process
+    # of the service: the parent alone handles them (it stops the workers after their unit of work), so
+    # workers ignore both (not through the handlers inherited from the parent); they die with the parent
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    _die_with_parent(parent, direct)
     _WORKER_SHARED["args"] = (task, paths)
     # The cyclic garbage collector, tuned for a worker (the advice of the `gc` docs for forked workers):
     # what the parent built before the fork moves to the permanent generation, never scanned again (nor
@@ -119,22 +179,35 @@ class PoolExecutor:
             proc.join(max(0.0, deadline - time.monotonic()))
         for proc in procs:  # stuck past the grace period: stopped (the risk above is the lesser evil now)
             if proc.is_alive():
-                proc.terminate()
+                proc.kill()  # SIGKILL: workers ignore SIGTERM
                 proc.join(5)
 
-    def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
+    def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any],
+                   poll: Poll | None = None) -> Iterator[Any]:
         if self._pool is not None:
             self._pool.shutdown()
         pool = self._pool = cf.ProcessPoolExecutor(max_workers=self.jobs, initializer=_init_worker,
-                                                   initargs=(task, paths))
+                                                   initargs=(task, paths, os.getpid(),
+                                                             mp.get_start_method() != "forkserver"))
         pending: set[cf.Future] = set()
         for chunk in chunks:  # at most `window` chunks in flight: plan generation stays a stream
             pending.add(pool.submit(_run_in_worker, fn, chunk))
-            if len(pending) >= self.window:
-                done, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+            while len(pending) >= self.window:
+                done, pending = _wait(pending, poll)
                 yield from (f.result() for f in done)
-        for future in cf.as_completed(pending):
-            yield future.result()
+        while pending:
+            done, pending = _wait(pending, poll)
+            yield from (f.result() for f in done)
+
+
+def _wait(pending: set[cf.Future], poll: Poll | None) -> tuple[set[cf.Future], set[cf.Future]]:
+    """The futures of `pending` done within `POLL_EVERY` seconds (maybe none) and the rest; `poll` called
+    after the wait."""
+    done, rest = cf.wait(pending, timeout=POLL_EVERY if poll is not None else None,
+                         return_when=cf.FIRST_COMPLETED)
+    if poll is not None:
+        poll()
+    return done, rest
 
 
 class DaskExecutor:
@@ -164,7 +237,9 @@ class DaskExecutor:
         if self._client is not None:
             self._client.close(timeout=self.timeout)
 
-    def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any]) -> Iterator[Any]:
+    def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any],
+                   poll: Poll | None = None) -> Iterator[Any]:
+        """(``poll`` is called between results: a Dask task is a unit of a few seconds.)"""
         from distributed import as_completed
 
         client = self._client
@@ -182,8 +257,12 @@ class DaskExecutor:
                 if in_flight >= self.window:
                     yield next(done).result()
                     in_flight -= 1
+                    if poll is not None:
+                        poll()
             for future in done or ():
                 yield future.result()
+                if poll is not None:
+                    poll()
 
 
 def probe_scheduler(address: str, timeout: float = 5.0) -> None:

@@ -17,9 +17,12 @@ and at the end writes ``compiled.json`` in rank order (`hrc.compile.sink`). The 
 orchestration; `hrc.compile.sink` the ranking records and the final files; `hrc.compile.spool` the
 low-level file writing; `hrc.compile.resume` the partial output's resume format.
 
-An interrupted run (SIGINT, or SIGTERM which the CLI turns into the same) still leaves a valid output:
-the plans compiled so far, ranked among themselves, with ``"partial": true`` in ``compiled.json``, and
-only their STNU files.
+An interrupted run still leaves a valid output: the plans compiled so far, ranked among themselves,
+with ``"partial": true`` in ``compiled.json``, and only their STNU files. The interrupt is a
+KeyboardInterrupt raised by the caller's `stop` callback, which `compile_stream` calls only where
+stopping is safe (between units of work, at least twice a second while it waits for a local pool's
+workers, between path plans; `hrc.cli.interrupt` says why); from then on, writing the partial output is
+not interrupted again.
 """
 
 from __future__ import annotations
@@ -36,7 +39,8 @@ import numpy as np
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, compile_family, rank_key
 from hrc.compile.executors import make_executor
-from hrc.compile.output import line_head, plan_line, write_input
+from hrc.compile.output import STNU_ARCHIVE, line_head, plan_line, write_input
+from hrc.compile.resume import RESUME_FILE
 from hrc.compile.sink import REPORT_TOP, Bar, PlanSink, Record
 from hrc.compile.spool import WorkerFiles, Written
 from hrc.errors import HrcError
@@ -44,8 +48,15 @@ from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import generate_plans, identical_actions, plan_code, plan_families, spread_families, symmetry_factor
 
-__all__ = ["Abandoned", "Sample", "StreamResult", "chunk_size", "compact_records", "compile_records",
+__all__ = ["OUTPUT_FILES", "Abandoned", "Sample", "StreamResult", "chunk_size", "compact_records", "compile_records",
            "compile_stream"]
+
+OUTPUT_FILES = ("compiled.json", "input", "stnu", STNU_ARCHIVE, RESUME_FILE)
+"""Every name `compile_stream` may write into an output folder (``hrc compile`` adds the report's,
+`hrc.report.REPORT_FILES`). ``hrc compile`` replaces an output folder whole, so it refuses one that holds
+anything else (files it did not write would be lost): a file the compile comes to write must be named
+here, or the next compile into the same folder refuses it (tests/test_compile_faults.py checks each mode's
+files against this list)."""
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
 
@@ -187,7 +198,8 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
                    stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
                    estimate: Callable[[Sample], None] | None = None, sample_seconds: float = 1.0,
                    symmetry: bool = False, best: int | None = None,
-                   resume: tuple[Path, np.ndarray] | None = None, keep_partial: bool = True) -> StreamResult:
+                   resume: tuple[Path, np.ndarray] | None = None, keep_partial: bool = True,
+                   stop: Callable[[], None] | None = None) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
     seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
@@ -199,6 +211,7 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
     are and not compiled again (the output is the same as a run never interrupted). `keep_partial`:
     whether an interrupted run writes what it compiled (else it raises `Abandoned` at once: the caller
     keeps an earlier output instead, and writing a large partial one would take a while for nothing).
+    `stop`: called where the compile may stop (module docstring); it raises KeyboardInterrupt to stop it.
     Raises `hrc.errors.HrcError`."""
     options = options or CompileOptions()
     out_dir = Path(out_dir)
@@ -215,16 +228,23 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
     paths: PathLibrary | None = None
     per_plan: float | None = None
     partial = False
+    check = stop or (lambda: None)
     try:
         with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
-            paths = plan_paths(task, seed=seed,
-                               progress=(lambda d, t: progress("motion", d, t)) if progress else None)
+            def planned(done: int, total: int) -> None:
+                check()
+                if progress:
+                    progress("motion", done, total)
+
+            paths = plan_paths(task, seed=seed, progress=planned)
+            check()
             # the estimate's sample comes from allocations spread over the whole space (the stream's first
             # plans are all of one corner: the human doing everything), and is left out of the stream
             spread = spread_families(task, 16, symmetry)
             sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken)
             per_plan = sample.seconds_per_plan
             done = {f[0] for f in spread[:sample.families]}
+            check()
             if estimate is not None:
                 estimate(sample)
             stream = (((plan,) for plan in generate_plans(task, symmetry=True)) if symmetry
@@ -240,12 +260,13 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             folder = str(out_dir) if getattr(ex, "local_processes", False) else None
             work = functools.partial(_records_with, options, stnu, folder, sink.stnu_to)
             chunks = iter(lambda: list(itertools.islice(stream, size)), [])
-            for batch in ex.map_chunks(work, task, paths, ((sink.bar(chunk), chunk) for chunk in chunks)):
+            for batch in ex.map_chunks(work, task, paths, ((sink.bar(chunk), chunk) for chunk in chunks), poll=check):
                 for record in batch:
                     if record[1] not in taken:
                         sink.add_record(record)
                 if progress:
                     progress("plans", len(sink), total)
+                check()
     except KeyboardInterrupt:
         if paths is None or not len(sink):
             sink.abandon()

@@ -1,7 +1,10 @@
 """Atomic file output: write to a temporary file beside the target, then rename over it.
 
-A reader (or a crash) never sees a half-written file. `atomic_dir` does the same for a whole output
-folder: it is built under a temporary name and renamed into place when complete.
+A reader (or a crash) never sees a half-written file: the temporary file is flushed to the disk
+(``fsync``) before the rename, and its folder after it (`hrc.io.durable`), so that after a power cut the
+name holds the old bytes or the new ones. `atomic_dir` does the same for a whole output folder: it is
+built in a staging folder beside it, flushed, and swapped into place when complete (`hrc.io.claim`:
+one process at a time, never a moment without the folder, a killed run's leftovers cleaned by the next).
 """
 
 from __future__ import annotations
@@ -10,10 +13,12 @@ import contextlib
 import errno
 import functools
 import os
-import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+
+from hrc.io.claim import FolderClaim
+from hrc.io.durable import fsync_folder
 
 __all__ = ["atomic_dir", "write_bytes_atomic", "write_text_atomic"]
 
@@ -27,7 +32,8 @@ def _umask() -> int:
 
 
 def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write `data` to `path` so that readers see the old file or the new one, never a part.
+    """Write `data` to `path` so that readers see the old file or the new one, never a part, also after a
+    crash: the new file is flushed before it is renamed over the old one, and the folder after.
 
     The file gets the permissions an ordinary ``open(path, "w")`` would give (``0o666 & ~umask``),
     not the private ``0o600`` of the temporary file.
@@ -40,70 +46,27 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+    fsync_folder(target.parent)
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
     write_bytes_atomic(path, text.encode("utf-8"))
 
 
-def _make_parents(folder: Path) -> list[Path]:
-    """``mkdir -p folder``; returns the folders it created, deepest first (to remove them on failure)."""
-    missing = []
-    for p in (folder, *folder.parents):
-        if p.exists() or p.is_symlink():
-            break
-        missing.append(p)
-    folder.mkdir(parents=True, exist_ok=True)
-    return missing
-
-
-def _remove_created(created: list[Path]) -> None:
-    for p in created:  # deepest first; only while empty (nothing of anybody else's is removed)
-        with contextlib.suppress(OSError):
-            p.rmdir()
-
-
 @contextlib.contextmanager
 def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a fresh staging folder; on success it replaces `path` (an existing folder is swapped out).
-
-    On any failure (an exception, KeyboardInterrupt, a failed rename) the staging folder is removed,
-    the folders made for it too, and an existing `path` is left as it was.
-    """
-    target = Path(path)
-    created = _make_parents(target.parent)
-    try:
-        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-    except BaseException:
-        _remove_created(created)
-        raise
-    try:
-        yield staging
-        os.chmod(staging, 0o777 & ~_umask())  # mkdtemp makes it private (0o700)
-        old = None
-        if target.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=target.parent))
-            try:
-                os.replace(target, old / "x")
-            except BaseException:
-                old.rmdir()
-                raise
-        try:
-            os.replace(staging, target)
-        except BaseException:
-            if old is not None:  # put the earlier output back
-                os.replace(old / "x", target)
-                old.rmdir()
-            raise
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        _remove_created(created)
-        raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+    """Yield a fresh staging folder beside `path`; on success it replaces `path` (`FolderClaim`: its
+    files flushed to the disk first, an existing `path` exchanged with it in one step, the parent folder
+    flushed after). On any failure (an exception, KeyboardInterrupt, a failed rename) the staging folder
+    is removed, the folders made for it too, and an existing `path` is left as it was. Raises
+    `hrc.errors.InputError` while another process is writing `path`."""
+    with FolderClaim(path) as claim, claim.staging() as stage:
+        yield stage

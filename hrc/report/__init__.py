@@ -28,13 +28,16 @@ if TYPE_CHECKING:
 
     from hrc.compile.compiler import CompiledPlanSet
 
-__all__ = ["FORMATS", "write_figures", "write_report"]
+__all__ = ["FORMATS", "REPORT_FILES", "write_figures", "write_report"]
 
 FORMATS: dict[str, Callable[[ReportData, dict[str, str]], str]] = {
     "report.md": render_markdown,
     "report.html": render_html,
 }
 """Report file name -> renderer ``(data, figures) -> text``; `write_report` writes each of them."""
+
+REPORT_FILES = (*FORMATS, "figures")
+"""What `write_report` writes into an output folder (files and the figures' folder)."""
 
 
 def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
