@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, compile_family, rank_key
+from hrc.compile.dispatch_form import FORM_FOLDER
 from hrc.compile.executors import make_executor
 from hrc.compile.output import STNU_ARCHIVE, line_head, plan_line, write_input
 from hrc.compile.resume import RESUME_FILE
@@ -51,7 +52,7 @@ from hrc.plans import generate_plans, identical_actions, plan_code, plan_familie
 __all__ = ["OUTPUT_FILES", "Abandoned", "Sample", "StreamResult", "chunk_size", "compact_records", "compile_records",
            "compile_stream"]
 
-OUTPUT_FILES = ("compiled.json", "input", "stnu", STNU_ARCHIVE, RESUME_FILE)
+OUTPUT_FILES = ("compiled.json", "input", "stnu", STNU_ARCHIVE, RESUME_FILE, FORM_FOLDER)
 """Every name `compile_stream` may write into an output folder (``hrc compile`` adds the report's,
 `hrc.report.REPORT_FILES`). ``hrc compile`` replaces an output folder whole, so it refuses one that holds
 anything else (files it did not write would be lost): a file the compile comes to write must be named
@@ -260,7 +261,8 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             folder = str(out_dir) if getattr(ex, "local_processes", False) else None
             work = functools.partial(_records_with, options, stnu, folder, sink.stnu_to)
             chunks = iter(lambda: list(itertools.islice(stream, size)), [])
-            for batch in ex.map_chunks(work, task, paths, ((sink.bar(chunk), chunk) for chunk in chunks), poll=check):
+            bars = ((sink.bar(chunk), chunk) for chunk in chunks)
+            for batch in ex.map_chunks(work, task, paths, bars, poll=check):
                 for record in batch:
                     if record[1] not in taken:
                         sink.add_record(record)
