@@ -12,6 +12,11 @@ form's arrays. Each message then runs the paper's cycle on those objects, one pl
   for the best plan's next robot and human events, and APA's DO form compiled on the residual network
   through `plan_preference_value` (objects, `Fraction` conversions and all) where the task has preferences.
 
+APA's DO form is compiled on the dispatch form's network of the plan (`apa_entry`), the same distance
+graph as the GraphML file's (tests/test_dispatch_fastnet.py) in the rows the dispatcher hands APA: where
+a preference leaves the optimum free (a linear one), an interior-point solver's choice on the optimal
+face depends on how the constraints are written, and either choice is a DO form.
+
 It is slow on purpose (no arrays, no C, no sharing between plans): what it computes is easy to check
 against the definitions in docs/dispatch.md.
 """
@@ -27,12 +32,12 @@ from typing import Any
 
 from hrc.compile.output import load_compiled_task
 from hrc.dispatch import UNDO_SECONDS
-from hrc.dispatch.dispatcher import _do_form, _past, _rank, _within
+from hrc.dispatch.dispatcher import _rank
 from hrc.dispatch.messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor
 from hrc.dispatch.plan_set import PlanEntry, _Archive, plan_entry
 from hrc.dispatch.ranking import rank_key, reference_evaluate
 from hrc.dispatch.validation import History, agrees, executed, ticks
-from hrc.errors import DispatchError
+from hrc.errors import DispatchError, HrcError
 from hrc.model import Plan
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state, residual_network
 from hrc.temporal.graphml import read_network
@@ -62,8 +67,9 @@ class ReferenceDispatcher:
     there, so `hrc.dispatch.protocol.handle_line` drives it too."""
 
     def __init__(self, task: Any, plans: Sequence[PlanEntry], rank_by: str, *, feasible_only: bool = False,
-                 use_preferences: bool = True, memo: dict | None = None) -> None:
+                 use_preferences: bool = True, memo: dict | None = None, apa_entry: Any = None) -> None:
         self.task, self.plans, self.rank_by = task, list(plans), rank_by
+        self.apa_entry = apa_entry or (lambda i: self.plans[i])
         self.memo = {} if memo is None else memo  # (plan, executed, now) -> evaluation: runs share their start
         self.feasible_only, self.use_preferences = feasible_only, use_preferences
         self.history = History.start(task)
@@ -174,19 +180,21 @@ class ReferenceDispatcher:
                 latest = None if step.latest is None or mode is ExecutionMode.EARLIEST else step.latest / 1000
                 found = RobotStep(action, phase, event, step.earliest / 1000, latest)
                 if agent == robot and mode is not ExecutionMode.EARLIEST and self.use_preferences:
-                    found = self._preferred(entry, index, state.residual, done, now, node, found)
+                    found = self._preferred(index, history, now, node, found)
                 out.append(found)
                 continue
             waits = sorted(step.until, key=lambda n: (entry.events.get(n, ("",))[0] == agent, n))
             out.append(WaitFor(*entry.events.get(waits[0], ("", "", "", waits[0]))))
         return out[0], out[1]
 
-    def _preferred(self, entry: PlanEntry, index: int, residual: Any, done: dict[str, int], now: int, node: str,
-                   step: RobotStep) -> RobotStep:
+    def _preferred(self, index: int, history: History, now: int, node: str, step: RobotStep) -> RobotStep:
         if not self.task.preferences:
             return step
+        entry = self.apa_entry(index)
+        done = executed(entry, history)
         form = self.do_forms.get(index)
         if form is None or (form is not False and not _within(form, done)):
+            residual = residual_network(entry.stnu, done, now)
             form = self.do_forms[index] = _do_form(entry, residual, self.task.preferences)
         if form is False:
             return step
@@ -252,6 +260,35 @@ class ReferenceDispatcher:
             elif node in found:
                 out[key] = found[node] / 1000
         return out
+
+
+def _do_form(entry: PlanEntry, residual: Any, preferences: Any) -> Any:
+    """APA's DO form of the residual network: its event index and APSP matrix, or False."""
+    from hrc.apa.compile import do_apsp
+    from hrc.apa.plan import plan_preference_value
+    from hrc.compile.temporal_net_creator import event_timepoint
+    from hrc.temporal.graphml import tool_name
+
+    prefs = [(tool_name(event_timepoint(entry.plan, p.source)), tool_name(event_timepoint(entry.plan, p.target)), p)
+             for p in preferences]
+    try:
+        result = plan_preference_value(residual, prefs)
+    except HrcError:
+        return False
+    if not result.consistent:
+        return False
+    return {e: k for k, e in enumerate(result.stpp.events)}, do_apsp(result)
+
+
+def _past(form: Any, done: dict[str, int]) -> list[tuple[int, int]]:
+    events = form[0]
+    return [(0, 0)] + [(events[x], t) for x, t in done.items() if x in events]
+
+
+def _within(form: Any, done: dict[str, int]) -> bool:
+    apsp = form[1]
+    past = _past(form, done)
+    return all(t2 - t1 <= apsp[i, j] + 1 for i, t1 in past for j, t2 in past if i != j)
 
 
 def _arrival(entry: PlanEntry, agent: str, action: str, phase: str, event: str, node: str, done: dict[str, int],

@@ -126,7 +126,7 @@ def _run(folder: Path, seeds: range, messages: int, native: bool = True) -> int:
     for seed in seeds:
         options = {"feasible_only": seed % 7 == 3, "use_preferences": seed % 5 != 4}
         fast = Dispatcher(base.plan_set, ranker=base.ranker, **options)
-        ref = ReferenceDispatcher(task, entries, rank_by, memo=memo, **options)
+        ref = ReferenceDispatcher(task, entries, rank_by, memo=memo, apa_entry=base.plan_set.entry, **options)
         assert fast.decision == ref.decision
         driver = Driver(fast, ref, seed)
         driver.play(messages)

@@ -27,6 +27,10 @@ The paper's steps and what this module does for each:
      (the compact list of constraints the CLI prints). The DO windows (each event's window relative
      to the reference event) and the flexibility ratio are computed sparsely.
 
+The steps run on the STPP's constraints as arrays (`Rows`: one row per constraint, bounds in ticks;
+`compile_rows`), so that a caller holding a network as arrays (the dispatcher, recompiling a plan's DO
+form on its residual network: Fig. 8, line 7) builds no objects; `compile_stpp` is the same on an `STPP`.
+
 Flexibility (section V, Fig. 11): the summed widths of the events' windows relative to the reference
 event in the DO form, over the same in the original STPP (events whose original window is unbounded
 are left out); 1.0 when the original has no flexibility to lose.
@@ -42,7 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
-from hrc.apa.model import STPP, Constraint
+from hrc.apa.model import STPP, Constraint, PreferenceFunction
 from hrc.apa.qp import QuadraticProgram, solve_qp
 from hrc.errors import ApaError
 from hrc.temporal.graph import distance_edges
@@ -56,12 +60,17 @@ __all__ = [
     "VALUE_SNAP",
     "CompileResult",
     "PruneReport",
+    "Rows",
+    "RowsResult",
     "build_qp",
+    "compile_rows",
     "compile_stpp",
     "do_apsp",
     "do_form",
     "prune_report",
+    "rows_apsp",
     "stpp_network",
+    "stpp_rows",
 ]
 
 TICKS_PER_SECOND = 1_000_000
@@ -90,13 +99,39 @@ def stpp_network(stpp: STPP, ticks_per_second: int = TICKS_PER_SECOND) -> STNU:
     return STNU(stpp.events, links, (), stpp.name)
 
 
-def _edge_arrays(stnu: STNU) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    index = {v: i for i, v in enumerate(stnu.timepoints)}
-    edges = distance_edges(stnu)
-    src = np.fromiter((index[e.source] for e in edges), dtype=np.int64, count=len(edges))
-    dst = np.fromiter((index[e.target] for e in edges), dtype=np.int64, count=len(edges))
-    w = np.fromiter((e.value for e in edges), dtype=np.float64, count=len(edges))
-    return src, dst, w
+@dataclass(frozen=True, slots=True)
+class Rows:
+    """An STPP's constraints as arrays: row k is ``lb[k] <= T(dst[k]) - T(src[k]) <= ub[k]`` in ticks
+    (float64 holding integers; ``-inf`` / ``inf`` for an open side) over `n` events, the first the
+    reference; `prefs` the rows that carry a preference, with its function, in row order."""
+
+    n: int
+    src: np.ndarray
+    dst: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    prefs: tuple[tuple[int, PreferenceFunction], ...]
+
+    def edges(self, lb: np.ndarray | None = None, ub: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The distance graph's edges ``(src, dst, w)``: ``src -> dst`` with the upper bound, ``dst -> src``
+        with the lower bound negated, finite ones only; of other bounds `lb`, `ub` where given."""
+        lb = self.lb if lb is None else lb
+        ub = self.ub if ub is None else ub
+        up, lo = np.isfinite(ub), np.isfinite(lb)
+        return (np.concatenate([self.src[up], self.dst[lo]]), np.concatenate([self.dst[up], self.src[lo]]),
+                np.concatenate([ub[up], -lb[lo]]))
+
+
+def stpp_rows(stpp: STPP, ticks_per_second: int = TICKS_PER_SECOND) -> Rows:
+    """`stpp` as `Rows` (the bounds of `stpp_network`, exactly)."""
+    cons = stpp.constraints
+    index = stpp.index
+    lb = np.array([-math.inf if math.isinf(c.lb) else float(to_ticks(c.lb, ticks_per_second)) for c in cons])
+    ub = np.array([math.inf if math.isinf(c.ub) else float(to_ticks(c.ub, ticks_per_second)) for c in cons])
+    return Rows(len(stpp.events), np.array([index(c.source) for c in cons], dtype=np.int64),
+                np.array([index(c.target) for c in cons], dtype=np.int64), lb.reshape(-1), ub.reshape(-1),
+                tuple((k, c.preference) for k, c in enumerate(cons) if c.preference is not None))
 
 
 def _cycle(stnu: STNU) -> tuple[str, ...]:
@@ -105,9 +140,9 @@ def _cycle(stnu: STNU) -> tuple[str, ...]:
     return tuple(e.source for e in cycle)
 
 
-def _repair(stnu: STNU, start: np.ndarray) -> np.ndarray | None:
-    """A feasible schedule (ticks) of `stnu` grown from the nearly feasible `start` (the QP's optimum
-    rounded to ticks), or None if `stnu` has a negative cycle.
+def _repair(n: int, edges: tuple[np.ndarray, np.ndarray, np.ndarray], start: np.ndarray) -> np.ndarray | None:
+    """A feasible schedule (ticks) of the network of `edges` grown from the nearly feasible `start` (the
+    QP's optimum rounded to ticks), or None if it has a negative cycle.
 
     Bellman-Ford relaxation from arbitrary finite labels converges to labels with
     ``p[v] - p[u] <= w`` for every edge iff there is no negative cycle; each pass here touches only the
@@ -115,8 +150,7 @@ def _repair(stnu: STNU, start: np.ndarray) -> np.ndarray | None:
     bounds exactly, so does ``floor(x)``; ``x`` is off by ~1e-10 s), so a few passes suffice where a
     cold start takes ``O(n m)``.
     """
-    n = len(stnu.timepoints)
-    src, dst, w = _edge_arrays(stnu)
+    src, dst, w = edges
     p = start.astype(np.float64).copy()
     for _ in range(n + 1):
         cand = p[src] + w
@@ -144,9 +178,9 @@ def _distances(n: int, src: np.ndarray, dst: np.ndarray, w: np.ndarray, p: np.nd
     return d + p[ref] - p if reverse else d - p[ref] + p
 
 
-def _windows(stnu: STNU, p: np.ndarray, ref: int) -> tuple[Window, ...]:
-    n = len(stnu.timepoints)
-    src, dst, w = _edge_arrays(stnu)
+def _windows(n: int, edges: tuple[np.ndarray, np.ndarray, np.ndarray], p: np.ndarray,
+             ref: int) -> tuple[Window, ...]:
+    src, dst, w = edges
     hi = _distances(n, src, dst, w, p, ref, reverse=False)
     lo = -_distances(n, src, dst, w, p, ref, reverse=True)
     return tuple(Window(None if math.isinf(a) else int(round(a)), None if math.isinf(b) else int(round(b)))
@@ -213,51 +247,126 @@ class CompileResult:
 def build_qp(stpp: STPP, stnu: STNU, tps: int) -> QuadraticProgram:
     """Fig. 5 line 3's problem: `stpp`'s QP over the bounds of its tick network `stnu` (in seconds),
     one anchor event per connected part (see `hrc.apa.qp`)."""
-    n = len(stpp.events)
-    reqs = stnu.requirements
-    src = np.array([stpp.index(r.source) for r in reqs], dtype=np.int64)
-    dst = np.array([stpp.index(r.target) for r in reqs], dtype=np.int64)
-    lb = np.array([-math.inf if r.lb is None else r.lb / tps for r in reqs])
-    ub = np.array([math.inf if r.ub is None else r.ub / tps for r in reqs])
-    prefs = stpp.preferred
-    pi = np.array([stpp.index(c.source) for c in prefs], dtype=np.int64)
-    pj = np.array([stpp.index(c.target) for c in prefs], dtype=np.int64)
-    c1 = np.array([c.preference.c[1] for c in prefs if c.preference is not None])
-    c2 = np.array([c.preference.c[2] for c in prefs if c.preference is not None])
-    graph = sp.csr_matrix((np.ones(len(src)), (src, dst)), shape=(n, n))
+    return _qp(stpp_rows(stpp, tps), tps)
+
+
+def _qp(rows: Rows, tps: int) -> QuadraticProgram:
+    n = rows.n
+    pi = np.array([rows.src[k] for k, _ in rows.prefs], dtype=np.int64)
+    pj = np.array([rows.dst[k] for k, _ in rows.prefs], dtype=np.int64)
+    c1 = np.array([f.c[1] for _, f in rows.prefs])
+    c2 = np.array([f.c[2] for _, f in rows.prefs])
+    graph = sp.csr_matrix((np.ones(len(rows.src)), (rows.src, rows.dst)), shape=(n, n))
     _, labels = connected_components(graph, directed=True, connection="weak")
     _, anchors = np.unique(labels, return_index=True)  # the first event of each part (event 0 leads its own)
-    return QuadraticProgram(n, src, dst, lb, ub, pi, pj, c1.reshape(-1), c2.reshape(-1), np.sort(anchors))
+    return QuadraticProgram(n, rows.src, rows.dst, rows.lb / tps, rows.ub / tps, pi, pj, c1.reshape(-1),
+                            c2.reshape(-1), np.sort(anchors))
 
 
-def _tighten(stpp: STPP, stnu: STNU, x: np.ndarray, tps: int, widen: int, total: float) -> tuple[STNU, float]:
+def _tighten(rows: Rows, x: np.ndarray, tps: int, widen: int, total: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Fig. 5 lines 4-9: preferred intervals set to their optimal differences (see the module's
-    tolerance), `widen` extra ticks each side; `total` is the optimal value. Returns the network and
-    its value tolerance."""
-    links = list(stnu.requirements)
+    tolerance), `widen` extra ticks each side; `total` is the optimal value. Returns the network's bounds
+    (`Rows` lb, ub) and its value tolerance."""
+    lb, ub = rows.lb.copy(), rows.ub.copy()
     slack = 0.0
-    for k, c in enumerate(stpp.constraints):
-        if c.preference is None:
-            continue
-        d = (x[stpp.index(c.target)] - x[stpp.index(c.source)]) * tps
-        f = c.preference
+    for k, f in rows.prefs:
+        d = (x[rows.dst[k]] - x[rows.src[k]]) * tps
         r = round(d)
         if abs(d - r) > SNAP:  # of the two ticks around d*, the one its preference likes better
             r = max((math.floor(d), math.ceil(d)), key=lambda k: (f.value(k / tps), -abs(k - d)))
         flat = f.value(r / tps) >= f.value(d / tps) - VALUE_SNAP * max(1.0, abs(total))
         lo, hi = (r, r) if abs(d - r) <= SNAP or flat else (math.floor(d), math.ceil(d))
-        old = links[k]
-        lo = max(lo - widen, old.lb if old.lb is not None else lo - widen)
-        hi = min(hi + widen, old.ub if old.ub is not None else hi + widen)
+        lo = max(lo - widen, int(rows.lb[k]) if math.isfinite(rows.lb[k]) else lo - widen)
+        hi = min(hi + widen, int(rows.ub[k]) if math.isfinite(rows.ub[k]) else hi + widen)
         lo, hi = min(lo, hi), max(lo, hi)
-        links[k] = RequirementLink(old.source, old.target, lo, hi)
+        lb[k], ub[k] = lo, hi
         a, b = min(lo, d), max(hi, d)  # every DO choice of this difference, and the optimum
         slack += f.max_slope_on(a / tps, b / tps) * (b - a) / tps
-    return STNU(stnu.timepoints, tuple(links), (), stnu.name), float(slack)
+    return lb, ub, float(slack)
+
+
+@dataclass(frozen=True, slots=True)
+class RowsResult:
+    """`compile_rows`' result: `consistent` (False: the hard constraints admit no schedule, nothing else
+    set); the QP's optimum `x` (s) and its value; `p` an exact schedule of the original rows (ticks);
+    `do_lb`, `do_ub` the tightened rows' bounds (Fig. 5 line 9: their APSP is the DO form) and `q` an exact
+    schedule of them; the value tolerance, the ticks the tightening was widened by, and the seconds each
+    step took."""
+
+    consistent: bool
+    x: np.ndarray | None = None
+    value: float | None = None
+    p: np.ndarray | None = None
+    do_lb: np.ndarray | None = None
+    do_ub: np.ndarray | None = None
+    q: np.ndarray | None = None
+    tolerance: float = 0.0
+    widened: int = 0
+    seconds: tuple[tuple[str, float], ...] = ()
+
+
+def compile_rows(rows: Rows, *, solver: str = "piqp", ticks_per_second: int = TICKS_PER_SECOND) -> RowsResult:
+    """APACompilePlan (Fig. 5) on `rows`: the QP, its optimum made an exact schedule, the preferred
+    intervals tightened (the module docstring). Raises `ApaError` if the solver fails on a consistent
+    problem; an inconsistent one is a result (``consistent=False``)."""
+    tps = ticks_per_second
+    clock = time.perf_counter()
+    seconds: list[tuple[str, float]] = []
+
+    def lap(step: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        seconds.append((step, now - clock))
+        clock = now
+
+    qp = _qp(rows, tps)
+    edges = rows.edges()
+    lap("stp")
+    try:
+        x = solve_qp(qp, solver)
+    except ApaError:
+        if _repair(rows.n, edges, np.zeros(rows.n)) is None:  # an infeasible QP is an inconsistent STP
+            return RowsResult(False)
+        raise
+    value = sum(f.value(x[rows.dst[k]] - x[rows.src[k]]) for k, f in rows.prefs)
+    lap("qp")
+    start = np.round((x - x[0]) * tps)
+    p = _repair(rows.n, edges, start)
+    if p is None:  # the solver called an inconsistent problem solved
+        return RowsResult(False)
+    for widen in range(4):
+        lb, ub, tolerance = _tighten(rows, x, tps, widen, value)
+        q = _repair(rows.n, rows.edges(lb, ub), start)
+        if q is not None:
+            break
+    else:
+        raise ApaError(f"the {solver} solution is too inaccurate to tighten the STPP consistently")
+    lap("tighten")
+    return RowsResult(True, x, float(value), p, lb, ub, q, tolerance, widen, tuple(seconds))
+
+
+def rows_apsp(rows: Rows, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
+    """The APSP matrix (ticks, float64, ``inf`` where there is no path) of `rows` with bounds `lb`, `ub`,
+    a consistent network: the DO form of `compile_rows`' tightened bounds (Fig. 5 line 10). In the native
+    core when it is built (Floyd-Warshall in C), else by `all_pairs_shortest_paths`; the same numbers."""
+    from hrc.temporal.native_stn import native_apsp
+
+    src, dst, w = rows.edges(lb, ub)
+    loop = src == dst
+    if not (w[loop] < 0).any() and np.all(np.abs(w) < 2 ** 40):
+        found = native_apsp(rows.n, src[~loop].tolist(), dst[~loop].tolist(), w[~loop].astype(np.int64).tolist())
+        if found is not None and found[0]:
+            return found[1]
+    names = tuple(str(i) for i in range(rows.n))
+    links = tuple(RequirementLink(names[a], names[b], None if math.isinf(lo) else int(lo),
+                                  None if math.isinf(hi) else int(hi))
+                  for a, b, lo, hi in zip(rows.src.tolist(), rows.dst.tolist(), lb.tolist(), ub.tolist(), strict=True))
+    return np.asarray(all_pairs_shortest_paths(STNU(names, links)), dtype=float)
 
 
 def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TICKS_PER_SECOND) -> CompileResult:
-    """APACompilePlan (Fig. 5; see the module docstring for each step and the tolerance).
+    """APACompilePlan (Fig. 5; see the module docstring for each step and the tolerance), on `stpp`'s
+    `Rows` (`compile_rows`), with the windows of the original and the DO form.
 
     Cost: the QP (piqp: sparse interior point; its factorisations dominate), a few vectorised
     Bellman-Ford passes to make its optimum an exact schedule, and four Dijkstra runs. Raises
@@ -270,46 +379,27 @@ def compile_stpp(stpp: STPP, *, solver: str = "piqp", ticks_per_second: int = TI
     (16.0, {'a': 0.0, 'b': 4.0})
     """
     tps = ticks_per_second
+    rows = stpp_rows(stpp, tps)
+    found = compile_rows(rows, solver=solver, ticks_per_second=tps)
+    if not found.consistent:
+        return CompileResult(stpp, tps, False, _cycle(stpp_network(stpp, tps)))
+    assert found.x is not None and found.p is not None and found.q is not None
+    assert found.do_lb is not None and found.do_ub is not None
     clock = time.perf_counter()
-    seconds: list[tuple[str, float]] = []
-
-    def lap(step: str) -> None:
-        nonlocal clock
-        now = time.perf_counter()
-        seconds.append((step, now - clock))
-        clock = now
-
-    stnu = stpp_network(stpp, tps)
-    qp = build_qp(stpp, stnu, tps)
-    lap("stp")
-    try:
-        x = solve_qp(qp, solver)
-    except ApaError:
-        cycle = _cycle(stnu)  # an infeasible QP is an inconsistent STP: say where
-        if cycle:
-            return CompileResult(stpp, tps, False, cycle)
-        raise
-    value = stpp.value(dict(zip(stpp.events, x.tolist(), strict=True)))
-    lap("qp")
-    start = np.round((x - x[0]) * tps)
-    p = _repair(stnu, start)
-    if p is None:  # the solver called an inconsistent problem solved
-        return CompileResult(stpp, tps, False, _cycle(stnu))
-    original = _windows(stnu, p, 0)
-    lap("original_windows")
-    for widen in range(4):
-        do_net, tolerance = _tighten(stpp, stnu, x, tps, widen, value)
-        q = _repair(do_net, start)
-        if q is not None:
-            break
-    else:
-        raise ApaError(f"the {solver} solution is too inaccurate to tighten the STPP consistently")
-    lap("tighten")
-    windows = _windows(do_net, q, 0)
+    original = _windows(rows.n, rows.edges(), found.p, 0)
+    laps = [*found.seconds[:2], ("original_windows", time.perf_counter() - clock), *found.seconds[2:]]
+    clock = time.perf_counter()
+    do_net = STNU(stpp.events, tuple(
+        RequirementLink(c.source, c.target, None if math.isinf(lo) else int(lo), None if math.isinf(hi) else int(hi))
+        for c, lo, hi in zip(stpp.constraints, found.do_lb.tolist(), found.do_ub.tolist(), strict=True)), (),
+        stpp.name)
+    windows = _windows(rows.n, rows.edges(found.do_lb, found.do_ub), found.q, 0)
+    q = found.q
     times = tuple(float(v) / tps for v in (q - q[0]))
-    lap("do_windows")
-    return CompileResult(stpp, tps, True, (), float(value), tuple(float(v) for v in x), times, do_net, windows,
-                         original, _flexibility(original, windows, 0), tolerance, solver, widen, tuple(seconds))
+    laps.append(("do_windows", time.perf_counter() - clock))
+    return CompileResult(stpp, tps, True, (), float(found.value or 0.0), tuple(float(v) for v in found.x), times,
+                         do_net, windows, original, _flexibility(original, windows, 0), found.tolerance, solver,
+                         found.widened, tuple(laps))
 
 
 def do_apsp(result: CompileResult) -> np.ndarray:

@@ -40,7 +40,8 @@ import numpy as np
 
 from hrc.errors import DispatchError, HrcError
 from hrc.model import Task
-from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state, residual_network
+from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
+from hrc.temporal.execution import residual_origin
 
 from .messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor
 from .native import NO_BOUND
@@ -396,14 +397,14 @@ class Dispatcher:
             return step
         form = do.get(index)
         if form is None or (form is not False and not _within(form, done)):
-            form = do[index] = _do_form(entry, residual_network(entry.stnu, done, now), task.preferences)
+            form = do[index] = _do_form(entry, done, now, task.preferences)
         if form is False:
             return step
         events, apsp = form
-        past = _past(form, done)
+        at, times = _past(form, done)
         i = events[node]
-        lo = max(t - apsp[i, j] for j, t in past)
-        hi = min(t + apsp[j, i] for j, t in past)
+        lo = np.max(times - apsp[i, at])
+        hi = np.min(times + apsp[at, i])
         earliest = max(step.earliest, round(max(lo, now) / 1000, 3))
         latest = step.latest
         if hi != float("inf"):
@@ -481,37 +482,89 @@ class Dispatcher:
 _DOForm = tuple[dict[str, int], Any]  # event -> index, the DO form's APSP matrix (ticks); index 0: its origin
 
 
-def _do_form(entry: PlanEntry, residual: Any, preferences: Any) -> _DOForm | Literal[False]:
-    """APA's DO form of the plan's residual network (its event index and APSP matrix in ticks, the
-    residual's origin, at the task's start, first), or False when the plan can keep no preferred interval."""
-    from hrc.apa.compile import do_apsp
-    from hrc.apa.plan import plan_preference_value  # the QP solver only where preferences are used
+def _do_form(entry: PlanEntry, done: dict[str, int], now: int, preferences: Any) -> _DOForm | Literal[False]:
+    """APA's DO form of the plan's residual network (`residual_network`: its origin, at the task's
+    start, first, then the plan's timepoints), read as an STP with the task's `preferences`: its event
+    index and APSP matrix in ticks; False when the plan can keep no preferred interval. What
+    `hrc.apa.plan.plan_preference_value` and `hrc.apa.compile.do_apsp` compute on the residual
+    `STNU`, built here straight as the rows APA compiles (`hrc.apa.compile.Rows`, the same rows in the
+    same order), with no objects and no conversion through seconds (Wilcox et al. 2012, Fig. 5 on Fig. 8's
+    line 7: the DO form compiled again from what happened)."""
+    from hrc.apa.compile import Rows, compile_rows, rows_apsp  # the QP solver only where preferences are used
+    from hrc.apa.model import PreferenceFunction
     from hrc.compile.temporal_net_creator import event_timepoint
     from hrc.temporal.graphml import tool_name
+    from hrc.temporal.ticks import to_ticks
 
-    prefs = [(tool_name(event_timepoint(entry.plan, p.source)), tool_name(event_timepoint(entry.plan, p.target)), p)
-             for p in preferences]
+    stnu = entry.stnu
+    names = stnu.timepoints
+    index = {v: k + 1 for k, v in enumerate(names)}  # 0: the residual's origin
+    inf = float("inf")
+    src: list[int] = []
+    dst: list[int] = []
+    lbs: list[float] = []
+    ubs: list[float] = []
+
+    def row(a: int, b: int, lb: float, ub: float) -> None:
+        src.append(a)
+        dst.append(b)
+        lbs.append(lb)
+        ubs.append(ub)
+
+    for r in stnu.requirements:  # residual_network's links, in its order
+        if r.source in done and r.target in done:
+            continue
+        row(index[r.source], index[r.target], -inf if r.lb is None else r.lb, inf if r.ub is None else r.ub)
+    for x, t in done.items():
+        row(0, index[x], t, t)
+    contingent = stnu.contingent_timepoints
+    for x in names:
+        if x not in done and x not in contingent:
+            row(0, index[x], now, inf)
+    for c in stnu.contingents:
+        if c.target in done:
+            continue
+        lb, ub = c.lb, c.ub
+        if c.source in done:
+            elapsed = now - done[c.source]
+            lb, ub = max(lb, elapsed), max(ub, elapsed)
+        row(index[c.source], index[c.target], lb, ub)
+    prefs = []
+    for p in preferences:
+        a = index.get(tool_name(event_timepoint(entry.plan, p.source)))
+        b = index.get(tool_name(event_timepoint(entry.plan, p.target)))
+        if a is None or b is None:
+            return False
+        prefs.append((len(src), PreferenceFunction(p.kind, tuple(p.coefficients))))
+        row(a, b, to_ticks(p.domain.lb, 1000), to_ticks(p.domain.ub, 1000))
+    rows = Rows(len(names) + 1, np.array(src, dtype=np.int64), np.array(dst, dtype=np.int64),
+                np.array(lbs, dtype=np.float64), np.array(ubs, dtype=np.float64), tuple(prefs))
     try:
-        result = plan_preference_value(residual, prefs)
+        result = compile_rows(rows, ticks_per_second=1000)
     except HrcError:
         return False
-    if not result.consistent:
+    if not result.consistent or result.do_lb is None or result.do_ub is None:
         return False
-    return {e: k for k, e in enumerate(result.stpp.events)}, do_apsp(result)
+    events = {residual_origin(stnu): 0}
+    events.update(index)
+    return events, rows_apsp(rows, result.do_lb, result.do_ub)
 
 
-def _past(form: _DOForm, done: dict[str, int]) -> list[tuple[int, int]]:
-    """``(index in the DO form, tick)`` of its origin and of every executed timepoint."""
+def _past(form: _DOForm, done: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
+    """The index in the DO form and the tick of its origin and of every executed timepoint in it."""
     events = form[0]
-    return [(0, 0)] + [(events[x], t) for x, t in done.items() if x in events]
+    at = [0] + [events[x] for x in done if x in events]
+    return np.array(at, dtype=np.int64), np.array([0] + [t for x, t in done.items() if x in events], dtype=np.int64)
 
 
 def _within(form: _DOForm, done: dict[str, int]) -> bool:
     """Whether what happened keeps to the DO form (every pair of executed timepoints within its bounds,
     to the tick): otherwise the optimal policy was left and APA compiles again (Fig. 8, line 7)."""
-    apsp = form[1]
-    past = _past(form, done)
-    return all(t2 - t1 <= apsp[i, j] + 1 for i, t1 in past for j, t2 in past if i != j)
+    at, times = _past(form, done)
+    apart = times[None, :] - times[:, None]  # [i, j]: T(j) - T(i)
+    ok = apart <= form[1][np.ix_(at, at)] + 1
+    np.fill_diagonal(ok, True)
+    return bool(ok.all())
 
 
 def _rank(mode: ExecutionMode) -> int:

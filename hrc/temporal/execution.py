@@ -80,7 +80,7 @@ from hrc.temporal.graph import EdgeKind
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
 
 __all__ = ["RESIDUAL_ORIGIN", "ExecutionMode", "ExecutionWindow", "MustWait", "RealTimeState", "real_time_state",
-           "residual_network", "violated_links"]
+           "residual_network", "residual_origin", "violated_links"]
 
 RESIDUAL_ORIGIN = "__now__"
 """Name of the residual network's origin (underscores are appended while it clashes with a timepoint)."""
@@ -117,7 +117,9 @@ class MustWait:
     until: tuple[str, ...]
 
 
-def _origin_name(stnu: STNU) -> str:
+def residual_origin(stnu: STNU) -> str:
+    """The name of `stnu`'s residual networks' origin: `RESIDUAL_ORIGIN`, with underscores appended while
+    it clashes with a timepoint of `stnu`."""
     name = RESIDUAL_ORIGIN
     known = set(stnu.timepoints)
     while name in known:
@@ -152,7 +154,7 @@ def residual_network(stnu: STNU, executed: Mapping[str, int], now: int) -> STNU:
     before its activation. O(links).
     """
     _check_execution(stnu, executed, now)
-    origin = _origin_name(stnu)
+    origin = residual_origin(stnu)
     reqs = [r for r in stnu.requirements if not (r.source in executed and r.target in executed)]
     reqs.extend(RequirementLink(origin, x, t, t) for x, t in executed.items())
     conts: list[ContingentLink] = []
