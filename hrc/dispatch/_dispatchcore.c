@@ -56,7 +56,8 @@ typedef struct {
 typedef struct {
     HrcRul *rul;
     int ncap, mcap;
-    int64_t *ex, *t, *pot, now;
+    int64_t *ex, *t, *pot, *pot2, now;
+    int *map, *unmap, nn;           /* executed timepoints folded into the origin: map[x], and back */
     uint8_t *contingent;
     int *first, *next_src;          /* longest-path edges by source: counting sort */
     int *lu, *lv, *order;
@@ -73,19 +74,24 @@ HrcWork *hrc_dispatch_work_new(void) {
 void hrc_dispatch_work_free(HrcWork *w) {
     if (!w) return;
     hrc_rul_free(w->rul);
-    free(w->ex); free(w->t); free(w->pot); free(w->contingent); free(w->first); free(w->next_src); free(w->lu);
-    free(w->lv);
+    free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
+    free(w->first); free(w->next_src); free(w->lu); free(w->lv);
     free(w->order); free(w->len); free(w->lb); free(w->ub); free(w->fixed);
     free(w);
 }
 
 static int reserve(HrcWork *w, int n, int m) {
     if (n > w->ncap) {
-        free(w->ex); free(w->t); free(w->pot); free(w->contingent); free(w->first);
+        free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
+        free(w->first);
         w->ex = malloc(sizeof(int64_t) * (size_t)n); w->t = malloc(sizeof(int64_t) * (size_t)n);
-        w->pot = malloc(sizeof(int64_t) * (size_t)n);
+        w->pot = malloc(sizeof(int64_t) * (size_t)n); w->pot2 = malloc(sizeof(int64_t) * (size_t)n);
+        w->map = malloc(sizeof(int) * (size_t)n); w->unmap = malloc(sizeof(int) * (size_t)n);
         w->contingent = malloc((size_t)n); w->first = malloc(sizeof(int) * (size_t)(n + 1));
-        if (!w->ex || !w->t || !w->pot || !w->contingent || !w->first) { w->ncap = 0; return -1; }
+        if (!w->ex || !w->t || !w->pot || !w->pot2 || !w->map || !w->unmap || !w->contingent || !w->first) {
+            w->ncap = 0;
+            return -1;
+        }
         w->ncap = n;
     }
     if (m > w->mcap) {
@@ -209,7 +215,22 @@ static int prepare(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w) {
         w->fixed[j] = s->rank_by == 1 ? lb : s->rank_by == 2 ? floor_half(lb + ub) : ub;
         if (ex[c] == NONE) active++;
     }
+    /* the residual network folded: an executed timepoint is the origin, offset by its time (it is pinned
+     * there), so only what is still to happen stays a node (fewer nodes for the checks as a run goes on) */
+    w->nn = 1;
+    w->unmap[0] = 0;
+    for (int x = 0; x < n; x++) {
+        if (ex[x] != NONE) { w->map[x] = 0; continue; }
+        w->unmap[w->nn] = x;
+        w->map[x] = w->nn++;
+    }
     return active;
+}
+
+/* The folded residual's weight of plan edge u -> v (T(v) - T(u) <= wt), between folded nodes map[u] and
+ * map[v]: an executed end is the origin at its time. */
+static int64_t folded(const HrcWork *w, int u, int v, int64_t wt) {
+    return wt + (w->ex[u] != NONE ? w->ex[u] : 0) - (w->ex[v] != NONE ? w->ex[v] : 0);
 }
 
 static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, int8_t *cls, int64_t *finish,
@@ -232,25 +253,24 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
     } else if (lb_found && active == 0) {
         *cls = 0;
     } else {
-        if (hrc_rul_begin(w->rul, n, active)) return -1;
+        const int *map = w->map;
+        if (hrc_rul_begin(w->rul, w->nn, active)) return -1;
         for (int64_t i = e0; i < e1; i++) {
             int u = f->eu[i], v = f->ev[i];
             if (ex[u] != NONE && ex[v] != NONE) continue;
-            if (hrc_rul_edge(w->rul, u, v, weight(f->ew32, f->ew64, i))) return -1;
+            if (hrc_rul_edge(w->rul, map[u], map[v], folded(w, u, v, weight(f->ew32, f->ew64, i)))) return -1;
         }
         for (int x = 1; x < n; x++) {
-            if (ex[x] != NONE) {
-                if (hrc_rul_edge(w->rul, 0, x, ex[x]) || hrc_rul_edge(w->rul, x, 0, -ex[x])) return -1;
-            } else if (!w->contingent[x]) {
-                if (hrc_rul_edge(w->rul, x, 0, -now)) return -1;
-            }
+            if (ex[x] == NONE && !w->contingent[x] && hrc_rul_edge(w->rul, map[x], 0, -now)) return -1;
         }
         int l = 0;
         for (int j = 0; j < k; j++) {
-            int c = f->cc[c0 + j];
-            if (ex[c] == NONE) hrc_rul_link(w->rul, l++, f->ca[c0 + j], c, w->lb[j], w->ub[j]);
+            int a = f->ca[c0 + j], c = f->cc[c0 + j];
+            int64_t shift = ex[a] != NONE ? ex[a] : 0;  /* a link in progress: from the origin */
+            if (ex[c] == NONE) hrc_rul_link(w->rul, l++, map[a], map[c], w->lb[j] + shift, w->ub[j] + shift);
         }
-        int verdict = hrc_rul_run(w->rul, lb_found ? w->pot : NULL);
+        if (lb_found) for (int y = 0; y < w->nn; y++) w->pot2[y] = w->pot[w->unmap[y]];
+        int verdict = hrc_rul_run(w->rul, lb_found ? w->pot2 : NULL);
         if (verdict < 0) return -1;
         *cls = (int8_t)verdict;
     }
@@ -684,46 +704,48 @@ int hrc_dispatch_windows(const HrcForm *f, const HrcState *s, HrcWork *w, int64_
     for (int x = 0; x < n; x++) if (ex[x] != NONE && (ex[x] >= big || ex[x] <= -big)) return -1;
     if (now >= big || now < 0) return -1;
     for (int i = 0; i < nq; i++) if (query[i] < 1 || query[i] >= n) return -1;
-    int result = 0, derived_from = 0;
+    int result = 0, derived_from = 0, nn = w->nn;
+    const int *map = w->map, *unmap = w->unmap;
     Closure c;
     memset(&c, 0, sizeof c);
     Arcs stn, modal, rev;
     memset(&stn, 0, sizeof stn); memset(&modal, 0, sizeof modal); memset(&rev, 0, sizeof rev);
-    int64_t *d_to = malloc(sizeof(int64_t) * (size_t)n), *d_from = malloc(sizeof(int64_t) * (size_t)n);
-    int64_t *d_x = malloc(sizeof(int64_t) * (size_t)n);
-    if (!d_to || !d_from || !d_x || arcs_init(&c.g, n) || arcs_init(&stn, n) || arcs_init(&modal, n) ||
+    int64_t *d_to = malloc(sizeof(int64_t) * (size_t)nn), *d_from = malloc(sizeof(int64_t) * (size_t)nn);
+    int64_t *d_x = malloc(sizeof(int64_t) * (size_t)nn);
+    if (!d_to || !d_from || !d_x || arcs_init(&c.g, nn) || arcs_init(&stn, nn) || arcs_init(&modal, nn) ||
         best_grow(&c)) { result = -1; goto done; }
     c.la = malloc(sizeof(int) * (size_t)(k + 1)); c.lc = malloc(sizeof(int) * (size_t)(k + 1));
-    c.lx = malloc(sizeof(int64_t) * (size_t)(k + 1)); c.min_lb = calloc((size_t)n, sizeof(int64_t));
-    c.link_of = malloc(sizeof(int) * (size_t)n); c.p = calloc((size_t)n, sizeof(int64_t));
+    c.lx = malloc(sizeof(int64_t) * (size_t)(k + 1)); c.min_lb = calloc((size_t)nn, sizeof(int64_t));
+    c.link_of = malloc(sizeof(int) * (size_t)nn); c.p = calloc((size_t)nn, sizeof(int64_t));
     if (!c.la || !c.lc || !c.lx || !c.min_lb || !c.link_of || !c.p) { result = -1; goto done; }
-    for (int v = 0; v < n; v++) c.link_of[v] = -1;
-    /* the residual's labelled graph: its ordinary edges (requirements, pins, "now or later", contingent
-     * links as pairs) into the STN check's graph and the closure's, its upper-case edges into the closure's */
+    for (int v = 0; v < nn; v++) c.link_of[v] = -1;
+    /* the residual's labelled graph, folded (`prepare`: an executed timepoint is the origin at its time):
+     * its ordinary edges (requirements, "now or later", contingent links as pairs) into the STN check's
+     * graph and the closure's, its upper-case edges into the closure's */
 #define BOTH(u, v, wt) do { if (arcs_add(&stn, u, v, wt, -1) < 0 || closure_add(&c, u, v, wt, -1) < 0) \
                                 { result = -1; goto done; } } while (0)
     for (int64_t i = e0; i < e1; i++) {
         int u = f->eu[i], v = f->ev[i];
         if (ex[u] != NONE && ex[v] != NONE) continue;
-        BOTH(u, v, weight(f->ew32, f->ew64, i));
+        BOTH(map[u], map[v], folded(w, u, v, weight(f->ew32, f->ew64, i)));
     }
-    for (int x = 1; x < n; x++) {
-        if (ex[x] != NONE) { BOTH(0, x, ex[x]); BOTH(x, 0, -ex[x]); }
-        else if (!w->contingent[x]) BOTH(x, 0, -now);
-    }
+    for (int x = 1; x < n; x++) if (ex[x] == NONE && !w->contingent[x]) BOTH(map[x], 0, -now);
     for (int j = 0; j < k; j++) {
         int a = f->ca[c0 + j], cc = f->cc[c0 + j];
         if (ex[cc] != NONE) continue;
-        BOTH(a, cc, w->ub[j]);
-        BOTH(cc, a, -w->lb[j]);
-        c.la[c.k] = a; c.lc[c.k] = cc; c.lx[c.k] = w->lb[j]; c.link_of[cc] = c.k; c.min_lb[cc] = w->lb[j];
+        int64_t shift = ex[a] != NONE ? ex[a] : 0, lb = w->lb[j] + shift, ub = w->ub[j] + shift;
+        int A = map[a], C = map[cc];
+        BOTH(A, C, ub);
+        BOTH(C, A, -lb);
+        c.la[c.k] = A; c.lc[c.k] = C; c.lx[c.k] = lb; c.link_of[C] = c.k; c.min_lb[C] = lb;
         c.k++;
     }
 #undef BOTH
     for (int j = 0; j < k; j++) {
-        int cc = f->cc[c0 + j];
+        int a = f->ca[c0 + j], cc = f->cc[c0 + j];
         if (ex[cc] != NONE) continue;
-        if (closure_add(&c, cc, f->ca[c0 + j], -w->ub[j], cc) < 0) { result = -1; goto done; }
+        int64_t shift = ex[a] != NONE ? ex[a] : 0;
+        if (closure_add(&c, map[cc], map[a], -(w->ub[j] + shift), map[cc]) < 0) { result = -1; goto done; }
     }
     /* the residual's verdict, as far as the mode asked for needs it */
     if (*mode <= 1) {
@@ -737,28 +759,29 @@ int hrc_dispatch_windows(const HrcForm *f, const HrcState *s, HrcWork *w, int64_
         if (r < 0) { result = -1; goto done; }
         if (r) *mode = 1;
     }
-    /* the mode's graph */
+    /* the mode's graph (EARLIEST keeps orderings and lower bounds: edges of weight <= 0, but those from an
+     * executed timepoint to one to come; the pins are the folding itself) */
     for (int64_t i = e0; i < e1; i++) {
         int u = f->eu[i], v = f->ev[i];
         if (ex[u] != NONE && ex[v] != NONE) continue;
         int64_t wt = weight(f->ew32, f->ew64, i);
         if (*mode == 2 && (wt > 0 || (ex[u] != NONE && ex[v] == NONE))) continue;
-        if (arcs_add(&modal, u, v, wt, -1) < 0) { result = -1; goto done; }
+        if (arcs_add(&modal, map[u], map[v], folded(w, u, v, wt), -1) < 0) { result = -1; goto done; }
     }
     for (int x = 1; x < n; x++) {
-        if (ex[x] != NONE) {
-            if (arcs_add(&modal, 0, x, ex[x], -1) < 0 || arcs_add(&modal, x, 0, -ex[x], -1) < 0) { result = -1; goto done; }
-        } else if (!w->contingent[x] && arcs_add(&modal, x, 0, -now, -1) < 0) { result = -1; goto done; }
+        if (ex[x] == NONE && !w->contingent[x] && arcs_add(&modal, map[x], 0, -now, -1) < 0) { result = -1; goto done; }
     }
     for (int j = 0; j < k; j++) {
         int a = f->ca[c0 + j], cc = f->cc[c0 + j];
         if (ex[cc] != NONE) continue;
         int in_progress = ex[a] != NONE;
-        if (arcs_add(&modal, cc, a, -w->lb[j], -1) < 0) { result = -1; goto done; }
-        if ((*mode == 1 || (*mode == 0 && !in_progress)) && arcs_add(&modal, a, cc, w->ub[j], -1) < 0) {
+        int64_t shift = in_progress ? ex[a] : 0, lb = w->lb[j] + shift, ub = w->ub[j] + shift;
+        int A = map[a], C = map[cc];
+        if (arcs_add(&modal, C, A, -lb, -1) < 0) { result = -1; goto done; }
+        if ((*mode == 1 || (*mode == 0 && !in_progress)) && arcs_add(&modal, A, C, ub, -1) < 0) {
             result = -1; goto done;
         }
-        if (*mode == 0 && arcs_add(&modal, cc, a, -w->ub[j], -1) < 0) { result = -1; goto done; }
+        if (*mode == 0 && arcs_add(&modal, C, A, -ub, -1) < 0) { result = -1; goto done; }
     }
     if (*mode == 0) {  /* every bypass the closure derived, upper-case ones read as ordinary (AllMax) */
         for (int e = derived_from; e < c.g.m; e++) {
@@ -773,23 +796,25 @@ int hrc_dispatch_windows(const HrcForm *f, const HrcState *s, HrcWork *w, int64_
     if (!r_to && *mode != 2) {
         int r = distances(&modal, 0, d_from);
         if (r < 0) { result = -1; goto done; }
-        for (int v = 1; v < n; v++) if (ex[v] == NONE && d_from[v] < last) last = d_from[v];
+        for (int v = 1; v < nn; v++) if (d_from[v] < last) last = d_from[v];
     }
     for (int i = 0; i < nq; i++) {
-        int x = query[i];
-        int r_x = r_to ? 1 : distances(&modal, x, d_x);
+        int x = query[i], X = map[x];
+        if (X == 0) { result = -1; goto done; }  /* executed already: not the caller's question */
+        int r_x = r_to ? 1 : distances(&modal, X, d_x);
         if (r_x < 0) { result = -1; goto done; }
         waits[i] = 0;
         if (r_x) {  /* a negative cycle (EARLIEST only): now */
             earliest[i] = now; latest[i] = now;
             continue;
         }
-        for (int v = 1; v < n; v++) {
-            if (v == x || ex[v] != NONE || d_x[v] == INF) continue;
+        for (int V = 1; V < nn; V++) {
+            if (V == X || d_x[V] == INF) continue;
+            int v = unmap[V];
             int weak = w->contingent[v] || uncontrolled[(int64_t)i * n + v];
-            if (d_x[v] < 0 || (weak && d_x[v] <= 0)) until[(int64_t)i * n + waits[i]++] = v;
+            if (d_x[V] < 0 || (weak && d_x[V] <= 0)) until[(int64_t)i * n + waits[i]++] = v;
         }
-        earliest[i] = d_to[x] == INF ? now : max64(now, -d_to[x]);
+        earliest[i] = d_to[X] == INF ? now : max64(now, -d_to[X]);
         latest[i] = *mode == 2 ? earliest[i] : last;
     }
 done:
