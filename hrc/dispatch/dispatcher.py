@@ -233,8 +233,8 @@ class Dispatcher:
             return self._undo(obs)
         history = state.history.add(obs)
         form = self.plan_set.form
-        if obs.event == "tick":
-            kept = state.plans
+        if obs.event == "tick" or (obs.event != "back" and _validated_by(state.history) == _validated_by(history)):
+            kept = state.plans  # nothing set validation reads has changed
         else:  # "back" brings back every plan that agrees with the history
             pool = np.arange(len(self.plan_set), dtype=np.int64) if obs.event == "back" else state.plans
             kept = agreeing(form, history, pool)
@@ -248,7 +248,7 @@ class Dispatcher:
             raise DispatchError(f"no remaining plan allows {_describe(obs)} "
                                 f"({len(state.plans)} plans agreed with what was seen before)")
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
-                                   state)
+                                   state, _seen_after(state, history, obs))
         return self._state.decision
 
     def _undo(self, obs: Observation) -> Decision:
@@ -275,12 +275,14 @@ class Dispatcher:
         return self._state.decision
 
     def _settle(self, history: History, accepted: tuple[Observation, ...], effective: tuple[Observation, ...],
-                kept: np.ndarray, do_forms: Any, previous: _State | None) -> _State:
+                kept: np.ndarray, do_forms: Any, previous: _State | None,
+                core: tuple[np.ndarray, np.ndarray] | None = None) -> _State:
         """Rank `kept` under `history` (set ranking, `Ranker`), decide. A plan's evaluation is taken from
         the `previous` state when what enters it is the same (the seen events and now: a tick at the same
-        time, an announced next action, away), else made again."""
+        time, an announced next action, away), else made again. `core`: the history as `seen_arrays`
+        makes it, when the caller has it."""
         form = self.plan_set.form
-        seen, legs_seen = seen_arrays(history, form.nodes.shape[2])
+        seen, legs_seen = core if core is not None else seen_arrays(history, form.nodes.shape[2])
         now = ticks(history.now)
         if previous is not None and previous.now == now and np.array_equal(previous.seen, seen) and \
                 np.array_equal(previous.legs_seen, legs_seen) and len(previous.plans):
@@ -333,7 +335,7 @@ class Dispatcher:
             if nxt is None or nxt[3] in contingent or (agent == human and history.away):
                 continue
             action, phase, event, node = nxt
-            arrival = self._arrival(entry, agent, action, phase, event, node, done, now)
+            arrival = self._arrival(entry, index, agent, action, phase, event, node, done, now)
             if arrival is not None:  # under way: it gets there when its drive says
                 out[slot] = arrival
                 continue
@@ -366,7 +368,7 @@ class Dispatcher:
         native = self.ranker.native
         if native is not None:
             names = entry.stnu.timepoints  # the form's numbering (`PlanSet.entry`)
-            at = {name: i for i, name in enumerate(names)}
+            at = self.plan_set.node_index(p)
             unc = np.zeros((len(asks), len(names)), dtype=bool)
             for i, ask in enumerate(asks):
                 unc[i, [at[name] for name in ask[6]]] = True
@@ -413,8 +415,7 @@ class Dispatcher:
             return step
         return RobotStep(step.action, step.phase, step.event, earliest, latest)
 
-    @staticmethod
-    def _arrival(entry: PlanEntry, agent: str, action: str, phase: str, event: str, node: str,
+    def _arrival(self, entry: PlanEntry, p: int, agent: str, action: str, phase: str, event: str, node: str,
                  done: dict[str, int], now: int) -> RobotStep | None:
         """The end of a drive under way (``arrive`` or ``park`` after an executed ``depart`` or ``unpark``):
         not a decision but the drive's own time, from the link between the two (the robot drives a route
@@ -426,16 +427,15 @@ class Dispatcher:
         prev = names[names.index(node) - 1]
         if prev not in done:
             return None
-        lo, hi = 0, None
-        for r in entry.stnu.requirements:
-            if (r.source, r.target) == (prev, node):
-                lo = max(lo, r.lb or 0)
-                hi = r.ub if hi is None or (r.ub is not None and r.ub < hi) else hi
-            elif (r.source, r.target) == (node, prev):
-                if r.ub is not None:
-                    lo = max(lo, -r.ub)
-                if r.lb is not None:
-                    hi = -r.lb if hi is None else min(hi, -r.lb)
+        at = self.plan_set.node_index(p)
+        a, b = at[prev], at[node]
+        form = self.plan_set.form
+        e0, e1 = int(form.edges_ptr[p]), int(form.edges_ptr[p + 1])
+        u, v, w = form.edges_u[e0:e1], form.edges_v[e0:e1], form.edges_w[e0:e1]
+        ahead = w[(u == a) & (v == b)]  # T(b) - T(a) <= w
+        back = w[(u == b) & (v == a)]  # T(a) - T(b) <= w: T(b) - T(a) >= -w
+        lo = max(0, *(-int(x) for x in back))
+        hi = min((int(x) for x in ahead), default=None)
         start = done[prev]
         earliest = max(now, start + lo)
         latest = None if hi is None else max(earliest, start + hi)
@@ -565,6 +565,27 @@ def _within(form: _DOForm, done: dict[str, int]) -> bool:
     ok = apart <= form[1][np.ix_(at, at)] + 1
     np.fill_diagonal(ok, True)
     return bool(ok.all())
+
+
+def _validated_by(history: History) -> tuple:
+    """What set validation reads of a history (`agreeing`): each agent's legs, the announced next
+    actions, whether the human is away."""
+    return (tuple(history.legs.items()), tuple(sorted(history.announced.items())), history.away)
+
+
+def _seen_after(state: _State, history: History, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+    """`seen_arrays` of `history`, which is `state`'s with `obs` added: `state`'s arrays, with the cell of
+    a leg event set (its agent's leg position: the last of its legs, or the one it names)."""
+    if obs.event not in LEG_EVENTS:
+        return state.seen, state.legs_seen
+    agent = obs.agent or ""
+    g = history.task.agent_ids.index(agent)
+    legs = history.legs[agent]
+    k = legs.index((obs.action, obs.phase))
+    seen, legs_seen = state.seen.copy(), state.legs_seen.copy()
+    seen[g, k, LEG_EVENTS.index(obs.event)] = ticks(obs.t)
+    legs_seen[g] = len(legs)
+    return seen, legs_seen
 
 
 def _rank(mode: ExecutionMode) -> int:

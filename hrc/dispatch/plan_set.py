@@ -112,7 +112,7 @@ class PlanSet:
         self.rank_by: str = form.rank_by
         self.source = source or form.source
         self._index: dict[str, int] | None = None
-        self._entries: OrderedDict[int, PlanEntry] = OrderedDict()
+        self._entries: OrderedDict[int, tuple[PlanEntry, dict[str, int]]] = OrderedDict()
         self._digest: str | None = None
 
     def __len__(self) -> int:
@@ -139,6 +139,13 @@ class PlanSet:
 
     def entry(self, p: int) -> PlanEntry:
         """Plan `p`'s `PlanEntry`, its STNU made from the form's arrays (a few are kept)."""
+        return self._entry(p)[0]
+
+    def node_index(self, p: int) -> dict[str, int]:
+        """Plan `p`'s timepoints by name: their index in the form's arrays (and in its entry's STNU)."""
+        return self._entry(p)[1]
+
+    def _entry(self, p: int) -> tuple[PlanEntry, dict[str, int]]:
         found = self._entries.get(p)
         if found is not None:
             self._entries.move_to_end(p)
@@ -149,10 +156,10 @@ class PlanSet:
         entry = plan_entry(self.task, form.plan(p), int(row["rank"]), _CLASSES[int(row["cls"])],
                            None if pref != pref else pref, form.stnu(p), f"{self.source}: plan {form.plan_id(p)}",
                            bool(row["blocked"]))
-        self._entries[p] = entry
+        found = self._entries[p] = (entry, {name: i for i, name in enumerate(entry.stnu.timepoints)})
         if len(self._entries) > _ENTRIES_KEPT:
             self._entries.popitem(last=False)
-        return entry
+        return found
 
     @property
     def plans(self) -> _Entries:
