@@ -44,6 +44,9 @@ Point = tuple[float, float]
 CONTACT = 0.02
 """m: the smallest free distance a walking person leaves to the robot (they stop rather than touch it)."""
 
+QUERY_GAP = 0.05
+"""m: discs at least this far apart cannot touch within a step; pymunk is asked only when they are closer."""
+
 
 @dataclass(slots=True)
 class Mover:
@@ -147,9 +150,12 @@ class Floor:
     def advance(self, h: float) -> None:
         """Move both agents for `h` seconds (person first, then the robot's response)."""
         hm, rm = self.human, self.robot
+        radii = self._radii
         if hm.present and hm.moving:
             want = min(hm.speed * h, hm.remaining)
-            got = self._walk(hm, want, lambda p: self.free(p, rm.xy) >= min(CONTACT, self.free()) - 1e-12)
+            rx, ry = rm.xy
+            floor = min(CONTACT, self.free()) - 1e-12  # the free distance the person keeps (`free`, inlined)
+            got = self._walk(hm, want, lambda p: math.hypot(p[0] - rx, p[1] - ry) - radii >= floor)
             hm.travelled += h
             if want > 0 and got < want - 1e-9:
                 hm.held += h * (1 - got / want)
@@ -162,7 +168,11 @@ class Floor:
             if closing and before < self.margin + self.slowdown and self.slowdown > 0:
                 want *= max(0.0, min(1.0, (before - self.margin) / self.slowdown))
             limit = min(self.margin, before)
-            got = self._walk(rm, want, lambda p: self.free(hm.xy, p) >= limit - 1e-12)
+            if hm.present:
+                hx, hy = hm.xy
+                got = self._walk(rm, want, lambda p: math.hypot(hx - p[0], hy - p[1]) - radii >= limit - 1e-12)
+            else:
+                got = self._walk(rm, want, lambda p: True)
             if got <= 1e-12 and closing and before < self.margin and rm.s > 0:
                 self._back_off(rm, rm.speed * h / 2)  # the person keeps coming: make room
             rm.travelled += h
@@ -204,7 +214,15 @@ class Floor:
             m.s, m.xy = s, p
 
     def _sync(self, h: float) -> None:
-        """Move the pymunk bodies to the agents' positions and ask pymunk whether the discs touch."""
+        """Move the pymunk bodies to the agents' positions and ask pymunk whether the discs touch (only when
+        they are closer than `QUERY_GAP`: farther apart they cannot, and the bodies are only moved)."""
+        if self.human.present:
+            free = self.free()
+            self.min_free = min(self.min_free, free)
+            if free > QUERY_GAP:
+                for m in (self.human, self.robot):
+                    m.body.position = m.xy
+                return
         for m in (self.human, self.robot):
             old = m.body.position
             m.body.velocity = ((m.xy[0] - old.x) / h, (m.xy[1] - old.y) / h) if h > 0 else (0.0, 0.0)
@@ -213,7 +231,6 @@ class Floor:
             m.body.position = m.xy
             m.body.velocity = (0.0, 0.0)
         if self.human.present:
-            self.min_free = min(self.min_free, self.free())
             self.world.space.reindex_shapes_for_body(self.human.body)
             self.world.space.reindex_shapes_for_body(self.robot.body)
             hits = self.world.space.shape_query(self.robot.shape)

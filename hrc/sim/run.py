@@ -176,7 +176,7 @@ def make_controller(ctx: SimContext, policy: Policy) -> Controller:
     if pristine is None:
         from hrc.dispatch import Dispatcher
 
-        pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only)
+        pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
     # A dispatcher replaces its whole (immutable) state on every message, so a shallow copy of a fresh one
     # is a fresh one: 30 us instead of 0.3 s (workshop) for `from_compiled` (the API has no reset or copy).
     return DispatchedController(pristine.fork(), cps, ctx.paths, policy.compile == "blind")
