@@ -254,13 +254,15 @@ def test_bad_input_two_tabs_and_a_dropped_connection_leave_the_run_unchanged(con
 def test_the_robot_endpoint_takes_acks_and_refuses_bad_ones(console: ConsoleProcess) -> None:
     from websockets.sync.client import connect
 
-    base = console.url.replace("http://", "ws://")
-    with connect(base + "robot", open_timeout=10, close_timeout=5) as robot, \
-            connect(base + "ws", open_timeout=10, close_timeout=5) as person:
+    base = console.ws
+    with connect(base + "robot", open_timeout=10, close_timeout=5,
+                 additional_headers=console.robot_headers()) as robot, \
+            connect(base + "ws", open_timeout=10, close_timeout=5, additional_headers=console.page_headers()) as person:
         assert json.loads(robot.recv(timeout=10))["type"] == "hello"
         decision = json.loads(robot.recv(timeout=10))
         assert decision["type"] == "decision"
-        with connect(base + "robot", open_timeout=10, close_timeout=5) as second:  # one controller at a time
+        with connect(base + "robot", open_timeout=10, close_timeout=5,
+                     additional_headers=console.robot_headers()) as second:  # one controller at a time
             assert "already connected" in json.loads(second.recv(timeout=10))["error"]
         # the workshop's best plan has the robot wait for the person's first move: press it (the page's protocol)
         hseq = 0

@@ -11,22 +11,25 @@ from pathlib import Path
 
 import uvicorn
 
+from hrc.console.access import Credentials
 from hrc.console.clock import RunClock
 from hrc.console.runlog import next_log_path, open_log
 from hrc.console.server import MAX_MESSAGE, ConsoleServer
 from hrc.console.session import ConsoleSession
 from hrc.console.views import PlanRoutes
 from hrc.dispatch import Dispatcher
-from hrc.errors import InputError
+from hrc.errors import HrcError, InputError
 from hrc.motion import plan_paths
 
 __all__ = ["open_console", "serve"]
 
 
 def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,
-                 simulate_robot: bool = False, tick: float = 2.0) -> ConsoleServer:
+                 simulate_robot: bool = False, tick: float = 2.0,
+                 credentials: Credentials | None = None) -> ConsoleServer:
     """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
-    ``OUT_DIR/runs/console-N.jsonl``). The run's clock starts now.
+    ``OUT_DIR/runs/console-N.jsonl``), `credentials` its secrets (default: new ones). The run's clock
+    starts when the first page or robot controller connects.
 
     Raises `InputError` when `out_dir` is not an ``hrc compile`` output, `FileExistsError` when `log` exists.
     Cost: loading the plan set and planning the free-space paths again (about 2 s for the workshop).
@@ -40,19 +43,28 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     routes = PlanRoutes(compiled, plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
     run_log = open_log(next_log_path(out_dir) if log is None else log, dispatcher)
     session = ConsoleSession(dispatcher, compiled, routes, RunClock(speed), run_log)
-    return ConsoleServer(session, simulate_robot=simulate_robot, tick=tick)
+    return ConsoleServer(session, simulate_robot=simulate_robot, tick=tick, credentials=credentials)
 
 
 def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
           ready: Callable[[str], None] | None = None) -> None:
-    """Serve until interrupted; `ready(url)` is called once the socket listens (port 0: any free port)."""
+    """Serve until interrupted; `ready(base_url)` is called once the socket listens (port 0: any free
+    port), with the address served (``http://HOST:PORT/``, no token). Raises `HrcError` when the address
+    cannot be listened on."""
     sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.bind((host, port))
-    sock.listen(64)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((host, port))
+        sock.listen(64)
+    except (OSError, OverflowError) as err:
+        sock.close()
+        raise HrcError(f"cannot listen on {host}:{port}: {getattr(err, 'strerror', None) or err}") from err
     bound = sock.getsockname()[1]
+    server.guard.listen(host, bound)
+    # proxy_headers off: no client may pass itself off as another address or scheme
     config = uvicorn.Config(server.app, log_level="warning", ws_max_size=MAX_MESSAGE * 4, ws_ping_interval=5.0,
-                            ws_ping_timeout=10.0, timeout_graceful_shutdown=2, lifespan="on")
+                            ws_ping_timeout=10.0, timeout_graceful_shutdown=2, lifespan="on",
+                            proxy_headers=False, server_header=False)
     if ready is not None:
         shown = f"[{host}]" if ":" in host else host
         ready(f"http://{shown}:{bound}/")

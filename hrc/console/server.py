@@ -10,6 +10,9 @@ dispatcher. Routes::
     WS  /ws               pages: pushes "setup" once, then "state" after every change; takes presses
     WS  /robot            the robot controller (docs/console.md): pushes "decision", takes "ack"
 
+Every route and websocket is behind `hrc.console.access.AccessGuard`: this server's own Host and Origin
+only, the page's secret everywhere but ``/robot``, the robot's own secret there.
+
 With ``simulate_robot`` the server plays the robot: each robot event is acknowledged at the start of
 its window (`hrc.console.robot`), and ``/robot`` refuses controllers.
 """
@@ -29,6 +32,7 @@ from starlette.responses import JSONResponse, PlainTextResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketState
 
+from hrc.console.access import AccessGuard, Credentials
 from hrc.console.robot import SimulatedRobot
 from hrc.console.session import ConsoleSession, Reply
 
@@ -41,6 +45,9 @@ _STATIC = {"console.js": "text/javascript; charset=utf-8", "console.css": "text/
 # Nothing but this server: no other host for scripts, styles, images or connections.
 _CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; "
         "base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
+
+
+_NO_STORE = {"Cache-Control": "no-store", "Referrer-Policy": "no-referrer", "X-Content-Type-Options": "nosniff"}
 
 
 def _page_file(name: str) -> bytes:
@@ -77,31 +84,36 @@ async def _receive(ws: WebSocket) -> str | bytes | None:
 
 
 class ConsoleServer:
-    """The ASGI app (`app`) around one `ConsoleSession`; `tick` is in run seconds (0: no ticks)."""
+    """The ASGI app (`app`, behind its `guard`) around one `ConsoleSession`; `tick` is in run seconds
+    (0: no ticks). `credentials`: the run's secrets (default: new ones)."""
 
-    def __init__(self, session: ConsoleSession, simulate_robot: bool = False, tick: float = 2.0) -> None:
+    def __init__(self, session: ConsoleSession, simulate_robot: bool = False, tick: float = 2.0,
+                 credentials: Credentials | None = None) -> None:
         self.session = session
         self.tick = tick
         self.pages: set[_Client] = set()
         self.robot: _Client | None = None
         self.sim = SimulatedRobot(session, self.changed) if simulate_robot else None
         session.robot_link = "simulated" if simulate_robot else "none"
-        self.app = Starlette(routes=[
+        self.credentials = credentials or Credentials.generate()
+        routes = Starlette(routes=[
             Route("/", self.index), Route("/static/{name}", self.static), Route("/state", self.state),
             Route("/log", self.log), WebSocketRoute("/ws", self.page_socket),
             WebSocketRoute("/robot", self.robot_socket),
         ], lifespan=self._lifespan)
+        self.guard = AccessGuard(routes, self.credentials)
+        self.app = self.guard
 
     # -- plain HTTP ---------------------------------------------------------------------------------
     async def index(self, request: Request) -> Response:
         return Response(_page_file("index.html"), media_type="text/html; charset=utf-8",
-                        headers={"Content-Security-Policy": _CSP, "Cache-Control": "no-store"})
+                        headers={"Content-Security-Policy": _CSP, **_NO_STORE})
 
     async def static(self, request: Request) -> Response:
         name = request.path_params["name"]
         if name not in _STATIC:
             return PlainTextResponse("not found", status_code=404)
-        return Response(_page_file(name), media_type=_STATIC[name], headers={"Cache-Control": "no-store"})
+        return Response(_page_file(name), media_type=_STATIC[name], headers=_NO_STORE)
 
     async def state(self, request: Request) -> Response:
         return JSONResponse(self.session.state())

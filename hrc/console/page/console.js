@@ -30,6 +30,10 @@
       setLink(false, "connection lost, reconnecting…");
       drawButtons();
       C.stats.reconnects += 1;
+      // refused for want of the run's secret (a console restarted with a new one): say so, keep trying
+      fetch("/state", { cache: "no-store" }).then((r) => {
+        if (r.status === 401) setLink(false, "not authorized: open the address `hrc console` printed, with its token");
+      }).catch(() => {});
       setTimeout(connect, backoff);
       backoff = Math.min(backoff * 2, 4000);
     };
