@@ -109,10 +109,9 @@ class ConsoleProcess:
 
     def log_lines(self) -> list[dict[str, Any]]:
         """The log's messages and answers after its header, decoded, in order: in, out, in, out, ..."""
-        from hrc.dispatch.protocol import read_log
+        from hrc.dispatch.logfile import read_log
 
-        _header, pairs = read_log(self.log)
-        return [json.loads(x) for pair in pairs for x in pair if x is not None]
+        return [json.loads(x) for m in read_log(self.log).messages for x in (m.data, m.answer)]
 
     def stderr(self) -> str:
         return self.proc.stderr.read() if self.proc.poll() is not None and self.proc.stderr else ""

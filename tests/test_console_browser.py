@@ -159,12 +159,13 @@ def test_a_person_completes_the_workshop_pressing_only_the_offered_buttons(conso
     # the buttons on screen were exactly the dispatcher's options at that point: replay the log's accepted
     # lines into a fresh dispatcher over the same folder
     from hrc.dispatch import Dispatcher
-    from hrc.dispatch.protocol import handle_line, read_log
+    from hrc.dispatch.logfile import read_log
+    from hrc.dispatch.protocol import answer
 
     fresh = Dispatcher.from_folder(workshop)
     options = [sorted([o.action, o.phase, o.event] for o in fresh.human_options())]
-    for line_in, _ in read_log(console.log)[1]:
-        if json.loads(handle_line(fresh, line_in))["ok"]:
+    for message in read_log(console.log).messages:
+        if json.loads(answer(fresh, message.data))["ok"]:
             options.append(sorted([o.action, o.phase, o.event] for o in fresh.human_options()))
     for snap in seen:
         if not snap["finished"]:

@@ -62,6 +62,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--tick", type=_tick, default=2.0,
                    help="tell the dispatcher time passed after this many quiet run seconds (0: never)")
     p.add_argument("--log", metavar="FILE", help="the run's log (default OUT_DIR/runs/console-N.jsonl); must be new")
+    p.add_argument("--resume", metavar="LOG", help="continue the run logged in LOG (after a crash), appending to it")
     p.add_argument("--token-file", metavar="FILE",
                    help="the page's secret: read from FILE, or a new one written there (mode 0600)")
     p.add_argument("--robot-token-file", metavar="FILE",
@@ -77,19 +78,23 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: hrc console: --host {args.host} is not this machine's loopback: other machines could "
               "reach the console (over plain HTTP); add --allow-remote if that is meant", file=sys.stderr)
         return 2
+    if args.resume and args.log:
+        print("error: hrc console: --resume and --log cannot be used together", file=sys.stderr)
+        return 2
     page = load_or_create_token(args.token_file) if args.token_file else new_token()
     robot = load_or_create_token(args.robot_token_file) if args.robot_token_file else new_token()
     if page == robot:
         print("error: hrc console: the page and the robot must have different tokens", file=sys.stderr)
         return 2
     server = open_console(args.out_dir, speed=args.speed, log=args.log, simulate_robot=args.simulate_robot,
-                          tick=args.tick, credentials=Credentials(page, robot))
+                          tick=args.tick, credentials=Credentials(page, robot), resume=args.resume,
+                          report=lambda text: print(f"hrc console: {text}", file=sys.stderr, flush=True))
     if not is_loopback(args.host):
         print(f"hrc console: warning: listening on {args.host}: reachable from other machines, and the "
               "token travels unencrypted", file=sys.stderr)
 
     def ready(url: str) -> None:
-        print(f"hrc console: {url}?token={page}  (log: {server.session.log.path})", flush=True)
+        print(f"hrc console: {url}?token={page}  (log: {server.session.log_path})", flush=True)
         if not args.simulate_robot:
             where = f"token in {args.robot_token_file}" if args.robot_token_file else f"token {robot}"
             print(f"hrc console: robot controller: ws{url[4:]}robot  (Authorization: Bearer; {where})",

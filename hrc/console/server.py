@@ -28,17 +28,18 @@ from typing import Any
 
 from starlette.applications import Starlette
 from starlette.requests import Request
-from starlette.responses import JSONResponse, PlainTextResponse, Response
+from starlette.responses import FileResponse, PlainTextResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketState
 
 from hrc.console.access import AccessGuard, Credentials
 from hrc.console.robot import SimulatedRobot
-from hrc.console.session import ConsoleSession, Reply
+from hrc.console.session import ConsoleSession, Reply, parse
 
-__all__ = ["MAX_MESSAGE", "ConsoleServer"]
+__all__ = ["MAX_FRAME", "MAX_MESSAGE", "ConsoleServer"]
 
-MAX_MESSAGE = 4096        # bytes: no legitimate message comes near it
+MAX_MESSAGE = 4096        # bytes: no legitimate message comes near it (a longer one gets a one-line refusal)
+MAX_FRAME = 65536         # bytes: a longer websocket frame closes the connection (1009), read no further
 SEND_TIMEOUT = 5.0        # s: a client that cannot take a message in this time is dropped (it reconnects)
 QUEUE = 64                # messages waiting for one client before it is dropped as too slow
 _STATIC = {"console.js": "text/javascript; charset=utf-8", "console.css": "text/css; charset=utf-8"}
@@ -54,6 +55,11 @@ def _page_file(name: str) -> bytes:
     return resources.files("hrc.console").joinpath("page", name).read_bytes()
 
 
+def _json(obj: Any) -> str:
+    """Compact JSON, ASCII: a lone surrogate a page sent stays an escape and never breaks a response."""
+    return json.dumps(obj, separators=(",", ":"), ensure_ascii=True)
+
+
 class _Client:
     """One websocket and the queue of messages waiting for it (one writer task per client, so sends
     never interleave)."""
@@ -64,7 +70,7 @@ class _Client:
 
     def push(self, message: dict[str, Any]) -> bool:
         try:
-            self.queue.put_nowait(json.dumps(message, separators=(",", ":")))
+            self.queue.put_nowait(_json(message))
             return True
         except asyncio.QueueFull:
             return False
@@ -116,11 +122,13 @@ class ConsoleServer:
         return Response(_page_file(name), media_type=_STATIC[name], headers=_NO_STORE)
 
     async def state(self, request: Request) -> Response:
-        return JSONResponse(self.session.state())
+        return Response(_json(self.session.state()), media_type="application/json", headers=_NO_STORE)
 
     async def log(self, request: Request) -> Response:
-        lines = (json.dumps(x, separators=(",", ":")) for e in self.session.entries for x in (e["in"], e["out"]))
-        return PlainTextResponse("".join(line + "\n" for line in lines), media_type="application/x-ndjson")
+        path = self.session.log_path
+        if path is None:
+            return PlainTextResponse("", media_type="application/x-ndjson", headers=_NO_STORE)
+        return FileResponse(path, media_type="application/x-ndjson", headers=_NO_STORE)
 
     # -- pushing changes ----------------------------------------------------------------------------
     def changed(self) -> None:
@@ -157,13 +165,13 @@ class ConsoleServer:
                 if len(text) > MAX_MESSAGE:
                     reply: dict[str, Any] = Reply.error(f"malformed message (longer than {MAX_MESSAGE} bytes)")
                 else:
-                    reply = handle(text)
-                with contextlib.suppress(ValueError, UnicodeDecodeError, AttributeError):
-                    mid = json.loads(text).get("id")
+                    msg = parse(text)
+                    reply = Reply.error(msg) if isinstance(msg, str) else handle(msg)
+                    mid = msg.get("id") if isinstance(msg, dict) else None
                     if isinstance(mid, str | int) and not isinstance(mid, bool):
                         reply = {**reply, "id": mid}
                 client.push({"type": "reply", **reply})
-                if reply["ok"]:
+                if reply["ok"] or self.session.log_error is not None:
                     self.changed()
         finally:
             writer.cancel()
@@ -215,7 +223,8 @@ class ConsoleServer:
         while self.tick > 0:
             await asyncio.sleep(self.tick / s.clock.speed)
             if s.clock.started and not s.finished and s.clock.now() - s.dispatcher.now >= self.tick:
-                if s.tick()["ok"]:
+                error_before = s.log_error
+                if s.tick()["ok"] or s.log_error != error_before:
                     self.changed()
 
     @contextlib.asynccontextmanager
@@ -233,4 +242,4 @@ class ConsoleServer:
                 if client.ws.client_state == WebSocketState.CONNECTED:
                     with contextlib.suppress(Exception):
                         await client.ws.close(code=1001)
-            self.session.log.close()
+            self.session.logged.close()

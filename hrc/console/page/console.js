@@ -137,6 +137,8 @@
   function drawState() {
     const s = C.state, d = s.decision;
     $("finished").hidden = !s.finished;
+    $("log-error").hidden = !s.log_error;  // the server refuses everything until its log can be written
+    $("log-error-text").textContent = s.log_error || "";
     // counts per class
     const counts = $("counts"); counts.textContent = "";
     for (const k of ["DC", "consistent", "inconsistent"]) {
