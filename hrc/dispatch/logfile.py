@@ -355,32 +355,35 @@ class LogWriter:
         os.fsync(self._fd)
 
     def append(self, data: bytes, sync: bool) -> None:
-        """Append whole records (`data`), synced to disk when `sync`; `LogWriteError` if not done."""
+        """Append whole records (`data`), synced to disk when `sync`; `LogWriteError` if not done, and
+        then the file is cut back to where it was (after a failed sync, as far as the kernel lets us)."""
         if self.broken is not None:
             raise LogWriteError(self.broken)
+        before = self.size
         try:
             self._write(data)
         except OSError as err:
             why = f"the log cannot be written ({err.strerror or err})"
             try:
-                os.ftruncate(self._fd, self.size)  # no half record for the next one to follow
+                os.ftruncate(self._fd, before)  # no half record for the next one to follow
             except OSError as cut:
                 self.broken = f"{why}, nor cut back ({cut.strerror or cut}); restart with --resume"
                 raise LogWriteError(self.broken) from err
             raise LogWriteError(why) from err
-        self.size += len(data)
-        if sync:
-            self.sync()
-
-    def sync(self) -> None:
-        """Everything appended so far on disk; after a failure the writer is `broken`."""
-        if self.broken is not None:
-            raise LogWriteError(self.broken)
+        self.size = before + len(data)
+        if not sync:
+            return
         try:
             self._sync()
         except OSError as err:
             self.broken = (f"the log could not be synced ({err.strerror or err}): nothing more is accepted; "
                            "restart with --resume")
+            try:  # what was refused must not come back on resume: take it out of the file
+                os.ftruncate(self._fd, before)
+                self.size = before
+                os.fsync(self._fd)
+            except OSError:
+                pass
             raise LogWriteError(self.broken) from err
 
     def close(self) -> None:
