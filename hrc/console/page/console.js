@@ -86,7 +86,11 @@
     return e;
   }
   function setLink(ok, text) { const l = $("link"); l.textContent = text; l.className = "link " + (ok ? "ok" : "bad"); }
-  function showError(text) { C.stats.errors.push(text); $("error-text").textContent = text; $("error").hidden = false; }
+  function showError(text) {
+    C.stats.errors.push(text);
+    if (C.stats.errors.length > 100) C.stats.errors.shift();  // the last hundred: a flood must not grow the page
+    $("error-text").textContent = text; $("error").hidden = false;
+  }
   function where(action, phase) {
     const a = C.setup && C.setup.task.actions[action];
     return a && a.phases[phase] ? a.phases[phase] : "?";
