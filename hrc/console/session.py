@@ -28,8 +28,9 @@ from hrc.console.clock import RunClock
 from hrc.console.views import PlanRoutes, gantt_bars, map_view, under_way
 from hrc.dispatch import Dispatcher, RobotStep
 from hrc.dispatch.durable import LoggedDispatcher
-from hrc.dispatch.limits import MessageError, parse_message
-from hrc.dispatch.logfile import LogWriteError, Message
+from hrc.dispatch.limits import parse_message
+from hrc.dispatch.logfile import Message
+from hrc.errors import LogWriteError, MessageError
 
 __all__ = ["LOG_SHOWN", "PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply", "parse"]
 

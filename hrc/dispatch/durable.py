@@ -29,14 +29,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from hrc.errors import HrcError, InputError
+from hrc.errors import HrcError, InputError, LogWriteError
 
 from .dispatcher import Dispatcher
 from .limits import MAX_LINE
 from .logfile import (
     LOG_VERSION,
     PART,
-    LogWriteError,
     LogWriter,
     Message,
     Torn,

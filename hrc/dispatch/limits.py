@@ -10,7 +10,7 @@ parses. Numbers with more than 4,300 digits are refused by Python itself (``int_
 {'t': 1, 'event': 'tick'}
 >>> parse_message("[" * 20000)
 Traceback (most recent call last):
-hrc.dispatch.limits.MessageError: nested deeper than 16 levels
+hrc.errors.MessageError: nested deeper than 16 levels
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ import json
 import re
 from typing import Any
 
-from hrc.errors import DispatchError
+from hrc.errors import MessageError
 
-__all__ = ["MAX_DEPTH", "MAX_LINE", "MessageError", "nesting_depth", "parse_message"]
+__all__ = ["MAX_DEPTH", "MAX_LINE", "nesting_depth", "parse_message"]
 
 MAX_LINE = 65536
 """Longest message accepted, in bytes of UTF-8 (a longer one is refused)."""
@@ -30,10 +30,6 @@ MAX_DEPTH = 16
 
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"?', re.DOTALL)  # a JSON string (or an unterminated one, to the end)
 _BRACKET = re.compile(r"[\[\]{}]")
-
-
-class MessageError(DispatchError):
-    """A message refused before parsing: too long or nested too deep. One line."""
 
 
 def nesting_depth(text: str) -> int:

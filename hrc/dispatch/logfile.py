@@ -45,21 +45,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hrc.errors import HrcError, InputError
+from hrc.errors import InputError, LogWriteError
 
 from .limits import MAX_LINE
 
-__all__ = ["LOG_VERSION", "PART", "LogContents", "LogWriteError", "LogWriter", "Message", "Torn", "encode_answer",
+__all__ = ["LOG_VERSION", "PART", "LogContents", "LogWriter", "Message", "Torn", "encode_answer",
            "encode_header", "encode_input", "encode_input_part", "read_log"]
 
 LOG_VERSION = 2
 PART = 49152
 """Bytes of an over-long message per ``in_more``/``in_b64`` record (65,536 characters of base64)."""
 _RECORD_MAX = 8 * MAX_LINE  # the longest record a writer makes (a MAX_LINE message, each byte escaped)
-
-
-class LogWriteError(HrcError):
-    """The log could not be written (or synced): the message was refused and nothing changed."""
 
 
 @dataclass(frozen=True, slots=True)

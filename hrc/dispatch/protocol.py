@@ -24,10 +24,10 @@ import json
 from collections.abc import Iterator
 from typing import Any
 
-from hrc.errors import DispatchError, HrcError
+from hrc.errors import DispatchError, HrcError, MessageError
 
 from .dispatcher import Dispatcher
-from .limits import MAX_DEPTH, MAX_LINE, MessageError, parse_message
+from .limits import MAX_DEPTH, MAX_LINE, parse_message
 from .logfile import LogContents
 from .messages import observation_from_json
 

@@ -21,9 +21,10 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
+from hrc.errors import LogWriteError
+
 from .durable import LoggedDispatcher, log_refusal
 from .limits import MAX_LINE
-from .logfile import LogWriteError
 
 __all__ = ["BATCH", "BATCH_WAIT", "LineSource", "serve"]
 
