@@ -71,6 +71,7 @@ class ConsoleProcess:
     def __init__(self, out_dir: Path, log: Path, *args: str, log_option: bool = True) -> None:
         env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
         self.log = log
+        self._stderr: str | None = None
         robot_file = log.with_name(log.name + ".robot-token")
         logging = ["--log", str(log)] if log_option else []
         self.proc = subprocess.Popen([sys.executable, "-m", "hrc", "console", str(out_dir), "--port", "0",
@@ -114,7 +115,10 @@ class ConsoleProcess:
         return [json.loads(x) for m in read_log(self.log).messages for x in (m.data, m.answer)]
 
     def stderr(self) -> str:
-        return self.proc.stderr.read() if self.proc.poll() is not None and self.proc.stderr else ""
+        """What the process wrote on stderr (once it has ended; kept after `stop`)."""
+        if self._stderr is None and self.proc.poll() is not None and self.proc.stderr and not self.proc.stderr.closed:
+            self._stderr = self.proc.stderr.read()
+        return self._stderr or ""
 
     def stop(self) -> None:
         if self.proc.poll() is None:
@@ -124,6 +128,7 @@ class ConsoleProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(timeout=10)
+        self.stderr()
         for f in (self.proc.stdout, self.proc.stderr):
             if f:
                 f.close()
