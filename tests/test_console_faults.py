@@ -116,12 +116,12 @@ def _wait_run_time(console: ConsoleProcess, t: float, timeout: float = 30.0) -> 
     return now
 
 
-_FLOOD = """([n, hseq]) => { const ws = window.hrcConsole.ws; window.flood = {sent: 0, answered: 0};
-  ws.addEventListener("message", (e) => { if (JSON.parse(e.data).type === "reply") window.flood.answered++; });
+_FLOOD = """([n, hseq]) => { const ws = window.hrcConsole.ws, flood = window.flood = {sent: 0, answered: 0};
+  ws.addEventListener("message", (e) => { if (JSON.parse(e.data).type === "reply") flood.answered++; });
   (async () => { for (let i = 0; i < n; i++) {
       ws.send(JSON.stringify({type: "press", hseq, action: "cube9", phase: "fetch", event: "start", id: "f" + i}));
-      window.flood.sent++;
-      if (i % 50 === 49) await new Promise((r) => setTimeout(r, 0));
+      flood.sent++;
+      if (i % 50 === 49) await new Promise((r) => setTimeout(r, 10));  // 5,000 a second for 2 s
   } })(); }"""
 
 
@@ -147,29 +147,31 @@ def test_a_flood_of_impossible_presses_never_delays_the_robot_and_memory_stays_f
                 page.evaluate(_FLOOD, [10_000, console.state()["hseq"]])
                 page.wait_for_function("() => window.flood.sent >= 1500", timeout=30_000, polling=10)
                 reply, seconds = robot.ack(step, step["earliest"], f"ack{flood}")
-                answered_at_ack = page.evaluate("() => window.flood.answered")
+                received_at_ack = console.state()["traffic"]["received"]
                 assert reply["ok"], reply
                 latencies.append(seconds)
                 page.wait_for_function("() => window.flood.sent >= 10000", timeout=60_000, polling=50)
                 time.sleep(1.0)  # what is still in flight
-                assert page.evaluate("() => window.flood.answered") > answered_at_ack, "acknowledged after the flood"
+                assert console.state()["traffic"]["received"] > received_at_ack, "acknowledged after the flood"
                 memory.append(_rss_mb(console.proc.pid))
                 if not page.evaluate("() => window.hrcConsole.connected"):  # dropped as too slow a reader
                     page.wait_for_function("() => window.hrcConsole.connected", timeout=15_000)
             after = console.state()
+            page_replies = page.evaluate("() => window.flood.answered")
         reached = after["log_total"] - before["log_total"] - 3
         received = after["traffic"]["received"] - before["traffic"]["received"] - 3
+        limited = after["traffic"]["limited"] - before["traffic"]["limited"]
         print(f"\nrobot acks under a flood of 10,000 impossible presses each: {[round(x * 1000, 1) for x in latencies]}"
-              f" ms; console RSS {' -> '.join(f'{m:.1f}' for m in memory)} MB; of 30,000 presses sent"
-              f" {received} arrived (the rest went with a page dropped as too slow a reader): "
-              f"{after['traffic']['limited'] - before['traffic']['limited']} refused at the door, {reached} reached the"
-              " dispatcher (and the log)")
+              f" ms; console RSS {' -> '.join(f'{m:.1f}' for m in memory)} MB; of 30,000 presses sent, {received}"
+              f" arrived: {limited} refused at the door, {reached} reached the dispatcher (and the log)")
         # on a shared 2-core machine a scheduler pause can land on any one of them: the median must keep the
         # promise, and none may come near the 16 s of issue 26
-        assert statistics.median(latencies) < 0.100 and max(latencies) < 1.0, latencies
+        assert statistics.median(latencies) < 0.100 and max(latencies) < 0.5, latencies
         assert memory[-1] - memory[1] < 5 and memory[-1] - memory[0] < 20, memory  # flat: no growth per message
         # the rate limit let few of them reach the dispatcher: its burst, then its rate while the floods lasted
         assert 0 < reached < 3 * 10 + 5 * 60, reached
+        # the last flood's page was told in one line a second, not once a message
+        assert page_replies < 100, page_replies
         assert len(after["log"]) <= 300 and after["seq"] == before["seq"] + 3
         robot.close()
     finally:

@@ -13,10 +13,13 @@ dispatcher. Routes::
 Every route and websocket is behind `hrc.console.access.AccessGuard`: this server's own Host and Origin
 only, the page's secret everywhere but ``/robot``, the robot's own secret there.
 
-Each message that arrives is checked at once (size, JSON nesting, its client's rate) and put in the
-`hrc.console.inbox.Inbox`; one worker takes the robot's messages before the pages' and hands them to
-the session one at a time. Every queue is bounded (messages waiting per client, replies waiting for a
-slow client, pages connected), so no client can make the server's memory grow.
+Each message that arrives is checked at once (its client's rate first, before it is even parsed; then
+size, JSON nesting) and put in the `hrc.console.inbox.Inbox`; one worker takes the robot's messages
+before the pages' and hands them to the session one at a time. A client over its rate is refused
+without an answer for each message, told so in one line at most once a second (with the count): a
+flood then costs the server a token-bucket check per message. Every queue is bounded (messages waiting
+per client, replies waiting for a slow client, pages connected), so no client can make the server's
+memory grow.
 
 With ``simulate_robot`` the server plays the robot: each robot event is acknowledged at the start of
 its window (`hrc.console.robot`), and ``/robot`` refuses controllers.
@@ -27,6 +30,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import time
 from collections.abc import AsyncIterator
 from importlib import resources
 from typing import Any
@@ -42,7 +46,7 @@ from hrc.console.inbox import Inbox, Letter, TokenBucket
 from hrc.console.robot import SimulatedRobot
 from hrc.console.session import ConsoleSession, Reply, parse
 
-__all__ = ["MAX_FRAME", "MAX_MESSAGE", "MAX_PAGES", "PAGE_RATE", "ROBOT_RATE", "ConsoleServer"]
+__all__ = ["MAX_FRAME", "MAX_MESSAGE", "MAX_PAGES", "PAGE_RATE", "ROBOT_RATE", "SUMMARY_EVERY", "ConsoleServer"]
 
 MAX_MESSAGE = 4096        # bytes: no legitimate message comes near it (a longer one gets a one-line refusal)
 MAX_FRAME = 65536         # bytes: a longer websocket frame closes the connection (1009), read no further
@@ -52,6 +56,7 @@ MAX_PAGES = 16            # pages connected at once (tabs of the person's; more 
 PAGE_RATE = (5.0, 10)     # a page's messages: 5 a second, 10 at once (a person presses far less)
 ROBOT_RATE = (50.0, 100)  # the robot controller's
 WAITING = 8               # messages of one client waiting for the dispatcher
+SUMMARY_EVERY = 1.0       # s: a client over its rate is told so at most this often (one line with the count)
 _STATIC = {"console.js": "text/javascript; charset=utf-8", "console.css": "text/css; charset=utf-8"}
 # Nothing but this server: no other host for scripts, styles, images or connections.
 _CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; "
@@ -76,6 +81,18 @@ class _Client:
         self.ws = ws
         self.queue: asyncio.Queue[str] = asyncio.Queue(QUEUE)
         self.bucket = TokenBucket(*rate)
+        self.over = 0  # messages over the rate since the last refusal said how many
+        self.told_at = -SUMMARY_EVERY
+
+    def over_the_rate(self) -> dict[str, Any] | None:
+        """A message over the rate: refused; the refusal that says so, at most once a second."""
+        self.over += 1
+        now = time.monotonic()
+        if now - self.told_at < SUMMARY_EVERY:
+            return None
+        count, self.over, self.told_at = self.over, 0, now
+        return Reply.error(f"refused: {count} message{'s' if count > 1 else ''} over the limit of "
+                           f"{self.bucket.rate:g} a second (no answer each until they slow down); nothing changed")
 
     def push(self, message: dict[str, Any]) -> bool:
         try:
@@ -176,8 +193,12 @@ class ConsoleServer:
 
     # -- messages in --------------------------------------------------------------------------------
     def _admit(self, client: _Client, frame: str | bytes) -> dict[str, Any] | None:
-        """Check a message as it arrives; into the inbox (None), or the refusal to send at once."""
+        """Check a message as it arrives: the refusal to send at once, or None (into the inbox, or over its
+        client's rate with the refusal already said this second)."""
         self.received += 1
+        if not client.bucket.take():  # first, and before parsing: a flood costs next to nothing
+            self.limited += 1
+            return client.over_the_rate()
         if len(frame) > MAX_MESSAGE:
             return Reply.error(f"malformed message (longer than {MAX_MESSAGE} bytes)")
         msg = parse(frame)
@@ -186,10 +207,6 @@ class ConsoleServer:
         mid = msg.get("id")
         mid = mid if isinstance(mid, str | int) and not isinstance(mid, bool) else None
         ident = {} if mid is None else {"id": mid}
-        if not client.bucket.take():
-            self.limited += 1
-            return {**Reply.error(f"refused: more than {client.bucket.rate:g} messages a second; nothing changed"),
-                    **ident}
         if not self.inbox.put(Letter(client, client is self.robot, msg, mid)):
             self.limited += 1
             return {**Reply.error(f"refused: {WAITING} messages of yours are still waiting; nothing changed"),

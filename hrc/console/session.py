@@ -104,8 +104,8 @@ class ConsoleSession:
         for message in messages:
             line = message.data.decode("utf-8", "replace")
             try:
-                obs = json.loads(line)
-            except ValueError:
+                obs = parse_message(line)  # the console's own lines; bounded all the same
+            except (ValueError, MessageError):
                 obs = {"raw": line[:200]}
             out = json.loads(message.answer)
             obs = obs if isinstance(obs, dict) else {"raw": line[:200]}
