@@ -13,7 +13,9 @@ and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit stat
     ├── ExecutorError              a parallel or distributed executor failed or cannot be reached
     ├── SimulationError            a simulation asked for something impossible (bad model parameter, policy)
     ├── ApaError                   an STPP built wrong through the API, or its QP could not be solved
+    ├── LogWriteError              a dispatcher's log could not be written or synced (the message was refused)
     └── DispatchError              a dispatcher (hrc.dispatch, or APA's) refused a message (it changed nothing)
+        └── MessageError           ... before parsing it: too long, or nested too deep
 """
 
 from __future__ import annotations
@@ -24,7 +26,9 @@ __all__ = [
     "ExecutorError",
     "HrcError",
     "InputError",
+    "LogWriteError",
     "MapFileError",
+    "MessageError",
     "NetworkFileError",
     "SimulationError",
     "StppFileError",
@@ -92,3 +96,12 @@ class DispatchError(HrcError):
     """A dispatcher refused a message (`hrc.dispatch.Dispatcher`: an observation no remaining plan allows,
     a duplicate, time going backwards, ...; `hrc.apa.dispatch.STPPDispatcher`: an unknown or repeated
     event); its state is unchanged. The message is one line."""
+
+
+class MessageError(DispatchError):
+    """A message refused before parsing (`hrc.dispatch.limits`): too long or nested too deep. One line."""
+
+
+class LogWriteError(HrcError):
+    """A dispatcher's log could not be written, or synced (`hrc.dispatch.logfile`): the message was
+    refused and nothing changed."""

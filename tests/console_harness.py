@@ -48,11 +48,12 @@ def browser_or_skip() -> Any:
 
 
 @contextmanager
-def chromium(viewport: tuple[int, int] = (1400, 1050)) -> Iterator[Any]:
+def chromium(viewport: tuple[int, int] = (1400, 1050), extra_flags: tuple[str, ...] = ()) -> Iterator[Any]:
     """A browser context of a headless Chromium; its default timeout is 15 s."""
     sync_playwright = browser_or_skip()
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_FLAGS, timeout=30_000)
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[*CHROMIUM_FLAGS, *extra_flags],
+                                    timeout=30_000)
         try:
             context = browser.new_context(viewport={"width": viewport[0], "height": viewport[1]})
             context.set_default_timeout(15_000)
@@ -62,14 +63,20 @@ def chromium(viewport: tuple[int, int] = (1400, 1050)) -> Iterator[Any]:
 
 
 class ConsoleProcess:
-    """``python -m hrc console OUT_DIR --port 0 ...`` in a subprocess; `url` once it listens."""
+    """``python -m hrc console OUT_DIR --port 0 ...`` in a subprocess; once it listens, `url` (what it
+    printed to open, with the page's token), `base` (the same without the token), `token` and
+    `robot_token` (from ``--robot-token-file`` beside the log). `log_option` False: no ``--log`` given
+    (a test that resumes gives ``--resume``)."""
 
-    def __init__(self, out_dir: Path, log: Path, *args: str) -> None:
+    def __init__(self, out_dir: Path, log: Path, *args: str, log_option: bool = True) -> None:
         env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
         self.log = log
+        self._stderr: str | None = None
+        robot_file = log.with_name(log.name + ".robot-token")
+        logging = ["--log", str(log)] if log_option else []
         self.proc = subprocess.Popen([sys.executable, "-m", "hrc", "console", str(out_dir), "--port", "0",
-                                      "--log", str(log), *args], cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
+                                      *logging, "--robot-token-file", str(robot_file), *args], cwd=ROOT, env=env,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         lines: queue.Queue[str] = queue.Queue()
         threading.Thread(target=lambda: [lines.put(x) for x in self.proc.stdout or ()], daemon=True).start()
         try:
@@ -81,23 +88,37 @@ class ConsoleProcess:
             self.stop()
             raise AssertionError(f"hrc console: {first} {self.stderr()}")
         self.url = first.split()[2]
+        self.base, _, self.token = self.url.partition("?token=")
+        self.ws = self.base.replace("http://", "ws://")
+        self.robot_token = robot_file.read_text().strip()
 
-    def get(self, path: str) -> bytes:
-        with urllib.request.urlopen(self.url + path.lstrip("/"), timeout=10) as r:
+    def get(self, path: str, token: str | None = None) -> bytes:
+        """GET `path` with the page's token (or `token`) as a bearer credential."""
+        request = urllib.request.Request(self.base + path.lstrip("/"),
+                                         headers={"Authorization": f"Bearer {token or self.token}"})
+        with urllib.request.urlopen(request, timeout=10) as r:
             return r.read()
+
+    def page_headers(self) -> dict[str, str]:
+        return {"Authorization": f"Bearer {self.token}"}
+
+    def robot_headers(self) -> dict[str, str]:
+        return {"Authorization": f"Bearer {self.robot_token}"}
 
     def state(self) -> dict[str, Any]:
         return json.loads(self.get("state"))
 
     def log_lines(self) -> list[dict[str, Any]]:
         """The log's messages and answers after its header, decoded, in order: in, out, in, out, ..."""
-        from hrc.dispatch.protocol import read_log
+        from hrc.dispatch.logfile import read_log
 
-        _header, pairs = read_log(self.log)
-        return [json.loads(x) for pair in pairs for x in pair if x is not None]
+        return [json.loads(x) for m in read_log(self.log).messages for x in (m.data, m.answer)]
 
     def stderr(self) -> str:
-        return self.proc.stderr.read() if self.proc.poll() is not None and self.proc.stderr else ""
+        """What the process wrote on stderr (once it has ended; kept after `stop`)."""
+        if self._stderr is None and self.proc.poll() is not None and self.proc.stderr and not self.proc.stderr.closed:
+            self._stderr = self.proc.stderr.read()
+        return self._stderr or ""
 
     def stop(self) -> None:
         if self.proc.poll() is None:
@@ -107,6 +128,7 @@ class ConsoleProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(timeout=10)
+        self.stderr()
         for f in (self.proc.stdout, self.proc.stderr):
             if f:
                 f.close()

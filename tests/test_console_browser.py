@@ -159,12 +159,13 @@ def test_a_person_completes_the_workshop_pressing_only_the_offered_buttons(conso
     # the buttons on screen were exactly the dispatcher's options at that point: replay the log's accepted
     # lines into a fresh dispatcher over the same folder
     from hrc.dispatch import Dispatcher
-    from hrc.dispatch.protocol import handle_line, read_log
+    from hrc.dispatch.logfile import read_log
+    from hrc.dispatch.protocol import answer
 
     fresh = Dispatcher.from_folder(workshop)
     options = [sorted([o.action, o.phase, o.event] for o in fresh.human_options())]
-    for line_in, _ in read_log(console.log)[1]:
-        if json.loads(handle_line(fresh, line_in))["ok"]:
+    for message in read_log(console.log).messages:
+        if json.loads(answer(fresh, message.data))["ok"]:
             options.append(sorted([o.action, o.phase, o.event] for o in fresh.human_options()))
     for snap in seen:
         if not snap["finished"]:
@@ -254,13 +255,15 @@ def test_bad_input_two_tabs_and_a_dropped_connection_leave_the_run_unchanged(con
 def test_the_robot_endpoint_takes_acks_and_refuses_bad_ones(console: ConsoleProcess) -> None:
     from websockets.sync.client import connect
 
-    base = console.url.replace("http://", "ws://")
-    with connect(base + "robot", open_timeout=10, close_timeout=5) as robot, \
-            connect(base + "ws", open_timeout=10, close_timeout=5) as person:
+    base = console.ws
+    with connect(base + "robot", open_timeout=10, close_timeout=5,
+                 additional_headers=console.robot_headers()) as robot, \
+            connect(base + "ws", open_timeout=10, close_timeout=5, additional_headers=console.page_headers()) as person:
         assert json.loads(robot.recv(timeout=10))["type"] == "hello"
         decision = json.loads(robot.recv(timeout=10))
         assert decision["type"] == "decision"
-        with connect(base + "robot", open_timeout=10, close_timeout=5) as second:  # one controller at a time
+        with connect(base + "robot", open_timeout=10, close_timeout=5,
+                     additional_headers=console.robot_headers()) as second:  # one controller at a time
             assert "already connected" in json.loads(second.recv(timeout=10))["error"]
         # the workshop's best plan has the robot wait for the person's first move: press it (the page's protocol)
         hseq = 0

@@ -222,7 +222,7 @@ def test_human_options_are_what_the_dispatcher_accepts(plan_set):
 @pytest.mark.parametrize("argv, message", [
     (["dispatch", "/nonexistent/out"], "not a folder"),
     (["dispatch", str(ROOT / "tasks")], "not an hrc compile output"),
-    (["dispatch", "FOLDER", "--replay", str(ROOT / "README.md")], "not a JSON line"),
+    (["dispatch", "FOLDER", "--replay", str(ROOT / "README.md")], "not an hrc dispatch log"),
     (["dispatch", "FOLDER", "--replay", "LOG", "--log", "LOG"], "cannot be used together"),
     (["dispatch", "FOLDER", "--log", "/"], "must be a regular file"),
 ])

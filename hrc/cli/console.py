@@ -1,9 +1,17 @@
 """`hrc console OUT_DIR [--port 8765] [--host 127.0.0.1] [--simulate-robot] [--speed X] [--log FILE]`:
-the operator console, a local web page for the person and the engineer (docs/console.md)."""
+the operator console, a local web page for the person and the engineer (docs/console.md).
+
+It prints, once, the address to open with the run's secret (``http://127.0.0.1:8765/?token=...``, as a
+notebook server does), and where a robot controller connects with its own secret. ``--token-file`` and
+``--robot-token-file`` read the secrets from files (or write new ones there, mode 0600), so that a robot
+controller can be given its token before the console starts. Listening on another address than this
+machine's loopback needs ``--allow-remote``.
+"""
 
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 __all__ = ["add_parser", "run"]
@@ -19,29 +27,78 @@ def _positive(text: str) -> float:
     return value
 
 
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"must lie in 0..65535, got {text}")
+    return value
+
+
+def _tick(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 <= value <= 3600:
+        raise argparse.ArgumentTypeError(f"must lie in [0, 3600] run seconds, got {text}")
+    return value
+
+
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser("console", help="serve the operator console (person's buttons, engineer's view)")
+    p = sub.add_parser("console", help="serve the operator console (person's buttons, engineer's view)",
+                       description=__doc__.splitlines()[0] if __doc__ else None)
     p.add_argument("out_dir", metavar="OUT_DIR", help="an `hrc compile` output folder")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0: any free port)")
+    p.add_argument("--allow-remote", action="store_true",
+                   help="allow a --host other machines can reach (plain HTTP: the token travels unencrypted)")
+    p.add_argument("--port", type=_port, default=8765, help="port (default 8765; 0: any free port)")
     p.add_argument("--simulate-robot", action="store_true",
                    help="play the robot: each of its events at the start of its window")
     p.add_argument("--speed", type=_positive, default=1.0,
                    help="run seconds per real second (default 1; e.g. 5 to try a run quickly)")
-    p.add_argument("--tick", type=float, default=2.0,
+    p.add_argument("--tick", type=_tick, default=2.0,
                    help="tell the dispatcher time passed after this many quiet run seconds (0: never)")
     p.add_argument("--log", metavar="FILE", help="the run's log (default OUT_DIR/runs/console-N.jsonl); must be new")
+    p.add_argument("--resume", metavar="LOG", help="continue the run logged in LOG (after a crash), appending to it")
+    p.add_argument("--token-file", metavar="FILE",
+                   help="the page's secret: read from FILE, or a new one written there (mode 0600)")
+    p.add_argument("--robot-token-file", metavar="FILE",
+                   help="the robot controller's secret: read from FILE, or a new one written there (mode 0600)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from hrc.console.access import Credentials, is_loopback, load_or_create_token, new_token
     from hrc.console.run import open_console, serve
 
+    if not is_loopback(args.host) and not args.allow_remote:
+        print(f"error: hrc console: --host {args.host} is not this machine's loopback: other machines could "
+              "reach the console (over plain HTTP); add --allow-remote if that is meant", file=sys.stderr)
+        return 2
+    if args.resume and args.log:
+        print("error: hrc console: --resume and --log cannot be used together", file=sys.stderr)
+        return 2
+    page = load_or_create_token(args.token_file) if args.token_file else new_token()
+    robot = load_or_create_token(args.robot_token_file) if args.robot_token_file else new_token()
+    if page == robot:
+        print("error: hrc console: the page and the robot must have different tokens", file=sys.stderr)
+        return 2
     server = open_console(args.out_dir, speed=args.speed, log=args.log, simulate_robot=args.simulate_robot,
-                          tick=max(0.0, args.tick))
+                          tick=args.tick, credentials=Credentials(page, robot), resume=args.resume,
+                          report=lambda text: print(f"hrc console: {text}", file=sys.stderr, flush=True))
+    if not is_loopback(args.host):
+        print(f"hrc console: warning: listening on {args.host}: reachable from other machines, and the "
+              "token travels unencrypted", file=sys.stderr)
 
     def ready(url: str) -> None:
-        print(f"hrc console: {url}  (log: {server.session.log.path})", flush=True)
+        print(f"hrc console: {url}?token={page}  (log: {server.session.log_path})", flush=True)
+        if not args.simulate_robot:
+            where = f"token in {args.robot_token_file}" if args.robot_token_file else f"token {robot}"
+            print(f"hrc console: robot controller: ws{url[4:]}robot  (Authorization: Bearer; {where})",
+                  flush=True)
 
     serve(server, args.host, args.port, ready)
     return 0

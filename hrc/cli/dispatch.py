@@ -3,8 +3,10 @@
 Each line in is an observation (``{"t": 12.5, "agent": "human", "action": "cube2", "phase": "fetch",
 "event": "start"}``, ``away`` / ``back``, ``tick``, ``undo``); each gets exactly one line out, flushed at
 once: the decision for the robot, or ``"ok": false`` with a one-line reason (nothing changed). End of
-input exits 0. ``--log FILE`` appends every message in and out (fsync'd); ``--replay LOG`` re-runs a log
-and prints the same answers, exit 1 if one differs from the logged one. See docs/dispatch.md.
+input exits 0. ``--log FILE`` writes every message to a new log before it counts (fsync'd);
+``--resume LOG`` rebuilds a crashed run from its log and goes on appending to it; ``--replay LOG``
+re-runs a log and prints the same answers, exit 1 if one differs from the logged one. See
+docs/dispatch.md.
 """
 
 from __future__ import annotations
@@ -17,7 +19,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("dispatch", help="dispatch a compiled plan set online (JSON lines in and out)",
                               description=__doc__.splitlines()[0] if __doc__ else None)
     p.add_argument("out_dir", metavar="OUT_DIR", help="an `hrc compile` output folder")
-    p.add_argument("--log", metavar="FILE", help="append every message in and out to FILE (fsync'd)")
+    p.add_argument("--log", metavar="FILE", help="log every message in and out to FILE, a new file (fsync'd "
+                                                 "before the answer)")
+    p.add_argument("--resume", metavar="LOG", help="rebuild the run logged in LOG (after a crash) and go on "
+                                                   "appending to it")
     p.add_argument("--replay", metavar="LOG", help="re-run a log written with --log and print its answers")
     p.add_argument("--feasible-only", action="store_true",
                    help="drop plans that are neither DC nor consistent; stop when none is left")
@@ -29,26 +34,41 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hrc.dispatch import Dispatcher
-    from hrc.dispatch.protocol import Log, replay, serve
+    from hrc.dispatch.durable import LoggedDispatcher
+    from hrc.dispatch.logfile import read_log
+    from hrc.dispatch.protocol import replay
+    from hrc.dispatch.stdio import serve
 
-    if args.replay and args.log:
-        print("error: hrc dispatch: --replay and --log cannot be used together", file=sys.stderr)
+    given = [f"--{name}" for name in ("log", "resume", "replay") if getattr(args, name)]
+    if len(given) > 1:
+        print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
         return 2
     dispatcher = Dispatcher.from_folder(args.out_dir, feasible_only=args.feasible_only,
                                          use_preferences=args.preferences)
     if args.replay:
+        contents = read_log(args.replay)
+        if contents.torn is not None:
+            print(f"hrc dispatch: {args.replay}: {contents.torn}", file=sys.stderr, flush=True)
         differ = 0
-        for number, (out, logged) in enumerate(replay(dispatcher, args.replay), 1):
+        for number, (out, was) in enumerate(replay(dispatcher, contents, args.replay), 1):
             print(out, flush=True)
-            if logged is not None and out != logged and not differ:
+            if out != was and not differ:
                 differ = number
         if differ:
             print(f"error: {args.replay}: answer {differ} differs from the logged one", file=sys.stderr)
             return 1
         return 0
-    log = Log(args.log, dispatcher) if args.log else None
+    if args.resume:
+        logged, resumed = LoggedDispatcher.resume(dispatcher, args.resume)
+        if resumed.torn is not None:
+            print(f"hrc dispatch: {args.resume}: {resumed.torn}", file=sys.stderr, flush=True)
+        print(f"hrc dispatch: resumed {args.resume} after {resumed.messages} messages (each answered as logged)",
+              file=sys.stderr, flush=True)
+    elif args.log:
+        logged = LoggedDispatcher.create(dispatcher, args.log)
+    else:
+        logged = LoggedDispatcher(dispatcher)
     try:
-        return serve(dispatcher, sys.stdin.buffer, sys.stdout, log)
+        return serve(logged, sys.stdin.fileno(), sys.stdout)
     finally:
-        if log is not None:
-            log.close()
+        logged.close()

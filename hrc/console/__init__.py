@@ -6,10 +6,12 @@ console is that detector: it holds one `hrc.dispatch.Dispatcher`, turns the pers
 robot controller's acknowledgements into the dispatcher's JSON lines (`hrc.dispatch.protocol`), and
 pushes every decision to the page and the robot over websockets.
 
-    clock     RunClock: a monotonic clock in run seconds (``--speed``)
-    runlog    a new log file per run (the dispatcher's Log: --replay reads it)
+    access    who may connect: the run's secrets, this server's Host and Origin only (AccessGuard)
+    clock     RunClock: a monotonic clock in run seconds (``--speed``; a resumed run goes on)
+    runlog    a new log file per run, or the log of a run to resume (the dispatcher's log)
     views     the map, each plan's routes, the Gantt bars
-    session   ConsoleSession: the one dispatcher and the messages of the page and the robot
+    session   ConsoleSession: the one dispatcher (written ahead to its log), the page's and robot's messages
+    inbox     each client's rate limit, the robot's messages before the pages' (Inbox, TokenBucket)
     robot     SimulatedRobot: ``--simulate-robot``
     server    ConsoleServer: the Starlette app (page, /ws, /robot)
     run       open_console, serve

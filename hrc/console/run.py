@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import gc
 import json
 import os
 import socket
@@ -11,24 +12,30 @@ from pathlib import Path
 
 import uvicorn
 
+from hrc.console.access import Credentials
 from hrc.console.clock import RunClock
-from hrc.console.runlog import next_log_path, open_log
-from hrc.console.server import MAX_MESSAGE, ConsoleServer
+from hrc.console.runlog import next_log_path, open_log, resume_log
+from hrc.console.server import MAX_FRAME, ConsoleServer
 from hrc.console.session import ConsoleSession
 from hrc.console.views import PlanRoutes
 from hrc.dispatch import Dispatcher
-from hrc.errors import InputError
+from hrc.errors import HrcError, InputError
 from hrc.motion import plan_paths
 
 __all__ = ["open_console", "serve"]
 
 
 def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,
-                 simulate_robot: bool = False, tick: float = 2.0) -> ConsoleServer:
+                 simulate_robot: bool = False, tick: float = 2.0, credentials: Credentials | None = None,
+                 resume: str | os.PathLike[str] | None = None,
+                 report: Callable[[str], None] | None = None) -> ConsoleServer:
     """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
-    ``OUT_DIR/runs/console-N.jsonl``). The run's clock starts now.
+    ``OUT_DIR/runs/console-N.jsonl``), or the run logged at `resume` continued (its torn end, if any,
+    reported through `report`), `credentials` its secrets (default: new ones). The run's clock starts
+    when the first page or robot controller connects.
 
-    Raises `InputError` when `out_dir` is not an ``hrc compile`` output, `FileExistsError` when `log` exists.
+    Raises `InputError` when `out_dir` is not an ``hrc compile`` output, when `log` holds a run already,
+    when a log is held by another process, or when `resume` is no log of this compiled set.
     Cost: loading the plan set and planning the free-space paths again (about 2 s for the workshop).
     """
     dispatcher = Dispatcher.from_folder(out_dir)
@@ -38,22 +45,48 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     except (OSError, ValueError) as err:
         raise InputError(str(path), "", f"cannot read it ({err})") from err
     routes = PlanRoutes(compiled, plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
-    run_log = open_log(next_log_path(out_dir) if log is None else log, dispatcher)
-    session = ConsoleSession(dispatcher, compiled, routes, RunClock(speed), run_log)
-    return ConsoleServer(session, simulate_robot=simulate_robot, tick=tick)
+    if resume is not None:
+        logged, resumed = resume_log(resume, dispatcher)
+        if resumed.torn is not None and report is not None:
+            report(f"{resume}: {resumed.torn}")
+    else:
+        logged = open_log(next_log_path(out_dir) if log is None else log, dispatcher)
+    session = ConsoleSession(logged, compiled, routes, RunClock(speed, offset=logged.dispatcher.now))
+    if resume is not None:
+        session.restore(resumed.replayed)
+        if report is not None:
+            report(f"resumed {resume} after {resumed.messages} messages (each answered as logged), "
+                   f"at run time {logged.dispatcher.now:g} s")
+    return ConsoleServer(session, simulate_robot=simulate_robot, tick=tick, credentials=credentials)
 
 
 def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
           ready: Callable[[str], None] | None = None) -> None:
-    """Serve until interrupted; `ready(url)` is called once the socket listens (port 0: any free port)."""
+    """Serve until interrupted; `ready(base_url)` is called once the socket listens (port 0: any free
+    port), with the address served (``http://HOST:PORT/``, no token). Raises `HrcError` when the address
+    cannot be listened on."""
     sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.bind((host, port))
-    sock.listen(64)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((host, port))
+        sock.listen(64)
+    except (OSError, OverflowError) as err:
+        sock.close()
+        raise HrcError(f"cannot listen on {host}:{port}: {getattr(err, 'strerror', None) or err}") from err
     bound = sock.getsockname()[1]
-    config = uvicorn.Config(server.app, log_level="warning", ws_max_size=MAX_MESSAGE * 4, ws_ping_interval=5.0,
-                            ws_ping_timeout=10.0, timeout_graceful_shutdown=2, lifespan="on")
+    server.guard.listen(host, bound)
+    # proxy_headers off: no client may pass itself off as another address or scheme
+    config = uvicorn.Config(server.app, log_level="warning", ws_max_size=MAX_FRAME, ws_ping_interval=5.0,
+                            ws_ping_timeout=10.0, timeout_graceful_shutdown=2, lifespan="on",
+                            proxy_headers=False, server_header=False)
     if ready is not None:
         shown = f"[{host}]" if ":" in host else host
         ready(f"http://{shown}:{bound}/")
-    asyncio.run(uvicorn.Server(config).serve(sockets=[sock]))
+    # What was loaded (the plan set, the paths: some 90,000 objects) moves to the garbage collector's
+    # permanent generation: a full collection scanned it for ~100 ms, a pause in front of the robot's
+    # next acknowledgement (the `gc` docs' advice for a long-lived server with a large, stable heap)
+    gc.freeze()
+    try:
+        asyncio.run(uvicorn.Server(config).serve(sockets=[sock]))
+    finally:
+        gc.unfreeze()  # let the bindings' objects be collected at exit, as usual

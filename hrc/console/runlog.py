@@ -1,8 +1,9 @@
-"""Where a console run's log goes: a new file per run, never an old one overwritten.
+"""Where a console run's log goes: a new file per run, never an old one overwritten; or the log of a run
+to resume.
 
-The log itself is the dispatcher's (`hrc.dispatch.protocol.Log`: a header, then every line in and every
-answer, flushed and synced before the answer is given), so that ``hrc dispatch OUT_DIR --replay LOG``
-replays a console run like any other.
+The log itself is the dispatcher's (`hrc.dispatch.logfile`, written ahead of every change by
+`hrc.dispatch.durable.LoggedDispatcher`), so that ``hrc dispatch OUT_DIR --replay LOG`` replays a console
+run like any other, and ``hrc console OUT_DIR --resume LOG`` (or ``hrc dispatch --resume``) continues it.
 """
 
 from __future__ import annotations
@@ -11,9 +12,9 @@ import os
 from pathlib import Path
 
 from hrc.dispatch import Dispatcher
-from hrc.dispatch.protocol import Log
+from hrc.dispatch.durable import LoggedDispatcher, Resumed
 
-__all__ = ["next_log_path", "open_log"]
+__all__ = ["next_log_path", "open_log", "resume_log"]
 
 
 def next_log_path(out_dir: str | os.PathLike[str]) -> Path:
@@ -25,14 +26,12 @@ def next_log_path(out_dir: str | os.PathLike[str]) -> Path:
     return folder / f"console-{n}.jsonl"
 
 
-def open_log(path: str | os.PathLike[str], dispatcher: Dispatcher) -> Log:
-    """The dispatcher's log at `path`, a new file (its folder made if missing); `FileExistsError` if it exists.
+def open_log(path: str | os.PathLike[str], dispatcher: Dispatcher) -> LoggedDispatcher:
+    """`dispatcher` logged to `path`, a new file (its folder made if missing); `InputError` when the file
+    holds a run already (resume it instead) or another process holds it."""
+    return LoggedDispatcher.create(dispatcher, path)
 
-    A console run has a file of its own: the dispatcher's `Log` appends, and a replay takes the last
-    session of a file, so an old file would work, but one file per run is easier to find and to keep.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "x", encoding="utf-8"):
-        pass
-    return Log(path, dispatcher)
+
+def resume_log(path: str | os.PathLike[str], dispatcher: Dispatcher) -> tuple[LoggedDispatcher, Resumed]:
+    """The run logged at `path` rebuilt in `dispatcher` (fresh), to go on appending to its log."""
+    return LoggedDispatcher.resume(dispatcher, path)

@@ -6,9 +6,20 @@ this needs, run by uvicorn's single event loop, which also serializes every mess
 dispatcher. Routes::
 
     GET /                 the page            GET /static/console.{js,css}
-    GET /state            the run now (JSON)  GET /log      the run's log so far (JSON lines)
+    GET /state            the run now (JSON)  GET /log      the run's log file so far (JSON lines)
     WS  /ws               pages: pushes "setup" once, then "state" after every change; takes presses
     WS  /robot            the robot controller (docs/console.md): pushes "decision", takes "ack"
+
+Every route and websocket is behind `hrc.console.access.AccessGuard`: this server's own Host and Origin
+only, the page's secret everywhere but ``/robot``, the robot's own secret there.
+
+Each message that arrives is checked at once (its client's rate first, before it is even parsed; then
+size, JSON nesting) and put in the `hrc.console.inbox.Inbox`; one worker takes the robot's messages
+before the pages' and hands them to the session one at a time. A client over its rate is refused
+without an answer for each message, told so in one line at most once a second (with the count): a
+flood then costs the server a token-bucket check per message. Every queue is bounded (messages waiting
+per client, replies waiting for a slow client, pages connected), so no client can make the server's
+memory grow.
 
 With ``simulate_robot`` the server plays the robot: each robot event is acknowledged at the start of
 its window (`hrc.console.robot`), and ``/robot`` refuses controllers.
@@ -19,45 +30,73 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import time
 from collections.abc import AsyncIterator
 from importlib import resources
 from typing import Any
 
 from starlette.applications import Starlette
 from starlette.requests import Request
-from starlette.responses import JSONResponse, PlainTextResponse, Response
+from starlette.responses import FileResponse, PlainTextResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketState
 
+from hrc.console.access import AccessGuard, Credentials
+from hrc.console.inbox import Inbox, Letter, TokenBucket
 from hrc.console.robot import SimulatedRobot
-from hrc.console.session import ConsoleSession, Reply
+from hrc.console.session import ConsoleSession, Reply, parse
 
-__all__ = ["MAX_MESSAGE", "ConsoleServer"]
+__all__ = ["MAX_FRAME", "MAX_MESSAGE", "MAX_PAGES", "PAGE_RATE", "ROBOT_RATE", "SUMMARY_EVERY", "ConsoleServer"]
 
-MAX_MESSAGE = 4096        # bytes: no legitimate message comes near it
+MAX_MESSAGE = 4096        # bytes: no legitimate message comes near it (a longer one gets a one-line refusal)
+MAX_FRAME = 65536         # bytes: a longer websocket frame closes the connection (1009), read no further
 SEND_TIMEOUT = 5.0        # s: a client that cannot take a message in this time is dropped (it reconnects)
 QUEUE = 64                # messages waiting for one client before it is dropped as too slow
+MAX_PAGES = 16            # pages connected at once (tabs of the person's; more are refused)
+PAGE_RATE = (5.0, 10)     # a page's messages: 5 a second, 10 at once (a person presses far less)
+ROBOT_RATE = (50.0, 100)  # the robot controller's
+WAITING = 8               # messages of one client waiting for the dispatcher
+SUMMARY_EVERY = 1.0       # s: a client over its rate is told so at most this often (one line with the count)
 _STATIC = {"console.js": "text/javascript; charset=utf-8", "console.css": "text/css; charset=utf-8"}
 # Nothing but this server: no other host for scripts, styles, images or connections.
 _CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; "
         "base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
+_NO_STORE = {"Cache-Control": "no-store", "Referrer-Policy": "no-referrer", "X-Content-Type-Options": "nosniff"}
 
 
 def _page_file(name: str) -> bytes:
     return resources.files("hrc.console").joinpath("page", name).read_bytes()
 
 
-class _Client:
-    """One websocket and the queue of messages waiting for it (one writer task per client, so sends
-    never interleave)."""
+def _json(obj: Any) -> str:
+    """Compact JSON, ASCII: a lone surrogate a page sent stays an escape and never breaks a response."""
+    return json.dumps(obj, separators=(",", ":"), ensure_ascii=True)
 
-    def __init__(self, ws: WebSocket) -> None:
+
+class _Client:
+    """One websocket, the queue of messages waiting for it (one writer task per client, so sends never
+    interleave), and the rate its messages may come at."""
+
+    def __init__(self, ws: WebSocket, rate: tuple[float, int]) -> None:
         self.ws = ws
         self.queue: asyncio.Queue[str] = asyncio.Queue(QUEUE)
+        self.bucket = TokenBucket(*rate)
+        self.over = 0  # messages over the rate since the last refusal said how many
+        self.told_at = -SUMMARY_EVERY
+
+    def over_the_rate(self) -> dict[str, Any] | None:
+        """A message over the rate: refused; the refusal that says so, at most once a second."""
+        self.over += 1
+        now = time.monotonic()
+        if now - self.told_at < SUMMARY_EVERY:
+            return None
+        count, self.over, self.told_at = self.over, 0, now
+        return Reply.error(f"refused: {count} message{'s' if count > 1 else ''} over the limit of "
+                           f"{self.bucket.rate:g} a second (no answer each until they slow down); nothing changed")
 
     def push(self, message: dict[str, Any]) -> bool:
         try:
-            self.queue.put_nowait(json.dumps(message, separators=(",", ":")))
+            self.queue.put_nowait(_json(message))
             return True
         except asyncio.QueueFull:
             return False
@@ -65,7 +104,8 @@ class _Client:
     async def write(self) -> None:
         while True:
             text = await self.queue.get()
-            await asyncio.wait_for(self.ws.send_text(text), SEND_TIMEOUT)
+            async with asyncio.timeout(SEND_TIMEOUT):  # in this task: no extra hop as with wait_for
+                await self.ws.send_text(text)
 
 
 async def _receive(ws: WebSocket) -> str | bytes | None:
@@ -76,39 +116,56 @@ async def _receive(ws: WebSocket) -> str | bytes | None:
     return message.get("text") if message.get("text") is not None else message.get("bytes") or b""
 
 
-class ConsoleServer:
-    """The ASGI app (`app`) around one `ConsoleSession`; `tick` is in run seconds (0: no ticks)."""
+async def _close(ws: WebSocket, code: int) -> None:
+    with contextlib.suppress(Exception):  # it may have gone already
+        await ws.close(code=code)
 
-    def __init__(self, session: ConsoleSession, simulate_robot: bool = False, tick: float = 2.0) -> None:
+
+class ConsoleServer:
+    """The ASGI app (`app`, behind its `guard`) around one `ConsoleSession`; `tick` is in run seconds
+    (0: no ticks). `credentials`: the run's secrets (default: new ones)."""
+
+    def __init__(self, session: ConsoleSession, simulate_robot: bool = False, tick: float = 2.0,
+                 credentials: Credentials | None = None) -> None:
         self.session = session
         self.tick = tick
         self.pages: set[_Client] = set()
         self.robot: _Client | None = None
+        self.inbox: Inbox[_Client] = Inbox(WAITING)
         self.sim = SimulatedRobot(session, self.changed) if simulate_robot else None
         session.robot_link = "simulated" if simulate_robot else "none"
-        self.app = Starlette(routes=[
+        self.credentials = credentials or Credentials.generate()
+        routes = Starlette(routes=[
             Route("/", self.index), Route("/static/{name}", self.static), Route("/state", self.state),
             Route("/log", self.log), WebSocketRoute("/ws", self.page_socket),
             WebSocketRoute("/robot", self.robot_socket),
         ], lifespan=self._lifespan)
+        self.guard = AccessGuard(routes, self.credentials)
+        self.app = self.guard
+        self.received = 0  # websocket messages received
+        self.limited = 0   # of which refused at once by a rate limit or a full inbox
 
     # -- plain HTTP ---------------------------------------------------------------------------------
     async def index(self, request: Request) -> Response:
         return Response(_page_file("index.html"), media_type="text/html; charset=utf-8",
-                        headers={"Content-Security-Policy": _CSP, "Cache-Control": "no-store"})
+                        headers={"Content-Security-Policy": _CSP, **_NO_STORE})
 
     async def static(self, request: Request) -> Response:
         name = request.path_params["name"]
         if name not in _STATIC:
             return PlainTextResponse("not found", status_code=404)
-        return Response(_page_file(name), media_type=_STATIC[name], headers={"Cache-Control": "no-store"})
+        return Response(_page_file(name), media_type=_STATIC[name], headers=_NO_STORE)
 
     async def state(self, request: Request) -> Response:
-        return JSONResponse(self.session.state())
+        traffic = {"received": self.received, "limited": self.limited, "denied": self.guard.denied}
+        return Response(_json({**self.session.state(), "traffic": traffic}), media_type="application/json",
+                        headers=_NO_STORE)
 
     async def log(self, request: Request) -> Response:
-        lines = (json.dumps(x, separators=(",", ":")) for e in self.session.entries for x in (e["in"], e["out"]))
-        return PlainTextResponse("".join(line + "\n" for line in lines), media_type="application/x-ndjson")
+        path = self.session.log_path
+        if path is None:
+            return PlainTextResponse("", media_type="application/x-ndjson", headers=_NO_STORE)
+        return FileResponse(path, media_type="application/x-ndjson", headers=_NO_STORE)
 
     # -- pushing changes ----------------------------------------------------------------------------
     def changed(self) -> None:
@@ -132,31 +189,61 @@ class ConsoleServer:
         if self.robot is client:
             self.robot = None
             self.session.robot_link = "none"
-        asyncio.get_running_loop().create_task(client.ws.close(code=1013))
+        asyncio.get_running_loop().create_task(_close(client.ws, 1013))
 
-    # -- websockets ---------------------------------------------------------------------------------
-    async def _serve(self, client: _Client, handle: Any) -> None:
+    # -- messages in --------------------------------------------------------------------------------
+    def _admit(self, client: _Client, frame: str | bytes) -> dict[str, Any] | None:
+        """Check a message as it arrives: the refusal to send at once, or None (into the inbox, or over its
+        client's rate with the refusal already said this second)."""
+        self.received += 1
+        if not client.bucket.take():  # first, and before parsing: a flood costs next to nothing
+            self.limited += 1
+            return client.over_the_rate()
+        if len(frame) > MAX_MESSAGE:
+            return Reply.error(f"malformed message (longer than {MAX_MESSAGE} bytes)")
+        msg = parse(frame)
+        if isinstance(msg, str):
+            return Reply.error(msg)
+        mid = msg.get("id")
+        mid = mid if isinstance(mid, str | int) and not isinstance(mid, bool) else None
+        ident = {} if mid is None else {"id": mid}
+        if not self.inbox.put(Letter(client, client is self.robot, msg, mid)):
+            self.limited += 1
+            return {**Reply.error(f"refused: {WAITING} messages of yours are still waiting; nothing changed"),
+                    **ident}
+        return None
+
+    async def _serve(self, client: _Client) -> None:
         writer = asyncio.create_task(client.write())
         try:
             while True:
-                text = await _receive(client.ws)
-                if text is None:
+                frame = await _receive(client.ws)
+                if frame is None:
                     break
-                if len(text) > MAX_MESSAGE:
-                    reply: dict[str, Any] = Reply.error(f"malformed message (longer than {MAX_MESSAGE} bytes)")
-                else:
-                    reply = handle(text)
-                with contextlib.suppress(ValueError, UnicodeDecodeError, AttributeError):
-                    mid = json.loads(text).get("id")
-                    if isinstance(mid, str | int) and not isinstance(mid, bool):
-                        reply = {**reply, "id": mid}
-                client.push({"type": "reply", **reply})
-                if reply["ok"]:
-                    self.changed()
+                refusal = self._admit(client, frame)
+                if refusal is not None:
+                    # a client that sends faster than it reads its refusals is not sent more of them (its
+                    # queue is full): they go unanswered rather than growing memory; nothing changed
+                    client.push({"type": "reply", **refusal})
+                await asyncio.sleep(0)  # a flood on one connection must not keep the others (the robot) waiting
         finally:
             writer.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await writer
+
+    async def _worker(self) -> None:
+        """The one consumer of the inbox: each message to the session, its reply, then the new state."""
+        while True:
+            letter = await self.inbox.get()
+            error_before = self.session.log_error
+            handle = self.session.robot_message if letter.robot else self.session.page_message
+            reply = handle(letter.message)
+            ident = {} if letter.reply_id is None else {"id": letter.reply_id}
+            if not letter.client.push({"type": "reply", **reply, **ident}):
+                self._drop(letter.client)
+            await asyncio.sleep(0)  # the reply goes out before the state is built
+            if reply["ok"] or self.session.log_error != error_before:
+                self.changed()
 
     def _start_run(self) -> None:
         """The run's clock starts when the first page or robot controller connects."""
@@ -165,14 +252,17 @@ class ConsoleServer:
             self.changed()
 
     async def page_socket(self, ws: WebSocket) -> None:
+        if len(self.pages) >= MAX_PAGES:
+            await ws.close(code=1013)
+            return
         await ws.accept()
         self._start_run()
-        client = _Client(ws)
+        client = _Client(ws, PAGE_RATE)
         client.push(self.session.setup())
         client.push(self.session.state())
         self.pages.add(client)
         try:
-            await self._serve(client, self.session.page_message)
+            await self._serve(client)
         finally:
             self.pages.discard(client)
 
@@ -181,16 +271,16 @@ class ConsoleServer:
         why = ("the robot is simulated (--simulate-robot)" if self.sim is not None
                else "a robot controller is already connected" if self.robot is not None else None)
         if why:
-            await ws.send_text(json.dumps({"type": "reply", "ok": False, "error": f"refused: {why}"}))
+            await ws.send_text(_json({"type": "reply", "ok": False, "error": f"refused: {why}"}))
             await ws.close(code=1008)
             return
         self._start_run()
-        client = self.robot = _Client(ws)
+        client = self.robot = _Client(ws, ROBOT_RATE)
         self.session.robot_link = "connected"
         client.push({"type": "hello", "now": self.session.now(), "speed": self.session.clock.speed})
         self.changed()  # the decision to the robot, the link to the pages
         try:
-            await self._serve(client, self.session.robot_message)
+            await self._serve(client)
         finally:
             if self.robot is client:
                 self.robot = None
@@ -203,22 +293,24 @@ class ConsoleServer:
         while self.tick > 0:
             await asyncio.sleep(self.tick / s.clock.speed)
             if s.clock.started and not s.finished and s.clock.now() - s.dispatcher.now >= self.tick:
-                if s.tick()["ok"]:
+                error_before = s.log_error
+                if s.tick()["ok"] or s.log_error != error_before:
                     self.changed()
 
     @contextlib.asynccontextmanager
     async def _lifespan(self, app: Starlette) -> AsyncIterator[None]:
-        ticker = asyncio.create_task(self._ticker())
+        tasks = [asyncio.create_task(self._ticker()), asyncio.create_task(self._worker())]
         if self.sim is not None:
             self.sim.update()
         try:
             yield
         finally:
-            ticker.cancel()
+            for task in tasks:
+                task.cancel()
             if self.sim is not None:
                 self.sim.stop()
             for client in list(self.pages):
                 if client.ws.client_state == WebSocketState.CONNECTED:
                     with contextlib.suppress(Exception):
                         await client.ws.close(code=1001)
-            self.session.log.close()
+            self.session.logged.close()

@@ -2,10 +2,15 @@
 the robot controller may ask of them.
 
 Every press of the person, every acknowledgement of the robot and every tick goes to the dispatcher
-as one JSON line through `hrc.dispatch.protocol.handle_line` (the protocol `hrc dispatch` speaks), so
-that the run's log replays with ``hrc dispatch OUT_DIR --replay LOG``. Messages from the page and the
-robot are checked here first (shape, type, the page's view of the run being current) and a message
-refused here or by the dispatcher changes nothing but the reply.
+as one JSON line of the protocol `hrc dispatch` speaks, through a `hrc.dispatch.durable.LoggedDispatcher`:
+the line and its answer are in the run's log (synced) before the state changes or anyone is told, so
+that the log replays with ``hrc dispatch OUT_DIR --replay LOG`` and a crashed run resumes with
+``hrc console OUT_DIR --resume LOG``. If the log cannot be written, the message is refused, nothing
+changes, and the page says so (`ConsoleSession.log_error`). Messages from the page and the robot are
+checked here first (size, nesting, shape, type, the page's view of the run being current) and a
+message refused here or by the dispatcher changes nothing but the reply.
+
+Memory is bounded: the page is shown the last `LOG_SHOWN` messages (the log file keeps all).
 
 The session is not thread-safe: the server calls it from its one event loop, which serializes the
 messages of every tab and of the robot.
@@ -14,15 +19,20 @@ messages of every tab and of the robot.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections import deque
+from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any
 
 from hrc.console.clock import RunClock
 from hrc.console.views import PlanRoutes, gantt_bars, map_view, under_way
 from hrc.dispatch import Dispatcher, RobotStep
-from hrc.dispatch.protocol import Log, handle_line
+from hrc.dispatch.durable import LoggedDispatcher
+from hrc.dispatch.limits import parse_message
+from hrc.dispatch.logfile import Message
+from hrc.errors import LogWriteError, MessageError
 
-__all__ = ["PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply"]
+__all__ = ["LOG_SHOWN", "PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply", "parse"]
 
 # How long after a press of the person the page offers to undo it, in run seconds (the dispatcher
 # itself accepts an undo within 10 s of the observation it withdraws).
@@ -30,7 +40,8 @@ UNDO_WINDOW = 8.0
 # The page's messages and the keys each needs besides "type" and "hseq".
 PAGE_MESSAGES: dict[str, tuple[str, ...]] = {"press": ("action", "phase", "event"), "away": (), "back": (),
                                              "undo": ()}
-_LOG_SHOWN = 300  # log entries sent to a page (the file keeps all)
+LOG_SHOWN = 300
+"""Log entries kept for the page (the file keeps all)."""
 
 
 class Reply(dict[str, Any]):
@@ -41,10 +52,15 @@ class Reply(dict[str, Any]):
         return cls(ok=False, error=message)
 
 
-def _loads(text: str | bytes) -> dict[str, Any] | str:
-    """The message as a JSON object, or why it is not one (a line for the page)."""
+def parse(text: str | bytes | Mapping[str, Any]) -> dict[str, Any] | str:
+    """The message as a JSON object (bounded: `hrc.dispatch.limits`), or why it is not one (a line for
+    the page). A mapping is taken as already parsed."""
+    if isinstance(text, Mapping):
+        return dict(text)
     try:
-        msg = json.loads(text)
+        msg = parse_message(text.decode("utf-8") if isinstance(text, bytes) else text)
+    except MessageError as err:
+        return f"malformed message ({err})"
     except (ValueError, UnicodeDecodeError) as err:
         return f"malformed message (not JSON: {err})"
     if not isinstance(msg, dict):
@@ -60,18 +76,42 @@ class ConsoleSession:
     refused, so that no one confirms what they have not seen. `seq` counts every accepted message.
     """
 
-    def __init__(self, dispatcher: Dispatcher, compiled: Mapping[str, Any], routes: PlanRoutes,
-                 clock: RunClock, log: Log, robot_link: str = "none") -> None:
-        self.dispatcher = dispatcher
+    def __init__(self, logged: LoggedDispatcher, compiled: Mapping[str, Any], routes: PlanRoutes,
+                 clock: RunClock, robot_link: str = "none") -> None:
+        self.logged = logged
         self.compiled = compiled
         self.routes = routes
         self.clock = clock
-        self.log = log
         self.robot_link = robot_link  # "simulated" | "connected" | "none"
         self.seq = 0
         self.hseq = 0
-        self.entries: list[dict[str, Any]] = []
-        self._phases = {(a.id, p.id) for a in dispatcher.task.actions for p in a.phases}
+        self.total = 0  # messages that reached the dispatcher (and the log)
+        self.entries: deque[dict[str, Any]] = deque(maxlen=LOG_SHOWN)
+        self.log_error: str | None = None  # why the log could not be written, until it can again
+        self._phases = {(a.id, p.id) for a in logged.dispatcher.task.actions for p in a.phases}
+
+    @property
+    def dispatcher(self) -> Dispatcher:
+        """The dispatcher's state as committed to the log."""
+        return self.logged.dispatcher
+
+    @property
+    def log_path(self) -> Path | None:
+        return self.logged.path
+
+    def restore(self, messages: Iterable[Message]) -> None:
+        """Count and show the messages of a resumed run's log (`LoggedDispatcher.resume` replayed them)."""
+        for message in messages:
+            line = message.data.decode("utf-8", "replace")
+            try:
+                obs = parse_message(line)  # the console's own lines; bounded all the same
+            except (ValueError, MessageError):
+                obs = {"raw": line[:200]}
+            out = json.loads(message.answer)
+            obs = obs if isinstance(obs, dict) else {"raw": line[:200]}
+            source = ("person" if obs.get("agent") == "human" or obs.get("event") == "undo"
+                      else "robot" if obs.get("agent") == "robot" else "clock")
+            self._record(obs, out, source)
 
     # -- time -------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -80,21 +120,32 @@ class ConsoleSession:
 
     # -- the one way into the dispatcher ----------------------------------------------------------
     def _submit(self, message: dict[str, Any], source: str) -> Reply:
-        line = json.dumps(message, separators=(",", ":"))
-        out_line = handle_line(self.dispatcher, line)
+        line = json.dumps(message, separators=(",", ":"))  # ASCII: a lone surrogate stays escaped
+        out_line = self.logged.take_line(line)
+        try:
+            self.logged.commit()  # in the log (synced if accepted) before the state changes
+        except LogWriteError as err:
+            self.log_error = str(err)
+            return Reply.error(f"refused: {err}; nothing changed")
+        self.log_error = None
         out = json.loads(out_line)
-        self.log.record(line, out_line)  # on disk before anyone is told
-        entry = {"n": len(self.entries) + 1, "source": source, "in": message, "out": out}
-        self.entries.append(entry)
+        self._record(message, out, source)
         if not out.get("ok"):
             return Reply.error(str(out.get("error", "refused by the dispatcher")))
-        self.seq += 1
         return Reply(ok=True, decision=out)
 
+    def _record(self, message: dict[str, Any], out: dict[str, Any], source: str) -> None:
+        self.total += 1
+        self.entries.append({"n": self.total, "source": source, "in": message, "out": out})
+        if out.get("ok"):
+            self.seq += 1
+            if source == "person":
+                self.hseq += 1
+
     # -- the person (the page) --------------------------------------------------------------------
-    def page_message(self, text: str | bytes) -> Reply:
+    def page_message(self, text: str | bytes | Mapping[str, Any]) -> Reply:
         """A message from a page (see `PAGE_MESSAGES`); refused here when malformed or stale."""
-        msg = _loads(text)
+        msg = parse(text)
         if isinstance(msg, str):
             return Reply.error(msg)
         kind = msg.get("type")
@@ -118,19 +169,16 @@ class ConsoleSession:
             obs = {"t": t, "event": "undo"}
         else:
             obs = {"t": t, "agent": "human", "event": kind}
-        reply = self._submit(obs, "person")
-        if reply["ok"]:
-            self.hseq += 1
-        return reply
+        return self._submit(obs, "person")
 
     # -- the robot (its controller, or the simulated robot) ---------------------------------------
-    def robot_message(self, text: str | bytes, source: str = "robot") -> Reply:
+    def robot_message(self, text: str | bytes | Mapping[str, Any], source: str = "robot") -> Reply:
         """An acknowledgement ``{"type": "ack", "action", "phase", "event"[, "t"]}`` from the robot.
 
         ``t`` (run seconds, optional) is when the event happened; it may not lie in the future nor before
         the dispatcher's last accepted message. Without it the event happened now.
         """
-        msg = _loads(text)
+        msg = parse(text)
         if isinstance(msg, str):
             return Reply.error(msg)
         if msg.get("type") != "ack":
@@ -168,7 +216,7 @@ class ConsoleSession:
                                                              "phases": {p.id: p.location for p in a.phases}}
                                                       for a in task.actions}},
                 "map": map_view(task), "speed": self.clock.speed, "undo_window": UNDO_WINDOW,
-                "log_file": str(self.log.path)}
+                "log_file": str(self.log_path)}
 
     def _undo(self, now: float) -> dict[str, Any] | None:
         last = next((o for o in reversed(self.dispatcher.history) if o.agent == "human"), None)
@@ -194,7 +242,7 @@ class ConsoleSession:
                                                "makespan": best.makespan, "sequences": dict(best.sequences)},
             "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now),
             "routes": self.routes.routes(plan),
-            "log": self.entries[-_LOG_SHOWN:], "log_total": len(self.entries),
+            "log": list(self.entries), "log_total": self.total, "log_error": self.log_error,
             "robot_link": self.robot_link, "where": self._where(),
         }
 

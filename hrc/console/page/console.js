@@ -30,6 +30,10 @@
       setLink(false, "connection lost, reconnecting…");
       drawButtons();
       C.stats.reconnects += 1;
+      // refused for want of the run's secret (a console restarted with a new one): say so, keep trying
+      fetch("/state", { cache: "no-store" }).then((r) => {
+        if (r.status === 401) setLink(false, "not authorized: open the address `hrc console` printed, with its token");
+      }).catch(() => {});
       setTimeout(connect, backoff);
       backoff = Math.min(backoff * 2, 4000);
     };
@@ -82,7 +86,11 @@
     return e;
   }
   function setLink(ok, text) { const l = $("link"); l.textContent = text; l.className = "link " + (ok ? "ok" : "bad"); }
-  function showError(text) { C.stats.errors.push(text); $("error-text").textContent = text; $("error").hidden = false; }
+  function showError(text) {
+    C.stats.errors.push(text);
+    if (C.stats.errors.length > 100) C.stats.errors.shift();  // the last hundred: a flood must not grow the page
+    $("error-text").textContent = text; $("error").hidden = false;
+  }
   function where(action, phase) {
     const a = C.setup && C.setup.task.actions[action];
     return a && a.phases[phase] ? a.phases[phase] : "?";
@@ -133,6 +141,8 @@
   function drawState() {
     const s = C.state, d = s.decision;
     $("finished").hidden = !s.finished;
+    $("log-error").hidden = !s.log_error;  // the server refuses everything until its log can be written
+    $("log-error-text").textContent = s.log_error || "";
     // counts per class
     const counts = $("counts"); counts.textContent = "";
     for (const k of ["DC", "consistent", "inconsistent"]) {
