@@ -74,6 +74,7 @@ class ReferenceDispatcher:
         self.feasible_only, self.use_preferences = feasible_only, use_preferences
         self.history = History.start(task)
         self.effective: tuple[Observation, ...] = ()
+        self.accepted: tuple[Observation, ...] = ()  # every accepted message (the protocol's tick gap reads it)
         self.ranked: list[int] = []
         self.evals: dict[int, Any] = {}
         self.do_forms: dict[int, Any] = {}
@@ -97,6 +98,7 @@ class ReferenceDispatcher:
             raise DispatchError(f"no remaining plan allows {what} ({len(self.ranked)} plans agreed with what was "
                                 "seen before)")
         self.effective = (*self.effective, obs)
+        self.accepted = (*self.accepted, obs)
         self.decision = self._settle(history, kept)
         return self.decision
 
@@ -119,6 +121,7 @@ class ReferenceDispatcher:
         history = history.add(Observation(obs.t, "tick"))
         kept = [i for i in range(len(self.plans)) if agrees(self.plans[i], history)]
         self.effective = effective
+        self.accepted = (*self.accepted, obs)
         self.decision = self._settle(history, kept)
         return self.decision
 

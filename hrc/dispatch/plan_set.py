@@ -40,7 +40,7 @@ from hrc.temporal.limits import MAX_FILE_BYTES
 
 from .messages import LEG_EVENTS
 
-__all__ = ["PlanEntry", "PlanSet", "load_plan_set", "plan_set_from_compiled"]
+__all__ = ["PlanEntry", "PlanSet", "load_plan_set", "plan_entry", "plan_set_from_compiled"]
 
 LegKey = tuple[str, str, str]  # (agent, action, phase)
 EventKey = tuple[str, str, str, str]  # (agent, action, phase, event)
