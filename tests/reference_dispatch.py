@@ -33,7 +33,16 @@ from typing import Any
 from hrc.compile.output import load_compiled_task
 from hrc.dispatch import UNDO_SECONDS
 from hrc.dispatch.dispatcher import _rank
-from hrc.dispatch.messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor
+from hrc.dispatch.messages import (
+    LEG_EVENTS,
+    Candidate,
+    Decision,
+    HumanOption,
+    Observation,
+    RobotStep,
+    WaitFor,
+    ack_note,
+)
 from hrc.dispatch.plan_set import PlanEntry, _Archive, plan_entry
 from hrc.dispatch.ranking import rank_key, reference_evaluate
 from hrc.dispatch.validation import History, agrees, executed, ticks
@@ -97,9 +106,11 @@ class ReferenceDispatcher:
                 f"{obs.agent} {obs.action}.{obs.phase} {obs.event}" + (f" (next {obs.next})" if obs.next else "")
             raise DispatchError(f"no remaining plan allows {what} ({len(self.ranked)} plans agreed with what was "
                                 "seen before)")
+        robot = next(a.id for a in self.task.agents if not a.is_human)
+        ack = ack_note(self.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
         self.effective = (*self.effective, obs)
         self.accepted = (*self.accepted, obs)
-        self.decision = self._settle(history, kept)
+        self.decision = replace(self._settle(history, kept), ack=ack)
         return self.decision
 
     def _undo(self, obs: Observation) -> Decision:

@@ -10,6 +10,7 @@ Replay is byte-identical; malformed or impossible messages are refused and chang
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 
@@ -19,7 +20,7 @@ from conftest import ROOT
 from dispatch_client import Run, broken_links
 
 from hrc.cli import main
-from hrc.dispatch import Dispatcher, Observation, RobotStep
+from hrc.dispatch import Dispatcher, Observation, RobotStep, WaitFor
 from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.protocol import handle_line
 from hrc.errors import DispatchError
@@ -347,3 +348,58 @@ def test_a_compile_with_packed_stnus_dispatches_as_one_with_files(plan_set, tmp_
     assert main(["dispatch", str(bare)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "--stnu graphml or --stnu archive" in err[0]
+
+
+def test_a_robot_acknowledgement_outside_its_window_is_accepted_marked_and_ranked(plan_set):
+    """Issue 26's policy: an acknowledgement says the event happened, so it is accepted; the answer says
+    how it stood to what the robot was told (early, late, unasked), and the plans are re-ranked from it."""
+    d, send = _in_process(plan_set)
+    answer = json.loads(send('{"t": 0.5, "agent": "human", "action": "cube1", "phase": "fetch", "event": "depart"}'))
+    step = answer["robot"]
+    assert "earliest" in step and step["earliest"] > 1 and "ack" not in answer
+    msg = {"agent": "robot", "action": step["action"], "phase": step["phase"], "event": step["event"]}
+    early = json.loads(handle_line(d.fork(), json.dumps({"t": 1.0, **msg})))
+    assert early["ok"] and early["ack"] == {"early": round(step["earliest"] - 1.0, 3),
+                                            "window": [step["earliest"], step["latest"]]}
+    on_time = json.loads(handle_line(d.fork(), json.dumps({"t": step["earliest"], **msg})))
+    assert on_time["ok"] and "ack" not in on_time
+    late_t = step["latest"] + 5
+    late = json.loads(handle_line(d.fork(), json.dumps({"t": late_t, **msg})))
+    assert late["ok"] and late["ack"] == {"late": 5.0, "window": [step["earliest"], step["latest"]]}
+    # acting early or late costs the promise: not every plan left is DC any more
+    assert early["candidates"] != on_time["candidates"] or late["candidates"] != on_time["candidates"]
+    # an event the robot was not told to do (here: it was told to wait for the person)
+    fresh, send_fresh = _in_process(plan_set)
+    waiting = fresh.decision.robot
+    assert isinstance(waiting, WaitFor)
+    unasked = json.loads(send_fresh(json.dumps({"t": 0.2, **msg})))
+    assert unasked["ok"] and unasked["ack"] == {"unasked": True, "told": {"wait_for": str(waiting)}}
+
+
+def test_one_bad_clock_value_cannot_wedge_a_run(plan_set):
+    """A tick at 1e9 s used to move the run's clock past every later message; now it is refused, and so is
+    any message more than MAX_JUMP after the last; a real long pause goes in steps of at most MAX_JUMP."""
+    from hrc.dispatch.validation import MAX_JUMP
+
+    d, send = _in_process(plan_set)
+    assert json.loads(send('{"t": 1, "event": "tick"}'))["ok"]
+    refused = json.loads(send('{"t": 1e9, "event": "tick"}'))
+    assert not refused["ok"] and "clock error" in refused["error"] and d.now == 1
+    assert not json.loads(send(json.dumps({"t": 1 + MAX_JUMP + 0.5, "event": "tick"})))["ok"]
+    assert json.loads(send('{"t": 2, "agent": "human", "action": "cube1", "phase": "fetch", "event": "depart"}'))["ok"]
+    for t in (2 + MAX_JUMP, 2 + 2 * MAX_JUMP):  # an afternoon away, told in steps
+        assert json.loads(send(json.dumps({"t": t, "event": "tick"})))["ok"]
+    assert d.now == 2 + 2 * MAX_JUMP
+
+
+def test_a_partial_output_dispatches_only_when_allowed(folder, tmp_path, capsys):
+    partial = tmp_path / "partial"
+    shutil.copytree(folder, partial)
+    text = (partial / "compiled.json").read_text()
+    (partial / "compiled.json").write_text(text.replace('"counts"', '"partial": true,\n "counts"', 1))
+    assert main(["dispatch", str(partial)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "--allow-partial" in err and err.count("\n") == 1
+    run = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(partial), "--allow-partial"],
+                         input='{"t": 0, "event": "tick"}\n', capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert run.returncode == 0 and json.loads(run.stdout.splitlines()[0])["ok"], run.stderr

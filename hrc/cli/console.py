@@ -63,6 +63,8 @@ def add_parser(sub: Any) -> None:
                    help="tell the dispatcher time passed after this many quiet run seconds (0: never)")
     p.add_argument("--log", metavar="FILE", help="the run's log (default OUT_DIR/runs/console-N.jsonl); must be new")
     p.add_argument("--resume", metavar="LOG", help="continue the run logged in LOG (after a crash), appending to it")
+    p.add_argument("--allow-partial", action="store_true",
+                   help="serve a partial compile output (an interrupted compile: not every plan is in it)")
     p.add_argument("--token-file", metavar="FILE",
                    help="the page's secret: read from FILE, or a new one written there (mode 0600)")
     p.add_argument("--robot-token-file", metavar="FILE",
@@ -88,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     server = open_console(args.out_dir, speed=args.speed, log=args.log, simulate_robot=args.simulate_robot,
                           tick=args.tick, credentials=Credentials(page, robot), resume=args.resume,
+                          allow_partial=args.allow_partial,
                           report=lambda text: print(f"hrc console: {text}", file=sys.stderr, flush=True))
     if not is_loopback(args.host):
         print(f"hrc console: warning: listening on {args.host}: reachable from other machines, and the "

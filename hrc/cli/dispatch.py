@@ -24,6 +24,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", metavar="LOG", help="rebuild the run logged in LOG (after a crash) and go on "
                                                    "appending to it")
     p.add_argument("--replay", metavar="LOG", help="re-run a log written with --log and print its answers")
+    p.add_argument("--allow-partial", action="store_true",
+                   help="dispatch a partial compile output (an interrupted compile: not every plan is in it)")
     p.add_argument("--feasible-only", action="store_true",
                    help="drop plans that are neither DC nor consistent; stop when none is left")
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
@@ -43,8 +45,8 @@ def run(args: argparse.Namespace) -> int:
     if len(given) > 1:
         print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
         return 2
-    dispatcher = Dispatcher.from_folder(args.out_dir, feasible_only=args.feasible_only,
-                                         use_preferences=args.preferences)
+    dispatcher = Dispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial,
+                                         feasible_only=args.feasible_only, use_preferences=args.preferences)
     if args.replay:
         contents = read_log(args.replay)
         if contents.torn is not None:

@@ -9,9 +9,11 @@ import os
 import socket
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import uvicorn
 
+from hrc.compile.output import read_header
 from hrc.console.access import Credentials
 from hrc.console.clock import RunClock
 from hrc.console.runlog import next_log_path, open_log, resume_log
@@ -19,32 +21,63 @@ from hrc.console.server import MAX_FRAME, ConsoleServer
 from hrc.console.session import ConsoleSession
 from hrc.console.views import PlanRoutes
 from hrc.dispatch import Dispatcher
+from hrc.dispatch.plan_set import PlanSet
 from hrc.errors import HrcError, InputError
 from hrc.motion import plan_paths
 
-__all__ = ["open_console", "serve"]
+__all__ = ["open_console", "plan_motions", "serve"]
+
+
+def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable[[str], list[dict[str, Any]] | None]:
+    """A plan's ``motions`` from ``compiled.json``, by plan id (None: no such plan), read when asked for:
+    its one line, where the dispatch form says it lies (a large compile's file is gigabytes); for an
+    output without a form, the file is read once."""
+    path = Path(out_dir) / "compiled.json"
+    rows = plan_set.form.plans
+    everything: dict[str, Any] | None = None
+
+    def motions(plan_id: str) -> list[dict[str, Any]] | None:
+        nonlocal everything
+        try:
+            p = plan_set.index(plan_id)
+        except KeyError:
+            return None
+        at, size = int(rows["line_at"][p]), int(rows["line_len"][p])
+        try:
+            if size:
+                with open(path, "rb") as f:
+                    f.seek(at)
+                    line = json.loads(f.read(size))
+                if isinstance(line, dict) and line.get("id") == plan_id:
+                    return list(line.get("motions", []))
+                raise ValueError(f"plan {plan_id}'s line is not where the dispatch form says")
+            if everything is None:
+                everything = {p["id"]: p for p in json.loads(path.read_text(encoding="utf-8"))["plans"]}
+            return list(everything[plan_id]["motions"]) if plan_id in everything else None
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            raise InputError(str(path), "", f"cannot read plan {plan_id}'s motions ({err})") from err
+
+    return motions
 
 
 def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,
                  simulate_robot: bool = False, tick: float = 2.0, credentials: Credentials | None = None,
-                 resume: str | os.PathLike[str] | None = None,
+                 resume: str | os.PathLike[str] | None = None, allow_partial: bool = False,
                  report: Callable[[str], None] | None = None) -> ConsoleServer:
     """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
     ``OUT_DIR/runs/console-N.jsonl``), or the run logged at `resume` continued (its torn end, if any,
     reported through `report`), `credentials` its secrets (default: new ones). The run's clock starts
     when the first page or robot controller connects.
 
-    Raises `InputError` when `out_dir` is not an ``hrc compile`` output, when `log` holds a run already,
-    when a log is held by another process, or when `resume` is no log of this compiled set.
-    Cost: loading the plan set and planning the free-space paths again (about 2 s for the workshop).
+    Raises `InputError` when `out_dir` is not an ``hrc compile`` output (or a partial one, unless
+    `allow_partial`), when `log` holds a run already, when a log is held by another process, or when
+    `resume` is no log of this compiled set. Cost: loading the plan set (its dispatch form: well under a
+    second for 40,320 plans) and planning the free-space paths again (about 2 s for the workshop).
     """
-    dispatcher = Dispatcher.from_folder(out_dir)
-    path = Path(out_dir) / "compiled.json"
-    try:
-        compiled = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
-        raise InputError(str(path), "", f"cannot read it ({err})") from err
-    routes = PlanRoutes(compiled, plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
+    dispatcher = Dispatcher.from_folder(out_dir, allow_partial=allow_partial)
+    compiled = read_header(out_dir)
+    routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
+                        plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
     if resume is not None:
         logged, resumed = resume_log(resume, dispatcher)
         if resumed.torn is not None and report is not None:

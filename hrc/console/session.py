@@ -230,7 +230,7 @@ class ConsoleSession:
         d = self.dispatcher
         now = self.now()
         decision = d.decision.to_json()
-        best = d.candidates[0] if d.candidates else None
+        best = d.best
         plan = decision.get("plan")
         return {
             "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,

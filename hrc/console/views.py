@@ -10,7 +10,7 @@ where observed, else the plan's earliest schedule given what happened) and from 
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, Protocol
 
 from hrc.model import Task
@@ -58,21 +58,29 @@ class PlanRoutes:
     """Each plan's routes, one polyline per agent leg: ``routes(plan_id) -> {agent: [leg, ...]}``, a leg
     being ``{"action", "phase", "from", "to", "points": [[x, y], ...], "detour": str | None}``.
 
-    `compiled` is the parsed ``compiled.json``; `paths` the free-space paths for its seed.
-    Cost: one pass over a plan's motions on first use, cached.
+    `motions` gives a plan's ``motions`` from ``compiled.json`` by its id (None: no such plan;
+    `hrc.console.run.plan_motions` reads one line of the file); `paths` the free-space paths for its
+    seed. Cost: one pass over a plan's motions on first use, the last `KEPT` plans cached.
     """
 
-    def __init__(self, compiled: Mapping[str, Any], paths: PathLibrary) -> None:
-        self._plans = {p["id"]: p for p in compiled["plans"]}
+    KEPT = 64
+
+    def __init__(self, motions: Callable[[str], list[dict[str, Any]] | None], paths: PathLibrary) -> None:
+        self._motions = motions
         self._paths = paths
         self._cache: dict[str, dict[str, list[dict[str, Any]]]] = {}
 
     def routes(self, plan_id: str | None) -> dict[str, list[dict[str, Any]]]:
-        if plan_id is None or plan_id not in self._plans:
+        if plan_id is None:
             return {}
         if plan_id not in self._cache:
+            found = self._motions(plan_id)
+            if found is None:
+                return {}
+            if len(self._cache) >= self.KEPT:
+                self._cache.pop(next(iter(self._cache)))
             out: dict[str, list[dict[str, Any]]] = {}
-            for m in self._plans[plan_id]["motions"]:
+            for m in found:
                 if m["detour"]:
                     points = m["detour"]["points"]
                 elif m["from"] == m["to"]:

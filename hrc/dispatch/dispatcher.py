@@ -43,7 +43,7 @@ from hrc.model import Task
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 from hrc.temporal.execution import residual_origin
 
-from .messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor
+from .messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor, ack_note
 from .native import NO_BOUND
 from .plan_set import EventKey, PlanEntry, PlanSet, load_plan_set, plan_set_from_compiled
 from .ranking import CLASS_ORDER, NO_FINISH, Ranker
@@ -247,8 +247,10 @@ class Dispatcher:
         if not len(kept):
             raise DispatchError(f"no remaining plan allows {_describe(obs)} "
                                 f"({len(state.plans)} plans agreed with what was seen before)")
+        robot = next((a.id for a in self.task.agents if not a.is_human), "")
+        ack = ack_note(state.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
-                                   state, _seen_after(state, history, obs))
+                                   state, _seen_after(state, history, obs), ack)
         return self._state.decision
 
     def _undo(self, obs: Observation) -> Decision:
@@ -276,7 +278,7 @@ class Dispatcher:
 
     def _settle(self, history: History, accepted: tuple[Observation, ...], effective: tuple[Observation, ...],
                 kept: np.ndarray, do_forms: Any, previous: _State | None,
-                core: tuple[np.ndarray, np.ndarray] | None = None) -> _State:
+                core: tuple[np.ndarray, np.ndarray] | None = None, ack: Any = None) -> _State:
         """Rank `kept` under `history` (set ranking, `Ranker`), decide. A plan's evaluation is taken from
         the `previous` state when what enters it is the same (the seen events and now: a tick at the same
         time, an announced next action, away), else made again. `core`: the history as `seen_arrays`
@@ -301,7 +303,7 @@ class Dispatcher:
         counts = dict(zip(CLASS_ORDER, np.bincount(cls, minlength=3).tolist(), strict=True))
         at = self.ranker.best(kept, cls, finish, idle)
         if at < 0:
-            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True)
+            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack)
             best = -1
         else:
             best = int(kept[at])
@@ -312,7 +314,7 @@ class Dispatcher:
                                        (seen, legs_seen))
             do_forms = MappingProxyType(do)
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
-                                False, human)
+                                False, human, ack)
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
                       MappingProxyType(dict(do_forms)), seen, legs_seen, now)
 

@@ -20,7 +20,7 @@ from typing import Any
 from hrc.errors import DispatchError
 
 __all__ = ["EVENTS", "LEG_EVENTS", "SIGNALS", "Candidate", "Decision", "HumanOption", "Observation", "RobotStep",
-           "WaitFor", "observation_from_json"]
+           "WaitFor", "ack_note", "observation_from_json"]
 
 LEG_EVENTS = ("depart", "park", "unpark", "arrive", "start", "end")
 """An agent's events on one leg, in the order they happen (park/unpark only where the plan stops at a
@@ -100,7 +100,8 @@ class Decision:
     left that the dispatcher may follow (only with ``feasible_only``). `human`: a hint, the human's next
     departure or start in the best plan and the window in which it keeps the plan's promise (the paper's
     model lets the robot's strategy time them: the human waits when asked), or the robot event it has to
-    wait for; None while the human is busy (a walk or a manipulation under way), away, or done."""
+    wait for; None while the human is busy (a walk or a manipulation under way), away, or done.
+    `ack`: set when the message was a robot acknowledgement outside what it had been told (`ack_note`)."""
 
     t: float
     plan: str | None
@@ -110,13 +111,39 @@ class Decision:
     human_away: bool = False
     stopped: bool = False
     human: RobotStep | WaitFor | None = None
+    ack: Mapping[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
-                "candidates": dict(self.candidates),
-                "robot": None if self.robot is None else self.robot.to_json(),
-                "human": None if self.human is None else self.human.to_json(),
-                "human_away": self.human_away, "stopped": self.stopped}
+        out = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
+               "candidates": dict(self.candidates),
+               "robot": None if self.robot is None else self.robot.to_json(),
+               "human": None if self.human is None else self.human.to_json(),
+               "human_away": self.human_away, "stopped": self.stopped}
+        if self.ack is not None:
+            out["ack"] = dict(self.ack)
+        return out
+
+
+def ack_note(told: RobotStep | WaitFor | None, obs: Observation) -> Mapping[str, Any] | None:
+    """How a robot acknowledgement `obs` stands to what the robot had been told (`told`, the decision's
+    robot step when it came), or None when it is what it was told, in its window.
+
+    The policy (docs/dispatch.md): an acknowledgement says the event happened, so it is accepted however
+    it stands (refusing a fact would leave the dispatcher's picture wrong and keep telling the robot to do
+    what it has done); the set is re-ranked from what happened, so the class says what it cost; and the
+    answer says so: ``{"early": s, "window": [earliest, latest]}`` (this many seconds before its window
+    opened), ``{"late": s, "window": [...]}`` (after it closed), or ``{"unasked": true, "told": ...}``
+    (the robot was told to wait, or to do another event, or nothing)."""
+    step = (obs.action, obs.phase, obs.event)
+    if isinstance(told, RobotStep) and (told.action, told.phase, told.event) == step:
+        window = [told.earliest, told.latest]
+        t = round(obs.t, 3)
+        if t < told.earliest:
+            return {"early": round(told.earliest - t, 3), "window": window}
+        if told.latest is not None and t > told.latest:
+            return {"late": round(t - told.latest, 3), "window": window}
+        return None
+    return {"unasked": True, "told": None if told is None else told.to_json()}
 
 
 @dataclass(frozen=True, slots=True)

@@ -41,7 +41,12 @@ from hrc.model import Task
 from .messages import LEG_EVENTS, Observation
 from .plan_set import EventKey, PlanEntry
 
-__all__ = ["History", "agreeing", "agrees", "executed", "seen_arrays", "ticks"]
+__all__ = ["MAX_JUMP", "History", "agreeing", "agrees", "executed", "seen_arrays", "ticks"]
+
+MAX_JUMP = 3600.0
+"""Seconds: a message more than this after the last one is refused as a clock error. One bad time (a
+tick at 1e9 s) would otherwise move the run's clock past every later message, each then refused as
+"time goes backwards"; where that much time really passed, ticks at most this far apart bring it."""
 
 _ORDER = {e: i for i, e in enumerate(LEG_EVENTS)}
 _EMPTY: Mapping = MappingProxyType({})
@@ -91,6 +96,10 @@ class History:
         """This history with `obs` (a leg event, away, back or tick); `DispatchError` if the task forbids it."""
         if obs.t < self.now:
             raise DispatchError(f"time goes backwards: t = {obs.t:g} s is before the last message ({self.now:g} s)")
+        if obs.t > self.now + MAX_JUMP:
+            raise DispatchError(f"t = {obs.t:g} s is {obs.t - self.now:g} s after the last message ({self.now:g} s): "
+                                f"more than {MAX_JUMP:g} s at once, a clock error? (if that much time passed, "
+                                f"send ticks at most {MAX_JUMP:g} s apart)")
         if obs.event == "tick":
             return replace(self, now=obs.t)
         if obs.event in ("away", "back"):
