@@ -363,3 +363,19 @@ def test_best_per_allocation_says_what_it_kept(mini, write_mini, tmp_path, capsy
     assert exc.value.code == 2
     _one_error_line(capsys, "--best-per-allocation", "at least 1")
     assert not (tmp_path / "o2").exists()
+
+
+def test_progress_lines_off_a_terminal_cover_every_long_stage(capsys):
+    """Off a terminal the progress is a line now and then, for the plans of a compile and the runs of a
+    simulation alike (the simulator used to print nothing for minutes)."""
+    from hrc.cli.compile import _Progress
+
+    progress = _Progress(tty=False, quiet=False, every=0.0)
+    for stage in ("plans", "runs", "blind"):
+        progress(stage, 5, 10)
+        progress(stage, 7, 10)
+    err = capsys.readouterr().err
+    assert "plans: 7/10" in err and "runs: 7/10" in err and "motion-blind plans: 7/10" in err
+    quiet = _Progress(tty=False, quiet=True, every=0.0)
+    quiet("runs", 7, 10)
+    assert capsys.readouterr().err == ""

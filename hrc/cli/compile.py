@@ -127,7 +127,7 @@ class _Progress:
             print(f"interrupted: writing the {done:,} of {total:,} plans compiled so far as a partial output",
                   file=sys.stderr, flush=True)
             return
-        label = {"motion": "motion planning", "plans": "plans"}.get(stage, stage)
+        label = {"motion": "motion planning", "plans": "plans", "blind": "motion-blind plans"}.get(stage, stage)
         if self.tty:
             from tqdm import tqdm
 
@@ -139,7 +139,7 @@ class _Progress:
             return
         now = time.monotonic()
         t_start, d_start = self.start_done.setdefault(stage, (now, done))
-        if now - self.last < self.every or stage != "plans":
+        if now - self.last < self.every or stage == "motion":
             return
         self.last = now
         rate = (done - d_start) / max(now - t_start, 1e-9)

@@ -142,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_figures:
             from hrc.report.simulation import write_simulation_figures
 
+            if not args.quiet:
+                print(f"figures: one recorded run per policy into {out}/figures/ ...", file=sys.stderr, flush=True)
             featured = {p: simulate_run(sim.context, p, 0, record=True) for p in sim.policies}
             write_simulation_figures(sim, featured, stage)
     if not args.quiet:

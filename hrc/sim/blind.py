@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 from hrc.compile.classify import classify
@@ -32,7 +33,7 @@ from hrc.compile.temporal_net_creator import create_stnu
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_motions
 from hrc.motion.paths import Path, agent_pairs
-from hrc.plans import generate_plans
+from hrc.plans import count_plans, generate_plans
 from hrc.temporal.graphml import write_graphml
 
 __all__ = ["blind_compile", "blind_plan", "straight_paths"]
@@ -64,15 +65,20 @@ def _blind_chunk(task: Task, paths: PathLibrary, plans: list[Plan]) -> list[Comp
     return [blind_plan(task, plan, paths) for plan in plans]
 
 
-def blind_compile(task: Task, seed: int = 0, jobs: int | None = None, executor: str | None = None) -> CompiledPlanSet:
-    """Every plan of `task`, compiled motion-blind and ranked as `hrc.compile.compiler.compile_task` ranks."""
+def blind_compile(task: Task, seed: int = 0, jobs: int | None = None, executor: str | None = None,
+                  progress: Callable[[str, int, int], None] | None = None) -> CompiledPlanSet:
+    """Every plan of `task`, compiled motion-blind and ranked as `hrc.compile.compiler.compile_task` ranks
+    (`progress` told ``("blind", done, total)`` as plans come)."""
     paths = straight_paths(task, seed)
     out: list[CompiledPlan] = []
     it = iter(generate_plans(task))
     chunks = iter(lambda: list(itertools.islice(it, 64)), [])
+    total = count_plans(task) if progress else 0
     with make_executor(executor, jobs) as ex:
         for batch in ex.map_chunks(_blind_chunk, task, paths, chunks):
             out.extend(batch)
+            if progress:
+                progress("blind", len(out), total)
     out.sort(key=rank_key)
     ranked = tuple(replace(cp, rank=i + 1) for i, cp in enumerate(out))
     return CompiledPlanSet(task=task, seed=seed, digest=task_digest(task), paths=paths, plans=ranked,

@@ -87,7 +87,7 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     if "blind" not in compiles and any(POLICIES[p].compile == "blind" for p in chosen):
         from hrc.sim.blind import blind_compile
 
-        compiles["blind"] = blind_compile(task, seed=compile_seed, jobs=jobs, executor=executor)
+        compiles["blind"] = blind_compile(task, seed=compile_seed, jobs=jobs, executor=executor, progress=progress)
     ctx = SimContext(task, compiles, settings, seed)
     results: dict[str, list[RunResult]] = {p: [] for p in chosen}
     total = runs * len(chosen)
