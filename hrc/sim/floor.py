@@ -44,8 +44,9 @@ Point = tuple[float, float]
 CONTACT = 0.02
 """m: the smallest free distance a walking person leaves to the robot (they stop rather than touch it)."""
 
-QUERY_GAP = 0.05
-"""m: discs at least this far apart cannot touch within a step; pymunk is asked only when they are closer."""
+QUERY_GAP = 0.001
+"""m: discs farther apart than this do not touch (pymunk's circle contact is the same free distance, so
+it can report no penetration); pymunk is stepped and asked only when they are closer."""
 
 
 @dataclass(slots=True)
