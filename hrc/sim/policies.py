@@ -148,6 +148,7 @@ class DispatchedController(Controller):
         self.latencies = []
         self.refused = []
         self._times: dict | None = None
+        self._ordered: tuple[Any, Order | None] = (None, None)
         dec = dispatcher.decision
         self.first_plan = self.plan_id = dec.plan
         self.first_class = self.plan_class = dec.plan_class
@@ -179,13 +180,19 @@ class DispatchedController(Controller):
         self.observe(Happening(t, "", "tick"))
 
     def order(self) -> Order | None:
-        robot = self.d.decision.robot
+        decision = self.d.decision
+        if decision is self._ordered[0]:  # asked every step of the floor: made once per decision
+            return self._ordered[1]
+        robot = decision.robot
         if robot is None:
-            return None
-        if hasattr(robot, "earliest"):
-            return Order(robot.action, robot.phase, robot.event, float(robot.earliest),
-                         None if robot.latest is None else float(robot.latest))
-        return Order(robot.action, robot.phase, "wait")
+            order = None
+        elif hasattr(robot, "earliest"):
+            order = Order(robot.action, robot.phase, robot.event, float(robot.earliest),
+                          None if robot.latest is None else float(robot.latest))
+        else:
+            order = Order(robot.action, robot.phase, "wait")
+        self._ordered = (decision, order)
+        return order
 
     def current(self) -> CompiledPlan | None:
         return self.by_id.get(self.plan_id) if self.plan_id is not None else None
