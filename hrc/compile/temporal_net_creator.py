@@ -40,6 +40,12 @@ A leg with no travel (already there) gets ``depart -> arrive`` in ``[0, 0]``. Se
 ticks here and only here: contingent bounds are widened outward (floor lb, ceil ub) and passing-order
 gaps rounded up, so rounding never makes a plan look more controllable than it is; other requirement
 bounds are rounded to the nearest tick.
+
+**One tick.** A person's action that may take no time at all (a duration ``[0, ub]`` with ``ub > 0``)
+gets the contingent link ``[1 ms, ub]``: a person's action takes at least a millisecond. The CSTNU Tool
+reads contingent links only with ``0 < lb`` (`hrc.temporal.graphml`), and this keeps every STNU the
+compile writes readable by it; a duration of exactly ``[0, 0]`` stays a fixed duration (written as a
+requirement link). It is the only bound rounded inward, by one tick.
 """
 
 from __future__ import annotations
@@ -312,7 +318,10 @@ def _req(a: str, b: str, lb: int | None, ub: int | None, kind: str, text: str) -
 
 
 def _cont(a: str, b: str, lb: float, ub: float, text: str) -> _Op:
-    return ContingentLink(a, b, _floor_ticks(lb), _ceil_ticks(ub)), True, (a, b), ("human", text)
+    low, high = _floor_ticks(lb), _ceil_ticks(ub)
+    if low == 0 < high:  # a person's action takes at least one tick (module docstring, "one tick")
+        low = 1
+    return ContingentLink(a, b, low, high), True, (a, b), ("human", text)
 
 
 def _travel(agent: Agent, a: str, b: str, t: float, text: str) -> _Op:
