@@ -4,7 +4,7 @@
 reader and DC check (RUL2021) on each file and prints ``DC``, ``NOT_DC`` or ``ERROR`` with the tool's
 exception. Every file hrc writes must read (DC or NOT_DC: never ERROR) and the tool's verdict must be
 hrc's class (DC for DC; NOT_DC for consistent and inconsistent): on the workshop's compile, on kitting's
-(a pinned part by default, all 2,880 plans in a slow test), and on random networks.
+(a pinned part by default, all 2,880 plans in a slow test), on random networks, and on blocked plans.
 
 Skipped, saying why, where the oracle is absent (no ``cstnu-check`` beside the repository, or no Java /
 libraries: ``cstnu-check --install`` as root, which `make test` runs); failed instead under
@@ -23,10 +23,11 @@ import pytest
 from conftest import ROOT
 
 from hrc.cli import main
-from hrc.compile.compiler import compile_family
+from hrc.compile.compiler import CompileOptions, compile_family, compile_plan
+from hrc.compile.motion_pattern import pattern_network
 from hrc.io.task_file import load_task
 from hrc.motion import plan_paths
-from hrc.plans import plan_families
+from hrc.plans import generate_plans, plan_families
 from hrc.temporal import STNU, ContingentLink, RequirementLink, check_dc
 from hrc.temporal.graphml import read_network, write_graphml
 
@@ -123,6 +124,35 @@ def test_the_tool_reads_every_kitting_stnu_and_agrees(tool: Path, tmp_path: Path
     assert _agree(tool, classes) == {"DC": 1833, "NOT_DC": 1047}
 
 
+@pytest.fixture(scope="module")
+def blocked_plans() -> list:
+    """Kitting with the person never waiting for the robot's sake (``human_waits=False``): most plans'
+    co-workers would block each other (`tests/test_dispatch.py`, the plan the compile found blocked)."""
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    paths = plan_paths(task, seed=0)
+    options = CompileOptions(human_waits=False)
+    return [compile_plan(task, p, paths, options) for p in list(generate_plans(task))[::90]]
+
+
+def test_a_blocked_plans_file_carries_the_block(tool: Path, blocked_plans: list, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """The file of a plan for which motion acquisition found no order of passing says, alone, that it is
+    not DC (the tool) and inconsistent (`hrc check`), while the same plan's network without the block
+    (what it held before) checks DC for some of them: the file, not compiled.json only, knows."""
+    blocked = [cp for cp in blocked_plans if cp.pattern.candidates == 0]
+    assert blocked
+    classes = _write(tmp_path / "blocked", blocked_plans)
+    _agree(tool, classes)
+    for cp in blocked:
+        path = tmp_path / "blocked" / f"{cp.plan.id}.graphml"
+        assert main(["check", str(path)]) == 0
+        out = capsys.readouterr().out
+        assert out.startswith("inconsistent\n") and "Z" in out, out
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    before = [check_dc(pattern_network(task, cp.plan, cp.pattern, human_waits=False).stnu).is_dc for cp in blocked]
+    assert any(before)  # what such a file said before it carried the block
+
+
 def _random_stnu(rng: np.random.Generator, n: int) -> STNU:
     """A random STNU on `n` timepoints and the origin Z (every timepoint at or after it, as the tool reads
     Z): contingent links ``0 < lb < ub`` chained from Z, requirement links between random pairs (never
@@ -157,3 +187,15 @@ def test_the_tool_agrees_with_hrc_on_random_networks(tool: Path, tmp_path: Path)
     kinds = set(classes.values())
     assert kinds == {"DC", "consistent", "inconsistent"}, kinds  # the sample holds every class
     _agree(tool, classes)
+
+
+def test_the_block_is_the_dispatch_forms_too(blocked_plans: list) -> None:
+    """A blocked plan's dispatch form record is its GraphML file read back (the block included), so the
+    form keeps equal to the files."""
+    from hrc.compile.dispatch_form import plan_record
+    from hrc.temporal.graphml import read_graphml
+
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    for cp in blocked_plans:
+        back = read_graphml(cp.graphml.encode())
+        assert plan_record(task, cp.plan, back, cp.pattern.candidates == 0, graphml_names=True) == cp.form
