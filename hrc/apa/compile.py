@@ -412,19 +412,48 @@ def do_apsp(result: CompileResult) -> np.ndarray:
 
 def do_form(result: CompileResult) -> tuple[Constraint, ...]:
     """The DO form as interval constraints (s): the minimal dispatchable network of the tightened
-    network (Muscettola, Morris & Tsamardinos 1998, via the temporal core), equivalent to its APSP
-    for dispatching, one constraint per related pair in event order. Dense: O(n^3)."""
+    network (Muscettola, Morris & Tsamardinos 1998, via the temporal core), one constraint per related
+    pair in event order, dispatchable on its own by one-step propagation over these constraints.
+    Dense: O(n^3).
+
+    MMT's network collapses each rigid component onto its earliest member (its leader) and chains the
+    others behind it: a member at a positive offset from the one before it in the chain is ordered by
+    that chain link, but one at offset 0 (the two at the same time) has only ``[0, 0]`` to it, no
+    negative edge, so a dispatcher that reads only these constraints (MMT section 3: an event is
+    enabled when the events its negative edges point to are done) would find it enabled from the start
+    and could execute it before its leader's predecessors. So each member at offset 0 from the head of
+    its run gets that head's other constraints as well (the same bounds: they are at the same time),
+    which are implied constraints (APSP values): dispatchability is kept and nothing is tightened."""
     if result.do_network is None:
         raise ApaError("an inconsistent STPP has no DO form")
     mdn = minimal_dispatchable_network(result.do_network)
     order = {v: i for i, v in enumerate(result.stpp.events)}
     bounds: dict[tuple[str, str], list[float]] = {}
     tps = result.ticks_per_second
-    for e in mdn.edges:
-        if order[e.source] < order[e.target]:
-            bounds.setdefault((e.source, e.target), [-math.inf, math.inf])[1] = e.value / tps
+    weight = {(e.source, e.target): e.value for e in mdn.edges}
+    head: dict[str, str] = {}  # a member at offset 0 -> the first of its run of zero offsets
+    for later, earlier in mdn.chained:  # in chain order: (b, a) for each link a -> b of a chain
+        if weight[(earlier, later)] == 0:
+            head[later] = head.get(earlier, earlier)
+    same = {h: {h} for h in head.values()}
+    for member, h in head.items():
+        same[h].add(member)
+    edges = [(e.source, e.target, e.value) for e in mdn.edges]
+    if head:
+        for e in mdn.edges:
+            for member in same.get(e.source, ()):
+                if member != e.source and e.target not in same[e.source]:
+                    edges.append((member, e.target, e.value))
+            for member in same.get(e.target, ()):
+                if member != e.target and e.source not in same[e.target]:
+                    edges.append((e.source, member, e.value))
+    for a, b, w in edges:
+        if order[a] < order[b]:
+            box = bounds.setdefault((a, b), [-math.inf, math.inf])
+            box[1] = min(box[1], w / tps)
         else:
-            bounds.setdefault((e.target, e.source), [-math.inf, math.inf])[0] = -e.value / tps
+            box = bounds.setdefault((b, a), [-math.inf, math.inf])
+            box[0] = max(box[0], -w / tps)
     return tuple(Constraint(a, b, lb, ub) for (a, b), (lb, ub) in
                  sorted(bounds.items(), key=lambda kv: (order[kv[0][0]], order[kv[0][1]])))
 
