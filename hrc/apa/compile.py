@@ -12,7 +12,11 @@ The paper's steps and what this module does for each:
      built. `prune_report` does lines 1-2 as the
      paper does (APSP, then MMT 1998 dominance pruning) to report how many edges pruning removes.
 3.   Solve the QP (`hrc.apa.qp`: piqp, or clarabel as the cross-check).
-4-9. Tighten every preferred interval to its optimal value. **Tolerance**: the temporal core is exact
+4-9. Tighten every preferred interval to its optimal value, **except** one whose preference is constant:
+     every value of it is optimal, so it keeps its original bounds (a deviation from Fig. 5, which
+     tightens every preferred interval: it only adds schedules, each of the same optimal value; the
+     paper's flexibility, section V, gains 6-9 points by it on the random problems, docs/apa.md).
+     **Tolerance**: the temporal core is exact
      in integer ticks (`ticks_per_second`, a microsecond by default), the QP is in floats; an optimal
      difference ``d*`` (in ticks) within `SNAP` ticks of an integer ``r``, or whose neighbouring tick
      ``r`` that its preference likes better costs at most `VALUE_SNAP` of the global value (relative),
@@ -67,6 +71,7 @@ __all__ = [
     "compile_stpp",
     "do_apsp",
     "do_form",
+    "interval_flexibility",
     "prune_report",
     "rows_apsp",
     "stpp_network",
@@ -270,6 +275,8 @@ def _tighten(rows: Rows, x: np.ndarray, tps: int, widen: int, total: float) -> t
     lb, ub = rows.lb.copy(), rows.ub.copy()
     slack = 0.0
     for k, f in rows.prefs:
+        if f.c[1] == 0 and f.c[2] == 0:  # constant: every difference is optimal, the interval stays free
+            continue
         d = (x[rows.dst[k]] - x[rows.src[k]]) * tps
         r = round(d)
         if abs(d - r) > SNAP:  # of the two ticks around d*, the one its preference likes better
@@ -456,6 +463,26 @@ def do_form(result: CompileResult) -> tuple[Constraint, ...]:
             box[0] = max(box[0], -w / tps)
     return tuple(Constraint(a, b, lb, ub) for (a, b), (lb, ub) in
                  sorted(bounds.items(), key=lambda kv: (order[kv[0][0]], order[kv[0][1]])))
+
+
+def interval_flexibility(result: CompileResult) -> float | None:
+    """Flexibility the paper's way (section V, Fig. 11: "compared the resulting interval durations to the
+    original problems' interval durations"): for each constraint of the original STPP with a finite
+    width ``ub - lb > 0``, the width its pair of events keeps in the DO form (``D[i, j] + D[j, i]`` of the
+    DO form's APSP), over that width; the mean over those constraints (None: there are none). Dense:
+    O(n^3). `CompileResult.flexibility` is the project's own measure (event windows from the reference).
+    Raises `ApaError` for an inconsistent STPP."""
+    if result.do_network is None:
+        raise ApaError("an inconsistent STPP has no DO form")
+    d = np.asarray(do_apsp(result), dtype=float)
+    index = {e: i for i, e in enumerate(result.stpp.events)}
+    ratios = []
+    for c in result.stpp.constraints:
+        width = c.ub - c.lb
+        if math.isfinite(width) and width > 0:
+            i, j = index[c.source], index[c.target]
+            ratios.append(min(1.0, (d[i, j] + d[j, i]) / result.ticks_per_second / width))
+    return float(np.mean(ratios)) if ratios else None
 
 
 @dataclass(frozen=True, slots=True)
