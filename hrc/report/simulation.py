@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from hrc.sim.montecarlo import Simulation
     from hrc.sim.run import RunResult
 
-__all__ = ["actual_bars", "animation_gif", "makespan_figure", "run_gantt_figure", "trajectories_figure",
+__all__ = ["actual_bars", "actual_spans", "animation_gif", "makespan_figure", "run_gantt_figure", "trajectories_figure",
            "write_simulation_figures"]
 
 GIF_STEP = 0.5  # s of simulated time per GIF frame
