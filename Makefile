@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/cube_stacking
 
-.PHONY: demo test lint bench clean browser
+.PHONY: demo test lint bench clean browser oracle
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -18,7 +18,7 @@ demo: $(STAMP)
 	$(BIN)/hrc show tasks/cube_stacking.yaml
 	$(BIN)/hrc compile tasks/cube_stacking.yaml --out $(OUT)
 
-test: $(STAMP) browser
+test: $(STAMP) browser oracle
 	$(BIN)/ruff check hrc tests scripts
 	$(BIN)/mypy hrc
 	$(BIN)/python -m pytest -q
@@ -30,6 +30,17 @@ browser:
 	  DEBIAN_FRONTEND=noninteractive apt-get update -q && \
 	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null; } || \
 	  echo "make: no chromium (as root: apt-get install chromium): the console's browser tests will skip"
+
+# The CSTNU Tool (the other side of our GraphML: ../shared/oracles/cstnu-tool beside the repository): its
+# Java runtime and libraries installed with apt when missing and run as root (as CI runs); otherwise the
+# tests that run it (tests/test_cstnu_tool.py) skip and say why.
+CSTNU_CHECK ?= ../shared/oracles/cstnu-tool/cstnu-check
+oracle:
+	@if [ ! -x "$(CSTNU_CHECK)" ]; then echo "make: no $(CSTNU_CHECK): the CSTNU Tool tests will skip"; \
+	elif "$(CSTNU_CHECK)" >/dev/null 2>&1; [ $$? -ne 3 ]; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
+	  "$(CSTNU_CHECK)" --install >/dev/null 2>&1; [ $$? -ne 3 ]; then :; \
+	else echo "make: the CSTNU Tool cannot run (as root: $(CSTNU_CHECK) --install): its tests will skip"; fi
 
 lint: $(STAMP)
 	$(BIN)/ruff check hrc tests scripts

@@ -24,7 +24,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.sparse.csgraph import csgraph_from_dense, floyd_warshall
 
-from hrc.apa.compile import compile_stpp, do_apsp, stpp_network
+from hrc.apa.compile import compile_stpp, do_apsp, interval_flexibility, stpp_network
 from hrc.apa.generator import random_stpp
 from hrc.apa.io import dump_stpp, load_stpp
 from hrc.apa.model import STPP
@@ -191,6 +191,32 @@ def test_flexibility_is_its_definition():
         assert (lo is None) == (not np.isfinite(d1[j, 0])) and (hi is None) == (not np.isfinite(d1[0, j]))
         if lo is not None and hi is not None:
             assert (lo, hi) == (-d1[j, 0] / 1e6, d1[0, j] / 1e6)
+
+
+def test_interval_flexibility_is_the_papers_definition():
+    """Per original constraint of finite width, DO width (scipy's Floyd-Warshall on the tightened network,
+    not hrc's APSP) over original width, averaged; constant preferences keep their interval whole."""
+    stpp = random_stpp(40, np.random.default_rng(8), constraints=40, preference_share=0.5)
+    r = compile_stpp(stpp)
+    idx = {e: i for i, e in enumerate(stpp.events)}
+    dense = np.full((40, 40), np.inf)
+    np.fill_diagonal(dense, 0.0)
+    for link in r.do_network.requirements:
+        i, j = idx[link.source], idx[link.target]
+        if link.ub is not None:
+            dense[i, j] = min(dense[i, j], link.ub)
+        if link.lb is not None:
+            dense[j, i] = min(dense[j, i], -link.lb)
+    d = floyd_warshall(csgraph_from_dense(dense, null_value=np.inf)) / 1e6
+    ratios = [min(1.0, (d[idx[c.source], idx[c.target]] + d[idx[c.target], idx[c.source]]) / (c.ub - c.lb))
+              for c in stpp.constraints if math.isfinite(c.ub - c.lb) and c.ub > c.lb]
+    assert interval_flexibility(r) == pytest.approx(sum(ratios) / len(ratios))
+    constant = [k for k, c in enumerate(stpp.constraints) if c.preference is not None
+                and c.preference.kind.value == "constant"]
+    assert constant  # and each keeps its original bounds in the tightened network
+    for k in constant:
+        c, link = stpp.constraints[k], r.do_network.requirements[k]
+        assert (link.lb, link.ub) == (round(c.lb * 1e6), round(c.ub * 1e6))
 
 
 def test_solvers_agree_and_output_is_deterministic(tmp_path):

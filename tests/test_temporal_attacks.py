@@ -277,7 +277,9 @@ def test_size_limits_are_counted_while_reading(tmp_path: Path, fmt: str,
         monkeypatch.setattr(module, "MAX_TIMEPOINTS", 10, raising=False)
         monkeypatch.setattr(module, "MAX_BOUNDS", 20, raising=False)
     small, wide, long = chain(10), chain(11), chain(10)
-    long = STNU(long.timepoints, long.requirements * 3, long.contingents)  # 10 timepoints, 54 bounds
+    tps = long.timepoints  # 10 timepoints, 18 + 2 * 28 bounds on distinct pairs (GraphML merges a pair's bounds)
+    extra = tuple(R(tps[i], tps[j], -100, 100) for i in range(1, 10) for j in range(i + 2, 10))
+    long = STNU(tps, long.requirements + extra, long.contingents)
     for net, ok in ((small, True), (wide, False), (long, False)):
         path = tmp_path / f"n.{fmt}"
         path.write_text(SAMPLES[fmt](net))

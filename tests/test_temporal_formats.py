@@ -25,9 +25,10 @@ NAMES = st.sampled_from(["A", "B", "C1", "X y", "n&<1>", "Ω", "t'q"])
 
 
 def _semantics(stnu: STNU) -> tuple:
-    """What a network means: its timepoints, the tightest bound per ordered pair, its contingent links."""
+    """What a network means: its timepoints, the tightest bound per ordered pair (a contingent link's
+    bounds hold too, so a requirement bound they imply says nothing more), its contingent links."""
     best: dict[tuple[str, str], int] = {}
-    for e in distance_edges(stnu, contingent_as_requirement=False):
+    for e in distance_edges(stnu, contingent_as_requirement=True):
         best[(e.source, e.target)] = min(e.value, best.get((e.source, e.target), e.value))
     return stnu.timepoints, best, frozenset(stnu.contingents)
 
@@ -37,17 +38,22 @@ def networks(draw, names=NAMES) -> STNU:
     tps = tuple(dict.fromkeys(draw(st.lists(names, min_size=2, max_size=6))))
     if len(tps) < 2:
         tps = ("P", "Q")
+    conts = []
+    if len(tps) >= 2 and draw(st.booleans()):  # 0 < lb < ub, or a fixed duration (the tool reads both)
+        lb = draw(st.integers(1, 5))
+        conts.append(C(tps[0], tps[1], lb, lb + draw(st.integers(0, 5))) if draw(st.booleans())
+                     else C(tps[0], tps[1], 0, 0))
+    pair = {tps[0], tps[1]} if conts else set()
     reqs = []
-    for _ in range(draw(st.integers(0, 6))):
+    for _ in range(draw(st.integers(0, 8))):
         a, b = draw(st.sampled_from(tps)), draw(st.sampled_from(tps))
         lb = draw(st.one_of(st.none(), st.integers(-10**12, 10)))
         ub = draw(st.one_of(st.none(), st.integers(10, 10**12)))
-        if a != b:
-            reqs.append(R(a, b, lb, ub))
-    conts = []
-    if len(tps) >= 2 and draw(st.booleans()):
-        lb = draw(st.integers(0, 5))
-        conts.append(C(tps[0], tps[1], lb, lb + draw(st.integers(0, 5))))
+        if a != b and {a, b} != pair:
+            reqs.append(R(a, b, lb, ub))  # often two on one pair: the writer merges them
+    if conts and draw(st.booleans()):  # a requirement the contingent link implies: left out
+        c = conts[0]
+        reqs.append(R(c.source, c.target, c.lb, c.ub + draw(st.integers(0, 3))))
     return STNU(tps, tuple(reqs), tuple(conts), draw(st.sampled_from(["", "net <1> & co"])))
 
 
@@ -276,8 +282,26 @@ def test_writer_maps_names_and_fixed_durations() -> None:
     assert back.contingents == (C("h_a_1_fetch_start", "h_a_1_fetch_end", 2, 4),)  # [3, 3] became a requirement
     assert R("Z", "r_x_y", None, 3) in back.requirements and R("r_x_y", "Z", None, -3) in back.requirements
     assert '<data key="nContingent">1</data>' in text
-    zero = write_graphml(STNU(("A", "C"), (), (C("A", "C", 0, 4),)))
-    assert "LC(C):0" in zero  # written as it is (the tool refuses it; hrc reads it back)
+    with pytest.raises(NetworkError, match="0 < lb < ub"):  # the tool refuses it, and no file it reads says it
+        write_graphml(STNU(("A", "C"), (), (C("A", "C", 0, 4),)))
+    with pytest.raises(NetworkError, match="tighter requirement bound 3 on A->C"):
+        write_graphml(STNU(("A", "C"), (R("A", "C", None, 3),), (C("A", "C", 1, 4),)))
+    with pytest.raises(NetworkError, match="tighter requirement bound -2 on C->A"):
+        write_graphml(STNU(("A", "C"), (R("A", "C", 2, None),), (C("A", "C", 1, 4),)))
+    # one activation, two contingent links: the second gets a copy of it, at distance 0 (the tool's rule)
+    shared = STNU(("A", "C", "D"), (R("C", "D", 1, None),), (C("A", "C", 1, 4), C("A", "D", 2, 5)))
+    back = read_graphml(write_graphml(shared).encode())
+    assert back.timepoints == ("A", "C", "D", "A_for_D") and '<data key="nVertices">4</data>' in write_graphml(shared)
+    assert back.contingents == (C("A", "C", 1, 4), C("A_for_D", "D", 2, 5))
+    assert {R("A", "A_for_D", None, 0), R("A_for_D", "A", None, 0)} <= set(back.requirements)
+    assert check_dc(back).verdict is check_dc(shared).verdict
+    with pytest.raises(NetworkError, match="named 'A_for_D'"):
+        write_graphml(STNU(("A", "C", "D", "A_for_D"), (), shared.contingents))
+    # two requirement links on one ordered pair: one edge, the tightest
+    two = write_graphml(STNU(("A", "B"), (R("A", "B", 1, 9), R("A", "B", None, 5), R("B", "A", None, -2))))
+    assert two.count('source="A" target="B"') == 1 and '<data key="Value">5</data>' in two
+    assert two.count('source="B" target="A"') == 1 and '<data key="Value">-2</data>' in two
+    assert '<data key="nEdges">2</data>' in two
     with pytest.raises(NetworkError, match="'a.b' and 'a_b' would both be written as node 'a_b'"):
         write_graphml(STNU(("a.b", "a_b")))
     # files of older hrc versions, with dotted names, still read
@@ -287,8 +311,9 @@ def test_writer_maps_names_and_fixed_durations() -> None:
 
 def _cstnu_tool_refusals(data: bytes) -> list[str]:
     """What the CSTNU Tool 5.0 would refuse in a GraphML file, by its sources (TNGraphMLReader,
-    STNUEdge.setLabeledValue, ALabelAlphabet.ALETTER_RANGE, STNU.initAndCheck), read with the standard
-    library's parser (independent of hrc's reader)."""
+    STNUEdge.setLabeledValue, ALabelAlphabet.ALETTER_RANGE, STNU.initAndCheck, the graph's one edge per
+    ordered pair), read with the standard library's parser (independent of hrc's reader). Where the tool
+    itself is installed, `test_cstnu_tool` runs it on the files instead."""
     import xml.etree.ElementTree as ET
 
     ns = "{http://graphml.graphdrawing.org/xmlns/graphml}"
@@ -302,6 +327,8 @@ def _cstnu_tool_refusals(data: bytes) -> list[str]:
     problems += [f"node name {n!r}" for n in nodes if not TOOL_NAME_RULE.fullmatch(n)]
     bounds: dict[str, list[int]] = {}
     weights = []
+    pairs = [(e.get("source"), e.get("target")) for e in root.iter(f"{ns}edge")]
+    problems += [f"two edges {s}->{t}" for s, t in set(pairs) if pairs.count((s, t)) > 1]
     for e in root.iter(f"{ns}edge"):
         data_of = {d.get("key"): d.text or "" for d in e.iter(f"{ns}data")}
         if "Value" in data_of:
@@ -336,7 +363,9 @@ def test_compile_writes_graphml_the_cstnu_tool_reads(tmp_path: Path) -> None:
         # read as the tool reads it (Z the origin, every other timepoint at or after it): the class recorded
         assert check_dc(read_network(path), "morris2014").verdict.value == verdict_of[recorded[path.stem]]
     # the rule checker itself notices what the tool refuses
-    assert _cstnu_tool_refusals(write_graphml(STNU(("A", "C"), (), (C("A", "C", 0, 4),))).encode())
+    assert _cstnu_tool_refusals(b'<graphml xmlns="http://graphml.graphdrawing.org/xmlns/graphml"><graph>'
+                                b'<node id="A"/><node id="B"/><edge source="A" target="B"/>'
+                                b'<edge source="A" target="B"/></graph></graphml>')
     assert _cstnu_tool_refusals(b'<graphml xmlns="http://graphml.graphdrawing.org/xmlns/graphml"><graph>'
                                 b'<node id="a.b"/></graph></graphml>')
 

@@ -12,7 +12,11 @@ The paper's steps and what this module does for each:
      built. `prune_report` does lines 1-2 as the
      paper does (APSP, then MMT 1998 dominance pruning) to report how many edges pruning removes.
 3.   Solve the QP (`hrc.apa.qp`: piqp, or clarabel as the cross-check).
-4-9. Tighten every preferred interval to its optimal value. **Tolerance**: the temporal core is exact
+4-9. Tighten every preferred interval to its optimal value, **except** one whose preference is constant:
+     every value of it is optimal, so it keeps its original bounds (a deviation from Fig. 5, which
+     tightens every preferred interval: it only adds schedules, each of the same optimal value; the
+     paper's flexibility, section V, gains 6-9 points by it on the random problems, docs/apa.md).
+     **Tolerance**: the temporal core is exact
      in integer ticks (`ticks_per_second`, a microsecond by default), the QP is in floats; an optimal
      difference ``d*`` (in ticks) within `SNAP` ticks of an integer ``r``, or whose neighbouring tick
      ``r`` that its preference likes better costs at most `VALUE_SNAP` of the global value (relative),
@@ -67,6 +71,7 @@ __all__ = [
     "compile_stpp",
     "do_apsp",
     "do_form",
+    "interval_flexibility",
     "prune_report",
     "rows_apsp",
     "stpp_network",
@@ -270,6 +275,8 @@ def _tighten(rows: Rows, x: np.ndarray, tps: int, widen: int, total: float) -> t
     lb, ub = rows.lb.copy(), rows.ub.copy()
     slack = 0.0
     for k, f in rows.prefs:
+        if f.c[1] == 0 and f.c[2] == 0:  # constant: every difference is optimal, the interval stays free
+            continue
         d = (x[rows.dst[k]] - x[rows.src[k]]) * tps
         r = round(d)
         if abs(d - r) > SNAP:  # of the two ticks around d*, the one its preference likes better
@@ -412,21 +419,70 @@ def do_apsp(result: CompileResult) -> np.ndarray:
 
 def do_form(result: CompileResult) -> tuple[Constraint, ...]:
     """The DO form as interval constraints (s): the minimal dispatchable network of the tightened
-    network (Muscettola, Morris & Tsamardinos 1998, via the temporal core), equivalent to its APSP
-    for dispatching, one constraint per related pair in event order. Dense: O(n^3)."""
+    network (Muscettola, Morris & Tsamardinos 1998, via the temporal core), one constraint per related
+    pair in event order, dispatchable on its own by one-step propagation over these constraints.
+    Dense: O(n^3).
+
+    MMT's network collapses each rigid component onto its earliest member (its leader) and chains the
+    others behind it: a member at a positive offset from the one before it in the chain is ordered by
+    that chain link, but one at offset 0 (the two at the same time) has only ``[0, 0]`` to it, no
+    negative edge, so a dispatcher that reads only these constraints (MMT section 3: an event is
+    enabled when the events its negative edges point to are done) would find it enabled from the start
+    and could execute it before its leader's predecessors. So each member at offset 0 from the head of
+    its run gets that head's other constraints as well (the same bounds: they are at the same time),
+    which are implied constraints (APSP values): dispatchability is kept and nothing is tightened."""
     if result.do_network is None:
         raise ApaError("an inconsistent STPP has no DO form")
     mdn = minimal_dispatchable_network(result.do_network)
     order = {v: i for i, v in enumerate(result.stpp.events)}
     bounds: dict[tuple[str, str], list[float]] = {}
     tps = result.ticks_per_second
-    for e in mdn.edges:
-        if order[e.source] < order[e.target]:
-            bounds.setdefault((e.source, e.target), [-math.inf, math.inf])[1] = e.value / tps
+    weight = {(e.source, e.target): e.value for e in mdn.edges}
+    head: dict[str, str] = {}  # a member at offset 0 -> the first of its run of zero offsets
+    for later, earlier in mdn.chained:  # in chain order: (b, a) for each link a -> b of a chain
+        if weight[(earlier, later)] == 0:
+            head[later] = head.get(earlier, earlier)
+    same = {h: {h} for h in head.values()}
+    for member, h in head.items():
+        same[h].add(member)
+    edges = [(e.source, e.target, e.value) for e in mdn.edges]
+    if head:
+        for e in mdn.edges:
+            for member in same.get(e.source, ()):
+                if member != e.source and e.target not in same[e.source]:
+                    edges.append((member, e.target, e.value))
+            for member in same.get(e.target, ()):
+                if member != e.target and e.source not in same[e.target]:
+                    edges.append((e.source, member, e.value))
+    for a, b, w in edges:
+        if order[a] < order[b]:
+            box = bounds.setdefault((a, b), [-math.inf, math.inf])
+            box[1] = min(box[1], w / tps)
         else:
-            bounds.setdefault((e.target, e.source), [-math.inf, math.inf])[0] = -e.value / tps
+            box = bounds.setdefault((b, a), [-math.inf, math.inf])
+            box[0] = max(box[0], -w / tps)
     return tuple(Constraint(a, b, lb, ub) for (a, b), (lb, ub) in
                  sorted(bounds.items(), key=lambda kv: (order[kv[0][0]], order[kv[0][1]])))
+
+
+def interval_flexibility(result: CompileResult) -> float | None:
+    """Flexibility the paper's way (section V, Fig. 11: "compared the resulting interval durations to the
+    original problems' interval durations"): for each constraint of the original STPP with a finite
+    width ``ub - lb > 0``, the width its pair of events keeps in the DO form (``D[i, j] + D[j, i]`` of the
+    DO form's APSP), over that width; the mean over those constraints (None: there are none). Dense:
+    O(n^3). `CompileResult.flexibility` is the project's own measure (event windows from the reference).
+    Raises `ApaError` for an inconsistent STPP."""
+    if result.do_network is None:
+        raise ApaError("an inconsistent STPP has no DO form")
+    d = np.asarray(do_apsp(result), dtype=float)
+    index = {e: i for i, e in enumerate(result.stpp.events)}
+    ratios = []
+    for c in result.stpp.constraints:
+        width = c.ub - c.lb
+        if math.isfinite(width) and width > 0:
+            i, j = index[c.source], index[c.target]
+            ratios.append(min(1.0, (d[i, j] + d[j, i]) / result.ticks_per_second / width))
+    return float(np.mean(ratios)) if ratios else None
 
 
 @dataclass(frozen=True, slots=True)

@@ -18,8 +18,13 @@ messages (``observe(event, seconds)``), never from a clock, so a replay gives th
   DO form arrives it is accepted only if every commitment made meanwhile lies inside it, and
   otherwise the dispatcher recompiles again with those commitments rigid.
 * An observation outside the hard windows is a *violation*: it is recorded (it happened), the state
-  says so, and no DO form is claimed any more. Bad messages (unknown or repeated events, time going
-  backwards) raise `DispatchError` and change nothing.
+  says so, and no DO form is claimed any more.
+* Both are answered **at once**, for every event still to come, not only the one observed: an
+  observation (or `advance`, time passing) after which some event yet to happen has no time left in
+  its DO window (its window passed, or the observation emptied it: an event out of order) is a
+  deviation, recompiled now; with no time left in its hard window, a violation now.
+* Bad messages (unknown or repeated events, time going backwards) raise `DispatchError` and change
+  nothing.
 
 Worker types (section VI) ride on top: with several named preference sets (each added to the STPP's
 own preferences, which every worker shares), after each observation of
@@ -178,9 +183,14 @@ class STPPDispatcher:
             self.violated = True
             self.result = None
             return self._step("violation", event, seconds)
+        if self._hard_broken(t):  # an event still to come can no longer keep the hard constraints
+            self.violated = True
+            self.result = None
+            return self._step("violation", event, seconds)
         if self.result is not None:
             self.lo = np.maximum(self.lo, t - self.d[:, k])
             self.hi = np.minimum(self.hi, t + self.d[k, :])
+            in_policy = in_policy and not self._policy_broken(t)
         status = "on_policy" if in_policy else ("shadow" if self.pending is not None else "deviation")
         if self.sets and event in self.watch:
             best = best_worker_type(self.hard, self.sets, {e: v / self.tps for e, v in self.executed.items()},
@@ -216,7 +226,28 @@ class STPPDispatcher:
         if self.executed:
             self.now = t
         status = self._settle(t) or ("shadow" if self.pending else "on_policy")
+        if self.executed and not self.violated:
+            if self._hard_broken(t):
+                self.violated = True
+                self.result = None
+                status = "violation"
+            elif self.result is not None and self._policy_broken(t):
+                status = self._recompile()  # a deviation: the DO deadline of an event still to come passed
         return self._step(status, None, seconds)
+
+    def _waiting(self) -> np.ndarray:
+        return np.array([k for k, e in enumerate(self.events) if e not in self.executed], dtype=np.intp)
+
+    def _hard_broken(self, t: int) -> bool:
+        """Whether an event still to come has no time left in its hard window at time `t` (its window
+        passed, or emptied by what was observed): a violation, now rather than at its own observation."""
+        k = self._waiting()
+        return bool(len(k)) and bool(np.any((self.hi0[k] < t) | (self.lo0[k] > self.hi0[k])))
+
+    def _policy_broken(self, t: int) -> bool:
+        """The same for the active DO windows: a deviation from the policy (Fig. 8, function 2)."""
+        k = self._waiting()
+        return bool(len(k)) and bool(np.any((self.hi[k] < t) | (self.lo[k] > self.hi[k])))
 
     # -- views -------------------------------------------------------------------------------
     @property

@@ -26,7 +26,8 @@ __all__ = ["random_stpp"]
 def random_stpp(n: int, rng: np.random.Generator, *, constraints: int | None = None,
                 preference_share: float = 0.2, step: float = 2.0, slack: float = 1.0,
                 locality: int | None = None) -> STPP:
-    """A random structured STPP with `n` events ``e0 .. e{n-1}``, `constraints` (default ``3 n``)
+    """A random structured STPP with `n` events ``e0 .. e{n-1}``, `constraints` (default ``3 n``: ours; the
+    paper does not state it, and flexibility depends on it most, docs/apa.md)
     interval constraints between random pairs, and ``round(preference_share * n)`` preferences on the
     first constraints generated (the paper: 20 % of the number of events). With `locality`, the second
     event of each pair is drawn within `locality` places of the first (a plan-like, banded network;

@@ -22,6 +22,7 @@ from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.motion.paths import agent_pairs
 from hrc.plans import generate_plans
+from hrc.report.summary import PASSING_HOW, passing_words
 
 if TYPE_CHECKING:
     from hrc.compile.motion_pattern import PlanChoice
@@ -56,6 +57,8 @@ def _pattern_json(choice: PlanChoice) -> dict[str, Any]:
                     for m in pattern.motions],
         "passing": [{"order": o.describe(), "first": o.first, "how": o.how, "point": list(o.conflict.point),
                      "min_gap": o.separation.gap} for o in pattern.constrained],
+        "passing_words": [{"how": how, "text": text, "points": [list(q) for q in points]}
+                          for how, text, points in passing_words(pattern.constrained)],
     }
 
 
@@ -96,8 +99,14 @@ def _text(s: dict[str, Any]) -> str:
             route = f"detour round {m['detour']}" if m["detour"] else "shortest"
             lines.append(f"{m['agent']:<8} {m['leg']:>3} {m['from']:<5} {m['to']:<5} {m['free_time']:8.2f} "
                          f"{m['time']:8.2f}  {route}")
-        for o in s["plan"]["passing"]:
-            lines.append(f"passing order ({o['how']}): {o['order']}")
+        words = s["plan"]["passing_words"]
+        lines.append(f"passing orders: {len(words)}, each once (numbered as on the --out figure)" if words
+                     else "passing orders: none needed")
+        for how, heading in PASSING_HOW.items():
+            mine = [(k, w) for k, w in enumerate(words, start=1) if w["how"] == how]
+            if mine:
+                lines.append(f" {heading}:")
+                lines += [f"  {k}. {w['text'][0].upper()}{w['text'][1:]}" for k, w in mine]
     return "\n".join(lines)
 
 

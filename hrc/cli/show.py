@@ -7,7 +7,7 @@ import json
 import math
 from typing import Any
 
-from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate, fmt_bytes, fmt_span
+from hrc.compile.estimate import DEFAULT_MAX_PLANS, FIXED_SECONDS, estimate, fmt_bytes, fmt_span
 from hrc.compile.executors import default_jobs
 from hrc.io.task_file import load_task
 from hrc.model import Task
@@ -56,6 +56,7 @@ def task_summary(task: Task) -> dict[str, Any]:
         "plan_count_exact": est.plans.exact,
         "estimate": {"disk_bytes": {mode: est.disk(mode) for mode in est.stnu_bytes},
                      "cpu_seconds": [round(est.cpu_seconds[0], 1), round(est.cpu_seconds[1], 1)],
+                     "fixed_seconds": list(FIXED_SECONDS),
                      "max_plans_default": DEFAULT_MAX_PLANS},
         "identical_actions": [list(g) for g in identical_actions(task)],
         "symmetry_factor": symmetry_factor(task),
@@ -95,9 +96,10 @@ def _text(s: dict[str, Any]) -> str:
     lines.append("  locations: " + ", ".join(f"{k} ({x:g}, {y:g})" for k, (x, y) in m["locations"].items()))
     e = s["estimate"]
     jobs = default_jobs()
-    lo, hi = (t / jobs for t in e["cpu_seconds"])
+    lo, hi = (f + t / jobs for f, t in zip(e["fixed_seconds"], e["cpu_seconds"], strict=True))
     disk = e["disk_bytes"]
-    lines.append(f"compile estimate: {fmt_span(lo, hi, ' - ')} on {jobs} core{'s' * (jobs > 1)}; on disk "
+    lines.append(f"compile estimate: {fmt_span(lo, hi, ' - ', about=True)} on {jobs} core{'s' * (jobs > 1)} "
+                 "(start-up, path planning and the report included; longer on a busy machine); on disk "
                  f"{fmt_bytes(disk['graphml'])} (--stnu archive: {fmt_bytes(disk['archive'])}, none: "
                  f"{fmt_bytes(disk['none'])})")
     if s["plan_count"] > e["max_plans_default"]:

@@ -31,7 +31,7 @@ from hrc.compile.motion_pattern import (
     pattern_network,
 )
 from hrc.compile.preferences import plan_preference
-from hrc.compile.temporal_net_creator import relabel_timepoints
+from hrc.compile.temporal_net_creator import blocked_stnu, relabel_timepoints
 from hrc.io.map_file import workspace_to_dict
 from hrc.io.task_file import task_to_dict
 from hrc.model import Plan, Task
@@ -168,10 +168,11 @@ def _record(task: Task, plan: Plan, choice: PlanChoice, graphml: bool, text: str
     with it its dispatch form record (or `form`: the same, of a plan it is a relabelling of)."""
     stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
+    blocked = choice.pattern.candidates == 0  # its file carries the block (`blocked_stnu`)
     if text is None:
-        text = write_graphml(stnu) if graphml else ""
+        text = write_graphml(blocked_stnu(stnu) if blocked else stnu) if graphml else ""
     if form is None:
-        form = plan_record(task, plan, stnu, choice.pattern.candidates == 0) if graphml else b""
+        form = plan_record(task, plan, stnu, blocked) if graphml else b""
     return CompiledPlan(plan=plan, pattern=choice.pattern, classification=choice.classification, stnu_size=size,
                         graphml=text, preference=plan_preference(task, plan, choice.net), form=form)
 
@@ -214,6 +215,7 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
     if not first.classification.explanation:
         return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) for plan in family[1:])]
     out = [first]
+    written = blocked_stnu(choice.net.stnu) if first.pattern.candidates == 0 else choice.net.stnu  # once: `_layout`
     result = choice.check  # the first plan's check, with its negative cycle (None: each member checks)
     for plan in family[1:]:
         names = relabel_timepoints(task, family[0], plan)
@@ -224,7 +226,7 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
             net = pattern_network(task, plan, first.pattern, options.human_waits)
             member = PlanChoice(first.pattern, net, renamed(first.classification, names, net, known))
         # its STNU is the first's renamed, so its GraphML is written from the first's (`relabel_record`)
-        text = write_graphml(choice.net.stnu, names, f"{task.name}:{plan.id}") if graphml else ""
+        text = write_graphml(written, names, f"{task.name}:{plan.id}") if graphml else ""
         out.append(_record(task, plan, member, graphml, text, first.form))
     return out
 

@@ -55,7 +55,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from hrc.compile.temporal_net_creator import ORIGIN, leg_names
+from hrc.compile.temporal_net_creator import ORIGIN, block_target, leg_names
 from hrc.errors import InputError
 from hrc.model import Plan, Task
 from hrc.plans import agent_legs
@@ -117,7 +117,9 @@ def plan_record(task: Task, plan: Plan, stnu: STNU, blocked: bool, *, graphml_na
     STNU with its timepoints named as `hrc.compile.temporal_net_creator` names them (``AGENT.PHASE.ACTION.
     EVENT`` and ``Z``), or as its GraphML file does (`graphml_names`: `tool_name` of those). The network
     is the one the GraphML file holds as `hrc.temporal.graphml.read_graphml` reads it: every timepoint at
-    or after ``Z``, a contingent link of one fixed duration a requirement link. Raises `InputError`
+    or after ``Z``, a contingent link of one fixed duration a requirement link, parallel bounds merged to the
+    tightest, and for a `blocked` plan the block its file carries (its first timepoint after ``Z`` before
+    ``Z``: `hrc.compile.temporal_net_creator.blocked_stnu`). Raises `InputError`
     (naming `where`) for a timepoint that is none of the plan's events, or a network too large for the
     form. Cost: O(links log links)."""
     G, _A, L = task_sizes(task)
@@ -159,6 +161,8 @@ def plan_record(task: Task, plan: Plan, stnu: STNU, blocked: bool, *, graphml_na
     for i in range(n):
         if i != z:
             bound(i, z, 0)
+    if blocked:  # the block its file carries (`hrc.compile.temporal_net_creator.blocked_stnu`)
+        bound(z, block_target(names, origin), -1)
     conts = []
     for c in stnu.contingents:
         a, t = index[c.source], index[c.target]

@@ -779,7 +779,8 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
 
 
 _BLOCKED = Classification(PlanClass.INCONSISTENT, "the co-workers would block each other: no order of passing "
-                          "keeps them apart", None, (), ())
+                          "keeps them apart; its STNU file says so: it puts the plan's first event before the "
+                          "start (Z), so that file alone checks inconsistent", None, (), ())
 
 
 def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool = True,

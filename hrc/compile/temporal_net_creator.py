@@ -40,6 +40,12 @@ A leg with no travel (already there) gets ``depart -> arrive`` in ``[0, 0]``. Se
 ticks here and only here: contingent bounds are widened outward (floor lb, ceil ub) and passing-order
 gaps rounded up, so rounding never makes a plan look more controllable than it is; other requirement
 bounds are rounded to the nearest tick.
+
+**One tick.** A person's action that may take no time at all (a duration ``[0, ub]`` with ``ub > 0``)
+gets the contingent link ``[1 ms, ub]``: a person's action takes at least a millisecond. The CSTNU Tool
+reads contingent links only with ``0 < lb`` (`hrc.temporal.graphml`), and this keeps every STNU the
+compile writes readable by it; a duration of exactly ``[0, 0]`` stays a fixed duration (written as a
+requirement link). It is the only bound rounded inward, by one tick.
 """
 
 from __future__ import annotations
@@ -57,8 +63,9 @@ from hrc.plans import Leg, agent_legs, per_plan
 from hrc.temporal import STNU, ContingentLink, RequirementLink
 from hrc.temporal.ticks import to_ticks
 
-__all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "create_stnu", "event_timepoint", "leg_names",
-           "leg_timepoint", "ref_namer", "ref_timepoint", "relabel_timepoints", "seconds_to_ticks", "with_separations"]
+__all__ = ["ORIGIN", "TICKS_PER_SECOND", "PlanNetwork", "block_target", "blocked_stnu", "create_stnu",
+           "event_timepoint", "leg_names", "leg_timepoint", "ref_namer", "ref_timepoint", "relabel_timepoints",
+           "seconds_to_ticks", "with_separations"]
 
 TICKS_PER_SECOND = 1000
 """The temporal core's exact unit: milliseconds."""
@@ -69,6 +76,24 @@ ORIGIN = "Z"
 def seconds_to_ticks(s: float) -> int:
     """Model seconds to the core's ticks, rounded to the nearest (`hrc.temporal.ticks.to_ticks`)."""
     return to_ticks(s, TICKS_PER_SECOND)
+
+
+def block_target(timepoints: Sequence[str], origin: str = ORIGIN) -> int:
+    """The index of the timepoint that a blocked plan's network puts before the origin: the first one after
+    it in the network's order (`blocked_stnu`). Raises ValueError for a network of the origin alone."""
+    return next(i for i, t in enumerate(timepoints) if t != origin)
+
+
+def blocked_stnu(stnu: STNU) -> STNU:
+    """The network a blocked plan's STNU file holds (motion acquisition found no order of passing that keeps
+    the co-workers apart, `hrc.compile.motion_pattern`): `stnu` (which carries none of the plan's passing
+    orders) and ``T(X) - T(Z) <= -1`` for X its first timepoint after the origin (`block_target`): X before
+    the start, which with ``T(X) >= T(Z)`` is a negative cycle, so the file alone reads inconsistent (hrc
+    and the CSTNU Tool alike) as the compile ranked it. The block is in the written file and the dispatch
+    form (`hrc.compile.dispatch_form.plan_record`), not in the plan's network in memory, which the
+    simulator's motion-blind runs still dispatch (docs/simulate.md)."""
+    x = stnu.timepoints[block_target(stnu.timepoints)]
+    return stnu.inserted(len(stnu.requirements), (RequirementLink(ORIGIN, x, None, -1),))
 
 
 def _floor_ticks(s: float) -> int:
@@ -312,7 +337,10 @@ def _req(a: str, b: str, lb: int | None, ub: int | None, kind: str, text: str) -
 
 
 def _cont(a: str, b: str, lb: float, ub: float, text: str) -> _Op:
-    return ContingentLink(a, b, _floor_ticks(lb), _ceil_ticks(ub)), True, (a, b), ("human", text)
+    low, high = _floor_ticks(lb), _ceil_ticks(ub)
+    if low == 0 < high:  # a person's action takes at least one tick (module docstring, "one tick")
+        low = 1
+    return ContingentLink(a, b, low, high), True, (a, b), ("human", text)
 
 
 def _travel(agent: Agent, a: str, b: str, t: float, text: str) -> _Op:

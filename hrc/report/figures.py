@@ -14,19 +14,32 @@ from pathlib import Path
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-__all__ = ["AGENT_COLORS", "CLASS_COLORS", "DPI", "agent_color", "counts_figure", "makespans_figure", "new_figure",
-           "save_png"]
+from hrc.model import Task
+
+__all__ = ["AGENT_COLORS", "CLASS_COLORS", "DPI", "HUMAN_COLOR", "ROBOT_COLOR", "agent_color", "counts_figure",
+           "makespans_figure", "new_figure", "save_png"]
 
 DPI = 100
 
 CLASS_COLORS: dict[str, str] = {"DC": "#2e7d32", "consistent": "#e0a000", "inconsistent": "#c62828"}
 """Badge and bar colours per plan class (green, amber, red), shared with the HTML report."""
 
-AGENT_COLORS: tuple[str, ...] = ("#1f5fa8", "#8e44ad", "#00897b", "#6d4c41")
-"""Agent colours in task order (human first in the workshop): blue, purple, then teal, brown."""
+HUMAN_COLOR, ROBOT_COLOR = "#d9731a", "#1f6fb2"
+"""The person orange, the robot blue: in every figure, the simulation's GIF and the console (whose page
+names the same two, ``hrc/console/page/console.css`` ``--human`` and ``--robot``)."""
+AGENT_COLORS: tuple[str, ...] = (HUMAN_COLOR, ROBOT_COLOR, "#00897b", "#6d4c41")
+"""The first person's and the first robot's colours, then teal and brown for a second of either kind."""
 
-def agent_color(index: int) -> str:
-    return AGENT_COLORS[index % len(AGENT_COLORS)]
+
+def agent_color(task: Task, agent_id: str) -> str:
+    """`agent_id`'s colour, by its kind: the person orange, the robot blue (`HUMAN_COLOR`, `ROBOT_COLOR`);
+    a second agent of one kind teal, a third brown. The same agent has the same colour everywhere."""
+    agent = next(a for a in task.agents if a.id == agent_id)
+    same = [a.id for a in task.agents if a.is_human == agent.is_human]
+    k = same.index(agent_id)
+    if k == 0:
+        return HUMAN_COLOR if agent.is_human else ROBOT_COLOR
+    return AGENT_COLORS[2 + (k - 1) % 2]
 
 
 def new_figure(width: float, height: float) -> Figure:

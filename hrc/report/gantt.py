@@ -2,16 +2,19 @@
 
 Times come from `Classification.schedule` (the earliest time of every STNU timepoint, in seconds) or
 `Classification.worst_schedule` (the same with every human duration at its maximum): ``which`` picks.
-A leg's bars span ``depart -> arrive`` (travel: lighter, hatched) and ``start -> end`` (manipulation,
-labelled ``cube2 fetch``); the agent standing still in between (waiting for the co-worker, for a passing
-order or for the task graph) is a thin grey bar, so idle time shows. A dashed red line marks the
+A leg's bars span ``depart -> arrive`` (travel: the agent's colour, lighter, hatched ``///``) and
+``start -> end`` (manipulation, labelled ``cube2 fetch``); the agent standing still (waiting for the
+co-worker, for a passing order or for the task graph, or at a waiting place on its way: then its travel
+is split there) is a pale dotted box (`WAIT_STYLE`) labelled ``waits 12.0 s at H`` where that fits, so
+idle time shows and is never mistaken for a walk. Colours are the agents' (`agent_color`: the person
+orange, the robot blue), named in the legend above the chart. A dashed red line marks the
 makespan deadline and a dotted one the worst-case makespan. O(legs) artists.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from matplotlib.artist import Artist
 from matplotlib.axes import Axes
@@ -23,38 +26,62 @@ from matplotlib.ticker import MaxNLocator
 from hrc.compile.temporal_net_creator import leg_timepoint
 from hrc.plans import agent_legs
 from hrc.report.figures import DPI, agent_color, new_figure
+from hrc.report.summary import MIN_WAIT
 
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan
     from hrc.model import Task
 
-__all__ = ["draw_gantt", "gantt_bars", "gantt_base", "gantt_figure"]
+__all__ = ["MIN_WAIT", "WAIT_STYLE", "draw_gantt", "gantt_bars", "gantt_base", "gantt_figure", "wait_label"]
 
 def gantt_bars(task: Task, cp: CompiledPlan, which: str = "earliest") -> dict[str, list[tuple[str, float, float, str]]]:
     """Per agent, ``(kind, start, end, label)`` with kind ``travel``, ``work`` or ``wait``, in time order.
 
-    `which`: "earliest" or "worst" schedule. Zero-length travel and waits are left out; legs missing
-    from the schedule too.
+    `which`: "earliest" or "worst" schedule. A leg whose route stops at a waiting place is travel there, a
+    wait there (labelled ``at H``), travel on: the wait is never drawn as travel. Waits shorter than
+    `MIN_WAIT` seconds and zero-length travel are left out; legs missing from the schedule too.
     """
     times = dict(cp.classification.schedule if which == "earliest" else cp.classification.worst_schedule)
     bars: dict[str, list[tuple[str, float, float, str]]] = {}
     for agent in task.agent_ids:
         rows: list[tuple[str, float, float, str]] = []
         free_since: float | None = 0.0  # when the agent last finished something
-        for leg in agent_legs(task, cp.plan, agent):
+        parks = {m.leg: m.park for m in cp.motions if m.agent == agent and m.park}
+        for k, leg in enumerate(agent_legs(task, cp.plan, agent)):
             label = f"{leg.action} {leg.phase}"
-            dep, arr, st, en = (times.get(leg_timepoint(leg, w)) for w in ("depart", "arrive", "start", "end"))
-            if free_since is not None and dep is not None and dep > free_since + 1e-6:
-                rows.append(("wait", free_since, dep, ""))
-            if dep is not None and arr is not None and arr > dep:
-                rows.append(("travel", dep, arr, f"to {leg.location}"))
-            if arr is not None and st is not None and st > arr + 1e-6:
-                rows.append(("wait", arr, st, ""))
+            dep, park, unpark, arr, st, en = (times.get(leg_timepoint(leg, w))
+                                              for w in ("depart", "park", "unpark", "arrive", "start", "end"))
+            place = f"at {parks[k]}" if k in parks else ""
+            spans: list[tuple[str, float | None, float | None, str]] = [("wait", free_since, dep, "")]
+            if park is not None and unpark is not None:
+                spans += [("travel", dep, park, f"to {parks.get(k, '')}"), ("wait", park, unpark, place),
+                          ("travel", unpark, arr, f"to {leg.location}")]
+            else:
+                spans.append(("travel", dep, arr, f"to {leg.location}"))
+            spans.append(("wait", arr, st, ""))
+            for kind, a, b, text in spans:
+                if a is not None and b is not None and b - a >= (MIN_WAIT if kind == "wait" else 1e-9):
+                    rows.append((kind, a, b, text))
             if st is not None and en is not None:
                 rows.append(("work", st, en, label))
             free_since = en
         bars[agent] = rows
     return bars
+
+
+WAIT_STYLE: dict[str, Any] = {"facecolor": "#f2f2f2", "edgecolor": "#616161", "hatch": "....", "linewidth": 0.6}
+"""How every Gantt draws a wait: a pale box dotted grey, unlike travel (the agent's colour, hatched ///)."""
+
+
+_TEXT_BOX = {"boxstyle": "square,pad=0.1", "facecolor": "#f2f2f2", "edgecolor": "none"}
+
+
+def wait_label(start: float, end: float, place: str, seconds_per_char: float) -> str:
+    """``waits 12.0 s at H`` (or shorter), whichever fits inside the bar; "" when none does."""
+    for text in (f"waits {end - start:.1f} s {place}".strip(), f"waits {end - start:.1f} s", f"{end - start:.0f} s"):
+        if (len(text) + 1) * seconds_per_char <= end - start:
+            return text
+    return ""
 
 
 _WIDTH, _LEFT, _AXES_W = 10.0, 0.075, 0.905  # figure width (in), axes left and width (figure fractions)
@@ -113,11 +140,17 @@ def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan, which: str = "earliest") 
     added: list[Artist] = []
     for row, agent in enumerate(agents):
         y = len(agents) - 1 - row
-        color = agent_color(row)
+        color = agent_color(task, agent)
         travel = [(start, end - start) for kind, start, end, _ in bars[agent] if kind == "travel"]
-        waits = [(start, end - start) for kind, start, end, _ in bars[agent] if kind == "wait"]
         work = [(start, end, label) for kind, start, end, label in bars[agent] if kind == "work"]
-        added.append(ax.broken_barh(waits, (y - height * 0.08, height * 0.16), facecolor="#9e9e9e", linewidth=0.0))
+        waits = [(start, end, label) for kind, start, end, label in bars[agent] if kind == "wait"]
+        added.append(ax.broken_barh([(start, end - start) for start, end, _ in waits],
+                                    (y - height * 0.22, height * 0.44), **WAIT_STYLE))
+        for start, end, place in waits:
+            text = wait_label(start, end, place, seconds_per_char)
+            if text:
+                added.append(ax.text((start + end) / 2, y, text, ha="center", va="center", fontsize=_LABEL_PT - 0.5,
+                                     color="#424242", bbox=_TEXT_BOX))
         # one collection per agent and kind (far cheaper to draw than a patch per bar)
         added.append(ax.broken_barh(travel, (y - height * 0.3, height * 0.6), facecolor=color, alpha=0.28,
                                     hatch="///", edgecolor=color, linewidth=0.0))
@@ -133,10 +166,10 @@ def draw_gantt(ax: Axes, task: Task, cp: CompiledPlan, which: str = "earliest") 
         label = f" deadline {task.deadline:g} s" if right else f"deadline {task.deadline:g} s "
         added.append(ax.text(task.deadline, len(agents) - 0.42, label, color="#c62828", fontsize=8, va="center",
                              ha="left" if right else "right"))
-    handles: list[Artist] = [
-        Patch(facecolor="#888888", label="manipulation"),
-        Patch(facecolor="#888888", alpha=0.28, hatch="///", edgecolor="#888888", linewidth=0.0, label="travel"),
-        Patch(facecolor="#9e9e9e", label="waiting")]
+    handles: list[Artist] = [Patch(facecolor=agent_color(task, a), label=a) for a in agents]
+    handles += [Patch(facecolor="#888888", label="manipulation"),
+                Patch(facecolor="#888888", alpha=0.28, hatch="///", edgecolor="#888888", linewidth=0.0, label="travel"),
+                Patch(label="waiting", **WAIT_STYLE)]
     if ms is not None and ms[1] > ms[0]:
         added.append(ax.axvline(ms[1], color="#555555", linestyle=":", linewidth=1.0))
         handles.append(Line2D([], [], color="#555555", linestyle=":", label=f"worst-case makespan {ms[1]:.1f} s"))

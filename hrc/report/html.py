@@ -13,6 +13,8 @@ from hrc.report.summary import (
     CLASS_MEANING,
     INLINE_LINKS,
     MODEL_ASSUMPTIONS,
+    PREFERENCE_HEADER,
+    PREFERENCE_MEANING,
     STATS_HEADER,
     ReportData,
     allocation_legend,
@@ -140,7 +142,7 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
             f'<p class="small">Allocation: {e(allocation_legend(data))}. Makespan: earliest \u2013 worst case. '
             f"Idle: {e(' / '.join(agents))}, in the earliest schedule (waiting counts as idle). "
             "Motion: \u21b7 robot travels on a detour, \u21c4 passing orders the STNU carries. "
-            + ("Preference: the worker's best achievable preference value in the plan (APA). " if data.preferences
+            + (f"{PREFERENCE_HEADER}: {PREFERENCE_MEANING} " if data.preferences
                else "") +
             "STNU: timepoints / requirement links / contingent links. Highlighted rows have a section below.</p>"]
     if data.truncated:
@@ -148,7 +150,7 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
     out += ['<div class="table-wrap"><table>', "<thead><tr>"]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
               + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion"]
-              + (["Preference"] if data.preferences else []) + ["STNU", "Network"])
+              + ([PREFERENCE_HEADER] if data.preferences else []) + ["STNU", "Network"])
     out.append("".join(f"<th>{e(h)}</th>" for h in header) + "</tr></thead>")
     out.append("<tbody>")
     for r in data.rows:

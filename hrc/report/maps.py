@@ -80,26 +80,33 @@ def _midpoint_arrow(ax: Axes, pts: list[tuple[float, float]], color: str) -> lis
     return []
 
 
-def workspace_figure(task: Task) -> tuple[Figure, Axes]:
-    """A figure sized to the task's floor, with the workspace drawn on its one axes."""
+def workspace_figure(task: Task, legend_rows: int = 1) -> tuple[Figure, Axes]:
+    """A figure sized to the task's floor, with the workspace drawn on its one axes and room above it for a
+    legend of `legend_rows` rows (inside the figure, over neither title nor data)."""
     ws = task.workspace
     xmin, ymin, xmax, ymax = ws.bounds
     width = 6.4
-    height = min(9.0, max(3.0, (width - 0.9) * (ymax - ymin + 0.4) / (xmax - xmin + 0.4) + 1.0))
+    top = 0.15 + 0.18 * legend_rows  # inches
+    plot = min(9.0 - 0.7 - top, max(2.0, (width - 0.9) * (ymax - ymin + 0.4) / (xmax - xmin + 0.4)))
+    height = 0.7 + plot + top
     fig = new_figure(width, height)
-    ax = fig.add_axes((0.1, 0.7 / height, 0.86, 1.0 - 1.0 / height))
+    ax = fig.add_axes((0.1, 0.7 / height, 0.86, plot / height))
     draw_workspace(ax, ws)
     return fig, ax
+
+
+MAP_LEGEND_ROWS = 4
+"""Rows of legend a plan's map has room for above the floor (routes, detours, numbered waits: two a row)."""
 
 
 def map_base(task: Task) -> tuple[Figure, Axes]:
     """The plan-independent part: the workspace and the agents' start markers (reused for every plan)."""
     ws = task.workspace
-    fig, ax = workspace_figure(task)
-    for i, agent in enumerate(task.agents):
+    fig, ax = workspace_figure(task, MAP_LEGEND_ROWS)
+    for agent in task.agents:
         start = ws.location(agent.start)
         ax.plot([start.x], [start.y], marker="s", markersize=9, markerfacecolor="none",
-                markeredgecolor=agent_color(i), markeredgewidth=1.6, zorder=5)
+                markeredgecolor=agent_color(task, agent.id), markeredgewidth=1.6, zorder=5)
     return fig, ax
 
 
@@ -110,7 +117,7 @@ def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
     handles: list[Artist] = []
     n = len(task.agents)
     for i, agent in enumerate(task.agents):
-        color = agent_color(i)
+        color = agent_color(task, agent.id)
         shift = (i - (n - 1) / 2) * _OFFSET * 2
         any_detour = False
         for pts, is_detour in route_points(cps, cp, agent.id):
@@ -130,17 +137,19 @@ def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
     for note in motion_notes(cps, cp)[1]:
         key = (round(float(note.point[0]), 2), round(float(note.point[1]), 2))
         at.setdefault(key, []).append(f"{note.waiting} waits {note.wait:.1f} s")
-    for (x, y), lines in at.items():
+    # each place numbered on the map, its waits said in the legend: words never overprint routes or each other
+    for k, ((x, y), lines) in enumerate(sorted(at.items(), key=lambda kv: (-kv[0][1], kv[0][0])), start=1):
         added += ax.plot([x], [y], marker="X", markersize=11, color="#c62828", markeredgecolor="white", zorder=7)
-        added.append(ax.annotate(
-            "\n".join(lines), (x, y), xytext=(8, -6), textcoords="offset points", fontsize=7.5, color="#c62828",
-            va="top", zorder=7,
-            bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.6}))
-    if at:
-        handles.append(Line2D([], [], color="#c62828", marker="X", linestyle="none", markersize=9,
-                              label="one waits for the other"))
-    added.append(ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=min(len(handles), 3),
-                           fontsize=8, frameon=False, borderaxespad=0.2))
+        added.append(ax.annotate(str(k), (x, y), xytext=(6, 4), textcoords="offset points", fontsize=8,
+                                 fontweight="bold", color="#c62828", zorder=7))
+        handles.append(Line2D([], [], color="#c62828", marker="X", linestyle="none", markersize=8,
+                              label=f"{k}: " + "; ".join(lines)))
+    if len(handles) > 2 * MAP_LEGEND_ROWS:  # no more than the room above the floor: the rest in the report
+        more = len(handles) - 2 * MAP_LEGEND_ROWS + 1
+        handles = handles[:2 * MAP_LEGEND_ROWS - 1] + [Line2D([], [], color="#c62828", marker="X", linestyle="none",
+                                                              markersize=8, label=f"{more} more: see the list")]
+    added.append(ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2,
+                           fontsize=7.5, frameon=False, borderaxespad=0.2, handlelength=1.6, columnspacing=1.0))
     return added
 
 

@@ -6,6 +6,8 @@ from hrc.report.summary import (
     CLASS_MEANING,
     INLINE_LINKS,
     MODEL_ASSUMPTIONS,
+    PREFERENCE_HEADER,
+    PREFERENCE_MEANING,
     STATS_HEADER,
     ReportData,
     allocation_legend,
@@ -76,14 +78,14 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
             f"Allocation: {allocation_legend(data)}. Makespan: earliest \u2013 worst case. "
             f"Idle: {' / '.join(agents)}, in the earliest schedule (waiting counts as idle). "
             "Motion: \u21b7 robot travels on a detour, \u21c4 passing orders the STNU carries. "
-            + ("Preference: the worker's best achievable preference value in the plan (APA). " if data.preferences
+            + (f"{PREFERENCE_HEADER}: {PREFERENCE_MEANING} " if data.preferences
                else "") +
             "STNU: timepoints / requirement links / contingent links.", ""]
     if data.truncated:
         out += [f"**{table_scope(data)}**", ""]
     header = (["Rank", "Plan", "Class", "Allocation"] + [f"{a} sequence" for a in agents]
               + ["Makespan (s)", f"Idle {' / '.join(agents)} (s)", "Motion"]
-              + (["Preference"] if data.preferences else []) + ["STNU", "Network"])
+              + ([PREFERENCE_HEADER] if data.preferences else []) + ["STNU", "Network"])
     out += ["| " + " | ".join(header) + " |", "|" + "|".join("---:" if h == "Rank" else "---" for h in header) + "|"]
     for r in data.rows:
         plan = f"[`{r.plan_id}`](#plan-{r.plan_id})" if r.featured else f"`{r.plan_id}`"

@@ -25,12 +25,13 @@ from typing import TYPE_CHECKING
 
 import matplotlib
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
 
 from hrc.report.figures import agent_color, new_figure, save_png
-from hrc.report.gantt import gantt_bars
+from hrc.report.gantt import WAIT_STYLE, gantt_bars, wait_label
 from hrc.report.maps import workspace_figure
 
 # `vert` is deprecated from Matplotlib 3.11 (warnings are errors in the tests); `orientation` exists from 3.10
@@ -43,7 +44,7 @@ if TYPE_CHECKING:
     from hrc.sim.montecarlo import Simulation
     from hrc.sim.run import RunResult
 
-__all__ = ["actual_bars", "animation_gif", "makespan_figure", "run_gantt_figure", "trajectories_figure",
+__all__ = ["actual_bars", "actual_spans", "animation_gif", "makespan_figure", "run_gantt_figure", "trajectories_figure",
            "write_simulation_figures"]
 
 GIF_STEP = 0.5  # s of simulated time per GIF frame
@@ -89,7 +90,12 @@ def _box(values: Sequence[float]) -> dict:
 
 def actual_bars(result: RunResult, agent: str) -> list[tuple[str, float, float]]:
     """What `agent` did in the run: ``(kind, start, end)`` with kind travel / work / wait / away."""
-    out: list[tuple[str, float, float]] = []
+    return [(kind, start, end) for kind, start, end, _ in actual_spans(result, agent)]
+
+
+def actual_spans(result: RunResult, agent: str) -> list[tuple[str, float, float, str]]:
+    """`actual_bars` with a label each: the action and phase of a manipulation (``cube2 fetch``)."""
+    out: list[tuple[str, float, float, str]] = []
     since = 0.0  # when the agent last finished something (or started moving)
     moving_since: float | None = None
     for h in result.happenings:
@@ -97,48 +103,58 @@ def actual_bars(result: RunResult, agent: str) -> list[tuple[str, float, float]]
             continue
         if h.event in ("depart", "unpark", "start", "away"):
             if h.t > since + 1e-6:
-                out.append(("wait", since, h.t))
+                out.append(("wait", since, h.t, ""))
             since = h.t
             moving_since = h.t if h.event in ("depart", "unpark") else None
         elif h.event in ("park", "arrive") and moving_since is not None:
-            out.append(("travel", moving_since, h.t))
+            out.append(("travel", moving_since, h.t, ""))
             since, moving_since = h.t, None
         elif h.event in ("end", "back"):
-            out.append(("work" if h.event == "end" else "away", since, h.t))
+            label = f"{h.action} {h.phase}" if h.event == "end" and h.action else ""
+            out.append(("work" if h.event == "end" else "away", since, h.t, label))
             since = h.t
     return out
 
 
 def run_gantt_figure(task: Task, cp: CompiledPlan | None, result: RunResult) -> Figure:
-    """Planned (the first plan's earliest schedule) above actual, per agent (module docstring)."""
+    """Planned (the first plan's earliest schedule) above actual, per agent (module docstring): the title
+    and the legend in the figure's top margin, one above the other, never over the bars; manipulations
+    carry their action's name where it fits, waits are drawn as every Gantt draws them."""
     agents = task.agent_ids
     rows = [(a, kind) for a in agents for kind in ("planned", "actual")]
-    fig = new_figure(10.0, 0.9 + 0.55 * len(rows))
-    ax = fig.add_axes((0.13, 0.6 / (0.9 + 0.55 * len(rows)), 0.85, 1 - 1.0 / (0.9 + 0.55 * len(rows))))
+    bottom, top, per_row = 0.55, 0.75, 0.55  # inches: x axis, title and legend, one row
+    height = bottom + top + per_row * len(rows)
+    fig = new_figure(10.0, height)
+    ax = fig.add_axes((0.13, bottom / height, 0.85, per_row * len(rows) / height))
     planned = gantt_bars(task, cp) if cp is not None and cp.classification.schedule else {}
-    colors = {"travel": 0.3, "work": 1.0, "wait": 0.0, "away": 0.0}
-    horizon = 1.0
+    alpha = {"travel": 0.3, "work": 1.0}
+    spans = {(agent, kind): (planned.get(agent, []) if kind == "planned" else actual_spans(result, agent))
+             for agent, kind in rows}
+    horizon = max([1.0, task.deadline or 0.0, result.makespan or 0.0]
+                  + [e for bars in spans.values() for _, _, e, _ in bars])
+    seconds_per_char = horizon * 1.03 / (0.85 * 10.0 * 72) * 0.62 * 7
     for i, (agent, kind) in enumerate(rows):
         y = len(rows) - 1 - i
-        color = agent_color(agents.index(agent))
-        if kind == "planned":
-            bars = [(k, s, e) for k, s, e, _ in planned.get(agent, [])]
-        else:
-            bars = actual_bars(result, agent)
-        for k, s, e in bars:
-            horizon = max(horizon, e)
+        color = agent_color(task, agent)
+        for k, s, e, label in spans[(agent, kind)]:
             if k == "wait":
-                ax.broken_barh([(s, e - s)], (y - 0.05, 0.1), facecolor="#9e9e9e", linewidth=0)
+                ax.broken_barh([(s, e - s)], (y - 0.15, 0.3), **WAIT_STYLE)
+                text = wait_label(s, e, label, seconds_per_char)
+                if text:
+                    ax.text((s + e) / 2, y, text, ha="center", va="center", fontsize=6.5, color="#424242",
+                            bbox={"boxstyle": "square,pad=0.1", "facecolor": "#f2f2f2", "edgecolor": "none"})
             elif k == "away":
                 ax.broken_barh([(s, e - s)], (y - 0.3, 0.6), facecolor="none", edgecolor="#c62828", hatch="xx",
                                linewidth=0.6)
             else:
-                ax.broken_barh([(s, max(e - s, 0.1))], (y - 0.3, 0.6), facecolor=color, alpha=colors[k],
+                ax.broken_barh([(s, max(e - s, 0.1))], (y - 0.3, 0.6), facecolor=color, alpha=alpha[k],
                                edgecolor=color if k == "travel" else "white", hatch="///" if k == "travel" else None,
                                linewidth=0.0 if k == "travel" else 0.5)
+                fits = [t for t in (label, label.split(" ")[0]) if t and (len(t) + 1) * seconds_per_char <= e - s]
+                if k == "work" and fits:  # the action and phase, or the action alone, where it fits
+                    ax.text((s + e) / 2, y, fits[0], ha="center", va="center", fontsize=6.5, color="white")
     if task.deadline is not None:
         ax.axvline(task.deadline, color="#c62828", linestyle="--", linewidth=1.2)
-        horizon = max(horizon, task.deadline)
     if result.makespan is not None:
         ax.axvline(result.makespan, color="#222222", linestyle=":", linewidth=1.0)
     ax.set_xlim(0, horizon * 1.03)
@@ -147,15 +163,20 @@ def run_gantt_figure(task: Task, cp: CompiledPlan | None, result: RunResult) -> 
     ax.set_xlabel("time (s)")
     made = f"makespan {result.makespan:.1f} s" if result.makespan is not None else f"unfinished ({result.reason})"
     plan = f"plan {cp.plan.id} ({cp.plan_class.value})" if cp is not None else "no plan"
-    ax.set_title(f"{result.policy}, run {result.run}: {plan} planned vs what happened; {made}", fontsize=9)
+    fig.text(0.13, 1 - 0.12 / height, f"{result.policy}, run {result.run}: {plan} planned vs what happened; {made}",
+             fontsize=9, va="top")
     ax.grid(axis="x", color="#dddddd", linewidth=0.6)
     ax.set_axisbelow(True)
     ax.spines[["top", "right"]].set_visible(False)
-    ax.legend(handles=[Patch(facecolor="#888888", label="manipulation"),
-                       Patch(facecolor="#888888", alpha=0.3, hatch="///", label="travel"),
-                       Patch(facecolor="#9e9e9e", label="waiting"),
-                       Line2D([], [], color="#c62828", linestyle="--", label="deadline")],
-              loc="lower left", bbox_to_anchor=(0.0, 1.04), ncol=4, fontsize=8, frameon=False, borderaxespad=0.0)
+    handles: list[Artist] = [Patch(facecolor=agent_color(task, a), label=a) for a in agents]
+    handles += [Patch(facecolor="#888888", label="manipulation"),
+                Patch(facecolor="#888888", alpha=0.3, hatch="///", label="travel"),
+                Patch(label="waiting", **WAIT_STYLE),
+                Patch(facecolor="none", edgecolor="#c62828", hatch="xx", label="away"),
+                Line2D([], [], color="#c62828", linestyle="--", label="deadline"),
+                Line2D([], [], color="#222222", linestyle=":", label="makespan")]
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.13, 1 - 0.38 / height), ncol=len(handles),
+               fontsize=7.5, frameon=False, borderaxespad=0.0, handlelength=1.6, columnspacing=1.2)
     return fig
 
 
@@ -168,11 +189,10 @@ def trajectories_figure(task: Task, result: RunResult) -> Figure:
     fig, ax = _map_figure(task)
     frames = result.frames
     handles = []
-    names = [a.id for a in task.agents]
     human = next(a for a in task.agents if a.is_human)
     robot = next(a for a in task.agents if not a.is_human)
     for agent, cols in ((human, (1, 2)), (robot, (3, 4))):
-        color = agent_color(names.index(agent.id))
+        color = agent_color(task, agent.id)
         xs = [f[cols[0]] for f in frames]
         ys = [f[cols[1]] for f in frames]
         ax.plot(xs, ys, color=color, linewidth=1.4, alpha=0.8, zorder=3)  # type: ignore[attr-defined]
@@ -181,7 +201,7 @@ def trajectories_figure(task: Task, result: RunResult) -> Figure:
     if close:
         d, f = min(close, key=lambda c: c[0])
         for (x, y), agent in (((f[1], f[2]), human), ((f[3], f[4]), robot)):
-            ax.add_patch(Circle((x, y), agent.radius, fill=False, edgecolor=agent_color(names.index(agent.id)),  # type: ignore[attr-defined]
+            ax.add_patch(Circle((x, y), agent.radius, fill=False, edgecolor=agent_color(task, agent.id),  # type: ignore[attr-defined]
                                 linewidth=1.2, linestyle="--", zorder=6))
         handles.append(Line2D([], [], color="#555555", linestyle="--",
                               label=f"closest: {d:.2f} m apart at {f[0]:.1f} s"))
@@ -220,8 +240,7 @@ def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_S
     scale = float(to_px((1.0, 0.0))[0] - to_px((0.0, 0.0))[0])  # pixels per metre
     human = next(a for a in task.agents if a.is_human)
     robot = next(a for a in task.agents if not a.is_human)
-    names = [a.id for a in task.agents]
-    colors = {a.id: agent_color(names.index(a.id)) for a in (human, robot)}
+    colors = {a.id: agent_color(task, a.id) for a in (human, robot)}
     ft = np.array([f[0] for f in frames])
     swatch = base.copy()  # one palette for every frame: the map plus the discs' colours
     sd = ImageDraw.Draw(swatch)
@@ -242,8 +261,15 @@ def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_S
             r = agent.radius * scale
             py = height - py
             draw.ellipse((px - r, py - r, px + r, py + r), fill=colors[agent.id], outline="white")
-        draw.text((8, 6), f"t = {t:5.1f} s   {human.id}: {_doing(result, human.id, t) or '-'}   "
-                          f"{robot.id}: {_doing(result, robot.id, t) or '-'}", fill="#222222")
+        # the caption is the legend too: each agent's name after a disc of its colour
+        x0 = 8.0
+        draw.text((x0, 6), f"t = {t:5.1f} s", fill="#222222")
+        x0 += draw.textlength(f"t = {t:5.1f} s") + 14
+        for agent in (human, robot):
+            draw.ellipse((x0, 7, x0 + 9, 16), fill=colors[agent.id])
+            text = f"{agent.id}: {_doing(result, agent.id, t) or '-'}"
+            draw.text((x0 + 13, 6), text, fill="#222222")
+            x0 += 13 + draw.textlength(text) + 16
         images.append(img.quantize(palette=palette, dither=Image.Dither.NONE))
     fig.clear()
     buf = io.BytesIO()

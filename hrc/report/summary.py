@@ -6,8 +6,9 @@ plotting here (figures live in `gantt`, `maps` and `figures`). Building it is O(
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from hrc.compile.temporal_net_creator import ref_timepoint
 from hrc.plans import agent_legs
@@ -18,12 +19,22 @@ if TYPE_CHECKING:
     from hrc.compile.motion_pattern import MotionPattern, PassingOrder
     from hrc.model import Plan, Task
 
-__all__ = ["CLASS_MEANING", "FEATURED_TOP", "INLINE_LINKS", "MODEL_ASSUMPTIONS", "STATS_HEADER", "DetourNote",
-           "PassingNote", "ReportData", "Row", "agent_letters", "allocation_legend", "binding_orders",
-           "build_report_data", "empty_class_reason",
-           "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks", "fmt_passing",
-           "fmt_preference", "fmt_sequence",
-           "fmt_stnu", "motion_notes", "split_explanation", "stats_rows", "table_scope"]
+__all__ = ["CLASS_MEANING", "DetourNote", "FEATURED_TOP", "INLINE_LINKS", "MIN_WAIT", "MODEL_ASSUMPTIONS",
+           "PASSING_HOW", "PREFERENCE_HEADER", "PREFERENCE_MEANING", "PassingNote", "ReportData", "Row",
+           "STATS_HEADER", "agent_letters", "allocation_legend", "binding_orders", "build_report_data",
+           "empty_class_reason", "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks",
+           "fmt_passing", "fmt_preference", "fmt_sequence", "fmt_stnu", "motion_notes", "occupancy_words",
+           "passing_words", "split_explanation", "stats_rows", "table_scope"]
+
+PREFERENCE_HEADER = "Preference (higher is better)"
+"""The ranked table's preference column: APA's value has no unit (a sum of the task's preference functions)."""
+PREFERENCE_MEANING = ("the worker's best achievable global preference value in the plan (APA: the sum of the "
+                      "task's preference functions at their best, no unit; higher is better, and it breaks ties "
+                      "between plans that finish in the same second).")
+
+MIN_WAIT = 0.05
+"""Seconds: a wait shorter than this is neither drawn (`hrc.report.gantt`) nor listed: it is rounding, not
+somebody standing still."""
 
 INLINE_LINKS = 3
 """A "why consistent" naming at most this many human durations says them in its sentence, not in a list."""
@@ -207,17 +218,23 @@ def _wait_before(task: Task, plan: Plan, times: dict[str, float], agent: str, le
     """How long `agent` stands still just before its leg's `what` event in the schedule `times`."""
     legs = agent_legs(task, plan, agent)
     leg = legs[leg_index]
+    base = f"{agent}.{leg.phase}.{leg.action}"
     if what == "start":
-        return times[f"{agent}.{leg.phase}.{leg.action}.start"] - times[f"{agent}.{leg.phase}.{leg.action}.arrive"]
+        return times[f"{base}.start"] - times[f"{base}.arrive"]
     before = 0.0
     if leg_index > 0:
         prev = legs[leg_index - 1]
         before = times[f"{agent}.{prev.phase}.{prev.action}.end"]
-    return times[f"{agent}.{leg.phase}.{leg.action}.depart"] - before
+    wait = times[f"{base}.depart"] - before
+    if f"{base}.park" in times and f"{base}.unpark" in times:  # it waits at a waiting place on its way
+        wait += times[f"{base}.unpark"] - times[f"{base}.park"]
+    return wait
 
 
 def motion_notes(cps: CompiledPlanSet, cp: CompiledPlan) -> tuple[tuple[DetourNote, ...], tuple[PassingNote, ...]]:
-    """The plan's detours, and the passing orders that make an agent wait in the earliest schedule."""
+    """The plan's detours, and the passing orders that make an agent wait in the earliest schedule (at
+    least `MIN_WAIT`: an order that is tight but makes nobody stand still is not listed;
+    a wait at a waiting place on the way counts)."""
     task, plan = cps.task, cp.plan
     legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
     detours = tuple(
@@ -234,6 +251,8 @@ def motion_notes(cps: CompiledPlanSet, cp: CompiledPlan) -> tuple[tuple[DetourNo
             leg = legs[(ref.agent, ref.leg)]
             what = "start" if ref.what == "start" else "depart"
             wait = _wait_before(task, plan, times, ref.agent, ref.leg, what)
+            if wait < MIN_WAIT:  # tight, but nobody stands still for it: not a wait to list
+                continue
             passing.append(PassingNote(waiting.agent, other.describe(), _step(leg.action, leg.phase), wait,
                                        o.conflict.point, o.how))
     return detours, tuple(passing)
@@ -368,3 +387,48 @@ def split_explanation(text: str) -> tuple[str, tuple[str, ...], tuple[str, ...]]
     links = tuple(part.strip() for part in rest.split("; ") if part.strip())
     key = tuple(part for part in links if "deadline" in part or part.startswith(("constraint", "task graph")))
     return head, key, links
+
+
+def occupancy_words(occ: Any, end: bool) -> str:
+    """When an agent's occupancy (`hrc.motion.conflicts.Occupancy`) ends (`end`) or begins, in words:
+    ``the robot has left T`` / ``the human arrives at T``, ``the robot sets off R → S1``, ..."""
+    a, loc, origin = f"the {occ.agent}", occ.location, occ.origin
+    if occ.kind == "travel":
+        if occ.part == 1:
+            return f"{a} has reached its waiting place" if end else f"{a} sets off {origin} \u2192 its waiting place"
+        if occ.part == 2:
+            return f"{a} has arrived at {loc}" if end else f"{a} leaves its waiting place for {loc}"
+        return f"{a} has arrived at {loc}" if end else f"{a} sets off {origin} \u2192 {loc}"
+    if occ.part == 1:
+        return f"{a} has left its waiting place" if end else f"{a} reaches its waiting place"
+    if occ.leg == -1:
+        return f"{a} has left its start {loc}" if end else f"{a} is at its start {loc}"
+    return f"{a} has left {loc}" if end else f"{a} arrives at {loc}"
+
+
+PASSING_HOW = {"chosen": "chosen by the compile", "forced": "forced by those (the other way round cannot be kept)",
+               "implied": "implied by the plan"}
+"""What each `passing_words` kind means, as a heading."""
+
+
+def passing_words(orders: Sequence[Any]) -> tuple[tuple[str, str, tuple[tuple[float, float], ...]], ...]:
+    """Each passing order once, in words: ``(how, text, places)`` with `how` ``chosen`` (by the compile),
+    ``forced`` (the other way round cannot be kept) or ``implied``, and `text` like ``the robot has left T
+    before the human arrives at T``. Orders that read the same (one conflict in several places, or the same
+    moves on several legs) are one; the compile's choices first, then what they force, each in order of
+    first appearance."""
+    groups: dict[str, list[Any]] = {}
+    for o in orders:
+        c = o.conflict
+        first, second = (c.robot, c.human) if o.first == "robot" else (c.human, c.robot)
+        groups.setdefault(f"{occupancy_words(first, True)} before {occupancy_words(second, False)}", []).append(o)
+    out = []
+    for text, group in sorted(groups.items(), key=lambda kv: all(o.how != "chosen" for o in kv[1])):
+        points = tuple(dict.fromkeys((round(o.conflict.point[0], 1), round(o.conflict.point[1], 1))
+                                     for o in group))
+        how = "chosen" if any(o.how == "chosen" for o in group) else group[0].how
+        out.append((how, f"{text}, at {_points(points)}", points))
+    return tuple(out)
+
+def _points(points: Sequence[tuple[float, float]]) -> str:
+    return ", ".join(f"({x:.1f}, {y:.1f})" for x, y in points)

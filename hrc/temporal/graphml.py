@@ -33,14 +33,34 @@ goes through it. Two names of one network that would get the same id (``a.b`` an
 with a `NetworkError` naming both: the mapping stays a function of the name alone, so lookups through
 `tool_name` stay right. The origin is the timepoint named ``Z`` (`ORIGIN`), as the tool expects.
 
-A contingent link with ``lb == ub`` (a fixed duration, which the tool refuses: it wants
+The tool's graph holds at most one edge per ordered pair of nodes (it refuses a file with two: "Between
+node A and node B there exists the edge ..."), so the writer merges: every finite bound of the network is
+an edge ``T(Y) - T(X) <= w`` and of the edges on one ordered pair only the tightest is written (the same
+constraint: the others are implied); a requirement edge of weight >= 0 from a node to itself says nothing
+and is left out. A contingent link with ``lb == ub`` (a fixed duration, which the tool refuses: it wants
 ``0 < lb < ub``) is written as the requirement link ``[lb, lb]``; nature has no choice in it, so the
-network's class (DC, consistent, inconsistent) is the same. A contingent link with ``lb == 0`` is
-written as it is (``LC(C):0``): hrc reads it, the tool refuses the file; no requirement network says
-the same thing, so a task that wants tool-readable files must give the human a duration of at least one
-tick. Weights are written as they are: the tool stores 32-bit integers.
+network's class (DC, consistent, inconsistent) is the same. A contingent link's two edges take their
+ordered pairs: a requirement bound on one of them that the link implies (``T(C) - T(A) <= w`` with
+``w >= ub``, or ``>= -w`` with ``-w <= lb``) is left out; a tighter one cannot be written and is refused
+(`NetworkError`; such a network is never DC: nature may take the link's whole range).
 
-The output has one edge per finite bound in a fixed order, so equal networks give byte-identical text.
+The tool also wants each activation node to start one contingent link only ("Transform the activation
+node in a pair of nodes at distance 0 and associate each to a distinct contingent", its message): so a
+timepoint A that activates several contingent links is written as itself for the first and, for each other
+link onto C, a copy ``A_for_C`` (node id) held to it by ``T(A_for_C) - T(A) in [0, 0]``: the same network
+with one more timepoint per such link, which reads back as that (hrc's networks never have one: each
+of a person's steps has its own start).
+
+A contingent link with ``lb == 0`` (nature may finish at once) is refused with a `NetworkError`: the tool
+reads only ``0 < lb``, and no network it reads says the same thing (shifting or narrowing the link
+changes what the agent knows when). hrc's own networks never have one: the temporal net creator gives a
+person's action at least one tick (`hrc.compile.temporal_net_creator`, "a person's action takes at least
+1 ms"); hrc still reads such links from other formats and checks them. Weights are written as they are:
+the tool stores 32-bit integers.
+
+The output lists the nodes in the network's order, then the merged requirement edges in the order their
+ordered pairs first occur among the links, then the contingent edges; equal networks give byte-identical
+text.
 """
 
 from __future__ import annotations
@@ -310,6 +330,10 @@ def write_graphml(stnu: STNU, names: Mapping[str, str] | None = None, name: str 
     around the node ids and the name depends on the network's links alone, so it is laid out once per
     network (`_layout`, kept for the last network written) and each call fills in its ids."""
     ids = _node_ids(stnu, names)
+    for copy in _activation_copies(stnu, ids) if stnu.contingents else ():
+        if copy in ids.values():
+            raise NetworkError(f"a timepoint is named {show(copy)}, the name the CSTNU Tool's file gives a copy of "
+                               "a shared activation timepoint; rename it")
     chunks, slots = _layout(stnu)
     filled = [ids[v] for v in stnu.timepoints]  # tool names hold no XML special character: no escaping
     filled.append(_escape(stnu.name if name is None else name))
@@ -338,24 +362,71 @@ def _layout(stnu: STNU) -> tuple[list[str], list[int]]:
     return entry[1], entry[2]
 
 
+def _activation_copy(activation: str, target: str) -> str:
+    """The node id of activation `activation`'s copy for the contingent link onto `target`."""
+    return f"{activation}_for_{target}"
+
+
+def _activation_copies(stnu: STNU, ids: Mapping[str, str]) -> list[str]:
+    """The ids of the nodes `_text` adds to `stnu` (written with `ids`): a copy of an activation node for
+    each contingent link but the first that it activates."""
+    seen: set[str] = set()
+    out = []
+    for c in stnu.contingents:
+        if c.lb != c.ub:
+            if c.source in seen:
+                out.append(_activation_copy(ids[c.source], ids[c.target]))
+            seen.add(c.source)
+    return out
+
+
 def _text(stnu: STNU, ids: Mapping[str, str], label: str) -> str:
     """The GraphML text with node ids `ids` and the network's name written as `label` (already escaped)."""
-    edges: list[tuple[str, str, str, str, str]] = []  # (source, target, Type, key, value)
+    best: dict[tuple[str, str], int] = {}  # (source, target) -> the tightest w of T(target) - T(source) <= w
+
+    def bound(s: str, t: str, w: int) -> None:
+        old = best.get((s, t))
+        if old is None or w < old:
+            best[(s, t)] = w
+
     for r in stnu.requirements:
         if r.ub is not None:
-            edges.append((ids[r.source], ids[r.target], "requirement", "Value", str(r.ub)))
+            bound(ids[r.source], ids[r.target], r.ub)
         if r.lb is not None:
-            edges.append((ids[r.target], ids[r.source], "requirement", "Value", str(-r.lb)))
-    contingent = 0
+            bound(ids[r.target], ids[r.source], -r.lb)
+    labelled: list[tuple[str, str, str, str, str]] = []
+    extra: list[str] = []  # nodes added: a shared activation's copies (`_activation_copy`)
+    activations: set[str] = set()
     for c in stnu.contingents:
         a, t = ids[c.source], ids[c.target]
+        if c.lb != c.ub:
+            if c.source in activations:  # the tool wants one contingent link per activation node: its own copy
+                copy = _activation_copy(a, t)
+                extra.append(copy)
+                best[(a, copy)] = best[(copy, a)] = 0
+                a = copy
+            activations.add(c.source)
         if c.lb == c.ub:  # a fixed duration: the same network with a requirement link
-            edges.append((a, t, "requirement", "Value", str(c.ub)))
-            edges.append((t, a, "requirement", "Value", str(-c.lb)))
+            bound(a, t, c.ub)
+            bound(t, a, -c.lb)
             continue
-        contingent += 1
-        edges.append((a, t, "contingent", "LabeledValue", f"LC({t}):{c.lb}"))
-        edges.append((t, a, "contingent", "LabeledValue", f"UC({t}):{-c.ub}"))
+        if c.lb == 0:
+            raise NetworkError(f"contingent link {c}: the CSTNU Tool reads only 0 < lb < ub, and no network it "
+                               "reads says the same; give the duration at least one tick")
+        # a requirement bound on the link's pair: the tool holds one edge per ordered pair; one that the link
+        # implies is left out, a tighter one cannot be written (and makes the network not DC: nature may
+        # take the whole range)
+        for pair, implied, shown in (((a, t), c.ub, f"{c.source}->{c.target}"),
+                                     ((t, a), -c.lb, f"{c.target}->{c.source}")):
+            w = best.pop(pair, None)
+            if w is not None and w < implied:
+                raise NetworkError(f"contingent link {c} and a tighter requirement bound {w} on {shown}: the "
+                                   "CSTNU Tool's format holds one edge per ordered pair")
+        labelled.append((a, t, "contingent", "LabeledValue", f"LC({t}):{c.lb}"))
+        labelled.append((t, a, "contingent", "LabeledValue", f"UC({t}):{-c.ub}"))
+    edges = [(s, t, "requirement", "Value", str(w)) for (s, t), w in best.items() if s != t or w < 0]
+    edges += labelled
+    contingent = len(labelled) // 2
     out = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         '<graphml xmlns="http://graphml.graphdrawing.org/xmlns/graphml" '
@@ -383,11 +454,12 @@ def _text(stnu: STNU, ids: Mapping[str, str], label: str) -> str:
     out.append(f'<data key="nContingent">{contingent}</data>')
     out.append(f'<data key="NetworkType">{"STNU" if contingent else "STN"}</data>')
     out.append(f'<data key="nEdges">{len(edges)}</data>')
-    out.append(f'<data key="nVertices">{len(stnu.timepoints)}</data>')
+    out.append(f'<data key="nVertices">{len(stnu.timepoints) + len(extra)}</data>')
     out.append(f'<data key="Name">{label}</data>')
-    quoted = {nid: _quoteattr(nid) for nid in ids.values()}  # once per node, not per edge end
-    out += [f'<node id={quoted[ids[v]]}>\n<data key="x">{150.0 * (i % 10):.1f}</data>\n'
-            f'<data key="y">{150.0 * (i // 10):.1f}</data>\n</node>' for i, v in enumerate(stnu.timepoints)]
+    quoted = {nid: _quoteattr(nid) for nid in [*ids.values(), *extra]}  # once per node, not per edge end
+    out += [f'<node id={quoted[nid]}>\n<data key="x">{150.0 * (i % 10):.1f}</data>\n'
+            f'<data key="y">{150.0 * (i // 10):.1f}</data>\n</node>'
+            for i, nid in enumerate([*(ids[v] for v in stnu.timepoints), *extra])]
     # one string per edge (four lines): values are integers or LC/UC labels of node ids, which the tool's
     # name rule keeps free of XML's special characters, so they need no escaping
     out += [f'<edge id="e{i}" source={quoted[s]} target={quoted[t]}>\n<data key="Type">{etype}</data>\n'
