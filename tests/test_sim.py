@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
 from conftest import ROOT, WORKSHOP_TASK
 
 from hrc.cli import main
@@ -102,6 +104,39 @@ def test_the_person_stops_short_of_the_robot_and_the_robot_keeps_its_margin(work
         floor.advance(0.05)
     assert floor.free() >= workshop.safety_margin - 1e-9 and floor.overlaps == 0
     assert robot.held > 0
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(route=st.lists(st.tuples(st.floats(1.0, 9.0), st.floats(1.0, 7.0)), min_size=2, max_size=5),
+       centre=st.tuples(st.floats(0.0, 10.0), st.floats(0.0, 8.0)), s0=st.floats(0.0, 1.0),
+       want=st.floats(0.01, 3.0))
+def test_a_walk_stops_where_its_route_first_comes_too_near(workshop, route, centre, s0, want):
+    """`Floor._walk` against a dense sample of the route: nothing walked comes within `reach` of the
+    co-worker, the walk stops only on that circle (never short of it), and `min_free` saw its closest
+    approach on the way."""
+    floor = Floor(workshop)
+    mover = floor.robot
+    mover.set_route(tuple(route), 1.0)
+    assume(mover.length > 0.05)
+    mover.s = s0 * mover.length
+    reach = 1.0
+    start = mover.at(mover.s)
+    assume(math.dist(start, centre) > reach + 1e-6)
+    begin = mover.s
+    want = min(want, mover.remaining)  # as `Floor.advance` asks
+    assume(want > 1e-3)
+    dense = [mover.at(begin + want * k / 4000) for k in range(4001)]
+    inside = [k for k, p in enumerate(dense) if math.dist(p, centre) < reach]
+    floor.min_free = math.inf
+    got = floor._walk(mover, want, centre, reach)
+    if math.dist(dense[-1], centre) >= reach:
+        assert got == want  # a step whose end is clear is taken whole
+    else:
+        first = inside[0]
+        assert want * (first - 1) / 4000 - 1e-9 <= got <= want * first / 4000 + 1e-9
+        assert math.dist(mover.xy, centre) == pytest.approx(reach, abs=1e-7)
+    walked = [p for k, p in enumerate(dense) if want * k / 4000 <= got]
+    assert floor.min_free <= min(math.dist(p, centre) for p in walked) - floor._radii + 1e-9
 
 
 def test_a_leg_to_where_the_agent_stands_is_over_at_once(workshop):

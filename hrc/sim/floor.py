@@ -21,9 +21,11 @@ A route that ends where it starts (the next phase at the same place) is over at 
 
 Each step moves the bodies in the pymunk space (velocity set, ``space.step``, position set exactly
 on the route) and asks pymunk for contacts between the two discs: `overlaps` counts the steps in which
-they touched, an independent check of the rule above. `min_free` is the smallest free distance seen.
-Cost: O(1) per step and agent (a few bisection steps when the agents are close), plus one pymunk step
-and shape query.
+they touched, an independent check of the rule above. `min_free` is the smallest free distance seen (at
+each step's end, and on the way of each walk).
+Cost: O(1) per step and agent (where a step would bring the discs too close, the point to stop at is
+solved for on the route's segments), plus, only when the discs nearly touch, one pymunk step and shape
+query.
 """
 
 from __future__ import annotations
@@ -37,12 +39,15 @@ import pymunk
 from hrc.model import Agent, Task
 from hrc.motion.world import World
 
-__all__ = ["CONTACT", "Floor", "Mover"]
+__all__ = ["CONTACT", "MAX_STEP", "MIN_STEP", "Floor", "Mover"]
 
 Point = tuple[float, float]
 
 CONTACT = 0.02
 """m: the smallest free distance a walking person leaves to the robot (they stop rather than touch it)."""
+
+MIN_STEP, MAX_STEP = 0.02, 0.5
+"""s: the shortest and longest step of the floor (`Floor.safe_step`)."""
 
 QUERY_GAP = 0.001
 """m: discs farther apart than this do not touch (pymunk's circle contact is the same free distance, so
@@ -143,10 +148,21 @@ class Floor:
         return m.remaining / m.speed
 
     def safe_step(self) -> float:
-        """A step (s) short enough that neither agent can come near the other in it unseen."""
+        """A step (s) short enough that neither agent can come near the other in it unseen.
+
+        While both move, half the time their joint pace takes to close the gap (at least `MIN_STEP`): each
+        is walked against where the other stands at that moment, so steps must be short for the two
+        moves to stand for simultaneous ones. While one moves, `MAX_STEP`: its walk stops exactly where it
+        would come too near the standing co-worker (`_walk`) and measures its closest approach on the way,
+        so a longer step misses nothing (a person held up in front of a working robot for seconds costs a
+        few steps, not hundreds) - unless the robot slows down near the person (`slowdown` > 0), which
+        is a rule of the gap at each step's start and so is sampled as when both move."""
+        hm, rm = self.human, self.robot
+        if not (hm.present and hm.moving and rm.moving) and self.slowdown == 0:
+            return MAX_STEP
         gap = self.free() - self.margin - self.slowdown
-        closing = self.human.agent.speed + self.robot.agent.speed
-        return max(0.02, min(0.5, gap / closing / 2)) if math.isfinite(gap) else 0.5
+        closing = hm.agent.speed + rm.agent.speed
+        return max(MIN_STEP, min(MAX_STEP, gap / closing / 2)) if math.isfinite(gap) else MAX_STEP
 
     def advance(self, h: float) -> None:
         """Move both agents for `h` seconds (person first, then the robot's response)."""
@@ -154,9 +170,8 @@ class Floor:
         radii = self._radii
         if hm.present and hm.moving:
             want = min(hm.speed * h, hm.remaining)
-            rx, ry = rm.xy
             floor = min(CONTACT, self.free()) - 1e-12  # the free distance the person keeps (`free`, inlined)
-            got = self._walk(hm, want, lambda p: math.hypot(p[0] - rx, p[1] - ry) - radii >= floor)
+            got = self._walk(hm, want, rm.xy, radii + floor)
             hm.travelled += h
             if want > 0 and got < want - 1e-9:
                 hm.held += h * (1 - got / want)
@@ -169,11 +184,7 @@ class Floor:
             if closing and before < self.margin + self.slowdown and self.slowdown > 0:
                 want *= max(0.0, min(1.0, (before - self.margin) / self.slowdown))
             limit = min(self.margin, before)
-            if hm.present:
-                hx, hy = hm.xy
-                got = self._walk(rm, want, lambda p: math.hypot(hx - p[0], hy - p[1]) - radii >= limit - 1e-12)
-            else:
-                got = self._walk(rm, want, lambda p: True)
+            got = self._walk(rm, want, hm.xy if hm.present else None, radii + limit - 1e-12)
             if got <= 1e-12 and closing and before < self.margin and rm.s > 0:
                 self._back_off(rm, rm.speed * h / 2)  # the person keeps coming: make room
             rm.travelled += h
@@ -183,28 +194,33 @@ class Floor:
             rm.blocked_for = rm.blocked_for + h if full > 0 and got < full / 2 else 0.0
         self._sync(h)
 
-    def _walk(self, m: Mover, want: float, ok) -> float:  # noqa: ANN001 - a predicate on points
-        """Advance `m` by up to `want` metres while `ok(position)` holds; returns the distance advanced."""
+    def _walk(self, m: Mover, want: float, centre: Point | None, reach: float) -> float:
+        """Advance `m` by up to `want` metres, stopping where its centre would first come closer than
+        `reach` to `centre` (no limit when `centre` is None); returns the distance advanced. `min_free`
+        takes the closest approach to `centre` (as a free distance) on the way.
+
+        A step whose end keeps `reach` is taken whole (the discs pass within one short step only when both
+        move, which `Floor.safe_step` keeps from happening unseen); otherwise the agent stops where its route
+        enters the disc of radius `reach` round `centre`: on each route segment ``|a + u d - c| = reach`` is
+        a quadratic in `u`, and its smaller root is the first point of the segment inside (exact where a
+        bisection would take a dozen probes of the route)."""
         if want <= 0:
             return 0.0
         target = m.s + want
-        if ok(m.at(target)):
-            got = want
-        else:
-            lo, hi = 0.0, want  # largest advance that keeps ok (ok holds at 0 by construction)
-            for _ in range(12):
-                mid = (lo + hi) / 2
-                if ok(m.at(m.s + mid)):
-                    lo = mid
-                else:
-                    hi = mid
-            got = lo
+        got = want
+        if centre is not None:
+            cx, cy = centre
+            ex, ey = m.at(target)
+            if (ex - cx) * (ex - cx) + (ey - cy) * (ey - cy) < reach * reach:
+                got = _entry(m, target, cx, cy, reach) - m.s
+            closest = _closest(m, m.s + got, cx, cy) - self._radii
+            if closest < self.min_free:
+                self.min_free = closest
         m.s += got
-        m.xy = m.at(m.s)
         if m.s >= m.stop_at - 1e-9:
             m.s = m.stop_at
-            m.xy = m.at(m.s)
             m.moving = False
+        m.xy = m.at(m.s)
         return got
 
     def _back_off(self, m: Mover, distance: float) -> None:
@@ -244,3 +260,44 @@ class Floor:
         m.xy = xy
         m.points, m.cum, m.s, m.moving = [xy], [0.0], 0.0, False
         m.body.position = xy
+
+
+def _entry(m: Mover, target: float, cx: float, cy: float, reach: float) -> float:
+    """The arc length in ``[m.s, target]`` at which `m`'s route first comes within `reach` of ``(cx, cy)``
+    (`target` is inside; `m.s`, where the agent stands, is not, up to rounding: then `m.s`)."""
+    cum, pts = m.cum, m.points
+    s = m.s
+    i = max(0, bisect.bisect_right(cum, s) - 1)
+    r2 = reach * reach
+    while i < len(pts) - 1 and cum[i] < target:
+        (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+        seg = cum[i + 1] - cum[i]
+        if seg > 0:
+            dx, dy = (x1 - x0) / seg, (y1 - y0) / seg
+            ax, ay = x0 - cx, y0 - cy
+            b = dx * ax + dy * ay
+            disc = b * b - (ax * ax + ay * ay - r2)
+            if disc >= 0:
+                u = -b - math.sqrt(disc)  # entering the disc along this segment, from its first point
+                lo, hi = max(s, cum[i]) - cum[i], min(target, cum[i + 1]) - cum[i]
+                if u <= hi and -b + math.sqrt(disc) >= lo:  # the segment's part in [s, target] meets the disc
+                    return cum[i] + u if u > lo else max(s, cum[i])  # inside from the start: stay
+        i += 1
+    return s
+
+
+def _closest(m: Mover, end: float, cx: float, cy: float) -> float:
+    """The smallest distance from ``(cx, cy)`` to `m`'s route between `m.s` and `end`."""
+    cum, pts = m.cum, m.points
+    x, y = m.at(m.s)
+    best = math.hypot(x - cx, y - cy)
+    i = max(0, bisect.bisect_right(cum, m.s) - 1)
+    while i < len(pts) - 1 and cum[i] < end:
+        seg = cum[i + 1] - cum[i]
+        if seg > 0:
+            (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+            dx, dy = (x1 - x0) / seg, (y1 - y0) / seg
+            u = min(max(dx * (cx - x0) + dy * (cy - y0), max(m.s, cum[i]) - cum[i]), min(end, cum[i + 1]) - cum[i])
+            best = min(best, math.hypot(x0 + u * dx - cx, y0 + u * dy - cy))
+        i += 1
+    return best

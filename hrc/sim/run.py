@@ -44,7 +44,7 @@ from hrc.model import Task
 from hrc.motion import PathLibrary
 from hrc.plans import must_precede
 from hrc.sim.detector import Detector, Happening
-from hrc.sim.floor import CONTACT, Floor
+from hrc.sim.floor import CONTACT, MIN_STEP, Floor
 from hrc.sim.giveway import Ways
 from hrc.sim.human import HumanDraws, HumanModel, draw_human
 from hrc.sim.policies import (
@@ -56,7 +56,7 @@ from hrc.sim.policies import (
     SimRoute,
 )
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
-from hrc.sim.standoff import WAIT_STEP, AgentState, Standoffs
+from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, AgentState, Standoffs
 
 __all__ = ["RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
 
@@ -511,6 +511,8 @@ class _Run(Standoffs):
             if ag.mover.moving:
                 cands.append(t + self.floor.time_to_stop(ag.mover))
                 cands.append(t + self.floor.safe_step())
+                if ag.mover.blocked_for > 0:  # held up: a standoff when it has been for ASIDE_AFTER seconds
+                    cands.append(t + max(ASIDE_AFTER - ag.mover.blocked_for, MIN_STEP))
             if ag.mode == "work":
                 cands.append(ag.work_end)
         if self.h.mode == "away" and self.h.back_at is not None:
