@@ -104,7 +104,7 @@ class QuadraticProgram:
         r = np.concatenate([rows[t >= 0], rows[s >= 0]])
         c = np.concatenate([t[t >= 0], s[s >= 0]])
         vals = np.concatenate([np.ones(int((t >= 0).sum())), -np.ones(int((s >= 0).sum()))])
-        g = sp.csc_matrix((vals, (r, c)), shape=(len(rows), m))
+        g = _csc(r, c, vals, len(rows), m)  # a row's two columns differ (rows within a class were dropped)
         h_l, h_u = self.lb[keep] - delta, self.ub[keep] - delta
         inside = (root[self.src] == root[self.dst]) & ~rigid  # a non-rigid row within a class: a constant
         d_in = shift[self.dst[inside]] - shift[self.src[inside]]
@@ -121,18 +121,27 @@ class QuadraticProgram:
         w = -2.0 * self.c2  # >= 0
         pr, pc, pv = [], [], []
         for a_, b_, sign in ((j, j, 1.0), (i, i, 1.0), (i, j, -1.0), (j, i, -1.0)):
-            ok = (a_ >= 0) & (b_ >= 0) & (w != 0)
+            ok = (a_ >= 0) & (b_ >= 0) & (w != 0) & (a_ <= b_)  # the upper triangle
             pr.append(a_[ok])
             pc.append(b_[ok])
             pv.append(sign * w[ok])
-        p = sp.coo_matrix((np.concatenate(pv), (np.concatenate(pr), np.concatenate(pc))), shape=(m, m)).tocsc()
-        p.sum_duplicates()
-        p = sp.triu(p, format="csc")
+        pr_, pc_ = np.concatenate(pr), np.concatenate(pc)
+        key, where = np.unique(pc_ * max(m, 1) + pr_, return_inverse=True)  # duplicates summed, in CSC order
+        p = _csc(key % max(m, 1), key // max(m, 1), np.bincount(where, np.concatenate(pv), len(key)), m, m)
         return p, q, g, h_l.astype(float), h_u.astype(float), col, shift
 
     def times(self, z: np.ndarray, col: np.ndarray, shift: np.ndarray) -> np.ndarray:
         """Event times from the free variables (see `standard_form`)."""
         return shift + np.where(col >= 0, z[np.maximum(col, 0)] if len(z) else 0.0, 0.0)
+
+
+def _csc(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, n_rows: int, n_cols: int) -> sp.csc_matrix:
+    """The CSC matrix of distinct ``(rows[k], cols[k]) -> vals[k]``, built from its arrays directly (the
+    COO route sorts and checks again: most of the cost of a small QP's setup)."""
+    order = np.lexsort((rows, cols))
+    indptr = np.zeros(n_cols + 1, dtype=np.int32)
+    np.cumsum(np.bincount(cols, minlength=n_cols), out=indptr[1:])
+    return sp.csc_matrix((vals[order].astype(float), rows[order].astype(np.int32), indptr), shape=(n_rows, n_cols))
 
 
 def _piqp(qp: QuadraticProgram) -> np.ndarray:

@@ -96,6 +96,8 @@ class Dispatcher:
         self.feasible_only = feasible_only
         self.use_preferences = use_preferences
         self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
+        self._robot = next((a.id for a in plan_set.task.agents if not a.is_human), "")
+        self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
         history = History.start(plan_set.task)
         everything = np.arange(len(plan_set), dtype=np.int64)
         self._state = self._settle(history, (), (), everything, {}, None)
@@ -247,7 +249,7 @@ class Dispatcher:
         if not len(kept):
             raise DispatchError(f"no remaining plan allows {_describe(obs)} "
                                 f"({len(state.plans)} plans agreed with what was seen before)")
-        robot = next((a.id for a in self.task.agents if not a.is_human), "")
+        robot = self._robot
         ack = ack_note(state.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
                                    state, _seen_after(state, history, obs), ack)
@@ -323,13 +325,18 @@ class Dispatcher:
                ) -> tuple[RobotStep | WaitFor | None, RobotStep | WaitFor | None]:
         """The robot's next step in `entry` (module docstring) and the human's hint (`Decision.human`);
         `seen`: the history as the core reads it (`seen_arrays`)."""
-        robot = next((a.id for a in self.task.agents if not a.is_human), "")
+        robot = self._robot
         human = history.human
         now = ticks(history.now)
         out: list[RobotStep | WaitFor | None] = [None, None]
         contingent = entry.stnu.contingent_timepoints
-        human_nodes = frozenset(n for n, ev in entry.events.items() if ev[0] == human)
-        robot_nodes = frozenset(entry.events) - human_nodes
+        nodes = self._nodes.get(index)
+        if nodes is None:  # shared by forks: a function of the plan alone; a few hundred plans at most
+            if len(self._nodes) >= 256:
+                self._nodes.clear()
+            human_nodes = frozenset(n for n, ev in entry.events.items() if ev[0] == human)
+            nodes = self._nodes[index] = (human_nodes, frozenset(entry.events) - human_nodes)
+        human_nodes, robot_nodes = nodes
         asks: list[tuple[int, str, str, str, str, str, frozenset[str]]] = []
         for slot, (agent, other_nodes) in enumerate(((robot, human_nodes), (human, robot_nodes))):
             nxt = next(((action, phase, event, node) for action, phase in entry.legs.get(agent, ())

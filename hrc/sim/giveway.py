@@ -71,6 +71,14 @@ def _seg_dist(a: np.ndarray, b: np.ndarray, c: Point) -> np.ndarray:
     return np.hypot(*(a + t[:, None] * ab - np.asarray(c)).T)
 
 
+def _point_seg_dist(a: Point, b: Point, c: Point) -> float:
+    """`_seg_dist` for one segment (no arrays: it is asked once per candidate link)."""
+    abx, aby = b[0] - a[0], b[1] - a[1]
+    den = abx * abx + aby * aby
+    t = 0.0 if den <= 0 else min(1.0, max(0.0, ((c[0] - a[0]) * abx + (c[1] - a[1]) * aby) / den))
+    return math.hypot(a[0] + t * abx - c[0], a[1] + t * aby - c[1])
+
+
 class Ways:
     """Routes and spots on the task's roadmaps (see the module docstring); one per run, sharing a
     per-process `cache` of edge arrays."""
@@ -99,8 +107,7 @@ class Ways:
             return False
         if avoid is None:
             return True
-        d = float(_seg_dist(np.asarray([a]), np.asarray([b]), avoid.xy)[0])
-        return d >= min(avoid.reach, start_free) - 1e-6
+        return _point_seg_dist(a, b, avoid.xy) >= min(avoid.reach, start_free) - 1e-6
 
     def _search(self, clearance: float, start: Point, avoid: Disc | None,
                 goal: Point | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
