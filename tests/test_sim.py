@@ -127,7 +127,8 @@ def test_a_walk_stops_where_its_route_first_comes_too_near(workshop, route, cent
     assume(want > 1e-3)
     dense = [mover.at(begin + want * k / 4000) for k in range(4001)]
     inside = [k for k, p in enumerate(dense) if math.dist(p, centre) < reach]
-    floor.min_free = math.inf
+    mover.xy = start
+    floor.min_free = math.dist(start, centre) - floor._radii  # as the step before left it
     got = floor._walk(mover, want, centre, reach)
     if math.dist(dense[-1], centre) >= reach:
         assert got == want  # a step whose end is clear is taken whole

@@ -213,9 +213,8 @@ class Floor:
             ex, ey = m.at(target)
             if (ex - cx) * (ex - cx) + (ey - cy) * (ey - cy) < reach * reach:
                 got = _entry(m, target, cx, cy, reach) - m.s
-            closest = _closest(m, m.s + got, cx, cy) - self._radii
-            if closest < self.min_free:
-                self.min_free = closest
+            if math.dist(m.xy, centre) - got - self._radii < self.min_free:  # else it cannot come closer
+                self.min_free = min(self.min_free, _closest(m, m.s + got, cx, cy) - self._radii)
         m.s += got
         if m.s >= m.stop_at - 1e-9:
             m.s = m.stop_at
