@@ -85,6 +85,7 @@ class Ways:
 
     def __init__(self, world: World, paths: PathLibrary, cache: dict) -> None:
         self.world, self.paths, self.cache = world, paths, cache
+        self._last: tuple[tuple, object] | None = None  # the last search and its result (`spot` asks twice)
 
     def _roadmap(self, clearance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Milestones, edge index pairs and edge lengths of the roadmap for `clearance` (None: none)."""
@@ -113,6 +114,15 @@ class Ways:
                 goal: Point | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
         """Dijkstra from `start` (node n) over the roadmap without the edges `avoid` blocks; `goal`, if
         given, is node n + 1. Returns milestones (goal appended), distances, predecessors, n."""
+        key = (clearance, start, avoid, goal)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]  # type: ignore[return-value]
+        found = self._dijkstra(clearance, start, avoid, goal)
+        self._last = (key, found)
+        return found
+
+    def _dijkstra(self, clearance: float, start: Point, avoid: Disc | None,
+                  goal: Point | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
         rm = self._roadmap(clearance)
         if rm is None:
             return None
