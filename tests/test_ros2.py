@@ -5,8 +5,8 @@ a ROS_DOMAIN_ID per test, discovery limited to this machine, Fast DDS over UDP).
   lines among its messages): the same answers as the same lines through ``hrc dispatch``, a log that
   replays byte for byte, the same MCAP recording, goals and routes for Nav2 in the frame asked for, the
   latest answer and goal for a subscriber that comes late, a clean stop on SIGTERM;
-- SIGINT in the middle, then ``--resume``: the whole run answered as uninterrupted; poses refused in one
-  line (no motion detector yet; a pose in another frame) and never in the log;
+- SIGINT in the middle, then ``--resume``: the whole run answered as uninterrupted (and recorded whole);
+  poses refused in one line (no motion detector yet; a pose in another frame) and never in the log;
 - ``--use-sim-time``: ticks from ``/clock``, goals stamped with it;
 - without the extra, one line that says how to install it; bad options in one line.
 
@@ -212,7 +212,7 @@ def test_sigint_then_resume_and_poses_refused(folder: Path, tmp_path: Path) -> N
         client.close()
         node.kill()
     assert "stopped by SIGINT" in node.stderr() and node.stderr().count("motion detector") == 1, node.stderr()
-    resumed = NodeProcess(folder, env, "--resume", str(log))
+    resumed = NodeProcess(folder, env, "--resume", str(log), "--record", str(tmp_path / "whole.mcap"))
     client = Client(env)
     try:
         client.wait_matched()
@@ -223,8 +223,11 @@ def test_sigint_then_resume_and_poses_refused(folder: Path, tmp_path: Path) -> N
         resumed.kill()
     assert f"resumed {log} after {half} messages" in resumed.stderr()
     assert got == expected
-    replayed = _dispatch(folder, "--replay", str(log))
+    replayed = _dispatch(folder, "--replay", str(log), "--record", str(tmp_path / "replayed.mcap"))
     assert replayed.returncode == 0 and replayed.stdout.decode().splitlines() == expected
+    # the resumed node's recording holds the whole run, as the one made from the log
+    assert (tmp_path / "whole.mcap").read_bytes() == (tmp_path / "replayed.mcap").read_bytes()
+    assert read_mcap(tmp_path / "whole.mcap").counts["/hrc/in"] == len(lines)
 
 
 def test_sim_time_ticks_from_clock_and_stamps_goals_with_it(folder: Path, tmp_path: Path) -> None:
@@ -265,4 +268,12 @@ def test_sim_time_ticks_from_clock_and_stamps_goals_with_it(folder: Path, tmp_pa
         client.close()
         node.kill()
     log = _dispatch(folder, "--replay", str(tmp_path / "run.log"))
-    assert log.returncode == 0 and len(log.stdout.splitlines()) == len(client.answers)
+    assert log.returncode == 0
+    logged = log.stdout.decode().splitlines()
+    rest = iter(logged)  # every answer the client saw is in the log, in order (ticks come unasked: the
+    assert all(any(a == b for b in rest) for a in client.answers)  # writer keeps the last one only)
+    from hrc.dispatch.logfile import read_log
+
+    ticks_logged = [json.loads(m.data) for m in read_log(tmp_path / "run.log").messages
+                    if json.loads(m.data).get("event") == "tick"]
+    assert len(ticks_logged) >= 2 and all(t["t"] in published for t in ticks_logged)
