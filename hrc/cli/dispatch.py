@@ -80,7 +80,7 @@ def _run(args: argparse.Namespace, dispatcher: Any, recording: Any) -> int:
     if args.replay:
         contents = read_log(args.replay)
         if contents.torn is not None:
-            _say(f"{args.replay}: {contents.torn}")
+            print(f"hrc dispatch: {args.replay}: {contents.torn}", file=sys.stderr, flush=True)
         differ = 0
         for number, ((out, was), message) in enumerate(zip(replay(dispatcher, contents, args.replay),
                                                            contents.messages, strict=True), 1):
@@ -96,8 +96,9 @@ def _run(args: argparse.Namespace, dispatcher: Any, recording: Any) -> int:
     if args.resume:
         logged, resumed = LoggedDispatcher.resume(dispatcher, args.resume)
         if resumed.torn is not None:
-            _say(f"{args.resume}: {resumed.torn}")
-        _say(f"resumed {args.resume} after {resumed.messages} messages (each answered as logged)")
+            print(f"hrc dispatch: {args.resume}: {resumed.torn}", file=sys.stderr, flush=True)
+        print(f"hrc dispatch: resumed {args.resume} after {resumed.messages} messages (each answered as logged)",
+              file=sys.stderr, flush=True)
         if recording is not None:
             recording.feed((m.data, m.answer) for m in resumed.replayed)
     elif args.log:
