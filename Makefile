@@ -1,5 +1,6 @@
 # The two commands of the README: `make demo` and `make test`.
 # Each bootstraps a project-local virtual environment (.venv) once, and again only when pyproject.toml changes.
+# It holds the test tools and the `ros2` extra (ROS 2's rclpy from PyPI wheels), so that the ROS 2 tests run.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -11,7 +12,7 @@ OUT    ?= out/cube_stacking
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,ros2]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -14,6 +14,8 @@ import argparse
 import sys
 from typing import Any
 
+from hrc.errors import HrcError
+
 __all__ = ["add_parser", "run"]
 
 
@@ -63,6 +65,8 @@ def add_parser(sub: Any) -> None:
                    help="tell the dispatcher time passed after this many quiet run seconds (0: never)")
     p.add_argument("--log", metavar="FILE", help="the run's log (default OUT_DIR/runs/console-N.jsonl); must be new")
     p.add_argument("--resume", metavar="LOG", help="continue the run logged in LOG (after a crash), appending to it")
+    p.add_argument("--record", metavar="FILE.mcap",
+                   help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
     p.add_argument("--allow-partial", action="store_true",
                    help="serve a partial compile output (an interrupted compile: not every plan is in it)")
     p.add_argument("--token-file", metavar="FILE",
@@ -90,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     server = open_console(args.out_dir, speed=args.speed, log=args.log, simulate_robot=args.simulate_robot,
                           tick=args.tick, credentials=Credentials(page, robot), resume=args.resume,
-                          allow_partial=args.allow_partial,
+                          allow_partial=args.allow_partial, record=args.record,
                           report=lambda text: print(f"hrc console: {text}", file=sys.stderr, flush=True))
     if not is_loopback(args.host):
         print(f"hrc console: warning: listening on {args.host}: reachable from other machines, and the "
@@ -103,5 +107,16 @@ def run(args: argparse.Namespace) -> int:
             print(f"hrc console: robot controller: ws{url[4:]}robot  (Authorization: Bearer; {where})",
                   flush=True)
 
-    serve(server, args.host, args.port, ready)
+    recording = server.session.recording
+    try:
+        serve(server, args.host, args.port, ready)
+    except (HrcError, OSError):
+        if recording is not None and recording.recorder.exchanges == 0:
+            recording.abort()  # it never served (the port is taken): no file
+            recording = None
+        raise
+    finally:
+        if recording is not None and recording.close() is not None:
+            print(f"hrc console: recorded {recording.recorder.exchanges} messages into {recording.path}",
+                  file=sys.stderr, flush=True)
     return 0

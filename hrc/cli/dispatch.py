@@ -5,14 +5,18 @@ Each line in is an observation (``{"t": 12.5, "agent": "human", "action": "cube2
 once: the decision for the robot, or ``"ok": false`` with a one-line reason (nothing changed). End of
 input exits 0. ``--log FILE`` writes every message to a new log before it counts (fsync'd);
 ``--resume LOG`` rebuilds a crashed run from its log and goes on appending to it; ``--replay LOG``
-re-runs a log and prints the same answers, exit 1 if one differs from the logged one. See
-docs/dispatch.md.
+re-runs a log and prints the same answers, exit 1 if one differs from the logged one. ``--record
+FILE`` writes the run (the resumed or replayed one too) as an MCAP file for Foxglove (docs/record.md).
+See docs/dispatch.md.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
+
+from hrc.errors import HrcError
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -24,6 +28,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", metavar="LOG", help="rebuild the run logged in LOG (after a crash) and go on "
                                                    "appending to it")
     p.add_argument("--replay", metavar="LOG", help="re-run a log written with --log and print its answers")
+    p.add_argument("--record", metavar="FILE.mcap",
+                   help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
     p.add_argument("--allow-partial", action="store_true",
                    help="dispatch a partial compile output (an interrupted compile: not every plan is in it)")
     p.add_argument("--feasible-only", action="store_true",
@@ -36,10 +42,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hrc.dispatch import Dispatcher
-    from hrc.dispatch.durable import LoggedDispatcher
-    from hrc.dispatch.logfile import read_log
-    from hrc.dispatch.protocol import replay
-    from hrc.dispatch.stdio import serve
 
     given = [f"--{name}" for name in ("log", "resume", "replay") if getattr(args, name)]
     if len(given) > 1:
@@ -47,13 +49,44 @@ def run(args: argparse.Namespace) -> int:
         return 2
     dispatcher = Dispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial,
                                          feasible_only=args.feasible_only, use_preferences=args.preferences)
+    recording = None
+    if args.record:
+        from hrc.record import open_folder_recording
+
+        recording = open_folder_recording(args.record, args.out_dir, dispatcher, report=_say)
+    try:
+        status = _run(args, dispatcher, recording)
+    except (HrcError, OSError):
+        if recording is not None and recording.recorder.exchanges == 0:
+            recording.abort()  # refused before anything happened (a log in use, another compiled set): no file
+            recording = None
+        raise
+    finally:
+        if recording is not None and recording.close() is not None:
+            _say(f"recorded {recording.recorder.exchanges} messages into {recording.path}")
+    return status
+
+
+def _say(text: str) -> None:
+    print(f"hrc dispatch: {text}", file=sys.stderr, flush=True)
+
+
+def _run(args: argparse.Namespace, dispatcher: Any, recording: Any) -> int:
+    from hrc.dispatch.durable import LoggedDispatcher
+    from hrc.dispatch.logfile import read_log
+    from hrc.dispatch.protocol import replay
+    from hrc.dispatch.stdio import serve
+
     if args.replay:
         contents = read_log(args.replay)
         if contents.torn is not None:
             print(f"hrc dispatch: {args.replay}: {contents.torn}", file=sys.stderr, flush=True)
         differ = 0
-        for number, (out, was) in enumerate(replay(dispatcher, contents, args.replay), 1):
+        for number, ((out, was), message) in enumerate(zip(replay(dispatcher, contents, args.replay),
+                                                           contents.messages, strict=True), 1):
             print(out, flush=True)
+            if recording is not None:
+                recording.listener(message.data, out)
             if out != was and not differ:
                 differ = number
         if differ:
@@ -66,10 +99,14 @@ def run(args: argparse.Namespace) -> int:
             print(f"hrc dispatch: {args.resume}: {resumed.torn}", file=sys.stderr, flush=True)
         print(f"hrc dispatch: resumed {args.resume} after {resumed.messages} messages (each answered as logged)",
               file=sys.stderr, flush=True)
+        if recording is not None:
+            recording.feed((m.data, m.answer) for m in resumed.replayed)
     elif args.log:
         logged = LoggedDispatcher.create(dispatcher, args.log)
     else:
         logged = LoggedDispatcher(dispatcher)
+    if recording is not None:
+        logged.listeners.append(recording.listener)
     try:
         return serve(logged, sys.stdin.fileno(), sys.stdout)
     finally:

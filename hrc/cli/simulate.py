@@ -5,7 +5,8 @@ the same seeded people (`hrc.sim`), prints a table (per policy: deadline met, ma
 idle times, robot yield time, standoffs per run and time spent making room (robot / person), closest
 approach, plan switches, the dispatcher's latency p99, unfinished runs) and writes ``simulation.json``
 (deterministic for a seed) and ``figures/`` into the output folder, atomically. A progress bar on a
-terminal. See docs/simulate.md.
+terminal. ``--record DIR`` also writes each run (or the first ``--record-runs N`` of each policy) as an
+MCAP file for Foxglove (docs/record.md). See docs/simulate.md.
 """
 
 from __future__ import annotations
@@ -58,6 +59,10 @@ def add_parser(sub: Any) -> None:
     g.add_argument("--tick", type=float, default=0.0,
                    help="report time passing to the dispatcher every S s while the robot waits (default 0: no)")
     p.add_argument("--no-figures", action="store_true", help="write simulation.json only")
+    p.add_argument("--record", metavar="DIR", default=None,
+                   help="also record runs as MCAP for Foxglove into DIR, one POLICY-NNNN.mcap per run (docs/record.md)")
+    p.add_argument("--record-runs", type=int, default=None, metavar="N",
+                   help="with --record: only the first N runs of each policy (default: all)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
     p.set_defaults(run=run)
 
@@ -118,6 +123,12 @@ def run(args: argparse.Namespace) -> int:
     task = load_task(args.task)
     out = args.out or f"out/{task.name}-simulation"
     _check_out(out)
+    if args.record_runs is not None and (args.record is None or not 1 <= args.record_runs):
+        raise SimulationError("--record-runs needs --record DIR and a number of runs >= 1")
+    if args.record is not None:
+        from hrc.record.sim import check_record_folder
+
+        check_record_folder(args.record, out)
     policies = _policies(args.policy)
     for name, value in (("--detection-delay", args.detection_delay), ("--slowdown", args.slowdown),
                         ("--tick", args.tick)):
@@ -151,4 +162,13 @@ def run(args: argparse.Namespace) -> int:
               f"(seed {args.seed}, person: {human.choice})")
         print(format_table(sim))
         print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/"))
+    if args.record is not None:
+        from hrc.record.sim import write_recordings
+
+        n = min(args.runs, args.record_runs or args.runs)
+        t1 = time.perf_counter()
+        size = write_recordings(sim.context, sim.policies, n, args.record, jobs=args.jobs, executor=args.executor)
+        if not args.quiet:
+            print(f"recorded {n} runs x {len(sim.policies)} policies into {args.record}/ "
+                  f"({size / 1e6:.1f} MB, {time.perf_counter() - t1:.1f} s)")
     return 0

@@ -63,7 +63,8 @@ def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable
 def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,
                  simulate_robot: bool = False, tick: float = 2.0, credentials: Credentials | None = None,
                  resume: str | os.PathLike[str] | None = None, allow_partial: bool = False,
-                 report: Callable[[str], None] | None = None) -> ConsoleServer:
+                 report: Callable[[str], None] | None = None,
+                 record: str | os.PathLike[str] | None = None) -> ConsoleServer:
     """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
     ``OUT_DIR/runs/console-N.jsonl``), or the run logged at `resume` continued (its torn end, if any,
     reported through `report`), `credentials` its secrets (default: new ones). The run's clock starts
@@ -73,18 +74,35 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     `allow_partial`), when `log` holds a run already, when a log is held by another process, or when
     `resume` is no log of this compiled set. Cost: loading the plan set (its dispatch form: well under a
     second for 40,320 plans) and planning the free-space paths again (about 2 s for the workshop).
+    `record`: also record the run as MCAP into this new file (`hrc.record`; ``session.recording``, which
+    the caller closes when the server has stopped).
     """
     dispatcher = Dispatcher.from_folder(out_dir, allow_partial=allow_partial)
     compiled = read_header(out_dir)
     routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
                         plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
-    if resume is not None:
-        logged, resumed = resume_log(resume, dispatcher)
-        if resumed.torn is not None and report is not None:
-            report(f"{resume}: {resumed.torn}")
-    else:
-        logged = open_log(next_log_path(out_dir) if log is None else log, dispatcher)
+    recording = None
+    if record is not None:  # before the log: a taken name must not leave a new log behind
+        from hrc.record import open_folder_recording
+
+        recording = open_folder_recording(record, out_dir, dispatcher, report, routes.routes)
+    try:
+        if resume is not None:
+            logged, resumed = resume_log(resume, dispatcher)
+            if resumed.torn is not None and report is not None:
+                report(f"{resume}: {resumed.torn}")
+        else:
+            logged = open_log(next_log_path(out_dir) if log is None else log, dispatcher)
+    except BaseException:
+        if recording is not None:
+            recording.abort()
+        raise
+    if recording is not None:
+        if resume is not None:
+            recording.feed((m.data, m.answer) for m in resumed.replayed)
+        logged.listeners.append(recording.listener)
     session = ConsoleSession(logged, compiled, routes, RunClock(speed, offset=logged.dispatcher.now))
+    session.recording = recording
     if resume is not None:
         session.restore(resumed.replayed)
         if report is not None:

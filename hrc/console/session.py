@@ -88,6 +88,7 @@ class ConsoleSession:
         self.total = 0  # messages that reached the dispatcher (and the log)
         self.entries: deque[dict[str, Any]] = deque(maxlen=LOG_SHOWN)
         self.log_error: str | None = None  # why the log could not be written, until it can again
+        self.recording: Any = None  # an `hrc.record.Recording` fed by the log's listener (``--record``), or None
         self._phases = {(a.id, p.id) for a in logged.dispatcher.task.actions for p in a.phases}
 
     @property

@@ -19,13 +19,18 @@ costs writes, not syncs. A ``kill -9`` loses nothing written.
 time comes only with the messages) and each answer checked against the logged one; then the torn end
 is cut off, a ``{"resumed": N}`` record appended, and the run goes on appending to the same log,
 answering as the uninterrupted run would have.
+
+**Listeners.** `listeners` are called with each message's bytes and its answer once they are committed
+(in the log, or given out when there is no log), in order: what was answered, never what a failed
+commit took back. ``--record`` hangs its MCAP recorder here (`hrc.record`). A listener must not raise:
+the state is committed before it is called (the recorder catches its own failures and stops recording).
 """
 
 from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,6 +89,8 @@ class LoggedDispatcher:
         self._work: Dispatcher | None = None
         self._records: list[bytes] = []
         self._sync = False
+        self._taken: list[tuple[bytes, str]] = []
+        self.listeners: list[Callable[[bytes, str], None]] = []
 
     @classmethod
     def create(cls, dispatcher: Dispatcher, path: str | os.PathLike[str]) -> LoggedDispatcher:
@@ -129,6 +136,8 @@ class LoggedDispatcher:
         if self.log is not None:
             self._records += (encode_input(data), encode_answer(line))
             self._sync = self._sync or is_accepted(line)
+        if self.listeners:
+            self._taken.append((data, line))
         return line
 
     def take_line(self, line: str) -> str:
@@ -140,12 +149,18 @@ class LoggedDispatcher:
 
         Raises `LogWriteError` when the log could not be written: then none of them changed anything.
         """
-        work, records, sync = self._work, self._records, self._sync
-        self._work, self._records, self._sync = None, [], False
+        work, records, sync, taken = self._work, self._records, self._sync, self._taken
+        self._work, self._records, self._sync, self._taken = None, [], False, []
         if self.log is not None and records:
             self.log.append(b"".join(records), sync=sync)
         if work is not None:
             self._committed = work
+        self._tell(taken)
+
+    def _tell(self, taken: list[tuple[bytes, str]]) -> None:
+        for data, line in taken:
+            for listener in self.listeners:
+                listener(data, line)
 
     def submit(self, data: bytes) -> str:
         """`take` then `commit`: the answer, or the refusal saying that the log could not be written."""
@@ -179,10 +194,12 @@ class LoggedDispatcher:
                 failure = err
         line = answer(self._committed, bytes(first))
         if log is None:
+            self._tell([(bytes(first), line)])
             return line
         if failure is None:
             try:
                 log.append(encode_input_part(bytes(part), last=True) + encode_answer(line), sync=False)
+                self._tell([(bytes(first), line)])
                 return line
             except LogWriteError as err:
                 failure = err

@@ -5,6 +5,9 @@ A reader (or a crash) never sees a half-written file: the temporary file is flus
 name holds the old bytes or the new ones. `atomic_dir` does the same for a whole output folder: it is
 built in a staging folder beside it, flushed, and swapped into place when complete (`hrc.io.claim`:
 one process at a time, never a moment without the folder, a killed run's leftovers cleaned by the next).
+`AtomicFile` is the streaming form of `write_bytes_atomic`, for a file written over a whole run (an
+MCAP recording): it grows under a hidden name beside its target and takes the target's name only when
+`commit` is called.
 """
 
 from __future__ import annotations
@@ -16,11 +19,12 @@ import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 from hrc.io.claim import FolderClaim
 from hrc.io.durable import fsync_folder
 
-__all__ = ["atomic_dir", "write_bytes_atomic", "write_text_atomic"]
+__all__ = ["AtomicFile", "atomic_dir", "write_bytes_atomic", "write_text_atomic"]
 
 
 @functools.cache
@@ -70,3 +74,68 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
     `hrc.errors.InputError` while another process is writing `path`."""
     with FolderClaim(path) as claim, claim.staging() as stage:
         yield stage
+
+
+class AtomicFile:
+    """A new file at `path`, written through `file` under a hidden name beside it (``.NAME.XXXX.tmp``) and
+    given its name by `commit`: flushed to the disk, then linked to `path`, which must not exist then
+    either (a file that appeared meanwhile is never overwritten: `FileExistsError`), then the folder
+    flushed. `discard` removes it. A run killed before `commit` leaves only the hidden file (no reader
+    takes it for the real one); nothing is ever under `path` but a whole file.
+
+    Raises `FileExistsError` at once when `path` exists, `IsADirectoryError` when it is a folder.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.check(self.path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+        self.tmp = Path(tmp)
+        self.file: BinaryIO = os.fdopen(fd, "w+b")
+        self.done = False
+
+    @staticmethod
+    def check(path: str | os.PathLike[str]) -> None:
+        """Raise as the constructor does when `path` is taken (a caller that checks before a long start)."""
+        target = Path(path)
+        if target.is_dir():
+            raise IsADirectoryError(errno.EISDIR, "is a folder; expected a file name", str(target))
+        if target.exists() or target.is_symlink():
+            raise FileExistsError(errno.EEXIST, "exists already (give a new file name)", str(target))
+
+    def commit(self) -> Path:
+        """Give the file its name (see the class docstring); the path."""
+        if self.done:
+            raise ValueError(f"{self.path}: committed or discarded already")
+        try:
+            self.file.flush()
+            os.fsync(self.file.fileno())
+            self.file.close()
+            os.chmod(self.tmp, 0o666 & ~_umask())
+            try:
+                os.link(self.tmp, self.path)  # never over a file: EEXIST if one appeared meanwhile
+            except OSError as err:
+                if err.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EXDEV):
+                    raise
+                if self.path.exists():  # a file system without hard links: check, then rename
+                    raise FileExistsError(errno.EEXIST, "exists already", str(self.path)) from err
+                os.replace(self.tmp, self.path)
+                self.tmp = self.path
+        except BaseException:
+            self.discard()
+            raise
+        self.done = True
+        if self.tmp != self.path:
+            os.unlink(self.tmp)
+        fsync_folder(self.path.parent)
+        return self.path
+
+    def discard(self) -> None:
+        """Remove the hidden file (nothing is ever at `path`); idempotent, and quiet: what was not written
+        (a full disk) is dropped."""
+        self.done = True
+        with contextlib.suppress(OSError):
+            self.file.close()
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.tmp)

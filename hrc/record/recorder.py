@@ -1,0 +1,377 @@
+"""A run into an MCAP file that Foxglove opens: the floor, the agents, their routes, every message and
+answer, the robot's window and goal, the plan and its class over time (channels: `hrc.record`).
+
+`RunRecorder` is fed what a dispatcher was given and what it answered, one exchange at a time
+(`exchange`, the bytes of the message and the answer's line, as the log keeps them), and, in a
+simulation, the agents' measured positions (`positions`). Everything it writes follows from those and
+the task: no clock is read, times are the run's (seconds from the task's start, written as nanoseconds
+from the epoch, so Foxglove shows the task's start as 1970-01-01 00:00:00 UTC), and the MCAP writer
+(Foxglove's SDK, zstd chunks compressed on the calling thread) adds nothing else: the same exchanges give
+the same bytes, so a live run's recording equals the one made from its log (``hrc dispatch --replay LOG
+--record FILE``).
+
+Where the agents are: in a simulation, where the floor had them (`positions`, at most every
+`FRAME_PERIOD` run seconds); otherwise where they were last seen (`Places`: an agent is put at a phase's
+location when it arrives, starts or ends there, at its waiting place when it parks, and stays where it
+was while it drives: a dispatcher is told events, not positions).
+
+`Recording` puts a recorder into a new file (`hrc.io.atomic.AtomicFile`: it takes its name only when
+closed, so that a recording is whole or absent) and keeps a failure to write it (a full disk) from the
+run: it stops recording, says so once, and the run goes on (its log is the record; the recording can
+be made again from it). `open_folder_recording` is what ``hrc dispatch``, ``hrc console`` and ``hrc
+ros2`` call.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import foxglove
+from foxglove.channels import LogChannel, PoseInFrameChannel, SceneUpdateChannel
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+from foxglove.messages import Log, LogLevel
+
+from hrc import __version__
+from hrc.dispatch.limits import parse_message
+from hrc.errors import MessageError
+from hrc.io.atomic import AtomicFile
+from hrc.model import Task
+from hrc.record import scene
+from hrc.ros2.drive import next_drive
+
+__all__ = ["CLASS_RANK", "FRAME_PERIOD", "Places", "Recording", "RunRecorder", "Routes", "check_new",
+           "open_folder_recording"]
+
+Routes = Callable[[str], Mapping[str, Sequence[Mapping[str, Any]]]]
+"""A plan's legs per agent by plan id (`hrc.console.views.PlanRoutes.routes`)."""
+
+FRAME_PERIOD = 0.1
+"""Run seconds: measured positions are written at most this often (and the last one of a run)."""
+CLASS_RANK = {"DC": 2, "consistent": 1, "inconsistent": 0}
+"""``/hrc/decision``'s ``class_rank`` (-1: no plan), so that a plot shows the class over time."""
+_SHOWN = 1000  # characters of a message that is not a JSON object kept in /hrc/in
+
+_OBJECT = {"type": "object"}
+SCHEMAS: dict[str, dict[str, Any]] = {
+    "hrc.Message": {"title": "a message given to the dispatcher (docs/dispatch.md), or the text of one that "
+                             "is not a JSON object", "type": "object",
+                    "properties": {"t": {"type": "number"}, "agent": {"type": "string"},
+                                   "action": {"type": "string"}, "phase": {"type": "string"},
+                                   "event": {"type": "string"}, "next": {"type": "string"},
+                                   "text": {"type": "string"}}},
+    "hrc.Answer": {"title": "the dispatcher's answer, as given out (docs/dispatch.md)", "type": "object",
+                   "properties": {"t": {"type": ["number", "null"]}, "ok": {"type": "boolean"},
+                                  "plan": {"type": ["string", "null"]}, "class": {"type": ["string", "null"]},
+                                  "candidates": _OBJECT, "robot": {"type": ["object", "null"]},
+                                  "human": {"type": ["object", "null"]}, "human_away": {"type": "boolean"},
+                                  "stopped": {"type": "boolean"}, "ack": _OBJECT, "error": {"type": "string"}}},
+    "hrc.Decision": {"title": "the best plan, its class and the robot's next step after an accepted message",
+                     "type": "object",
+                     "properties": {"t": {"type": "number"}, "plan": {"type": ["string", "null"]},
+                                    "class": {"type": ["string", "null"]},
+                                    "class_rank": {"type": "integer", "description": "2 DC, 1 consistent, "
+                                                                                     "0 inconsistent, -1 none"},
+                                    "candidates": {"type": "object",
+                                                   "properties": {k: {"type": "integer"} for k in CLASS_RANK}},
+                                    "robot": {"type": "string", "description": "the robot's next step in words"},
+                                    "earliest": {"type": ["number", "null"]}, "latest": {"type": ["number", "null"]},
+                                    "human_away": {"type": "boolean"}, "stopped": {"type": "boolean"}}},
+}
+
+
+def _dumps(obj: Any) -> bytes:
+    return json.dumps(obj, ensure_ascii=False, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+def _step_words(step: Any) -> str:
+    if step is None:
+        return "nothing left"
+    if "wait_for" in step:
+        return f"wait for {step['wait_for']}"
+    latest = "open" if step.get("latest") is None else f"{step['latest']:g}"
+    return f"{step['event']} {step['action']}.{step['phase']} in [{step['earliest']:g}, {latest}] s"
+
+
+class Places:
+    """Where each agent was last seen, from the observations that stand (see the module docstring).
+
+    `see(obs)` takes an accepted message (a decoded JSON object); an ``undo`` withdraws the person's last
+    observation, as the dispatcher does. `where` and `doing` then say where each agent is and what it is
+    at; `present` whether it is on the floor (the person may be away).
+    """
+
+    def __init__(self, task: Task, park: Callable[[str, str, str], str | None]) -> None:
+        self.task = task
+        self.park = park  # (agent, action, phase) -> the leg's waiting place in the current plan, or None
+        self.human = next(a.id for a in task.agents if a.is_human)
+        self.kept: list[Mapping[str, Any]] = []
+        self._fold()
+
+    def see(self, obs: Mapping[str, Any]) -> None:
+        if obs.get("event") == "undo":
+            for k in range(len(self.kept) - 1, -1, -1):
+                if self.kept[k].get("agent") == self.human:
+                    del self.kept[k]
+                    break
+        elif obs.get("event") != "tick":
+            self.kept.append(obs)
+        self._fold()
+
+    def _fold(self) -> None:
+        ws = self.task.workspace
+        self.where = {a.id: ws.location(a.start).xy for a in self.task.agents}
+        self.doing = {a.id: f"at {a.start}" for a in self.task.agents}
+        self.present = {a.id: True for a in self.task.agents}
+        for o in self.kept:
+            agent, event = str(o.get("agent", "")), o.get("event")
+            if agent not in self.where:
+                continue
+            if event in ("away", "back"):
+                self.present[agent] = event == "back"
+                self.doing[agent] = "away" if event == "away" else "back"
+                continue
+            action, phase = str(o.get("action")), str(o.get("phase"))
+            try:
+                location = self.task.action(action).phase(phase).location
+            except KeyError:
+                continue
+            if event == "park":
+                place = self.park(agent, action, phase)
+                if place is not None:
+                    self.where[agent] = ws.location(place).xy
+                self.doing[agent] = f"waiting at {place or '?'} ({action}.{phase})"
+            elif event in ("depart", "unpark"):
+                self.doing[agent] = f"-> {location} ({action}.{phase})"
+            else:
+                self.where[agent] = ws.location(location).xy
+                self.doing[agent] = {"arrive": f"at {location} ({action}.{phase})", "start": f"{action}.{phase}",
+                                     "end": f"done {action}.{phase}"}[str(event)]
+
+
+class RunRecorder:
+    """Writes one run to `sink` as MCAP (see the module docstring; channels: `hrc.record`).
+
+    `routes` gives a plan's legs by plan id (None: no routes drawn, goals at the phases' locations);
+    `measured`: positions come from `positions` (a simulation), not from the observations. `metadata`
+    goes into the file's ``hrc`` metadata record beside the generator and the task's name. Call `finish`
+    at the end (it writes MCAP's summary; the sink is left open).
+    """
+
+    def __init__(self, sink: BinaryIO, task: Task, routes: Routes | None = None, *, measured: bool = False,
+                 metadata: Mapping[str, str] | None = None) -> None:
+        self.task = task
+        self.routes = routes
+        self.measured = measured
+        self.human = next(a.id for a in task.agents if a.is_human)
+        self.robot = next(a.id for a in task.agents if not a.is_human)
+        ctx = self._context = foxglove.Context()
+        # zstd on this thread (0 worker threads): the same bytes whatever the machine
+        options = MCAPWriteOptions(compression=MCAPCompression.Zstd, compression_threads=0)
+        self._writer = foxglove.open_mcap(sink, context=ctx, writer_options=options)
+        self._map = SceneUpdateChannel("/hrc/map", context=ctx)
+        self._routes = SceneUpdateChannel("/hrc/routes", context=ctx)
+        self._agents = SceneUpdateChannel("/hrc/agents", context=ctx)
+        self._pose = {a.id: PoseInFrameChannel(f"/hrc/{'human' if a.is_human else 'robot'}/pose", context=ctx)
+                      for a in task.agents}
+        self._goal = PoseInFrameChannel("/hrc/robot/goal", context=ctx)
+        self._in = self._json("/hrc/in", "hrc.Message")
+        self._out = self._json("/hrc/out", "hrc.Answer")
+        self._decision = self._json("/hrc/decision", "hrc.Decision")
+        self._log = LogChannel("/hrc/log", context=ctx)
+        info = {"generator": f"hrc {__version__}", "task": task.name, **(metadata or {})}
+        self._writer.write_metadata("hrc", {k: str(v) for k, v in sorted(info.items())})
+        self.t = 0.0
+        self.plan: str | None = None
+        self.answer: Mapping[str, Any] = {}
+        self.goal: tuple[str, str, str] | None = None
+        self.places = Places(task, self._park)
+        self.where = dict(self.places.where)
+        self.present = dict(self.places.present)
+        self.frame_t: float | None = None
+        self.exchanges = 0
+        self._map.log(scene.map_update(task), log_time=0)
+        self._draw_agents()
+
+    def _json(self, topic: str, name: str) -> Any:
+        schema = foxglove.Schema(name=name, encoding="jsonschema", data=_dumps(SCHEMAS[name]))
+        return foxglove.Channel(topic, schema=schema, message_encoding="json", context=self._context)
+
+    def _ns(self) -> int:
+        return round(self.t * 1e9)
+
+    def _legs(self) -> Mapping[str, Sequence[Mapping[str, Any]]]:
+        return self.routes(self.plan) if self.routes is not None and self.plan is not None else {}
+
+    def _park(self, agent: str, action: str, phase: str) -> str | None:
+        leg = next((lg for lg in self._legs().get(agent, ()) if (lg["action"], lg["phase"]) == (action, phase)), None)
+        return None if leg is None or not leg.get("park") else str(leg["park"])
+
+    def _advance(self, t: Any) -> None:
+        """The run's time moves to `t` when it is a later number (messages refused as early keep it)."""
+        if not isinstance(t, bool) and isinstance(t, int | float) and math.isfinite(t) and t > self.t:
+            self.t = float(t)
+
+    # -- what is fed in ----------------------------------------------------------------------------
+    def exchange(self, data: bytes, answer: str) -> None:
+        """One message (its bytes, as received) and the answer given to it."""
+        try:
+            obs = parse_message(data.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, MessageError):
+            obs = None
+        out = json.loads(answer)
+        self._advance(out.get("t") if out.get("t") is not None else obs.get("t") if isinstance(obs, dict) else None)
+        ns = self._ns()
+        text = data.decode("utf-8", "replace")
+        self._in.log(data if isinstance(obs, dict) else _dumps({"text": text[:_SHOWN]}), log_time=ns)
+        self._out.log(answer.encode("utf-8"), log_time=ns)
+        self._log.log(Log(timestamp=scene.stamp(self.t), level=LogLevel.Info, message=text[:_SHOWN], name="in"),
+                      log_time=ns)
+        self._log.log(Log(timestamp=scene.stamp(self.t), level=LogLevel.Info if out.get("ok") else LogLevel.Warning,
+                          message=answer, name="out"), log_time=ns)
+        self.exchanges += 1
+        if not out.get("ok"):
+            return
+        self.answer = out
+        cls = out.get("class")
+        robot = out.get("robot")
+        window = robot if isinstance(robot, dict) and "earliest" in robot else {}
+        self._decision.log(_dumps({"t": self.t, "plan": out.get("plan"), "class": cls,
+                                   "class_rank": CLASS_RANK.get(str(cls), -1), "candidates": out.get("candidates", {}),
+                                   "robot": _step_words(robot), "earliest": window.get("earliest"),
+                                   "latest": window.get("latest"), "human_away": bool(out.get("human_away")),
+                                   "stopped": bool(out.get("stopped"))}), log_time=ns)
+        if out.get("plan") != self.plan:
+            self.plan = out.get("plan")
+            self._routes.log(scene.routes_update(self.task, self.t, self._legs()), log_time=ns)
+        if isinstance(obs, dict):
+            self.places.see(obs)
+        if not self.measured:
+            self.where, self.present = dict(self.places.where), dict(self.places.present)
+            for agent, (x, y) in self.where.items():
+                self._pose[agent].log(scene.pose_in_frame(self.t, x, y), log_time=ns)
+        self._draw_agents()
+        drive = next_drive(self.task, out, self._legs())
+        if drive is not None and drive.leg != self.goal:
+            self.goal = drive.leg
+            self._goal.log(scene.pose_in_frame(self.t, *drive.target, drive.heading), log_time=ns)
+
+    def positions(self, t: float, where: Mapping[str, tuple[float, float]], present: Mapping[str, bool],
+                  last: bool = False) -> None:
+        """The agents' measured positions at `t` (a simulation's floor): written when `FRAME_PERIOD` has
+        passed since the last ones written, or when `last`."""
+        if self.frame_t is not None and t - self.frame_t < FRAME_PERIOD - 1e-9 and not last:
+            return
+        self.frame_t = t
+        self._advance(t)
+        self.where, self.present = dict(where), dict(present)
+        ns = self._ns()
+        for agent, (x, y) in self.where.items():
+            self._pose[agent].log(scene.pose_in_frame(self.t, x, y), log_time=ns)
+        self._draw_agents()
+
+    def _draw_agents(self) -> None:
+        labels = {a: f"{a}: {self.places.doing.get(a, '')}" for a in self.where}
+        robot = self.answer.get("robot", None) if self.answer else None
+        if self.answer:
+            labels[self.robot] += f"\nnext: {_step_words(robot)}"
+        self._agents.log(scene.agents_update(self.task, self.t, self.where, labels, self.present),
+                         log_time=self._ns())
+
+    def finish(self) -> None:
+        """Write MCAP's summary and end the file (the sink stays open)."""
+        self._writer.close()
+
+
+class Recording:
+    """A `RunRecorder` into the new file `path` (`AtomicFile`: under its name only once `close`d).
+
+    `listener(data, answer)` is what a `hrc.dispatch.durable.LoggedDispatcher` calls after each commit;
+    it never raises: a failure to record (a full disk, a bug) stops the recording, is said once through
+    `report`, and leaves the run alone. Raises `FileExistsError` / `IsADirectoryError` at once when
+    `path` is taken.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], task: Task, routes: Routes | None = None, *,
+                 report: Callable[[str], None] | None = None, **options: Any) -> None:
+        self.file = AtomicFile(path)
+        self.report = report
+        self.error: str | None = None
+        try:
+            self.recorder = RunRecorder(self.file.file, task, routes, **options)
+        except BaseException:
+            self.file.discard()
+            raise
+
+    @property
+    def path(self) -> Path:
+        return self.file.path
+
+    def _failed(self, err: BaseException) -> None:
+        self.error = " ".join(str(err).split()) if not isinstance(err, OSError) else (err.strerror or str(err))
+        if self.report is not None:
+            self.report(f"{self.path}: cannot record ({self.error}): recording stopped; the run goes on "
+                        "(its log can be recorded again with hrc dispatch --replay LOG --record FILE)")
+
+    def listener(self, data: bytes, answer: str) -> None:
+        if self.error is not None:
+            return
+        try:
+            self.recorder.exchange(data, answer)
+        except Exception as err:  # noqa: BLE001 - a recording must never end the run it records
+            self._failed(err)
+
+    def feed(self, exchanges: Iterable[tuple[bytes, str]]) -> None:
+        """Several exchanges (a resumed run's replayed ones)."""
+        for data, answer in exchanges:
+            self.listener(data, answer)
+
+    def close(self) -> Path | None:
+        """End the file and give it its name; the path, or None when the recording had failed (then
+        nothing is left behind)."""
+        if self.error is not None:
+            self.file.discard()
+            return None
+        try:
+            self.recorder.finish()
+            return self.file.commit()
+        except Exception as err:  # noqa: BLE001 - the SDK raises RuntimeError for the file's I/O errors
+            self.file.discard()
+            self._failed(err)
+            return None
+
+    def abort(self) -> None:
+        """Drop the recording (nothing is left behind)."""
+        with contextlib.suppress(Exception):  # the writer ends before its file goes (else it ends later, loudly)
+            self.recorder.finish()
+        self.file.discard()
+
+
+def check_new(path: str | os.PathLike[str]) -> None:
+    """Raise `FileExistsError` / `IsADirectoryError` at once when `path` is taken (before any work)."""
+    AtomicFile.check(path)
+
+
+def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLike[str], dispatcher: Any,
+                          report: Callable[[str], None] | None = None, routes: Routes | None = None) -> Recording:
+    """A recording of a run of the dispatcher on the compiled folder `out_dir`. `routes`: the plans' routes
+    (default: the ones the console draws, `hrc.console.views.PlanRoutes`: free-space paths planned again
+    with the compile's seed, about 2 s for the workshop; detours from ``compiled.json``). The same run
+    gives the same bytes whichever command records it (``hrc dispatch``, ``hrc console``, ``hrc ros2``)."""
+    check_new(path)
+    if routes is None:
+        from hrc.compile.output import read_header
+        from hrc.console.run import plan_motions
+        from hrc.console.views import PlanRoutes
+        from hrc.motion import plan_paths
+
+        compiled = read_header(out_dir)
+        routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
+                            plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0)))).routes
+    return Recording(path, dispatcher.task, routes, report=report,
+                     metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set))})

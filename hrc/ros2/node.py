@@ -1,0 +1,242 @@
+"""The ROS 2 node of ``hrc ros2``: one dispatcher behind ROS 2 topics (docs/ros2.md; names and QoS in
+`hrc.ros2.topics`). The only module of hrc that imports ``rclpy``.
+
+**In.** Each ``std_msgs/String`` on ``observations`` or ``robot/acks`` is one message of ``hrc dispatch``'s
+protocol (its bytes, UTF-8), handed to the same `hrc.dispatch.durable.LoggedDispatcher` as ``hrc
+dispatch``'s: in the log (fsync'd when accepted) before the state changes or the answer goes out, so
+that the log replays byte for byte (``hrc dispatch OUT_DIR --replay LOG``) and ``--resume`` goes on
+after a crash. A ``geometry_msgs/PoseStamped`` on ``human/pose`` becomes the motion detector's position
+message (``{"t", "agent", "event": "position", "x", "y"}``, in hrc's map: `MapFrame.from_frame`), which is
+refused in one line, here, while the dispatcher has no such event (the detector is issue 28).
+
+**Out.** Each answer, exactly as ``hrc dispatch`` prints it, on ``answers``; when an answer names a new
+drive of the robot (`hrc.ros2.drive.next_drive`), its destination on ``robot/goal`` and its planned
+points on ``robot/route``, in the frame `MapFrame.frame_id`. Both are reliable and transient local: a
+late subscriber gets the latest.
+
+**Time.** The run's time is the messages' own ``t`` (seconds from the task's start), as in ``hrc
+dispatch``. A pose's ``t`` is its header's stamp read as run seconds; a goal's stamp is the run time of
+the answer that named it. With ``use_sim_time`` the node's clock is ``/clock`` (run seconds): goals are
+stamped with it, and ``tick`` (if > 0) tells the dispatcher that that much ``/clock`` time has passed
+with nothing said. The wall clock is never read (`rclpy`'s own log lines aside), so a run replays.
+
+**Stop.** SIGINT and SIGTERM set a flag that the loop reads between callbacks: the message being
+handled is finished (in the log and answered), then the node is destroyed and the log closed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from rclpy.context import Context
+from rclpy.exceptions import InvalidNamespaceException, InvalidNodeNameException
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.validate_namespace import validate_namespace
+from std_msgs.msg import String
+
+from hrc.dispatch.durable import LoggedDispatcher
+from hrc.dispatch.limits import MAX_LINE
+from hrc.dispatch.messages import EVENTS
+from hrc.model import Task
+from hrc.ros2.drive import Drive, MapFrame, next_drive
+from hrc.ros2.topics import ANSWERS, GOAL, NODE_NAME, OBSERVATIONS, POSE, ROBOT_ACKS, ROUTE, Qos
+
+__all__ = ["POSITION", "DispatcherNode", "Stopped", "qos_profile", "serve"]
+
+POSITION = "position"
+"""The motion detector's event (issue 28): what a pose becomes."""
+Routes = Callable[[str], Any]
+_IDENTITY = MapFrame()
+
+
+def qos_profile(q: Qos) -> QoSProfile:
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=q.depth,
+                      reliability=ReliabilityPolicy.RELIABLE if q.reliable else ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL if q.transient_local else DurabilityPolicy.VOLATILE)
+
+
+def _refusal(t: Any, reason: str) -> str:
+    if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t):
+        t = None
+    return json.dumps({"t": t, "ok": False, "error": reason}, ensure_ascii=False)
+
+
+class DispatcherNode:
+    """An rclpy node around `logged` (see the module docstring). `routes` gives a plan's legs by id (the
+    goal's points and waiting places; None: goals at the phases' locations, no route). `tick`: run seconds
+    of ``/clock`` without a message after which the node sends a tick (0: never; only with sim time).
+    `report` takes one-line notes for the operator (stderr)."""
+
+    def __init__(self, logged: LoggedDispatcher, *, context: Context, namespace: str, frame: MapFrame,
+                 routes: Routes | None = None, use_sim_time: bool = False, tick: float = 0.0,
+                 report: Callable[[str], None] | None = None) -> None:
+        self.logged = logged
+        self.task: Task = logged.dispatcher.task
+        self.frame = frame
+        self.routes = routes
+        self.tick = tick
+        self.report = report or (lambda _text: None)
+        self.handled = 0
+        self.last_leg: tuple[str, str, str] | None = None
+        self.human = next(a.id for a in self.task.agents if a.is_human)
+        overrides = [Parameter("use_sim_time", value=True)] if use_sim_time else []
+        self.node = Node(NODE_NAME, namespace=namespace, context=context, parameter_overrides=overrides)
+        self.sim_time = bool(self.node.get_parameter("use_sim_time").value)
+        node = self.node
+        self.answers = node.create_publisher(String, ANSWERS.name, qos_profile(ANSWERS.qos))
+        self.goal = node.create_publisher(PoseStamped, GOAL.name, qos_profile(GOAL.qos))
+        self.route = node.create_publisher(PoseArray, ROUTE.name, qos_profile(ROUTE.qos))
+        for topic in (OBSERVATIONS, ROBOT_ACKS):
+            node.create_subscription(String, topic.name, self._on_line, qos_profile(topic.qos))
+        node.create_subscription(PoseStamped, POSE.name, self._on_pose, qos_profile(POSE.qos))
+        self._pose_refused = False
+        if self.tick > 0 and self.sim_time:
+            node.create_timer(self.tick, self._on_tick)  # on the node's clock: /clock
+
+    # -- in ----------------------------------------------------------------------------------------
+    def _submit(self, data: bytes) -> str:
+        if len(data) > MAX_LINE:  # streamed into the log in parts, and refused
+            answer = self.logged.take_long(iter([data]))
+        else:
+            answer = self.logged.submit(data)
+        self.handled += 1
+        return answer
+
+    def _on_line(self, msg: String) -> None:
+        data = msg.data.encode("utf-8", "surrogatepass")
+        if data.endswith(b"\n"):  # a publisher's line end is no part of the message
+            data = data[:-1]
+        self._answer(self._submit(data))
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9
+        if msg.header.frame_id != self.frame.frame_id:
+            self._say(_refusal(t, f"{POSE.name}: a pose in frame {msg.header.frame_id!r}, expected "
+                                  f"{self.frame.frame_id!r}; ignored"))
+            return
+        if POSITION not in EVENTS:
+            if not self._pose_refused:
+                self._pose_refused = True
+                self.report(f"{POSE.name}: the person's pose needs the motion detector (hrc dispatch --detect "
+                            "motion, issue 28), which this hrc does not have: each pose is refused")
+            self._say(_refusal(t, f"{POSE.name}: the person's pose needs the motion detector, which this "
+                                  "dispatcher does not have; ignored"))
+            return
+        x, y = self.frame.from_frame(msg.pose.position.x, msg.pose.position.y)  # pragma: no cover - issue 28
+        line = json.dumps({"t": round(t, 3), "agent": self.human, "event": POSITION, "x": round(x, 3),
+                           "y": round(y, 3)})
+        self._answer(self._submit(line.encode("ascii")))
+
+    def _on_tick(self) -> None:
+        now = self.node.get_clock().now().nanoseconds / 1e9
+        if now - self.logged.dispatcher.now >= self.tick:
+            self._answer(self._submit(json.dumps({"t": round(now, 3), "event": "tick"}).encode("ascii")))
+
+    # -- out ---------------------------------------------------------------------------------------
+    def _say(self, answer: str) -> None:
+        self.answers.publish(String(data=answer))
+
+    def _answer(self, answer: str) -> None:
+        self._say(answer)
+        out = json.loads(answer)
+        if not out.get("ok"):
+            return
+        legs = self.routes(out["plan"]) if self.routes is not None and out.get("plan") else None
+        drive = next_drive(self.task, out, legs)
+        if drive is not None and drive.leg != self.last_leg:
+            self.last_leg = drive.leg
+            self._drive(drive, float(out["t"]))
+
+    def _stamp(self, t: float) -> Any:
+        if self.sim_time:
+            return self.node.get_clock().now().to_msg()
+        from builtin_interfaces.msg import Time
+
+        ns = round(t * 1e9)
+        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+    def _pose(self, x: float, y: float, heading: float) -> Pose:
+        pose = Pose()
+        pose.position.x, pose.position.y = self.frame.to_frame(x, y)
+        qx, qy, qz, qw = self.frame.orientation(heading)
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = qx, qy, qz, qw
+        return pose
+
+    def _drive(self, drive: Drive, t: float) -> None:
+        goal = PoseStamped()
+        goal.header.stamp = self._stamp(t)
+        goal.header.frame_id = self.frame.frame_id
+        goal.pose = self._pose(*drive.target, drive.heading)
+        self.goal.publish(goal)
+        route = PoseArray()
+        route.header = goal.header
+        pts = drive.points
+        for k, (x, y) in enumerate(pts):
+            nxt = pts[k + 1] if k + 1 < len(pts) else None
+            heading = math.atan2(nxt[1] - y, nxt[0] - x) if nxt is not None and nxt != (x, y) else drive.heading
+            route.poses.append(self._pose(x, y, heading))
+        self.route.publish(route)
+
+    def destroy(self) -> None:
+        self.node.destroy_node()
+
+
+@dataclass(frozen=True, slots=True)
+class Stopped:
+    """How `serve` ended: the signal's name, and how many messages the node handled."""
+
+    signal: str
+    messages: int
+
+
+def serve(open_log: Callable[[], LoggedDispatcher], *, ros_args: Sequence[str] = (), namespace: str = "/hrc",
+          frame: MapFrame = _IDENTITY, routes: Routes | None = None, use_sim_time: bool = False,
+          tick: float = 0.0, ready: Callable[[DispatcherNode], None] | None = None,
+          report: Callable[[str], None] | None = None) -> Stopped:
+    """Serve the dispatcher `open_log()` gives on ROS 2 until SIGINT or SIGTERM (see the module docstring);
+    `ros_args` are ``--ros-args ...`` for rclpy (remappings, parameters). `open_log` is called once ROS 2
+    has taken the arguments and the namespace, so that a refused one leaves no log behind. `ready(node)`
+    once the topics exist.
+
+    Raises `hrc.errors.HrcError` with one line when rclpy refuses the arguments or the namespace."""
+    from hrc.errors import HrcError
+
+    stop: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, _frame: stop.append(signum)) for s in (signal.SIGINT,
+                                                                                            signal.SIGTERM)}
+    context = Context()
+    node: DispatcherNode | None = None
+    try:
+        try:
+            namespace = namespace if namespace.startswith("/") else "/" + namespace
+            validate_namespace(namespace)
+            rclpy.init(args=["hrc-ros2", *ros_args], context=context, signal_handler_options=SignalHandlerOptions.NO)
+        except (ValueError, TypeError, RuntimeError, InvalidNamespaceException, InvalidNodeNameException) as err:
+            raise HrcError(f"hrc ros2: ROS 2 refused to start the node: {' '.join(str(err).split())[:300]}") from err
+        node = DispatcherNode(open_log(), context=context, namespace=namespace, frame=frame, routes=routes,
+                              use_sim_time=use_sim_time, tick=tick, report=report)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node.node)
+        if ready is not None:
+            ready(node)
+        while not stop:
+            executor.spin_once(timeout_sec=0.1)
+        return Stopped(signal.Signals(stop[0]).name, node.handled)
+    finally:
+        if node is not None:
+            node.destroy()
+        if context.ok():
+            rclpy.shutdown(context=context)
+        for s, handler in previous.items():
+            signal.signal(s, handler)

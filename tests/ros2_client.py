@@ -1,0 +1,178 @@
+"""Helpers of the ROS 2 tests: an ``hrc ros2`` process on a domain of its own, and a real rclpy node that
+plays the person's detector and the robot controller against it over loopback.
+
+Every test gets a fresh ``ROS_DOMAIN_ID`` (`domain_id`: from the test's process id, so that parallel
+runs and other projects on this machine do not meet), discovery limited to this machine
+(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and Fast DDS's UDP transport only
+(``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``: the traffic goes over the loopback interface, not shared memory),
+and ``ROS_LOG_DIR`` in its temporary folder. Every wait is bounded.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+START_TIMEOUT = 90.0  # s: the node loads the plans and plans the map's paths first
+ANSWER_TIMEOUT = 20.0  # s for one answer
+_DOMAINS = itertools.count()
+
+
+def rclpy_or_skip() -> Any:
+    """``rclpy``, or skip (fail under HRC_REQUIRE_ROS2=1, as in CI) saying how to install it."""
+    try:
+        import rclpy
+    except ImportError as err:
+        if os.environ.get("HRC_REQUIRE_ROS2") == "1":
+            pytest.fail(f"ROS 2 tests required (HRC_REQUIRE_ROS2=1) but rclpy cannot be imported: {err}")
+        pytest.skip(f"ROS 2 tests skipped: rclpy cannot be imported ({err}); pip install -e '.[test,ros2]'")
+    return rclpy
+
+
+def ros_env(tmp: Path) -> dict[str, str]:
+    """The environment of one test's ROS 2 traffic (see the module docstring)."""
+    domain = 1 + (os.getpid() * 7 + next(_DOMAINS)) % 100  # 1..100: Fast DDS's ports stay in range
+    log_dir = tmp / "ros-log"
+    log_dir.mkdir(exist_ok=True)
+    return {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4", "ROS_LOG_DIR": str(log_dir), "RCUTILS_COLORIZED_OUTPUT": "0"}
+
+
+class NodeProcess:
+    """``python -m hrc ros2 OUT_DIR ARGS`` with `env`; `ready` once it printed that it serves."""
+
+    def __init__(self, out_dir: Path, env: dict[str, str], *args: str) -> None:
+        full = dict(os.environ, PYTHONPATH=str(ROOT), **env)
+        self.proc = subprocess.Popen([sys.executable, "-m", "hrc", "ros2", str(out_dir), *args], cwd=ROOT, env=full,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.lines: queue.Queue[str] = queue.Queue()
+        self._err: list[str] = []
+        threading.Thread(target=lambda: [self.lines.put(x) for x in self.proc.stdout or ()], daemon=True).start()
+        threading.Thread(target=lambda: [self._err.append(x) for x in self.proc.stderr or ()], daemon=True).start()
+        try:
+            self.first = self.lines.get(timeout=START_TIMEOUT)
+        except queue.Empty:
+            self.kill()
+            raise AssertionError(f"hrc ros2 did not start within {START_TIMEOUT} s: {self.stderr()}") from None
+        assert "serving" in self.first, (self.first, self.stderr())
+
+    def stderr(self) -> str:
+        return "".join(self._err)
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 30.0) -> int:
+        """Send `sig`, wait for the end; the exit status."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        code = self.proc.wait(timeout=timeout)
+        time.sleep(0.1)  # the reader threads take the last lines
+        return code
+
+    def kill(self) -> None:
+        """Kill it if it still runs; close its pipes (the reader threads end)."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(timeout=30)
+        for pipe in (self.proc.stdout, self.proc.stderr):
+            if pipe is not None:
+                try:
+                    pipe.close()
+                except (OSError, ValueError):  # a reader thread may be in it
+                    pass
+
+
+class Client:
+    """A real rclpy node in this process, on the domain of `env`: publishes lines on the node's input
+    topics and reads its answers, goals and routes (QoS as docs/ros2.md asks of clients)."""
+
+    def __init__(self, env: dict[str, str], namespace: str = "/hrc") -> None:
+        rclpy = rclpy_or_skip()
+        from geometry_msgs.msg import PoseArray, PoseStamped
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rclpy.signals import SignalHandlerOptions
+        from std_msgs.msg import String
+
+        self._saved = {k: os.environ.get(k) for k in env}
+        os.environ.update(env)  # rclpy reads the discovery range and the transports at init
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=int(env["ROS_DOMAIN_ID"]),
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = Node("hrc_test_client", namespace=namespace, context=self.context)
+        inq = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+        latest = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.String, self.PoseStamped = String, PoseStamped
+        self.observations = self.node.create_publisher(String, "observations", inq)
+        self.acks = self.node.create_publisher(String, "robot/acks", inq)
+        self.poses = self.node.create_publisher(PoseStamped, "human/pose", inq)
+        self.answers: list[str] = []
+        self.goals: list[Any] = []
+        self.routes: list[Any] = []
+        self.node.create_subscription(String, "answers", lambda m: self.answers.append(m.data), latest)
+        self.node.create_subscription(PoseStamped, "robot/goal", self.goals.append, latest)
+        self.node.create_subscription(PoseArray, "robot/route", self.routes.append, latest)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.sent: list[str] = []
+
+    def spin_until(self, done: Any, timeout: float, what: str) -> None:
+        deadline = time.monotonic() + timeout
+        while not done():
+            assert time.monotonic() < deadline, f"no {what} within {timeout} s"
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=max(0.0, min(0.05, deadline - time.monotonic())))
+
+    def wait_matched(self, timeout: float = 30.0) -> float:
+        """Until the node's subscriptions and publishers are matched with ours (discovery); seconds taken."""
+        start = time.monotonic()
+        self.spin_until(lambda: self.observations.get_subscription_count() >= 1 and self.acks.get_subscription_count()
+                        >= 1 and self.node.count_publishers(f"{self.node.get_namespace()}/answers") >= 1,
+                        timeout, "discovery of the hrc ros2 node")
+        return time.monotonic() - start
+
+    def send(self, line: str) -> str:
+        """Publish one protocol line (a robot acknowledgement on robot/acks, anything else on observations)
+        and wait for its answer."""
+        obj: Any
+        try:
+            obj = json.loads(line)
+        except ValueError:
+            obj = None
+        topic = self.acks if isinstance(obj, dict) and obj.get("agent") == "robot" else self.observations
+        before = len(self.answers)
+        self.sent.append(line)
+        topic.publish(self.String(data=line))
+        self.spin_until(lambda: len(self.answers) > before, ANSWER_TIMEOUT, f"answer to {line[:80]}")
+        assert len(self.answers) == before + 1, "more answers than messages"
+        return self.answers[-1]
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown()
+        self.node.destroy_node()
+        if self.context.ok():
+            rclpy.shutdown(context=self.context)
+        for k, v in self._saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
