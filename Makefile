@@ -1,10 +1,12 @@
 # The two commands of the README: `make demo` and `make test`.
 # Each bootstraps a project-local virtual environment (.venv) once, and again only when pyproject.toml changes.
-# It holds the test tools and the `ros2` extra (ROS 2's rclpy from PyPI wheels), so that the ROS 2 tests run.
+# `make test` adds the `ros2` extra (ROS 2's rclpy from PyPI wheels) so that the ROS 2 tests run; `make
+# demo` does not need it (its wheels re-execute every Python process of the venv to set LD_LIBRARY_PATH).
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+ROS2   := $(VENV)/.installed-ros2
 OUT    ?= out/cube_stacking
 
 .PHONY: demo test lint bench clean browser oracle
@@ -12,14 +14,18 @@ OUT    ?= out/cube_stacking
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,ros2]'
+	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
+
+$(ROS2): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[test,ros2]'
+	touch $(ROS2)
 
 demo: $(STAMP)
 	$(BIN)/hrc show tasks/cube_stacking.yaml
 	$(BIN)/hrc compile tasks/cube_stacking.yaml --out $(OUT)
 
-test: $(STAMP) browser oracle
+test: $(ROS2) browser oracle
 	$(BIN)/ruff check hrc tests scripts
 	$(BIN)/mypy hrc
 	$(BIN)/python -m pytest -q
