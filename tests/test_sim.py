@@ -12,9 +12,9 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ROOT, WORKSHOP_TASK
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
-from conftest import ROOT, WORKSHOP_TASK
 
 from hrc.cli import main
 from hrc.compile.compiler import compile_task
