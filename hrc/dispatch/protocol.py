@@ -61,6 +61,8 @@ def handle_line(dispatcher: Dispatcher, line: str) -> str:
     except ValueError as err:
         return _refusal(None, f"not JSON: {err}")
     t = obj.get("t") if isinstance(obj, dict) else None
+    if isinstance(obj, dict) and obj.get("event") == "position":
+        return _position(dispatcher, obj, t)
     try:
         obs = observation_from_json(obj)
         now = dispatcher.now
@@ -73,6 +75,21 @@ def handle_line(dispatcher: Dispatcher, line: str) -> str:
     except Exception as err:  # noqa: BLE001 - a bug must not end a run; the state was not changed
         return _refusal(t, f"internal error ({type(err).__name__}: {err}); nothing changed")
     return _dumps(decision.to_json())
+
+
+def _position(dispatcher: Dispatcher, obj: dict[str, Any], t: Any) -> str:
+    """A tracked position (``"event": "position"``): for a dispatcher with a human action detector in front
+    of it (`hrc.detect.online.DetectingDispatcher`), refused otherwise."""
+    take = getattr(dispatcher, "answer_position", None)
+    if take is None:
+        return _refusal(t, "a position needs the motion detector: start hrc dispatch (or the console) with "
+                           "--detect motion")
+    try:
+        return _dumps(take(obj))
+    except DispatchError as err:
+        return _refusal(t, str(err))
+    except Exception as err:  # noqa: BLE001 - a bug must not end a run; the state was not changed
+        return _refusal(t, f"internal error ({type(err).__name__}: {err}); nothing changed")
 
 
 def answer(dispatcher: Dispatcher, data: bytes) -> str:
