@@ -40,7 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .model import DetectorModel
-from .situation import Future, Situation
+from .situation import Situation
 
 __all__ = ["Belief", "Detected", "Track", "decide", "hinge", "ingest"]
 
