@@ -45,9 +45,13 @@ from .situation import Situation
 __all__ = ["Belief", "Detected", "Track", "decide", "hinge", "ingest"]
 
 Leg = tuple[str, str]
-_LATE = 1.0
-"""s past a manipulation's upper bound before a person who stays is taken to have ended it (the start the
-detector has may be early by a noisy arrival; one who ends near the bound and leaves is seen leaving)."""
+
+
+def _late(model: DetectorModel) -> float:
+    """s past a manipulation's upper bound before a person who stays is taken to have ended it, and within
+    which one who leaves is taken to have left as they ended: the start the detector has may be early by a
+    noisy arrival, and a leaving is seen a little late."""
+    return 0.25 + 2.0 * model.params.sigma
 
 
 @dataclass(frozen=True, slots=True)
@@ -232,12 +236,22 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         # working
         assert sit.start is not None
         lb, ub = model.durations.get(leg, (0.0, 0.0))
-        if dist > gone:
-            left = _left_at(model, track, place, sit.start)
-            end = left if left - sit.start <= ub + _LATE else sit.start + model.mid(leg)
-            track = replace(track, left=(place, left))
+        if dist > gone or (track.left is not None and track.left[0] == place):
+            if track.left is None or track.left[0] != place:
+                track = replace(track, left=(place, _left_at(model, track, place, sit.start)))
+            assert track.left is not None
+            if any(len(f.legs) > 1 for f in sit.futures):  # legs here first in some plan: which, says the walk
+                return _leaving(model, track, sit, x, y, here, leg)
+            left = track.left[1]
+            # leaving well before the bound: as they ended; near or past it, they may have waited (a person
+            # who follows the plan leaves when it says, and before it knows the end it says: at the bound)
+            end = left if left - sit.start < ub - _late(model) else sit.start + model.mid(leg)
             return track, [Detected(_at(end, track, sit), "end", *leg)]
-        if t - sit.start >= ub + _LATE and dist <= here:
+        best = sit.futures[0] if sit.futures else None  # the dispatcher's best plan's
+        going_on = best is not None and len(best.legs) > 1 and sit.ready.get(best.legs[0]) is not None
+        if t - sit.start >= ub + _late(model) and dist <= here and not going_on:
+            # past its bound: over, at a time position cannot tell (unless the best plan has the person go
+            # on here with work that is ready: then the walk away times them all)
             return track, [Detected(_at(sit.start + model.mid(leg), track, sit), "end", *leg)]
         return replace(track, belief=Belief("work", *leg, 1.0)), []
     return _idle(model, track, sit, t, x, y, here, gone)
@@ -265,40 +279,65 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
         track = replace(track, left=(place, _left_at(model, track, place, sit.since)))
     elif dist <= here:  # back where they were: no walk after all
         return replace(track, left=None, belief=Belief("idle")), []
+    return _leaving(model, track, sit, x, y, here, None)
+
+
+def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: float, here: float,
+             working: Leg | None) -> tuple[Track, list[Detected]]:
+    """The person has left `track.left`'s place (ending `working`, the leg under way, if any): where to?
+    Once one destination is clear (or reached), the events: the end of `working`, the legs at the place
+    that lead there, and the departure; the legs' times split [start, left] in proportion to the middle
+    of their duration bounds."""
     assert track.left is not None
-    left_t = track.left[1]
+    place, left_t = track.left
+    px, py = model.xy[place]
+    if math.hypot(x - px, y - py) <= here:  # back where they were: no walk after all
+        return replace(track, left=None, belief=Belief("work" if working else "idle", *(working or (None, None)))), []
+    futures = sit.futures if working is not None else \
+        [f for f in sit.futures if (*f.legs[0], "depart") in sit.options]
     moving = [f for f in futures if f.destination is not None]
-    if not moving:
-        return replace(track, belief=Belief("walk")), []
-    dests = sorted({f.destination for f in moving if f.destination is not None})
-    best = moving[0].destination
-    p = model.params
-    logw = np.array([(p.prior if g == best else 0.0)
-                     + p.beta * (model.distance(g, px, py) - model.distance(g, x, y)) for g in dests])
-    post = np.exp(logw - logw.max())
-    post /= post.sum()
-    k = int(np.argmax(post))
-    goal = dests[k]
-    gx, gy = model.xy[goal]
-    reached = math.hypot(x - gx, y - gy) <= here
-    future = next(f for f in moving if f.destination == goal)
-    if post[k] < p.commit and not reached:
-        return replace(track, belief=Belief("walk", *future.legs[-1], float(post[k]), future.legs[-1][0],
-                                            float(post[k]))), []
-    # the destination is clear: the legs on the way, then the departure
+    if not moving:  # every leg left is here: leaving, the person is through with them
+        if not futures:
+            return replace(track, belief=Belief("walk")), []
+        future = futures[0]
+    else:
+        dests = sorted({f.destination for f in moving if f.destination is not None})
+        best = moving[0].destination
+        p = model.params
+        logw = np.array([(p.prior if g == best else 0.0)
+                         + p.beta * (model.distance(g, px, py) - model.distance(g, x, y)) for g in dests])
+        post = np.exp(logw - logw.max())
+        post /= post.sum()
+        k = int(np.argmax(post))
+        goal = dests[k]
+        gx, gy = model.xy[goal]
+        reached = math.hypot(x - gx, y - gy) <= here
+        future = next(f for f in moving if f.destination == goal)
+        if post[k] < p.commit and not reached:
+            return replace(track, belief=Belief("walk", *future.legs[-1], float(post[k]), future.legs[-1][0],
+                                                float(post[k]))), []
+    # the destination is clear: the end of the leg under way, the legs here on the way, then the departure
     events: list[Detected] = []
-    stays = future.legs[:-1]
-    if stays:
-        first = stays[0]
-        begin = _start_time(model, sit, first, sit.since)
-        begin = sit.since if begin is None else min(begin, left_t)
-        weights = [max(model.mid(leg), 1e-3) for leg in stays]
+    stays = future.legs[:-1] if future.destination is not None else future.legs
+    if working is not None:
+        begin = sit.start if sit.start is not None else sit.since
+        spans = [working, *stays]
+    else:
+        begin = sit.since
+        if stays:
+            ready = _start_time(model, sit, stays[0], sit.since)
+            begin = sit.since if ready is None else min(ready, left_t)
+        spans = list(stays)
+    if spans:
+        weights = [max(model.mid(leg), 1e-3) for leg in spans]
         scale = max(left_t - begin, 0.0) / sum(weights)
         at = begin
-        for leg, w in zip(stays, weights, strict=True):
-            s = _at(at, track, sit)
-            events += [Detected(s, "depart", *leg), Detected(s, "arrive", *leg), Detected(s, "start", *leg)]
+        for leg, w in zip(spans, weights, strict=True):
+            if leg != working:
+                s = _at(at, track, sit)
+                events += [Detected(s, "depart", *leg), Detected(s, "arrive", *leg), Detected(s, "start", *leg)]
             at += w * scale
             events.append(Detected(_at(at, track, sit), "end", *leg))
-    events.append(Detected(_at(left_t, track, sit), "depart", *future.legs[-1]))
+    if future.destination is not None:
+        events.append(Detected(_at(left_t, track, sit), "depart", *future.legs[-1]))
     return replace(track, left=None), events

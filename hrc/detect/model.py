@@ -39,9 +39,9 @@ class DetectParams:
     stand: float = 0.15
     smooth: float = 0.3
     window: float = 4.0
-    commit: float = 0.97
+    commit: float = 0.9
     beta: float = 5.0
-    prior: float = 1.0
+    prior: float = 3.0
 
     def __post_init__(self) -> None:
         for name in ("sigma", "stand", "smooth", "window", "beta", "prior"):

@@ -126,6 +126,7 @@ class DetectingDispatcher(Dispatcher):
         dispatcher), any refused, and the belief. `DispatchError` when the message is refused."""
         t, x, y = position_from_json(obj, self.model.human)
         work = self.fork()  # the state changes whole or not at all, whatever goes wrong
+        assert isinstance(work, DetectingDispatcher)
         given, refused = work.position(t, x, y)
         self._state, self.track, self._situation = work._state, work.track, work._situation
         out = self.decision.to_json()

@@ -50,7 +50,8 @@ class Situation:
     may report now; `futures`: what may come after the leg under way (or now, when none is), best rank
     first; `hint`: the best plan's next step for the person, ``(action, phase, event, earliest)``, or a
     ``WaitFor`` string, or None; `ready`: per leg, when the task graph let it start (the latest end of
-    its predecessors, None: not all ended); `away`: the person is away (the detector waits)."""
+    its predecessors but the leg under way, None: another has not ended); `away`: the person is away (the
+    detector waits)."""
 
     leg: Leg | None
     last: str | None
@@ -98,7 +99,7 @@ def situation(model: DetectorModel, d: Dispatcher) -> Situation:
             continue
         ends = []
         for p in task.precedence:
-            if (p.after.action, p.after.phase) == leg:
+            if (p.after.action, p.after.phase) == leg and (p.before.action, p.before.phase) != current:
                 before = (p.before.action, p.before.phase)
                 t = next((v for (_, a, ph, e), v in times.items() if (a, ph) == before and e == "end"), None)
                 ends.append(t)

@@ -147,6 +147,8 @@ class DispatchedController(Controller):
         self.by_id = {cp.plan.id: cp for cp in cps.plans}
         self.latencies = []
         self.refused = []
+        self.detected: list[tuple[float, float, str, str, str]] = []  # (given at, estimated t, event, action, phase)
+        self.detect_refused: list[str] = []
         self._times: dict | None = None
         self._ordered: tuple[Any, Order | None] = (None, None)
         dec = dispatcher.decision
@@ -166,6 +168,27 @@ class DispatchedController(Controller):
             self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
             return
         self.latencies.append(time.perf_counter() - t0)
+        self._after(dec)
+
+    def position(self, now: float, t: float, x: float, y: float) -> bool:
+        """The person's position measured at `t` reaches the motion detector at run time `now`
+        (`hrc.detect.online.DetectingDispatcher.position`); whether it gave an event."""
+        t0 = time.perf_counter()
+        try:
+            given, refused = self.d.position(t, x, y)
+        except HrcError as err:  # refused (time going backwards): nothing changed
+            self.latencies.append(time.perf_counter() - t0)
+            self.refused.append(f"{t:.3f} position: {str(err).splitlines()[0]}")
+            return False
+        self.latencies.append(time.perf_counter() - t0)
+        self.detect_refused += refused
+        for ev, _ in given:
+            self.detected.append((round(now, 3), ev.t, ev.event, ev.action, ev.phase))
+        if given:
+            self._after(self.d.decision)
+        return bool(given)
+
+    def _after(self, dec: Any) -> None:
         self._times = None
         if dec.plan != self.plan_id and dec.plan is not None:
             if self.plan_id is not None:
