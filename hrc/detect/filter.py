@@ -89,11 +89,13 @@ class Belief:
 class Track:
     """The filter's state: the positions kept ``(t, x, y)``, oldest first; `left`: the place the person
     has left and when (while their destination is unsure); `last`: the time of the last event given out
-    (events never go back in time); the `belief`."""
+    (events never go back in time) and the time of the position with which it was given (`given_at`); the
+    `belief`."""
 
     samples: tuple[tuple[float, float, float], ...] = ()
     left: tuple[str, float] | None = None
     last: float = 0.0
+    given_at: float = 0.0
     belief: Belief = Belief("idle")
 
     @property
@@ -132,32 +134,42 @@ def _radii(model: DetectorModel, n: int) -> tuple[float, float]:
     return here, here + 0.05 + noise
 
 
-def hinge(ts: np.ndarray, ds: np.ndarray, rising: bool, lo: float, hi: float, pace: tuple[float, float]) -> float:
-    """The break point of the hinge best fitted (least squares) to distances `ds` at times `ts`:
-    ``d = b + v * max(0, t - t0)`` when `rising` (a departure at t0), ``d = b + v * max(0, t0 - t)``
-    otherwise (an arrival at t0), with ``b >= 0`` (the noise's mean distance while standing) and the pace
-    `v` within `pace` (m/s: a walker's); t0 searched in [lo, hi] on a 20 ms grid. O(n k) for n distances
-    and k grid points.
+def hinge(ts: np.ndarray, xs: np.ndarray, ys: np.ndarray, rising: bool, lo: float, hi: float,
+          pace: tuple[float, float]) -> float:
+    """The break point t0 of the hinge best fitted (least squares) to positions (xs, ys) at times `ts`:
+    ``p = c + w * max(0, t - t0)`` when `rising` (standing at c, then walking off at velocity w: a
+    departure at t0), ``p = c + w * max(0, t0 - t)`` otherwise (walking in, then standing at c: an
+    arrival), with the speed ``|w|`` within `pace` (m/s: a walker's); t0 searched in [lo, hi] on a 20 ms
+    grid. Fitted on the positions themselves, not on distances (whose noise is biased away from zero),
+    so the noise does not shift it. O(n k) for n positions and k grid points.
 
     >>> ts = np.arange(0.0, 3.0, 0.1)
-    >>> round(hinge(ts, np.maximum(0.0, ts - 1.0) * 1.2, True, 0.0, 3.0, (0.8, 1.3)), 2)
+    >>> xs = 2.0 + 1.2 * np.maximum(0.0, ts - 1.0)
+    >>> round(hinge(ts, xs, np.zeros_like(ts), True, 0.0, 3.0, (0.8, 1.3)), 2)
     1.0
     """
-    if hi <= lo or len(ts) < 2:
+    if hi <= lo or len(ts) < 3:
         return hi
     grid = np.arange(lo, hi + 1e-9, 0.02)
     h = np.maximum(0.0, ts[None, :] - grid[:, None]) if rising else np.maximum(0.0, grid[:, None] - ts[None, :])
     n = len(ts)
     sh = h.sum(axis=1)
     shh = (h * h).sum(axis=1)
-    sd = ds.sum()
-    shd = h @ ds
     det = n * shh - sh * sh
     ok = det > 1e-12
-    v = np.where(ok, (n * shd - sh * sd) / np.where(ok, det, 1.0), pace[1])
-    v = np.clip(v, pace[0], pace[1])
-    b = np.maximum((sd - v * sh) / n, 0.0)
-    resid = ((ds[None, :] - b[:, None] - v[:, None] * h) ** 2).sum(axis=1)
+    safe = np.where(ok, det, 1.0)
+    w = np.stack([np.where(ok, (n * (h @ z) - sh * z.sum()) / safe, 0.0) for z in (xs, ys)], axis=1)
+    speed = np.hypot(w[:, 0], w[:, 1])
+    want = np.clip(speed, pace[0], pace[1])
+    w *= np.where(speed > 1e-9, want / np.where(speed > 1e-9, speed, 1.0), 0.0)[:, None]
+    fix = speed <= 1e-9  # no direction to scale: walk along the line from the first to the last position
+    if fix.any():
+        d = np.array([xs[-1] - xs[0], ys[-1] - ys[0]]) * (1 if rising else -1)
+        w[fix] = d / max(float(np.hypot(*d)), 1e-9) * pace[0]
+    resid = np.zeros(len(grid))
+    for k, z in enumerate((xs, ys)):
+        c = (z.sum() - w[:, k] * sh) / n
+        resid += ((z[None, :] - c[:, None] - w[:, k][:, None] * h) ** 2).sum(axis=1)
     return float(grid[int(np.argmin(resid))])
 
 
@@ -167,24 +179,30 @@ def _pace(model: DetectorModel) -> tuple[float, float]:
     return 0.8 * model.speed / model.slack, 1.1 * model.speed
 
 
+def _fit_rows(track: Track, since: float, span: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = track.samples[-1][0]
+    rows = [s for s in track.samples if s[0] >= max(since, t - span)]
+    return np.array([s[0] for s in rows]), np.array([s[1] for s in rows]), np.array([s[2] for s in rows])
+
+
+_SPAN = 3.0  # s of positions a change-point fit reads: the walk near a place is about straight
+
+
 def _left_at(model: DetectorModel, track: Track, place: str, since: float) -> float:
-    """When the person left `place` (a departure hinge on the straight distances from it)."""
-    px, py = model.xy[place]
-    rows = [s for s in track.samples if s[0] >= since]
-    ts = np.array([s[0] for s in rows])
-    ds = np.hypot(np.array([s[1] for s in rows]) - px, np.array([s[2] for s in rows]) - py)
+    """When the person left `place` (a departure hinge on the positions since `since`)."""
+    ts, xs, ys = _fit_rows(track, since, _SPAN)
     t = track.samples[-1][0]
-    return min(max(hinge(ts, ds, True, max(since, t - model.params.window), t, _pace(model)), since), t)
+    lo = max(since, t - _SPAN)
+    return min(max(hinge(ts, xs, ys, True, lo, t, _pace(model)), since), t)
 
 
-def _arrived_at(model: DetectorModel, track: Track, place: str, since: float) -> float:
-    """When the person reached `place` (an arrival hinge on the walking distances to it)."""
-    k = model.geo.index(place)
-    rows = [s for s in track.samples if s[0] >= since]
-    ts = np.array([s[0] for s in rows])
-    ds = np.array([model.geo.distance(k, s[1], s[2]) for s in rows])
+def _arrived_at(model: DetectorModel, track: Track, since: float) -> float:
+    """When the person stopped (an arrival hinge on the positions since `since`); later than the last
+    position when they are still coming."""
+    ts, xs, ys = _fit_rows(track, since, _SPAN)
     t = track.samples[-1][0]
-    return min(max(hinge(ts, ds, False, max(since, t - model.params.window), t, _pace(model)), since), t)
+    lo = max(since, t - _SPAN)
+    return max(hinge(ts, xs, ys, False, lo, t + 0.5, _pace(model)), since)
 
 
 def _at(t: float, track: Track, sit: Situation) -> float:
@@ -221,10 +239,13 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         dist = math.hypot(x - model.xy[place][0], y - model.xy[place][1])
         if sit.last in ("depart", "park", "unpark"):  # walking to the leg's place
             if dist <= here and (*leg, "arrive") in sit.options:
-                return track, [Detected(_at(_arrived_at(model, track, place, sit.since), track, sit), "arrive", *leg)]
+                arrived = _arrived_at(model, track, sit.since)
+                if arrived <= t - 0.5 / max(n, 1) * model.params.smooth * 2:  # standing, not still coming
+                    return track, [Detected(_at(arrived, track, sit), "arrive", *leg)]
             return replace(track, belief=Belief("walk", *leg, 1.0, leg[0], 1.0)), []
         if sit.last == "arrive":  # at the place, not started
-            start = _start_time(model, sit, leg, sit.since)
+            # a person who follows the plan starts when it tells them to, once it knows they are there
+            start = _start_time(model, sit, leg, max(sit.since, track.given_at))
             if start is not None and start <= t and (*leg, "start") in sit.options:
                 return track, [Detected(_at(start, track, sit), "start", *leg)]
             if dist > gone and track.left is None:  # left without starting: it started and ended meanwhile
@@ -243,9 +264,11 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
             if any(len(f.legs) > 1 for f in sit.futures):  # legs here first in some plan: which, says the walk
                 return _leaving(model, track, sit, x, y, here, leg)
             left = track.left[1]
-            # leaving well before the bound: as they ended; near or past it, they may have waited (a person
-            # who follows the plan leaves when it says, and before it knows the end it says: at the bound)
-            end = left if left - sit.start < ub - _late(model) else sit.start + model.mid(leg)
+            # as they ended; unless they left when the plan told them to (a person who follows the plan
+            # waits for it, and before it knows the end it says: at the bound), or well past the bound
+            waited = sit.planned is not None and abs(left - sit.planned) <= _late(model)
+            end = sit.start + model.mid(leg) if waited or left - sit.start > ub + _late(model) else left
+            end = min(end, left)
             return track, [Detected(_at(end, track, sit), "end", *leg)]
         best = sit.futures[0] if sit.futures else None  # the dispatcher's best plan's
         going_on = best is not None and len(best.legs) > 1 and sit.ready.get(best.legs[0]) is not None
@@ -270,7 +293,7 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
             staying = [f for f in futures if f.legs and model.place[f.legs[0]] == place]
             if futures and len(staying) == len(futures) and len({f.legs[0] for f in futures}) == 1:
                 first = futures[0].legs[0]  # every plan has the person go on here: it is certain what
-                start = _start_time(model, sit, first, sit.since)
+                start = _start_time(model, sit, first, max(sit.since, track.given_at))
                 if start is not None and start <= t:
                     at = _at(start, track, sit)
                     return track, [Detected(at, "depart", *first), Detected(at, "arrive", *first),

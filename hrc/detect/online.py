@@ -114,7 +114,7 @@ class DetectingDispatcher(Dispatcher):
                     stop = True
                     break
                 given.append((ev, at))
-                track = replace(track, last=max(track.last, ev.t))
+                track = replace(track, last=max(track.last, ev.t), given_at=t)
             if stop:
                 break
         self.track = track

@@ -51,7 +51,8 @@ class Situation:
     first; `hint`: the best plan's next step for the person, ``(action, phase, event, earliest)``, or a
     ``WaitFor`` string, or None; `ready`: per leg, when the task graph let it start (the latest end of
     its predecessors but the leg under way, None: another has not ended); `away`: the person is away (the
-    detector waits)."""
+    detector waits); `planned`: when the best plan has the person leave for their next place (s; None:
+    it does not say), as the console shows it to them."""
 
     leg: Leg | None
     last: str | None
@@ -63,6 +64,7 @@ class Situation:
     hint: tuple[str, str, str, float] | str | None
     ready: dict[Leg, float | None]
     away: bool
+    planned: float | None = None
 
 
 def situation(model: DetectorModel, d: Dispatcher) -> Situation:
@@ -104,7 +106,10 @@ def situation(model: DetectorModel, d: Dispatcher) -> Situation:
                 t = next((v for (_, a, ph, e), v in times.items() if (a, ph) == before and e == "end"), None)
                 ends.append(t)
         ready[leg] = None if any(t is None for t in ends) else max([0.0, *[t for t in ends if t is not None]])
-    return Situation(current, last, since, start, place, options, futures, hint, ready, history.away)
+    planned = None
+    if futures and futures[0].rank == 0 and futures[0].destination is not None:
+        planned = d.planned_times().get((human, *futures[0].legs[-1], "depart"))
+    return Situation(current, last, since, start, place, options, futures, hint, ready, history.away, planned)
 
 
 def _futures(model: DetectorModel, d: Dispatcher, legs: tuple[Leg, ...], current: Leg | None,

@@ -278,6 +278,9 @@ class _Run(Standoffs):
         if agent is self.h:
             if self.sensor is None or action is None:  # a tracker sees positions, not away and back
                 self.detector.see(h)
+            else:
+                assert isinstance(self.ctl, DispatchedController)
+                self.ctl.known.append(h)  # the person knows what they did (their guide: `_guide`)
             return
         t = self.t
         o = self.ctl.order()  # the window the robot was given for this event (arrive, park: the travel's end)
