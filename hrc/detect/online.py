@@ -79,6 +79,10 @@ class DetectingDispatcher(Dispatcher):
         self.track = Track()
         self._situation: tuple[object, Situation] | None = None
 
+    def detect_settings(self) -> dict[str, Any]:
+        """What a log records of the detector (`hrc.dispatch.protocol.log_header`): a replay needs the same."""
+        return {"detector": "motion", "params": self.model.params.to_json()}
+
     def situation(self) -> Situation:
         """What the dispatcher knows of the person now (cached per decision)."""
         cached = self._situation

@@ -115,7 +115,16 @@ def _digest(dispatcher: Dispatcher) -> str:
 
 def log_header(dispatcher: Dispatcher, version: int) -> dict[str, Any]:
     """The header of a log of `dispatcher`'s compiled plan set: the set's digest and size."""
-    return {"hrc_dispatch_log": version, "compiled": _digest(dispatcher), "plans": len(dispatcher.plan_set)}
+    header = {"hrc_dispatch_log": version, "compiled": _digest(dispatcher), "plans": len(dispatcher.plan_set)}
+    detect = _detect(dispatcher)
+    if detect is not None:  # a run with a detector in front replays only with the same detector
+        header["detect"] = detect
+    return header
+
+
+def _detect(dispatcher: Dispatcher) -> dict[str, Any] | None:
+    settings = getattr(dispatcher, "detect_settings", None)
+    return None if settings is None else dict(settings())
 
 
 def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> None:
@@ -124,6 +133,10 @@ def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> No
     if contents.header.get("compiled") != digest:
         raise HrcError(f"{path}: the log was written for another compiled plan set "
                        f"(compiled {contents.header.get('compiled')!r}, this folder {digest!r})")
+    if contents.header.get("detect") != _detect(dispatcher):
+        raise HrcError(f"{path}: the log was written with other detector settings (the log: "
+                       f"{contents.header.get('detect') or 'buttons'}; now: {_detect(dispatcher) or 'buttons'}): "
+                       "give the same --detect and --sensor-sigma")
 
 
 def replay(dispatcher: Dispatcher, contents: LogContents, path: str = "log") -> Iterator[tuple[str, str]]:
