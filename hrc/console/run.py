@@ -63,10 +63,11 @@ def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable
 def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,
                  simulate_robot: bool = False, tick: float = 2.0, credentials: Credentials | None = None,
                  resume: str | os.PathLike[str] | None = None, allow_partial: bool = False,
-                 report: Callable[[str], None] | None = None) -> ConsoleServer:
+                 report: Callable[[str], None] | None = None, detect: Any = None) -> ConsoleServer:
     """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
     ``OUT_DIR/runs/console-N.jsonl``), or the run logged at `resume` continued (its torn end, if any,
-    reported through `report`), `credentials` its secrets (default: new ones). The run's clock starts
+    reported through `report`), `credentials` its secrets (default: new ones); `detect`: the motion
+    detector's `hrc.detect.DetectParams` (None: buttons only). The run's clock starts
     when the first page or robot controller connects.
 
     Raises `InputError` when `out_dir` is not an ``hrc compile`` output (or a partial one, unless
@@ -74,7 +75,12 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     `resume` is no log of this compiled set. Cost: loading the plan set (its dispatch form: well under a
     second for 40,320 plans) and planning the free-space paths again (about 2 s for the workshop).
     """
-    dispatcher = Dispatcher.from_folder(out_dir, allow_partial=allow_partial)
+    if detect is not None:  # the motion detector in front (`hrc.detect`): `detect` is its DetectParams
+        from hrc.detect import DetectingDispatcher
+
+        dispatcher = DetectingDispatcher.from_folder(out_dir, allow_partial=allow_partial, params=detect)
+    else:
+        dispatcher = Dispatcher.from_folder(out_dir, allow_partial=allow_partial)
     compiled = read_header(out_dir)
     routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
                         plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
