@@ -88,12 +88,14 @@ class Belief:
 @dataclass(frozen=True, slots=True)
 class Track:
     """The filter's state: the positions kept ``(t, x, y)``, oldest first; `left`: the place the person
-    has left and when (while their destination is unsure); `last`: the time of the last event given out
-    (events never go back in time) and the time of the position with which it was given (`given_at`); the
-    `belief`."""
+    has left and when (while their destination is unsure); `prior`: where the best plan had them go next
+    while they worked (what the console showed them; the plan may change once their end is known);
+    `last`: the time of the last event given out (events never go back in time) and `given_at` the time
+    of the position with which it was given; the `belief`."""
 
     samples: tuple[tuple[float, float, float], ...] = ()
     left: tuple[str, float] | None = None
+    prior: str | None = None
     last: float = 0.0
     given_at: float = 0.0
     belief: Belief = Belief("idle")
@@ -259,7 +261,8 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         lb, ub = model.durations.get(leg, (0.0, 0.0))
         if dist > gone or (track.left is not None and track.left[0] == place):
             if track.left is None or track.left[0] != place:
-                track = replace(track, left=(place, _left_at(model, track, place, sit.start)))
+                track = replace(track, left=(place, _left_at(model, track, place, sit.start)),
+                                prior=_next_place(sit))
             assert track.left is not None
             if any(len(f.legs) > 1 for f in sit.futures):  # legs here first in some plan: which, says the walk
                 return _leaving(model, track, sit, x, y, here, leg)
@@ -275,6 +278,7 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         if t - sit.start >= ub + _late(model) and dist <= here and not going_on:
             # past its bound: over, at a time position cannot tell (unless the best plan has the person go
             # on here with work that is ready: then the walk away times them all)
+            track = replace(track, prior=_next_place(sit))
             return track, [Detected(_at(sit.start + model.mid(leg), track, sit), "end", *leg)]
         return replace(track, belief=Belief("work", *leg, 1.0)), []
     return _idle(model, track, sit, t, x, y, here, gone)
@@ -299,10 +303,16 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
                     return track, [Detected(at, "depart", *first), Detected(at, "arrive", *first),
                                    Detected(at, "start", *first)]
             return replace(track, belief=Belief("idle")), []
-        track = replace(track, left=(place, _left_at(model, track, place, sit.since)))
+        track = replace(track, left=(place, _left_at(model, track, place, sit.since)),
+                        prior=track.prior or _next_place(sit))
     elif dist <= here:  # back where they were: no walk after all
-        return replace(track, left=None, belief=Belief("idle")), []
+        return replace(track, left=None, prior=None, belief=Belief("idle")), []
     return _leaving(model, track, sit, x, y, here, None)
+
+
+def _next_place(sit: Situation) -> str | None:
+    """Where the best plan sends the person next (its next leg elsewhere), or None."""
+    return sit.futures[0].destination if sit.futures else None
 
 
 def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: float, here: float,
@@ -315,7 +325,8 @@ def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: fl
     place, left_t = track.left
     px, py = model.xy[place]
     if math.hypot(x - px, y - py) <= here:  # back where they were: no walk after all
-        return replace(track, left=None, belief=Belief("work" if working else "idle", *(working or (None, None)))), []
+        belief = Belief("work", *working) if working else Belief("idle")
+        return replace(track, left=None, belief=belief), []
     futures = sit.futures if working is not None else \
         [f for f in sit.futures if (*f.legs[0], "depart") in sit.options]
     moving = [f for f in futures if f.destination is not None]
@@ -325,7 +336,7 @@ def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: fl
         future = futures[0]
     else:
         dests = sorted({f.destination for f in moving if f.destination is not None})
-        best = moving[0].destination
+        best = track.prior if track.prior in dests else moving[0].destination
         p = model.params
         logw = np.array([(p.prior if g == best else 0.0)
                          + p.beta * (model.distance(g, px, py) - model.distance(g, x, y)) for g in dests])
@@ -363,4 +374,4 @@ def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: fl
             events.append(Detected(_at(at, track, sit), "end", *leg))
     if future.destination is not None:
         events.append(Detected(_at(left_t, track, sit), "depart", *future.legs[-1]))
-    return replace(track, left=None), events
+    return replace(track, left=None, prior=None), events
