@@ -40,7 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .model import DetectorModel
-from .situation import Situation
+from .situation import Future, Situation
 
 __all__ = ["Belief", "Detected", "Track", "decide", "hinge", "ingest"]
 
@@ -56,7 +56,8 @@ def _late(model: DetectorModel) -> float:
 
 @dataclass(frozen=True, slots=True)
 class Detected:
-    """An event given out: the person's `event` of `action`.`phase` at `t` (its estimated time, s)."""
+    """An event given out: the person's `event` of `action`.`phase` at `t` (its estimated time, s); or
+    ``undo`` (no action, phase): the person's last event, a departure for the wrong place, withdrawn."""
 
     t: float
     event: str
@@ -64,6 +65,8 @@ class Detected:
     phase: str
 
     def to_json(self, agent: str = "human") -> dict[str, object]:
+        if self.event == "undo":
+            return {"t": self.t, "event": "undo"}
         return {"t": self.t, "agent": agent, "action": self.action, "phase": self.phase, "event": self.event}
 
 
@@ -91,13 +94,15 @@ class Track:
     has left and when (while their destination is unsure); `prior`: where the best plan had them go next
     while they worked (what the console showed them; the plan may change once their end is known);
     `last`: the time of the last event given out (events never go back in time) and `given_at` the time
-    of the position with which it was given; the `belief`."""
+    of the position with which it was given (for the record); `stuck`: the time of a departure already withdrawn once (or
+    whose withdrawal was refused: it is not tried again); the `belief`."""
 
     samples: tuple[tuple[float, float, float], ...] = ()
     left: tuple[str, float] | None = None
     prior: str | None = None
     last: float = 0.0
     given_at: float = 0.0
+    stuck: float | None = None
     belief: Belief = Belief("idle")
 
     @property
@@ -188,6 +193,7 @@ def _fit_rows(track: Track, since: float, span: float) -> tuple[np.ndarray, np.n
 
 
 _SPAN = 3.0  # s of positions a change-point fit reads: the walk near a place is about straight
+_STANDING = 0.1  # s: an arrival is taken once its hinge lies this far before the last position
 
 
 def _left_at(model: DetectorModel, track: Track, place: str, since: float) -> float:
@@ -208,8 +214,10 @@ def _arrived_at(model: DetectorModel, track: Track, since: float) -> float:
 
 
 def _at(t: float, track: Track, sit: Situation) -> float:
-    """An event's time: never before the last one given out or seen, never after the last position."""
-    return round(min(max(t, track.last, sit.since), track.samples[-1][0]), 3)
+    """An event's estimated time: never before the last one given out, never after the last position. (The
+    dispatcher may pin it later, never earlier than its last message: `hrc.detect.online`.)"""
+    del sit
+    return round(min(max(t, track.last), track.samples[-1][0]), 3)
 
 
 def _start_time(model: DetectorModel, sit: Situation, leg: Leg, arrived: float) -> float | None:
@@ -220,7 +228,8 @@ def _start_time(model: DetectorModel, sit: Situation, leg: Leg, arrived: float) 
     if ready is None:
         return None
     t = max(arrived, ready)
-    if isinstance(sit.hint, tuple) and sit.hint[:2] == leg and sit.hint[2] in ("start", "depart"):
+    if isinstance(sit.hint, tuple) and sit.hint[:2] == leg and sit.hint[2] in ("start", "depart") \
+            and sit.hint[3] > sit.now + 0.05:  # the plan asks them to wait (not merely "from now on")
         t = max(t, sit.hint[3])
     elif isinstance(sit.hint, str) and sit.hint.startswith("robot.") and sit.leg == leg:
         return None
@@ -233,6 +242,8 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
     if not track.samples or sit.away:
         return replace(track, belief=Belief("idle")), []
     t = track.samples[-1][0]
+    if 0 < track.last < sit.since:  # the dispatcher pinned the last event later (its clock moved on): ours
+        sit = replace(sit, since=track.last)
     x, y, n = _recent(model, track)
     here, gone = _radii(model, n)
     leg = sit.leg
@@ -242,12 +253,14 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         if sit.last in ("depart", "park", "unpark"):  # walking to the leg's place
             if dist <= here and (*leg, "arrive") in sit.options:
                 arrived = _arrived_at(model, track, sit.since)
-                if arrived <= t - 0.5 / max(n, 1) * model.params.smooth * 2:  # standing, not still coming
+                if arrived <= t - _STANDING:  # standing, not still coming
                     return track, [Detected(_at(arrived, track, sit), "arrive", *leg)]
+            wrong = _wrong_way(model, track, sit, place, x, y, here)
+            if wrong is not None:
+                return wrong
             return replace(track, belief=Belief("walk", *leg, 1.0, leg[0], 1.0)), []
         if sit.last == "arrive":  # at the place, not started
-            # a person who follows the plan starts when it tells them to, once it knows they are there
-            start = _start_time(model, sit, leg, max(sit.since, track.given_at))
+            start = _start_time(model, sit, leg, sit.since)
             if start is not None and start <= t and (*leg, "start") in sit.options:
                 return track, [Detected(_at(start, track, sit), "start", *leg)]
             if dist > gone and track.left is None:  # left without starting: it started and ended meanwhile
@@ -297,7 +310,7 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
             staying = [f for f in futures if f.legs and model.place[f.legs[0]] == place]
             if futures and len(staying) == len(futures) and len({f.legs[0] for f in futures}) == 1:
                 first = futures[0].legs[0]  # every plan has the person go on here: it is certain what
-                start = _start_time(model, sit, first, max(sit.since, track.given_at))
+                start = _start_time(model, sit, first, sit.since)
                 if start is not None and start <= t:
                     at = _at(start, track, sit)
                     return track, [Detected(at, "depart", *first), Detected(at, "arrive", *first),
@@ -308,6 +321,56 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
     elif dist <= here:  # back where they were: no walk after all
         return replace(track, left=None, prior=None, belief=Belief("idle")), []
     return _leaving(model, track, sit, x, y, here, None)
+
+
+def _likeliest(model: DetectorModel, sit: Situation, futures: list[Future], working: Leg | None,
+              left_t: float) -> Future:
+    """Of futures that all lead to one place (two actions at one place: the person may or may not have
+    done the other before leaving), the one whose legs here fit the time the person stayed (their duration
+    bounds summed: too short a stay rules a leg out, a longer one may be waiting), then the best ranked."""
+    begin = sit.start if working is not None and sit.start is not None else sit.since
+    stay = left_t - begin
+
+    def misfit(f: Future) -> float:
+        legs = ([working] if working is not None else []) + list(f.legs[:-1] if f.destination else f.legs)
+        lo = sum(model.durations.get(leg, (0.0, 0.0))[0] for leg in legs)
+        hi = sum(model.durations.get(leg, (0.0, 0.0))[1] for leg in legs)
+        return max(0.0, lo - stay) + max(0.0, stay - hi - _late(model))
+
+    return min(futures, key=lambda f: (round(misfit(f), 1), f.rank))
+
+
+def _stopped_at(model: DetectorModel, track: Track, dests: list[str], x: float, y: float, here: float,
+                since: float) -> str | None:
+    """The candidate place the person has stopped at (within `here` of it, and standing: the arrival hinge
+    lies before the last position), or None. A place on the way to another (S2 on the way to S1) is
+    walked through, not stopped at."""
+    t = track.samples[-1][0]
+    for g in dests:
+        gx, gy = model.xy[g]
+        if math.hypot(x - gx, y - gy) <= here and _arrived_at(model, track, since) <= t - _STANDING:
+            return g
+    return None
+
+
+_WRONG = 1.0  # s standing at another place before a departure given for one is withdrawn
+
+
+def _wrong_way(model: DetectorModel, track: Track, sit: Situation, goal: str, x: float, y: float,
+               here: float) -> tuple[Track, list[Detected]] | None:
+    """The person, said to be walking to `goal`, has stopped at another place where the task has work
+    (the plan's head start named the wrong one): withdraw the departure (an ``undo``, which the
+    dispatcher allows while it is the person's last event and at most `UNDO_SECONDS` old) and decide
+    again from where they left. None when that is not the case, or the undo was refused before."""
+    if sit.last != "depart" or track.stuck == sit.since:
+        return None
+    t = track.samples[-1][0]
+    for loc in sorted(set(model.place.values()) - {goal, sit.place}):
+        lx, ly = model.xy[loc]
+        if math.hypot(x - lx, y - ly) <= here and _arrived_at(model, track, sit.since) <= t - _WRONG:
+            track = replace(track, left=(sit.place, sit.since), prior=None, stuck=sit.since)
+            return track, [Detected(round(t, 3), "undo", "", "")]
+    return None
 
 
 def _next_place(sit: Situation) -> str | None:
@@ -344,10 +407,12 @@ def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: fl
         post /= post.sum()
         k = int(np.argmax(post))
         goal = dests[k]
-        gx, gy = model.xy[goal]
-        reached = math.hypot(x - gx, y - gy) <= here
-        future = next(f for f in moving if f.destination == goal)
-        if post[k] < p.commit and not reached:
+        stopped = _stopped_at(model, track, dests, x, y, here, left_t)  # a place on the way to another
+        if stopped is not None:
+            goal = stopped
+        future = _likeliest(model, sit, [f for f in moving if f.destination == goal], working, left_t)
+        walked = math.hypot(x - px, y - py)
+        if stopped is None and (post[k] < p.commit or (len(dests) > 1 and walked < p.min_walk)):
             return replace(track, belief=Belief("walk", *future.legs[-1], float(post[k]), future.legs[-1][0],
                                                 float(post[k]))), []
     # the destination is clear: the end of the leg under way, the legs here on the way, then the departure

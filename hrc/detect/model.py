@@ -33,7 +33,9 @@ class DetectParams:
     `commit`: the posterior probability a destination needs before the departure is given out;
     `beta` (1/m): how closely people keep to shortest routes (the goal filter's rationality: each metre
     of progress toward one destination more than toward another multiplies its odds by e^beta);
-    `prior` (log-odds): the head start of the best plan's next leg."""
+    `prior` (log-odds): the head start of the best plan's next leg; `min_walk` (m): how far the person
+    must have walked from a place before a destination is named from the posterior (a step or two and
+    back is no departure), unless only one place is possible or they stopped at one."""
 
     sigma: float = 0.05
     stand: float = 0.15
@@ -42,9 +44,10 @@ class DetectParams:
     commit: float = 0.9
     beta: float = 5.0
     prior: float = 3.0
+    min_walk: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("sigma", "stand", "smooth", "window", "beta", "prior"):
+        for name in ("sigma", "stand", "smooth", "window", "beta", "prior", "min_walk"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
                     or value < 0:
@@ -57,7 +60,7 @@ class DetectParams:
 
     def to_json(self) -> dict[str, float]:
         return {"sigma": self.sigma, "stand": self.stand, "smooth": self.smooth, "window": self.window,
-                "commit": self.commit, "beta": self.beta, "prior": self.prior}
+                "commit": self.commit, "beta": self.beta, "prior": self.prior, "min_walk": self.min_walk}
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -110,15 +110,20 @@ class DetectingDispatcher(Dispatcher):
                 break
             stop = False
             for ev in events:
-                at = round(max(ev.t, self.now), 3)
+                at = max(round(ev.t, 3), self.now)  # the clock never goes back (a rounded time might)
                 try:
-                    self.observe(Observation(at, ev.event, human, ev.action, ev.phase))
+                    if ev.event == "undo":  # a departure given for the wrong place, withdrawn
+                        self.observe(Observation(at, "undo"))
+                    else:
+                        self.observe(Observation(at, ev.event, human, ev.action, ev.phase))
                 except DispatchError as err:
-                    refused.append(f"{ev.event} {ev.action}.{ev.phase}: {str(err).splitlines()[0]}")
+                    what = ev.event if ev.event == "undo" else f"{ev.event} {ev.action}.{ev.phase}"
+                    refused.append(f"{what}: {str(err).splitlines()[0]}")
                     stop = True
                     break
                 given.append((ev, at))
-                track = replace(track, last=max(track.last, ev.t), given_at=t)
+                if ev.event != "undo":  # (a withdrawal keeps the times of what stands)
+                    track = replace(track, last=max(track.last, ev.t), given_at=t)
             if stop:
                 break
         self.track = track

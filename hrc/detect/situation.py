@@ -52,7 +52,7 @@ class Situation:
     ``WaitFor`` string, or None; `ready`: per leg, when the task graph let it start (the latest end of
     its predecessors but the leg under way, None: another has not ended); `away`: the person is away (the
     detector waits); `planned`: when the best plan has the person leave for their next place (s; None:
-    it does not say), as the console shows it to them."""
+    it does not say), as the console shows it to them; `now`: the dispatcher's clock (its last message)."""
 
     leg: Leg | None
     last: str | None
@@ -65,6 +65,7 @@ class Situation:
     ready: dict[Leg, float | None]
     away: bool
     planned: float | None = None
+    now: float = 0.0
 
 
 def situation(model: DetectorModel, d: Dispatcher) -> Situation:
@@ -109,7 +110,8 @@ def situation(model: DetectorModel, d: Dispatcher) -> Situation:
     planned = None
     if futures and futures[0].rank == 0 and futures[0].destination is not None:
         planned = d.planned_times().get((human, *futures[0].legs[-1], "depart"))
-    return Situation(current, last, since, start, place, options, futures, hint, ready, history.away, planned)
+    return Situation(current, last, since, start, place, options, futures, hint, ready, history.away, planned,
+                     d.now)
 
 
 def _futures(model: DetectorModel, d: Dispatcher, legs: tuple[Leg, ...], current: Leg | None,

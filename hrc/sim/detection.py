@@ -6,7 +6,9 @@ them one to one, greedily in time order: a given event matches a true one of the
 action, phase) whose time it estimates within `MATCH` seconds. Precision is matched / given, recall
 matched / true; the delay of a match is when it was given minus when it happened. For every leg the
 person walked (depart and arrive apart), `lead` is how long before the arrival the detector had given
-its departure, which names the action they were heading for (negative: after). `aggregate_detection`
+its departure, which names the action they were heading for (negative: after). A departure the
+detector withdrew (an ``undo``: it named the wrong place) is not among the events given, and is counted
+(`withdrawn`). `aggregate_detection`
 sums runs up for ``simulation.json``.
 """
 
@@ -37,6 +39,7 @@ class Detection:
     delays: tuple[float, ...]
     leads: tuple[float | None, ...]
     refused: tuple[str, ...] = ()
+    withdrawn: int = 0
 
     def to_json(self) -> dict:
         d = np.array(self.delays) if self.delays else None
@@ -45,11 +48,11 @@ class Detection:
                 "delay_median": None if d is None else round(float(np.median(d)), 3),
                 "delay_max": None if d is None else round(float(d.max()), 3),
                 "legs": len(self.leads), "next_before_arrival": sum(1 for x in known if x > 0),
-                "refused": list(self.refused)}
+                "refused": list(self.refused), "withdrawn": self.withdrawn}
 
 
 def detection_of(truth: Sequence[tuple[float, str, str, str]], given: Sequence[Given],
-                 refused: tuple[str, ...] = ()) -> Detection:
+                 refused: tuple[str, ...] = (), withdrawn: int = 0) -> Detection:
     """Match `given` events to `truth` ``(t, event, action, phase)`` (see the module docstring)."""
     used: set[int] = set()
     delays: list[float] = []
@@ -70,7 +73,8 @@ def detection_of(truth: Sequence[tuple[float, str, str, str]], given: Sequence[G
             continue
         when = next((at for at, _, ge, ga, gp in given if (ge, ga, gp) == ("depart", a, p)), None)
         leads.append(None if when is None else round(t - when, 3))
-    return Detection(len(truth), len(given), len(used), tuple(round(x, 3) for x in delays), tuple(leads), refused)
+    return Detection(len(truth), len(given), len(used), tuple(round(x, 3) for x in delays), tuple(leads), refused,
+                     withdrawn)
 
 
 def aggregate_detection(runs: Sequence[Detection | None]) -> dict | None:
@@ -96,4 +100,4 @@ def aggregate_detection(runs: Sequence[Detection | None]) -> dict | None:
             "legs_walked": len(leads), "next_before_arrival": sum(1 for x in known if x > 0),
             "next_before_arrival_rate": r(sum(1 for x in known if x > 0) / len(leads)) if leads else None,
             "next_lead_median": r(float(np.median(known))) if known else None,
-            "refused": sum(len(d.refused) for d in dets)}
+            "refused": sum(len(d.refused) for d in dets), "withdrawn": sum(d.withdrawn for d in dets)}

@@ -149,6 +149,7 @@ class DispatchedController(Controller):
         self.refused = []
         self.detected: list[tuple[float, float, str, str, str]] = []  # (given at, estimated t, event, action, phase)
         self.detect_refused: list[str] = []
+        self.withdrawn = 0  # departures the detector gave and withdrew (undo)
         self.known: list[Happening] = []  # the person's own events, when a motion detector stands between
         self._shadow: tuple[Any, int, Any] = (None, -1, None)  # (decision, len(known), dispatcher the person reads)
         self._times: dict | None = None
@@ -186,6 +187,11 @@ class DispatchedController(Controller):
         self.latencies.append(time.perf_counter() - t0)
         self.detect_refused += refused
         for ev, _ in given:
+            if ev.event == "undo":  # the last event given (a departure for the wrong place) withdrawn
+                self.withdrawn += 1
+                if self.detected:
+                    self.detected.pop()
+                continue
             self.detected.append((round(now, 3), ev.t, ev.event, ev.action, ev.phase))
         if given:
             self._after(self.d.decision)

@@ -732,7 +732,7 @@ class _Run(Standoffs):
         assert isinstance(self.ctl, DispatchedController)
         truth = [(h.t, h.event, h.action or "", h.phase or "") for h in self.happenings
                  if h.agent == self.h.id and h.action is not None and h.event in _DETECTED]
-        return detection_of(truth, self.ctl.detected, tuple(self.ctl.detect_refused))
+        return detection_of(truth, self.ctl.detected, tuple(self.ctl.detect_refused), self.ctl.withdrawn)
 
     def _constraints_met(self) -> bool:
         """The task's temporal constraints, on the times of the events whoever did them."""
