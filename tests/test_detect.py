@@ -145,9 +145,10 @@ def test_a_person_walks_to_a_shelf_picks_walks_on_and_waits_for_the_robot_at_the
     robot_end = tr.t + walk + 2.0  # the person reaches the table 2 s before the robot has put cube 2
     tr.leg("cube3", "put", "S3", "T", work=3.0, wait=2.0)
     tr.stand(1.0)
+    put = robot_end - 4.5
     robot = [(0.5, "depart", "cube2", "fetch"), (15.0, "arrive", "cube2", "fetch"), (15.0, "start", "cube2", "fetch"),
-             (20.0, "end", "cube2", "fetch"), (20.0, "depart", "cube2", "put"), (robot_end - 4.5, "arrive", "cube2", "put"),
-             (robot_end - 4.5, "start", "cube2", "put"), (robot_end, "end", "cube2", "put")]
+             (20.0, "end", "cube2", "fetch"), (20.0, "depart", "cube2", "put"), (put, "arrive", "cube2", "put"),
+             (put, "start", "cube2", "put"), (robot_end, "end", "cube2", "put")]
     d = detector(workshop)
     given = run(d, tr.samples, robot)
     cube3_put_start = next(t for t, e, a, p in tr.truth if (e, a, p) == ("start", "cube3", "put"))

@@ -94,8 +94,8 @@ class Track:
     has left and when (while their destination is unsure); `prior`: where the best plan had them go next
     while they worked (what the console showed them; the plan may change once their end is known);
     `last`: the time of the last event given out (events never go back in time) and `given_at` the time
-    of the position with which it was given (for the record); `stuck`: the time of a departure already withdrawn once (or
-    whose withdrawal was refused: it is not tried again); the `belief`."""
+    of the position with which it was given (for the record); `stuck`: the time of a departure already
+    withdrawn once (or whose withdrawal was refused: it is not tried again); the `belief`."""
 
     samples: tuple[tuple[float, float, float], ...] = ()
     left: tuple[str, float] | None = None
