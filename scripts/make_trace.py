@@ -24,10 +24,11 @@ from hrc.sim.policies import DispatchedController, Policy
 from hrc.sim.run import SimContext, SimSettings, make_controller, simulate_run
 
 
-def record(task_file: str, run: int, seed: int,
+def record(cps: Any, run: int, seed: int,
            sensor: SensorModel) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    task = load_task(task_file)
-    cps = compile_task(task, seed=0, jobs=1)
+    """Run `run` of a simulation of the compiled plan set `cps` (seed `seed`): the stream a tracker and
+    the robot's controller send, and the person's true leg events."""
+    task = cps.task
     ctx = SimContext(task, {"motion": cps}, SimSettings(detector="motion", sensor=sensor), seed)
     stream: list[dict[str, Any]] = []
     human = next(a.id for a in task.agents if a.is_human)
@@ -69,7 +70,8 @@ def main() -> None:
     p.add_argument("--dropout", type=float, default=0.0)
     p.add_argument("--latency", type=float, default=0.0)
     a = p.parse_args()
-    stream, truth = record(a.task, a.run, a.seed, SensorModel(a.sigma, a.rate, a.dropout, a.latency))
+    cps = compile_task(load_task(a.task), seed=0, jobs=1)
+    stream, truth = record(cps, a.run, a.seed, SensorModel(a.sigma, a.rate, a.dropout, a.latency))
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out / "trace.jsonl", "".join(json.dumps(x) + "\n" for x in stream))

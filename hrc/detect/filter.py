@@ -224,7 +224,7 @@ def _start_time(model: DetectorModel, sit: Situation, leg: Leg, arrived: float) 
     """When the person starts `leg` after arriving at `arrived`: at once, or when the task graph lets them,
     or when the dispatcher's hint asks them to (None: not yet known: a predecessor has not ended, or the
     hint tells them to wait for the robot)."""
-    ready = sit.ready.get(leg, 0.0)
+    ready = sit.ready(leg)
     if ready is None:
         return None
     t = max(arrived, ready)
@@ -243,7 +243,7 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         return replace(track, belief=Belief("idle")), []
     t = track.samples[-1][0]
     if 0 < track.last < sit.since:  # the dispatcher pinned the last event later (its clock moved on): ours
-        sit = replace(sit, since=track.last)
+        sit = sit.with_since(track.last)
     x, y, n = _recent(model, track)
     here, gone = _radii(model, n)
     leg = sit.leg
@@ -251,7 +251,7 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         place = model.place[leg]
         dist = math.hypot(x - model.xy[place][0], y - model.xy[place][1])
         if sit.last in ("depart", "park", "unpark"):  # walking to the leg's place
-            if dist <= here and (*leg, "arrive") in sit.options:
+            if dist <= here and sit.allows(*leg, "arrive"):
                 arrived = _arrived_at(model, track, sit.since)
                 if arrived <= t - _STANDING:  # standing, not still coming
                     return track, [Detected(_at(arrived, track, sit), "arrive", *leg)]
@@ -261,12 +261,12 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
             return replace(track, belief=Belief("walk", *leg, 1.0, leg[0], 1.0)), []
         if sit.last == "arrive":  # at the place, not started
             start = _start_time(model, sit, leg, sit.since)
-            if start is not None and start <= t and (*leg, "start") in sit.options:
+            if start is not None and start <= t and sit.allows(*leg, "start"):
                 return track, [Detected(_at(start, track, sit), "start", *leg)]
             if dist > gone and track.left is None:  # left without starting: it started and ended meanwhile
                 lb, _ = model.durations.get(leg, (0.0, 0.0))
                 left = _left_at(model, track, place, sit.since)
-                if left - sit.since >= lb and (*leg, "start") in sit.options:
+                if left - sit.since >= lb and sit.allows(*leg, "start"):
                     return track, [Detected(_at(sit.since, track, sit), "start", *leg)]
             return replace(track, belief=Belief("wait", *leg, 1.0)), []
         # working
@@ -282,12 +282,11 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
             left = track.left[1]
             # as they ended; unless they left when the plan told them to (a person who follows the plan
             # waits for it, and before it knows the end it says: at the bound), or well past the bound
-            waited = sit.planned is not None and abs(left - sit.planned) <= _late(model)
-            end = sit.start + model.mid(leg) if waited or left - sit.start > ub + _late(model) else left
+            end = sit.start + model.mid(leg) if left - sit.start > ub + _late(model) else left
             end = min(end, left)
             return track, [Detected(_at(end, track, sit), "end", *leg)]
         best = sit.futures[0] if sit.futures else None  # the dispatcher's best plan's
-        going_on = best is not None and len(best.legs) > 1 and sit.ready.get(best.legs[0]) is not None
+        going_on = best is not None and len(best.legs) > 1 and sit.ready(best.legs[0]) is not None
         if t - sit.start >= ub + _late(model) and dist <= here and not going_on:
             # past its bound: over, at a time position cannot tell (unless the best plan has the person go
             # on here with work that is ready: then the walk away times them all)
@@ -303,7 +302,7 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
     place = sit.place
     px, py = model.xy[place]
     dist = math.hypot(x - px, y - py)
-    futures = [f for f in sit.futures if (*f.legs[0], "depart") in sit.options]
+    futures = [f for f in sit.futures if sit.allows(*f.legs[0], "depart")]
     if track.left is None or track.left[0] != place:
         if dist <= gone:
             track = replace(track, left=None)
@@ -391,7 +390,7 @@ def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: fl
         belief = Belief("work", *working) if working else Belief("idle")
         return replace(track, left=None, belief=belief), []
     futures = sit.futures if working is not None else \
-        [f for f in sit.futures if (*f.legs[0], "depart") in sit.options]
+        [f for f in sit.futures if sit.allows(*f.legs[0], "depart")]
     moving = [f for f in futures if f.destination is not None]
     if not moving:  # every leg left is here: leaving, the person is through with them
         if not futures:
