@@ -68,7 +68,7 @@ class DetectorModel:
     """A task as the detector reads it: the person (`human`, their `speed` in m/s and `slack`: their
     walks take between 1 and `slack` times the time at full speed), every location's point (`xy`) and
     walking distance field (`geo`), and each (action, phase) the person may do with its duration bounds
-    (`durations`, s) and location (`place`)."""
+    (`durations`, s) and location (`place`); `phases`: each action's phases in order."""
 
     task: Task
     human: str
@@ -79,6 +79,7 @@ class DetectorModel:
     durations: Mapping[tuple[str, str], tuple[float, float]]
     place: Mapping[tuple[str, str], str]
     params: DetectParams
+    phases: Mapping[str, tuple[str, ...]]
 
     def distance(self, location: str, x: float, y: float) -> float:
         """Walking distance (m) from (x, y) to `location`."""
@@ -105,6 +106,7 @@ def detector_model(task: Task, params: DetectParams | None = None) -> DetectorMo
                 d = phase.duration(human.id)
                 durations[(action.id, phase.id)] = (float(d.lb), float(d.ub))
     xy = {loc.id: (float(loc.x), float(loc.y)) for loc in task.workspace.locations}
+    phases = {a.id: tuple(p.id for p in a.phases) for a in task.actions}
     return DetectorModel(task, human.id, float(human.speed), float(human.travel_slack), geo,
                          MappingProxyType(xy), MappingProxyType(durations), MappingProxyType(place),
-                         params or DetectParams())
+                         params or DetectParams(), MappingProxyType(phases))

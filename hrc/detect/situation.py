@@ -131,13 +131,15 @@ class Situation:
         if width <= 0:
             return ()
         rows = np.asarray(form.seq[plans, g, k:k + width])
+        phases = model.phases
+        skip = len(self._legs) - sum(len(phases[a]) for a in seen[:k])  # legs of the first action begun
         uniq, first = np.unique(rows, axis=0, return_index=True)
         best = int(np.searchsorted(plans, d.best_index)) if d.best_index >= 0 else -1
         out: dict[tuple[Leg, ...], Future] = {}
         for u in np.argsort(first, kind="stable").tolist():
             actions = [task.action_ids[int(a)] for a in uniq[u] if a >= 0]
-            plan_legs = [(a, p.id) for a in actions for p in task.action(a).phases]
-            rest = plan_legs[len(self._legs) - sum(len(task.action(a).phases) for a in seen[:k]):]
+            plan_legs = [(a, p) for a in actions for p in phases[a]]
+            rest = plan_legs[skip:]
             chosen: list[Leg] = []
             destination: str | None = None
             for leg in rest:
@@ -157,9 +159,8 @@ class Situation:
 
     def _unfinished(self, action: str) -> bool:
         """Whether the person has legs of `action` still to do (or under way)."""
-        phases = [p.id for p in self._model.task.action(action).phases]
         done = [leg for leg in self._legs if leg[0] == action and leg != self.leg]
-        return len(done) < len(phases)
+        return len(done) < len(self._model.phases[action])
 
 
 def situation(model: DetectorModel, d: Dispatcher) -> Situation:
