@@ -48,11 +48,11 @@ def detection_figure(task: Task, samples: Sequence[Sample], beliefs: Sequence[Be
         if (a, p) not in legs:
             legs.append((a, p))
     row = {leg: k for k, leg in enumerate(legs)}
-    for (t0, doing, a, p, prob), nxt in zip(beliefs, [*beliefs[1:], None], strict=True):
-        if a is None or p is None or (a, p) not in row or doing not in _DOING:
+    for (t0, doing, action, phase, prob), nxt in zip(beliefs, [*beliefs[1:], None], strict=True):
+        if action is None or phase is None or (action, phase) not in row or doing not in _DOING:
             continue
         t1 = nxt[0] if nxt is not None else t0
-        y = row[(a, p)]
+        y = row[(action, phase)]
         tl.fill_between([t0, t1], y - 0.4 * prob, y + 0.4 * prob, color=_DOING[doing], linewidth=0, zorder=1)
     for t, event, a, p in truth:
         if (a, p) in row and event in _MARK:
