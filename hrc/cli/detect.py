@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_detect_options", "add_parser", "detect_params", "run"]
 
 
 def _nonneg(text: str) -> float:
