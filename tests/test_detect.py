@@ -16,7 +16,7 @@ from conftest import ROOT
 from hrc.compile.compiler import compile_task
 from hrc.detect import DetectingDispatcher, DetectParams, detector_model
 from hrc.detect.field import geodesic_map
-from hrc.detect.filter import hinge
+from hrc.detect.filter import hinge, split
 from hrc.detect.sensor import Sensor, SensorModel
 from hrc.dispatch import Observation
 from hrc.errors import DetectError, DispatchError
@@ -313,6 +313,16 @@ def test_the_hinge_finds_a_departure_and_an_arrival_in_noise():
     assert hinge(ts, xs, ys, True, 0.0, 4.0, (0.8, 1.3)) == pytest.approx(1.5, abs=0.2)
     xs = 2.0 + 1.1 * np.maximum(0.0, 2.5 - ts) + rng.normal(0, 0.1, len(ts))
     assert hinge(ts, xs, ys, False, 0.0, 4.5, (0.8, 1.3)) == pytest.approx(2.5, abs=0.2)
+
+
+def test_a_stay_is_split_among_legs_at_one_place_by_their_bounds(one_place):
+    model = detector_model(one_place.task)
+    legs = [("part", "put"), ("check", "look")]  # 2-4 s and 4-6 s: the same width
+    assert split(model, legs, 8.0) == pytest.approx([3.0, 5.0])  # the middles
+    assert split(model, legs, 9.0) == pytest.approx([3.5, 5.5])  # the excess shared by their variances
+    longer = split(model, [("part", "fetch"), ("check", "look")], 13.0)  # far past both upper bounds
+    assert sum(longer) == pytest.approx(13.0) and longer[1] > longer[0]
+    assert split(model, [], 3.0) == []
 
 
 @pytest.mark.parametrize("bad", [dict(sigma=-0.1), dict(commit=1.0), dict(commit=0.3), dict(beta=math.inf),

@@ -38,8 +38,8 @@ class DetectParams:
     back is no departure), unless only one place is possible or they stopped at one."""
 
     sigma: float = 0.05
-    stand: float = 0.15
-    smooth: float = 0.3
+    stand: float = 0.10
+    smooth: float = 0.2
     window: float = 4.0
     commit: float = 0.9
     beta: float = 5.0
