@@ -170,6 +170,9 @@ def test_the_console_takes_positions_from_the_robot_stream_and_shows_the_belief(
         beliefs.add(state["belief"]["doing"])
     assert session.finished
     assert {"walk", "work"} <= beliefs
+    now[0] += 1.0
+    same = session.robot_message({"t": now[0] - 0.5, "agent": "human", "event": "position", "x": 1.0, "y": 1.0})
+    assert same["ok"], same  # the dispatcher protocol's shape is taken too
     session.logged.close()
     replayed = subprocess.run([*HRC, "dispatch", str(folder), "--detect", "motion", "--sensor-sigma", "0.15",
                                "--replay", str(tmp_path / "console.jsonl")], capture_output=True, text=True,

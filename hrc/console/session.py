@@ -184,8 +184,8 @@ class ConsoleSession:
         msg = parse(text)
         if isinstance(msg, str):
             return Reply.error(msg)
-        if msg.get("type") == "position":
-            return self.position_message(msg)
+        if msg.get("type") == "position" or ("type" not in msg and msg.get("event") == "position"):
+            return self.position_message(msg)  # the console's shape, or the dispatcher protocol's
         if msg.get("type") != "ack":
             return Reply.error(f"unknown message type {msg.get('type')!r} (the robot sends only ack)")
         fields = {k: msg.get(k) for k in ("action", "phase", "event")}
@@ -200,15 +200,18 @@ class ConsoleSession:
         return self._submit({"t": round(float(t), 3), "agent": "robot", **fields}, source)
 
     def position_message(self, msg: Mapping[str, Any]) -> Reply:
-        """The person's tracked position ``{"type": "position", "x", "y"[, "t"]}`` (metres in the map's
-        frame; ``t``: run seconds when it was measured, not in the future; default now), for the motion
-        detector in front of the dispatcher (docs/detect.md); refused when the console was started without
+        """The person's tracked position ``{"type": "position", "x", "y"[, "t"]}``, or the dispatcher
+        protocol's ``{"t", "agent": "human", "event": "position", "x", "y"}`` (metres in the map's frame;
+        ``t``: run seconds when it was measured, not in the future; default now), for the motion detector
+        in front of the dispatcher (docs/detect.md); refused when the console was started without
         ``--detect motion``."""
         if getattr(self.dispatcher, "answer_position", None) is None:
             return Reply.error("refused: a position needs the motion detector (hrc console --detect motion)")
-        unknown = sorted(set(msg) - {"type", "id", "t", "x", "y"})
+        unknown = sorted(set(msg) - {"type", "id", "t", "x", "y", "agent", "event"})
         if unknown:
             return Reply.error(f"malformed position: unknown key {unknown[0][:40]!r} (keys: type, id, t, x, y)")
+        if msg.get("agent", "human") != "human":
+            return Reply.error("malformed position: a position is the human's")
         now = self.now()
         t = msg.get("t", now)
         values = {"t": t, "x": msg.get("x"), "y": msg.get("y")}
