@@ -287,11 +287,10 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
                 track = replace(track, left=(place, _left_at(model, track, place, sit.start)),
                                 prior=_next_place(sit))
             assert track.left is not None
-            if any(len(f.legs) > 1 for f in sit.futures):  # legs here first in some plan: which, says the walk
-                return _leaving(model, track, sit, x, y, here, leg)
             left = track.left[1]
-            # as they ended; unless they left when the plan told them to (a person who follows the plan
-            # waits for it, and before it knows the end it says: at the bound), or well past the bound
+            if any(len(f.legs) > 1 and _could_stay(model, leg, f, left - sit.start) for f in sit.futures):
+                return _leaving(model, track, sit, x, y, here, leg)  # legs here first in some plan: the walk says
+            # as they ended (no plan has them do more here in the time they stayed), unless well past the bound
             end = sit.start + model.mid(leg) if left - sit.start > ub + _late(model) else left
             end = min(end, left)
             return track, [Detected(_at(end, track, sit), "end", *leg)]
@@ -401,6 +400,13 @@ def split(model: DetectorModel, legs: Sequence[Leg], total: float) -> list[float
     clipped = [min(max(x, a), b) for x, a, b in zip(out, lo, hi, strict=True)]
     rest = total - sum(clipped)  # what the bounds could not take: shared by them all, as they are
     return [x + rest * (x / sum(clipped) if sum(clipped) > 0 else 1 / len(legs)) for x in clipped]
+
+
+def _could_stay(model: DetectorModel, working: Leg, future: Future, stay: float) -> bool:
+    """Whether the person could have done `working` and `future`'s legs at this place in `stay` seconds
+    (the sum of their lower bounds fits)."""
+    legs = [working, *(future.legs[:-1] if future.destination is not None else future.legs)]
+    return sum(model.durations.get(leg, (0.0, 0.0))[0] for leg in legs) <= stay + _late(model)
 
 
 def _next_place(sit: Situation) -> str | None:
