@@ -15,8 +15,9 @@ from conftest import ROOT
 
 from hrc.compile.compiler import compile_task
 from hrc.detect import DetectingDispatcher, DetectParams, detector_model
+from hrc.detect.changepoint import hinge
 from hrc.detect.field import geodesic_map
-from hrc.detect.filter import hinge, split
+from hrc.detect.filter import split
 from hrc.detect.sensor import Sensor, SensorModel
 from hrc.dispatch import Observation
 from hrc.errors import DetectError, DispatchError

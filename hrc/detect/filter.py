@@ -16,8 +16,8 @@ legs), or walking to one of the places the remaining plans send them next. Two p
 - **when**: change points on the positions kept (`DetectParams.window`). The person left a place when
   the average of the last `smooth` seconds of positions lies farther from it than the noise allows, and
   arrived when it lies within it; the time is the break point of a hinge fitted by least squares to the
-  distances (standing, then walking at a constant pace: `hinge`), so a departure or arrival is given out
-  with the time it happened, not the time it was seen.
+  positions (standing, then walking at a constant pace: `hrc.detect.changepoint`), so a departure or
+  arrival is given out with the time it happened, not the time it was seen.
 
 What position cannot tell is taken from the plans: a start is given at the arrival, or when the task
 graph (the end of a predecessor) or the dispatcher's hint to the person lets it, whichever is later; an
@@ -41,10 +41,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .changepoint import arrived_at, left_at
 from .model import DetectorModel
 from .situation import Future, Situation
 
-__all__ = ["Belief", "Detected", "Track", "decide", "hinge", "ingest", "split"]
+__all__ = ["Belief", "Detected", "Track", "decide", "ingest", "split"]
 
 Leg = tuple[str, str]
 
@@ -143,84 +144,7 @@ def _radii(model: DetectorModel, n: int) -> tuple[float, float]:
     return here, here + noise
 
 
-def hinge(ts: np.ndarray, xs: np.ndarray, ys: np.ndarray, rising: bool, lo: float, hi: float,
-          pace: tuple[float, float]) -> float:
-    """The break point t0 of the hinge best fitted (least squares) to positions (xs, ys) at times `ts`:
-    ``p = c + w * max(0, t - t0)`` when `rising` (standing at c, then walking off at velocity w: a
-    departure at t0), ``p = c + w * max(0, t0 - t)`` otherwise (walking in, then standing at c: an
-    arrival), with the speed ``|w|`` within `pace` (m/s: a walker's); t0 searched in [lo, hi] on a 100 ms
-    grid, then on a 20 ms one around the best. Fitted on the positions themselves, not on distances
-    (whose noise is biased away from zero),
-    so the noise does not shift it. O(n k) for n positions and k grid points.
-
-    >>> ts = np.arange(0.0, 3.0, 0.1)
-    >>> xs = 2.0 + 1.2 * np.maximum(0.0, ts - 1.0)
-    >>> round(hinge(ts, xs, np.zeros_like(ts), True, 0.0, 3.0, (0.8, 1.3)), 2)
-    1.0
-    """
-    if hi <= lo or len(ts) < 3:
-        return hi
-    coarse = _hinge_best(ts, xs, ys, rising, np.arange(lo, hi + 1e-9, 0.1), pace)  # then 20 ms around it
-    return _hinge_best(ts, xs, ys, rising, np.arange(max(lo, coarse - 0.12), min(hi, coarse + 0.12) + 1e-9, 0.02),
-                       pace)
-
-
-def _hinge_best(ts: np.ndarray, xs: np.ndarray, ys: np.ndarray, rising: bool, grid: np.ndarray,
-                pace: tuple[float, float]) -> float:
-    """The grid point whose hinge fits best (see `hinge`)."""
-    h = np.maximum(0.0, ts[None, :] - grid[:, None]) if rising else np.maximum(0.0, grid[:, None] - ts[None, :])
-    n = len(ts)
-    sh = h.sum(axis=1)
-    shh = (h * h).sum(axis=1)
-    det = n * shh - sh * sh
-    ok = det > 1e-12
-    safe = np.where(ok, det, 1.0)
-    w = np.stack([np.where(ok, (n * (h @ z) - sh * z.sum()) / safe, 0.0) for z in (xs, ys)], axis=1)
-    speed = np.hypot(w[:, 0], w[:, 1])
-    want = np.clip(speed, pace[0], pace[1])
-    w *= np.where(speed > 1e-9, want / np.where(speed > 1e-9, speed, 1.0), 0.0)[:, None]
-    fix = speed <= 1e-9  # no direction to scale: walk along the line from the first to the last position
-    if fix.any():
-        d = np.array([xs[-1] - xs[0], ys[-1] - ys[0]]) * (1 if rising else -1)
-        w[fix] = d / max(float(np.hypot(*d)), 1e-9) * pace[0]
-    resid = np.zeros(len(grid))
-    for k, z in enumerate((xs, ys)):
-        c = (z.sum() - w[:, k] * sh) / n
-        resid += ((z[None, :] - c[:, None] - w[:, k][:, None] * h) ** 2).sum(axis=1)
-    return float(grid[int(np.argmin(resid))])
-
-
-def _pace(model: DetectorModel) -> tuple[float, float]:
-    """The walking paces (m/s) the hinges allow: the person's speed over their slack, to their speed (a
-    little beyond both: a real walker speeds up and slows down)."""
-    return 0.8 * model.speed / model.slack, 1.1 * model.speed
-
-
-def _fit_rows(track: Track, since: float, span: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    t = track.samples[-1][0]
-    rows = [s for s in track.samples if s[0] >= max(since, t - span)]
-    return np.array([s[0] for s in rows]), np.array([s[1] for s in rows]), np.array([s[2] for s in rows])
-
-
-_SPAN = 2.5  # s of positions a change-point fit reads: the walk near a place is about straight
 _STANDING = 0.1  # s: an arrival is taken once its hinge lies this far before the last position
-
-
-def _left_at(model: DetectorModel, track: Track, place: str, since: float) -> float:
-    """When the person left `place` (a departure hinge on the positions since `since`)."""
-    ts, xs, ys = _fit_rows(track, since, _SPAN)
-    t = track.samples[-1][0]
-    lo = max(since, t - _SPAN)
-    return min(max(hinge(ts, xs, ys, True, lo, t, _pace(model)), since), t)
-
-
-def _arrived_at(model: DetectorModel, track: Track, since: float) -> float:
-    """When the person stopped (an arrival hinge on the positions since `since`); later than the last
-    position when they are still coming."""
-    ts, xs, ys = _fit_rows(track, since, _SPAN)
-    t = track.samples[-1][0]
-    lo = max(since, t - _SPAN)
-    return max(hinge(ts, xs, ys, False, lo, t + 0.5, _pace(model)), since)
 
 
 def _at(t: float, track: Track, sit: Situation) -> float:
@@ -262,7 +186,7 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         dist = math.hypot(x - model.xy[place][0], y - model.xy[place][1])
         if sit.last in ("depart", "park", "unpark"):  # walking to the leg's place
             if dist <= here and sit.allows(*leg, "arrive"):
-                arrived = _arrived_at(model, track, sit.since)
+                arrived = arrived_at(model, track.samples, sit.since)
                 if arrived <= t - _STANDING:  # standing, not still coming
                     return track, [Detected(_at(arrived, track, sit), "arrive", *leg)]
             wrong = _wrong_way(model, track, sit, place, x, y, here)
@@ -275,7 +199,7 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
                 return track, [Detected(_at(start, track, sit), "start", *leg)]
             if dist > gone and track.left is None:  # left without starting: it started and ended meanwhile
                 lb, _ = model.durations.get(leg, (0.0, 0.0))
-                left = _left_at(model, track, place, sit.since)
+                left = left_at(model, track.samples, place, sit.since)
                 if left - sit.since >= lb and sit.allows(*leg, "start"):
                     return track, [Detected(_at(sit.since, track, sit), "start", *leg)]
             return replace(track, belief=Belief("wait", *leg, 1.0)), []
@@ -284,7 +208,7 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         lb, ub = model.durations.get(leg, (0.0, 0.0))
         if dist > gone or (track.left is not None and track.left[0] == place):
             if track.left is None or track.left[0] != place:
-                track = replace(track, left=(place, _left_at(model, track, place, sit.start)),
+                track = replace(track, left=(place, left_at(model, track.samples, place, sit.start)),
                                 prior=_next_place(sit))
             assert track.left is not None
             left = track.left[1]
@@ -324,7 +248,7 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
                     return track, [Detected(at, "depart", *first), Detected(at, "arrive", *first),
                                    Detected(at, "start", *first)]
             return replace(track, belief=Belief("idle")), []
-        track = replace(track, left=(place, _left_at(model, track, place, sit.since)),
+        track = replace(track, left=(place, left_at(model, track.samples, place, sit.since)),
                         prior=track.prior or _next_place(sit))
     elif dist <= here:  # back where they were: no walk after all
         return replace(track, left=None, prior=None, belief=Belief("idle")), []
@@ -356,7 +280,7 @@ def _stopped_at(model: DetectorModel, track: Track, dests: list[str], x: float, 
     t = track.samples[-1][0]
     for g in dests:
         gx, gy = model.xy[g]
-        if math.hypot(x - gx, y - gy) <= here and _arrived_at(model, track, since) <= t - _STANDING:
+        if math.hypot(x - gx, y - gy) <= here and arrived_at(model, track.samples, since) <= t - _STANDING:
             return g
     return None
 
@@ -375,7 +299,7 @@ def _wrong_way(model: DetectorModel, track: Track, sit: Situation, goal: str, x:
     t = track.samples[-1][0]
     for loc in sorted(set(model.place.values()) - {goal, sit.place}):
         lx, ly = model.xy[loc]
-        if math.hypot(x - lx, y - ly) <= here and _arrived_at(model, track, sit.since) <= t - _WRONG:
+        if math.hypot(x - lx, y - ly) <= here and arrived_at(model, track.samples, sit.since) <= t - _WRONG:
             track = replace(track, left=(sit.place, sit.since), prior=None, stuck=sit.since)
             return track, [Detected(round(t, 3), "undo", "", "")]
     return None
