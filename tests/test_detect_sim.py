@@ -37,6 +37,8 @@ def test_matching_counts_each_true_event_once_within_a_second():
     assert (d.truth, d.given, d.matched) == (4, 5, 3)  # the start is 1.2 s off; the second end is extra
     assert sorted(d.delays) == [0.2, 0.3, 0.5]
     assert d.leads == (3.5,)  # the walk's departure was given 3.5 s before the arrival
+    late = detection_of(truth, [(5.6, 1.1, "depart", "a", "p"), *given[1:]])  # named only once they stood there
+    assert late.leads == (-0.6,) and late.to_json()["next_before_arrival"] == 0
 
 
 def test_a_few_simulated_runs_with_the_motion_detector(workshop):
