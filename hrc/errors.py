@@ -12,6 +12,7 @@ and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit stat
     ├── UnreachableLocationError   no collision-free path between two locations
     ├── ExecutorError              a parallel or distributed executor failed or cannot be reached
     ├── SimulationError            a simulation asked for something impossible (bad model parameter, policy)
+    ├── DetectError                a human action detector's parameter is impossible (hrc.detect)
     ├── ApaError                   an STPP built wrong through the API, or its QP could not be solved
     ├── LogWriteError              a dispatcher's log could not be written or synced (the message was refused)
     └── DispatchError              a dispatcher (hrc.dispatch, or APA's) refused a message (it changed nothing)
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 __all__ = [
     "ApaError",
+    "DetectError",
     "DispatchError",
     "ExecutorError",
     "HrcError",
@@ -85,6 +87,10 @@ class SimulationError(HrcError):
 
 class StppFileError(InputError):
     """An STPP JSON file (APA, docs/apa.md) is malformed or inconsistent."""
+
+
+class DetectError(HrcError):
+    """A parameter of the human action detector or of its sensor model is impossible (`hrc.detect`)."""
 
 
 class ApaError(HrcError):

@@ -29,6 +29,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compile": ("hrc.cli.compile", "compile a task into its ranked set of HRC schedules (STNUs)"),
     "apa": ("hrc.cli.apa", "compile an STPP (JSON) into its dispatchably optimal form (APA)"),
     "dispatch": ("hrc.cli.dispatch", "dispatch a compiled plan set online (JSON lines in and out)"),
+    "detect": ("hrc.cli.detect", "the human action detector: the person's tracked positions in, observations out"),
     "console": ("hrc.cli.console", "serve the operator console: the person's buttons, the engineer's live view"),
     "simulate": ("hrc.cli.simulate", "simulate a person and the robot doing a task, many times; compare policies"),
     "ros2": ("hrc.cli.ros2", "serve the dispatcher as a ROS 2 node (topics in, answers and Nav2 goals out)"),

@@ -14,6 +14,7 @@ import argparse
 import sys
 from typing import Any
 
+from hrc.cli.detect import add_detect_options, detect_params
 from hrc.errors import HrcError
 
 __all__ = ["add_parser", "run"]
@@ -69,6 +70,10 @@ def add_parser(sub: Any) -> None:
                    help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
     p.add_argument("--allow-partial", action="store_true",
                    help="serve a partial compile output (an interrupted compile: not every plan is in it)")
+    p.add_argument("--detect", choices=("buttons", "motion"), default="buttons",
+                   help="motion: the robot endpoint also takes the person's tracked position and the detector "
+                        "reports their events (docs/detect.md)")
+    add_detect_options(p)
     p.add_argument("--token-file", metavar="FILE",
                    help="the page's secret: read from FILE, or a new one written there (mode 0600)")
     p.add_argument("--robot-token-file", metavar="FILE",
@@ -84,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: hrc console: --host {args.host} is not this machine's loopback: other machines could "
               "reach the console (over plain HTTP); add --allow-remote if that is meant", file=sys.stderr)
         return 2
+    if args.sensor_sigma is not None and args.detect != "motion":
+        print("error: hrc console: --sensor-sigma needs --detect motion", file=sys.stderr)
+        return 2
     if args.resume and args.log:
         print("error: hrc console: --resume and --log cannot be used together", file=sys.stderr)
         return 2
@@ -95,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
     server = open_console(args.out_dir, speed=args.speed, log=args.log, simulate_robot=args.simulate_robot,
                           tick=args.tick, credentials=Credentials(page, robot), resume=args.resume,
                           allow_partial=args.allow_partial, record=args.record,
+                          detect=detect_params(args) if args.detect == "motion" else None,
                           report=lambda text: print(f"hrc console: {text}", file=sys.stderr, flush=True))
     if not is_loopback(args.host):
         print(f"hrc console: warning: listening on {args.host}: reachable from other machines, and the "

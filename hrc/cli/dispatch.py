@@ -16,6 +16,7 @@ import argparse
 import sys
 from typing import Any
 
+from hrc.cli.detect import add_detect_options, detect_params
 from hrc.errors import HrcError
 
 
@@ -34,6 +35,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="dispatch a partial compile output (an interrupted compile: not every plan is in it)")
     p.add_argument("--feasible-only", action="store_true",
                    help="drop plans that are neither DC nor consistent; stop when none is left")
+    p.add_argument("--detect", choices=("buttons", "motion"), default="buttons",
+                   help="motion: also take the person's tracked position ({\"t\", \"agent\": \"human\", \"event\": "
+                        "\"position\", \"x\", \"y\"}) and detect their events from it (docs/detect.md)")
+    add_detect_options(p)
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
                    help="do not narrow the robot's windows to APA's optimal (DO) windows where the task has "
                         "preferences")
@@ -47,8 +52,17 @@ def run(args: argparse.Namespace) -> int:
     if len(given) > 1:
         print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
         return 2
-    dispatcher = Dispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial,
-                                         feasible_only=args.feasible_only, use_preferences=args.preferences)
+    options = dict(allow_partial=args.allow_partial, feasible_only=args.feasible_only,
+                   use_preferences=args.preferences)
+    if args.detect == "motion":
+        from hrc.detect import DetectingDispatcher
+
+        dispatcher: Dispatcher = DetectingDispatcher.from_folder(args.out_dir, params=detect_params(args), **options)
+    else:
+        if args.sensor_sigma is not None:
+            print("error: hrc dispatch: --sensor-sigma needs --detect motion", file=sys.stderr)
+            return 2
+        dispatcher = Dispatcher.from_folder(args.out_dir, **options)
     recording = None
     if args.record:
         from hrc.record import open_folder_recording

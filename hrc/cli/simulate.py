@@ -22,7 +22,7 @@ from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
-__all__ = ["add_parser", "format_table", "run"]
+__all__ = ["add_parser", "format_detection", "format_table", "run"]
 
 POLICY_NAMES = ("hrc", "motion-blind", "feasible-only", "fixed")  # hrc.sim.policies.POLICIES, not imported here
 
@@ -53,7 +53,22 @@ def add_parser(sub: Any) -> None:
     g.add_argument("--leave-for-good-rate", type=float, default=0.0,
                    help="probability that an absence is for good")
     g = p.add_argument_group("the floor and the detector")
-    g.add_argument("--detection-delay", type=float, default=0.0, help="seconds before the detector reports")
+    g.add_argument("--detector", choices=("buttons", "motion"), default="buttons",
+                   help="buttons: the person's events reach the dispatcher (--detection-delay late); motion: their "
+                        "tracked position goes to the motion detector (hrc.detect), its events to the dispatcher")
+    g.add_argument("--detection-delay", type=float, default=0.0,
+                   help="seconds before the buttons' events are reported")
+    g.add_argument("--sensor-sigma", type=float, default=0.05, metavar="M",
+                   help="--detector motion: the tracker's position noise, m per axis (default 0.05)")
+    g.add_argument("--sensor-rate", type=float, default=10.0, metavar="HZ",
+                   help="--detector motion: positions per second (default 10)")
+    g.add_argument("--sensor-dropout", type=float, default=0.0, metavar="P",
+                   help="--detector motion: probability a position is lost (default 0)")
+    g.add_argument("--sensor-latency", type=float, default=0.0, metavar="S",
+                   help="--detector motion: seconds from measuring a position to delivering it (default 0)")
+    g.add_argument("--baseline-delay", type=float, default=None, metavar="S",
+                   help="--detector motion: the buttons' delay to compare with (default: the detector's median "
+                        "detection delay)")
     g.add_argument("--slowdown", type=float, default=0.0,
                    help="m beyond the safety margin in which the robot slows down (default 0: stops at it)")
     g.add_argument("--tick", type=float, default=0.0,
@@ -115,6 +130,33 @@ def format_table(sim: Any) -> str:
     return "\n".join([lines[0], "  ".join("-" * w for w in widths), *lines[1:]])
 
 
+def format_detection(sim: Any) -> str:
+    """With the motion detector: its measures per policy, and the comparison with buttons as late."""
+    from hrc.sim.metrics import aggregate
+    from hrc.sim.montecarlo import comparison
+
+    s = sim.context.settings.sensor
+    lines = [f"motion detector: sigma {s.sigma:g} m, {s.rate:g} Hz, {100 * s.dropout:g} % dropouts, "
+             f"{s.latency:g} s latency; events matched within 1 s"]
+    comp = comparison(sim)["policies"]
+    for name in sim.policies:
+        d = aggregate(sim.results[name]).get("detection")
+        if d is None:
+            continue
+        lines.append(f"  {name}: precision {d['precision']:.4f}, recall {d['recall']:.4f}, delay median "
+                     f"{d['delay_median']:.2f} s / p90 {d['delay_p90']:.2f} s, next action before arrival "
+                     f"{100 * (d['next_before_arrival_rate'] or 0):.1f} % of {d['legs_walked']} legs (median "
+                     f"{d['next_lead_median'] or 0:.1f} s ahead), refused {d['refused']}")
+        if name in comp:
+            m, b = comp[name]["motion"], comp[name]["buttons"]
+            lines.append(f"    vs buttons {sim.baseline_delay:g} s late: makespan median {m['makespan_median']} / "
+                         f"{b['makespan_median']} s, deadline met {m['deadline_met_rate']} / {b['deadline_met_rate']}, "
+                         f"closest {m['min_distance']} / {b['min_distance']} m, DC promise kept {m['promise_kept']} / "
+                         f"{b['promise_kept']} of {m['first_plan_dc']} / {b['first_plan_dc']}, unfinished "
+                         f"{m['unfinished']} / {b['unfinished']}")
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
     from hrc.sim.human import HumanModel
     from hrc.sim.montecarlo import simulate, simulation_json
@@ -134,17 +176,22 @@ def run(args: argparse.Namespace) -> int:
                         ("--tick", args.tick)):
         if not value >= 0:
             raise SimulationError(f"{name} must be a number >= 0, found {value:g}")
+    from hrc.detect.sensor import SensorModel
+
+    sensor = SensorModel(args.sensor_sigma, args.sensor_rate, args.sensor_dropout, args.sensor_latency)
+    if args.detector != "motion" and args.baseline_delay is not None:
+        raise SimulationError("--baseline-delay needs --detector motion")
     human = HumanModel(choice=args.human, preferred=tuple(a for a in args.prefer.split(",") if a),
                        durations=args.durations, overrun_rate=args.overrun_rate, overrun_max=args.overrun_max,
                        absence_rate=args.absence_rate, absence_seconds=tuple(args.absence_seconds),
                        leave_for_good_rate=args.leave_for_good_rate)
     settings = SimSettings(human=human, detection_delay=args.detection_delay, slowdown=args.slowdown,
-                           tick=args.tick)
+                           tick=args.tick, detector=args.detector, sensor=sensor)
     bar = _Progress(tty=sys.stderr.isatty(), quiet=args.quiet)
     t0 = time.perf_counter()
     try:
         sim = simulate(task, args.runs, args.seed, policies, settings, jobs=args.jobs, executor=args.executor,
-                       progress=bar, compile_seed=args.compile_seed)
+                       progress=bar, compile_seed=args.compile_seed, baseline=args.baseline_delay)
     finally:
         bar.close()
     elapsed = time.perf_counter() - t0
@@ -161,6 +208,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"simulated {args.runs} runs x {len(sim.policies)} policies of {task.name} in {elapsed:.1f} s "
               f"(seed {args.seed}, person: {human.choice})")
         print(format_table(sim))
+        if sim.baseline is not None:
+            print(format_detection(sim))
         print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/"))
     if args.record is not None:
         from hrc.record.sim import write_recordings

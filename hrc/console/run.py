@@ -64,10 +64,11 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
                  simulate_robot: bool = False, tick: float = 2.0, credentials: Credentials | None = None,
                  resume: str | os.PathLike[str] | None = None, allow_partial: bool = False,
                  report: Callable[[str], None] | None = None,
-                 record: str | os.PathLike[str] | None = None) -> ConsoleServer:
+                 record: str | os.PathLike[str] | None = None, detect: Any = None) -> ConsoleServer:
     """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
     ``OUT_DIR/runs/console-N.jsonl``), or the run logged at `resume` continued (its torn end, if any,
-    reported through `report`), `credentials` its secrets (default: new ones). The run's clock starts
+    reported through `report`), `credentials` its secrets (default: new ones); `detect`: the motion
+    detector's `hrc.detect.DetectParams` (None: buttons only). The run's clock starts
     when the first page or robot controller connects.
 
     Raises `InputError` when `out_dir` is not an ``hrc compile`` output (or a partial one, unless
@@ -77,7 +78,12 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     `record`: also record the run as MCAP into this new file (`hrc.record`; ``session.recording``, which
     the caller closes when the server has stopped).
     """
-    dispatcher = Dispatcher.from_folder(out_dir, allow_partial=allow_partial)
+    if detect is not None:  # the motion detector in front (`hrc.detect`): `detect` is its DetectParams
+        from hrc.detect import DetectingDispatcher
+
+        dispatcher = DetectingDispatcher.from_folder(out_dir, allow_partial=allow_partial, params=detect)
+    else:
+        dispatcher = Dispatcher.from_folder(out_dir, allow_partial=allow_partial)
     compiled = read_header(out_dir)
     routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
                         plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))

@@ -110,7 +110,8 @@ class ConsoleSession:
                 obs = {"raw": line[:200]}
             out = json.loads(message.answer)
             obs = obs if isinstance(obs, dict) else {"raw": line[:200]}
-            source = ("person" if obs.get("agent") == "human" or obs.get("event") == "undo"
+            source = ("tracker" if obs.get("event") == "position"
+                      else "person" if obs.get("agent") == "human" or obs.get("event") == "undo"
                       else "robot" if obs.get("agent") == "robot" else "clock")
             self._record(obs, out, source)
 
@@ -177,11 +178,15 @@ class ConsoleSession:
         """An acknowledgement ``{"type": "ack", "action", "phase", "event"[, "t"]}`` from the robot.
 
         ``t`` (run seconds, optional) is when the event happened; it may not lie in the future nor before
-        the dispatcher's last accepted message. Without it the event happened now.
+        the dispatcher's last accepted message. Without it the event happened now. With ``hrc console
+        --detect motion`` the same stream also takes the person's tracked position, ``{"type":
+        "position", "x", "y"[, "t"]}`` (`position_message`).
         """
         msg = parse(text)
         if isinstance(msg, str):
             return Reply.error(msg)
+        if msg.get("type") == "position" or ("type" not in msg and msg.get("event") == "position"):
+            return self.position_message(msg)  # the console's shape, or the dispatcher protocol's
         if msg.get("type") != "ack":
             return Reply.error(f"unknown message type {msg.get('type')!r} (the robot sends only ack)")
         fields = {k: msg.get(k) for k in ("action", "phase", "event")}
@@ -194,6 +199,31 @@ class ConsoleSession:
         if t > now:
             return Reply.error(f"refused: t = {t} lies in the future (the run's time is {now})")
         return self._submit({"t": round(float(t), 3), "agent": "robot", **fields}, source)
+
+    def position_message(self, msg: Mapping[str, Any]) -> Reply:
+        """The person's tracked position ``{"type": "position", "x", "y"[, "t"]}``, or the dispatcher
+        protocol's ``{"t", "agent": "human", "event": "position", "x", "y"}`` (metres in the map's frame;
+        ``t``: run seconds when it was measured, not in the future; default now), for the motion detector
+        in front of the dispatcher (docs/detect.md); refused when the console was started without
+        ``--detect motion``."""
+        if getattr(self.dispatcher, "answer_position", None) is None:
+            return Reply.error("refused: a position needs the motion detector (hrc console --detect motion)")
+        unknown = sorted(set(msg) - {"type", "id", "t", "x", "y", "agent", "event"})
+        if unknown:
+            return Reply.error(f"malformed position: unknown key {unknown[0][:40]!r} (keys: type, id, t, x, y)")
+        if msg.get("agent", "human") != "human":
+            return Reply.error("malformed position: a position is the human's")
+        now = self.now()
+        t = msg.get("t", now)
+        values = {"t": t, "x": msg.get("x"), "y": msg.get("y")}
+        for key, value in values.items():
+            if isinstance(value, bool) or not isinstance(value, int | float) or value != value \
+                    or value in (float("inf"), float("-inf")):
+                return Reply.error(f"malformed position: {key} must be a finite number")
+        if t > now:
+            return Reply.error(f"refused: t = {t} lies in the future (the run's time is {now})")
+        return self._submit({"t": round(float(t), 3), "agent": "human", "event": "position",
+                             "x": float(values["x"]), "y": float(values["y"])}, "tracker")
 
     def tick(self) -> Reply:
         """Tell the dispatcher that time passed with nothing seen."""
@@ -244,8 +274,17 @@ class ConsoleSession:
             "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now),
             "routes": self.routes.routes(plan),
             "log": list(self.entries), "log_total": self.total, "log_error": self.log_error,
-            "robot_link": self.robot_link, "where": self._where(),
+            "robot_link": self.robot_link, "where": self._where(), **self._tracked(),
         }
+
+    def _tracked(self) -> dict[str, Any]:
+        """With the motion detector: the person's last tracked position and the detector's belief."""
+        track = getattr(self.dispatcher, "track", None)
+        if track is None:
+            return {}
+        last = track.samples[-1] if track.samples else None
+        return {"tracked": None if last is None else {"t": last[0], "x": round(last[1], 3), "y": round(last[2], 3)},
+                "belief": track.belief.to_json()}
 
     def _where(self) -> dict[str, str]:
         """Each agent's last known location: its start, or where it last arrived or worked."""

@@ -153,6 +153,16 @@ class Dispatcher:
         st = self._state
         return st.plans[self.ranker.order(st.plans, st.cls, st.finish, st.idle)]
 
+    @property
+    def remaining(self) -> np.ndarray:
+        """The remaining plans' indices in the plan set, in compile rank order (not ranked: cheap; read-only,
+        for the human action detector, `hrc.detect`), and the best one's: `best_index` (-1: none)."""
+        return self._state.plans
+
+    @property
+    def best_index(self) -> int:
+        return self._state.best
+
     def _candidate(self, at: int) -> Candidate:
         st = self._state
         p = int(st.plans[at])

@@ -61,6 +61,8 @@ def handle_line(dispatcher: Dispatcher, line: str) -> str:
     except ValueError as err:
         return _refusal(None, f"not JSON: {err}")
     t = obj.get("t") if isinstance(obj, dict) else None
+    if isinstance(obj, dict) and obj.get("event") == "position":
+        return _position(dispatcher, obj, t)
     try:
         obs = observation_from_json(obj)
         now = dispatcher.now
@@ -73,6 +75,21 @@ def handle_line(dispatcher: Dispatcher, line: str) -> str:
     except Exception as err:  # noqa: BLE001 - a bug must not end a run; the state was not changed
         return _refusal(t, f"internal error ({type(err).__name__}: {err}); nothing changed")
     return _dumps(decision.to_json())
+
+
+def _position(dispatcher: Dispatcher, obj: dict[str, Any], t: Any) -> str:
+    """A tracked position (``"event": "position"``): for a dispatcher with a human action detector in front
+    of it (`hrc.detect.online.DetectingDispatcher`), refused otherwise."""
+    take = getattr(dispatcher, "answer_position", None)
+    if take is None:
+        return _refusal(t, "a position needs the motion detector: start hrc dispatch (or the console) with "
+                           "--detect motion")
+    try:
+        return _dumps(take(obj))
+    except DispatchError as err:
+        return _refusal(t, str(err))
+    except Exception as err:  # noqa: BLE001 - a bug must not end a run; the state was not changed
+        return _refusal(t, f"internal error ({type(err).__name__}: {err}); nothing changed")
 
 
 def answer(dispatcher: Dispatcher, data: bytes) -> str:
@@ -98,7 +115,16 @@ def _digest(dispatcher: Dispatcher) -> str:
 
 def log_header(dispatcher: Dispatcher, version: int) -> dict[str, Any]:
     """The header of a log of `dispatcher`'s compiled plan set: the set's digest and size."""
-    return {"hrc_dispatch_log": version, "compiled": _digest(dispatcher), "plans": len(dispatcher.plan_set)}
+    header = {"hrc_dispatch_log": version, "compiled": _digest(dispatcher), "plans": len(dispatcher.plan_set)}
+    detect = _detect(dispatcher)
+    if detect is not None:  # a run with a detector in front replays only with the same detector
+        header["detect"] = detect
+    return header
+
+
+def _detect(dispatcher: Dispatcher) -> dict[str, Any] | None:
+    settings = getattr(dispatcher, "detect_settings", None)
+    return None if settings is None else dict(settings())
 
 
 def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> None:
@@ -107,6 +133,10 @@ def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> No
     if contents.header.get("compiled") != digest:
         raise HrcError(f"{path}: the log was written for another compiled plan set "
                        f"(compiled {contents.header.get('compiled')!r}, this folder {digest!r})")
+    if contents.header.get("detect") != _detect(dispatcher):
+        raise HrcError(f"{path}: the log was written with other detector settings (the log: "
+                       f"{contents.header.get('detect') or 'buttons'}; now: {_detect(dispatcher) or 'buttons'}): "
+                       "give the same --detect and --sensor-sigma")
 
 
 def replay(dispatcher: Dispatcher, contents: LogContents, path: str = "log") -> Iterator[tuple[str, str]]:

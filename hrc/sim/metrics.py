@@ -8,7 +8,8 @@ room, the smallest human-robot free distance of all runs and its median per run,
 (pymunk contacts; 0 expected), mean plan switches, unfinished runs, runs whose first plan the compile
 found blocked (no passing order; `RunResult.first_blocked`), and the check of the guarantee:
 among runs whose first plan was DC and carried out as planned, how many kept every constraint of that
-plan. Percentiles use numpy's linear interpolation. Wall-clock latencies of the dispatcher are measured
+plan; with the motion detector, its own measures (``detection``: `hrc.sim.detection.aggregate_detection`).
+Percentiles use numpy's linear interpolation. Wall-clock latencies of the dispatcher are measured
 too (`latency_p99`), but kept out of `simulation.json`, which is deterministic.
 """
 
@@ -19,6 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hrc.sim.detection import aggregate_detection
 from hrc.sim.run import RunResult
 
 __all__ = ["aggregate", "latency_p99"]
@@ -74,7 +76,14 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         "first_plan_dc": len(dc),
         "first_plan_dc_kept": len(dc_kept),
         "first_plan_dc_kept_all_constraints": sum(1 for r in dc_kept if not r.first_broken),
+        **_detection(runs),
     }
+
+
+def _detection(runs: Sequence[RunResult]) -> dict:
+    """The motion detector's measures (`hrc.sim.detection`), when it was used (a buttons run has none)."""
+    found = aggregate_detection([r.detection for r in runs])
+    return {} if found is None else {"detection": found}
 
 
 def latency_p99(runs: Sequence[RunResult]) -> float | None:

@@ -13,18 +13,27 @@ the dispatcher).
 
     {"schema_version": 1, "generator": "hrc X.Y.Z",
      "task": {"name", "digest", "deadline"}, "seed": S, "compile_seed": C, "runs": N,
-     "settings": {"human": {...HumanModel}, "detection_delay", "slowdown", "tick", "stall", "time_cap"},
+     "settings": {"human": {...HumanModel}, "detection_delay", "slowdown", "tick", "stall", "time_cap"
+                  [, "detector": "motion", "sensor": {...SensorModel}]},
      "policies": {NAME: {"description": str, "compile": {"DC": n, "consistent": n, "inconsistent": n},
                          "best_plan": {"id", "class", "makespan": [earliest, worst]},
                          "aggregate": {...hrc.sim.metrics.aggregate},
-                         "runs": [{...RunResult.to_json}]}}}
+                         "runs": [{...RunResult.to_json}]}},
+     ["comparison": {"buttons_delay": s, "policies": {NAME: {"motion": {...}, "buttons": {...}}}}]}
+
+With ``--detector motion`` each dispatched policy's aggregate has ``detection``
+(`hrc.sim.detection.aggregate_detection`) and each run ``detection``; ``comparison`` holds the same
+policies with buttons as late as the detector's median delay, on the same seeds (`comparison`).
 """
 
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+import numpy as np
 
 from hrc import __version__
 from hrc.compile.compiler import CompiledPlanSet, compile_task
@@ -35,7 +44,7 @@ from hrc.sim.metrics import aggregate
 from hrc.sim.policies import POLICIES
 from hrc.sim.run import RunResult, SimContext, SimSettings, simulate_run
 
-__all__ = ["Simulation", "check_policies", "simulate", "simulation_json"]
+__all__ = ["Simulation", "baseline_delay", "check_policies", "comparison", "simulate", "simulation_json"]
 
 Progress = Callable[[str, int, int], None]
 CHUNK = 10
@@ -43,13 +52,39 @@ CHUNK = 10
 
 @dataclass(frozen=True, slots=True)
 class Simulation:
-    """Every run of every policy (`results[policy]` in run order), and what they ran on."""
+    """Every run of every policy (`results[policy]` in run order), and what they ran on; with the motion
+    detector, the dispatched policies' runs with buttons `baseline_delay` seconds late on the same seeds
+    (`baseline`), to compare with."""
 
     context: SimContext
     runs: int
     policies: tuple[str, ...]
     results: dict[str, tuple[RunResult, ...]]
     compile_seed: int = 0
+    baseline: dict[str, tuple[RunResult, ...]] | None = None  # with the motion detector: buttons, same seeds
+    baseline_delay: float | None = None
+
+
+def _run_all(ctx: SimContext, chosen: Sequence[str], runs: int, executor: str | None, jobs: int | None,
+             progress: Progress | None, label: str) -> dict[str, tuple[RunResult, ...]]:
+    results: dict[str, list[RunResult]] = {p: [] for p in chosen}
+    total = runs * len(chosen)
+    done = 0
+    with make_executor(executor, jobs) as ex:
+        for batch in ex.map_chunks(_chunk, ctx, None, _work(chosen, runs)):
+            for r in batch:
+                results[r.policy].append(r)
+            done += len(batch)
+            if progress:
+                progress(label, done, total)
+    return {p: tuple(sorted(rs, key=lambda r: r.run)) for p, rs in results.items()}
+
+
+def baseline_delay(results: dict[str, tuple[RunResult, ...]]) -> float:
+    """The buttons' delay to compare a motion detector with: its median detection delay (s, >= 0, to the
+    10 ms) over every run of every policy."""
+    delays = [x for rs in results.values() for r in rs if r.detection is not None for x in r.detection.delays]
+    return max(0.0, round(float(np.median(delays)), 2)) if delays else 0.0
 
 
 def _chunk(ctx: SimContext, _: object, work: list[tuple[str, int]]) -> list[RunResult]:
@@ -74,8 +109,10 @@ def check_policies(names: Sequence[str]) -> tuple[str, ...]:
 def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(POLICIES),
              settings: SimSettings | None = None, jobs: int | None = None, executor: str | None = None,
              progress: Progress | None = None, compile_seed: int = 0,
-             compiles: dict[str, CompiledPlanSet] | None = None) -> Simulation:
-    """Compile (unless `compiles` are given) and run everything (see the module docstring)."""
+             compiles: dict[str, CompiledPlanSet] | None = None, baseline: float | None = None) -> Simulation:
+    """Compile (unless `compiles` are given) and run everything (see the module docstring). With the motion
+    detector, the dispatched policies again with buttons `baseline` seconds late (default: the detector's
+    median delay, `baseline_delay`) on the same seeds."""
     if runs < 1:
         raise SimulationError(f"--runs must be at least 1, found {runs}")
     chosen = check_policies(policies)
@@ -89,18 +126,34 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
 
         compiles["blind"] = blind_compile(task, seed=compile_seed, jobs=jobs, executor=executor, progress=progress)
     ctx = SimContext(task, compiles, settings, seed)
-    results: dict[str, list[RunResult]] = {p: [] for p in chosen}
-    total = runs * len(chosen)
-    done = 0
-    with make_executor(executor, jobs) as ex:
-        for batch in ex.map_chunks(_chunk, ctx, None, _work(chosen, runs)):
-            for r in batch:
-                results[r.policy].append(r)
-            done += len(batch)
-            if progress:
-                progress("runs", done, total)
-    ordered = {p: tuple(sorted(rs, key=lambda r: r.run)) for p, rs in results.items()}
-    return Simulation(ctx, runs, chosen, ordered, compile_seed)
+    ordered = _run_all(ctx, chosen, runs, executor, jobs, progress, "runs")
+    if not settings.motion:
+        return Simulation(ctx, runs, chosen, ordered, compile_seed)
+    delay = baseline_delay(ordered) if baseline is None else baseline
+    if not (delay >= 0 and math.isfinite(delay)):
+        raise SimulationError(f"--baseline-delay must be a finite number >= 0, found {delay:g}")
+    dispatched = [p for p in chosen if POLICIES[p].dispatched]
+    buttons = SimContext(task, compiles, replace(settings, detector="buttons", detection_delay=delay), seed)
+    base = _run_all(buttons, dispatched, runs, executor, jobs, progress, "buttons") if dispatched else {}
+    return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay)
+
+
+def _outcome(runs: Sequence[RunResult]) -> dict:
+    a = aggregate(runs)
+    return {"deadline_met_rate": a["deadline_met_rate"], "makespan_median": a["makespan"]["median"],
+            "makespan_p90": a["makespan"]["p90"], "min_distance": a["min_distance"],
+            "first_plan_dc": a["first_plan_dc"], "promise_kept": a["first_plan_dc_kept_all_constraints"],
+            "unfinished": a["unfinished"], "refused_observations": a["refused_observations"]}
+
+
+def comparison(sim: Simulation) -> dict:
+    """The motion detector against buttons `baseline_delay` late, per dispatched policy, on the same seeds:
+    deadline met, makespan, closest approach, the DC promise kept (runs whose first plan was DC and kept
+    every constraint of its STNU), unfinished runs."""
+    assert sim.baseline is not None
+    return {"buttons_delay": sim.baseline_delay,
+            "policies": {name: {"motion": _outcome(sim.results[name]), "buttons": _outcome(runs)}
+                         for name, runs in sim.baseline.items()}}
 
 
 def simulation_json(sim: Simulation) -> str:
@@ -124,4 +177,6 @@ def simulation_json(sim: Simulation) -> str:
            "task": {"name": task.name, "digest": ctx.compiles["motion"].digest, "deadline": task.deadline},
            "seed": ctx.seed, "compile_seed": sim.compile_seed, "runs": sim.runs,
            "settings": ctx.settings.to_json(), "policies": policies}
+    if sim.baseline is not None:
+        doc["comparison"] = comparison(sim)
     return json.dumps(doc, indent=1, ensure_ascii=False) + "\n"

@@ -147,7 +147,13 @@ class DispatchedController(Controller):
         self.by_id = {cp.plan.id: cp for cp in cps.plans}
         self.latencies = []
         self.refused = []
+        self.detected: list[tuple[float, float, str, str, str]] = []  # (given at, estimated t, event, action, phase)
+        self.detect_refused: list[str] = []
+        self.withdrawn = 0  # departures the detector gave and withdrew (undo)
+        self.known: list[Happening] = []  # the person's own events, when a motion detector stands between
+        self._shadow: tuple[Any, int, Any] = (None, -1, None)  # (decision, len(known), dispatcher the person reads)
         self._times: dict | None = None
+        self._shadow_times: dict | None = None
         self._ordered: tuple[Any, Order | None] = (None, None)
         dec = dispatcher.decision
         self.first_plan = self.plan_id = dec.plan
@@ -166,6 +172,32 @@ class DispatchedController(Controller):
             self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
             return
         self.latencies.append(time.perf_counter() - t0)
+        self._after(dec)
+
+    def position(self, now: float, t: float, x: float, y: float) -> bool:
+        """The person's position measured at `t` reaches the motion detector at run time `now`
+        (`hrc.detect.online.DetectingDispatcher.position`); whether it gave an event."""
+        t0 = time.perf_counter()
+        try:
+            given, refused = self.d.position(t, x, y)
+        except HrcError as err:  # refused (time going backwards): nothing changed
+            self.latencies.append(time.perf_counter() - t0)
+            self.refused.append(f"{t:.3f} position: {str(err).splitlines()[0]}")
+            return False
+        self.latencies.append(time.perf_counter() - t0)
+        self.detect_refused += refused
+        for ev, _ in given:
+            if ev.event == "undo":  # the last event given (a departure for the wrong place) withdrawn
+                self.withdrawn += 1
+                if self.detected:
+                    self.detected.pop()
+                continue
+            self.detected.append((round(now, 3), ev.t, ev.event, ev.action, ev.phase))
+        if given:
+            self._after(self.d.decision)
+        return bool(given)
+
+    def _after(self, dec: Any) -> None:
         self._times = None
         if dec.plan != self.plan_id and dec.plan is not None:
             if self.plan_id is not None:
@@ -197,8 +229,36 @@ class DispatchedController(Controller):
     def current(self) -> CompiledPlan | None:
         return self.by_id.get(self.plan_id) if self.plan_id is not None else None
 
+    def _guide(self) -> Any:
+        """The dispatcher whose plan the person follows: this one, or, when a motion detector has not yet
+        given some of the person's own events (`known`), a copy told them: the person knows they have
+        finished or arrived, and does what the plan would say if the dispatcher knew it too (they do not
+        wait for the detector to notice)."""
+        if not self.known:
+            return self.d
+        decision, n, shadow = self._shadow
+        if decision is self.d.decision and n == len(self.known):
+            return shadow
+        from hrc.dispatch import Observation
+        from hrc.errors import DispatchError
+
+        seen = self.d.seen.times
+        shadow = self.d
+        for h in self.known:
+            if (h.agent, h.action, h.phase, h.event) in seen:
+                continue
+            if shadow is self.d:
+                shadow = self.d.fork()
+            try:
+                shadow.observe(Observation(round(max(h.t, shadow.now), 3), h.event, h.agent, h.action, h.phase))
+            except DispatchError:
+                continue
+        self._shadow = (self.d.decision, len(self.known), shadow)
+        self._shadow_times = None
+        return shadow
+
     def human_next(self, started: Mapping[str, str]) -> str | None:
-        hint = self.d.decision.human
+        hint = self.d.decision.human  # what to do next: what the console shows (the when: `guide_time`)
         if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
                 and hint.action not in started:
             return str(hint.action)  # the dispatcher's hint: the human's next departure in the best plan
@@ -212,15 +272,25 @@ class DispatchedController(Controller):
         to wait for a robot event, else the best plan's planned time (`Dispatcher.planned_times`)."""
         if self.plan_id is None:
             return None
-        hint = self.d.decision.human
+        d = self._guide()
+        hint = d.decision.human
         if hint is not None:
             if not hasattr(hint, "earliest"):
                 return math.inf  # WaitFor: the person waits for the robot's event
             if (hint.action, hint.phase, hint.event) == (action, phase, event):
                 return float(hint.earliest)
-        if self._times is None:
-            self._times = dict(self.d.planned_times())
-        t = self._times.get((_human(self.cps.task), action, phase, event))
+        if d is not self.d:  # the plan the console shows, timed as if the dispatcher knew what the person knows
+            if self._shadow_times is None:
+                try:
+                    self._shadow_times = dict(d.planned_times(self.plan_id))
+                except KeyError:
+                    self._shadow_times = dict(d.planned_times())
+            times = self._shadow_times
+        else:
+            if self._times is None:
+                self._times = dict(self.d.planned_times())
+            times = self._times
+        t = times.get((_human(self.cps.task), action, phase, event))
         return None if t is None or not math.isfinite(t) else float(t)
 
     def route(self, agent: str, action: str, phase: str) -> SimRoute | None:

@@ -40,9 +40,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+from hrc.detect.sensor import Sensor, SensorModel
 from hrc.model import Task
 from hrc.motion import PathLibrary
 from hrc.plans import must_precede
+from hrc.sim.detection import Detection, detection_of
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import CONTACT, MIN_STEP, Floor
 from hrc.sim.giveway import Ways
@@ -61,6 +63,9 @@ from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, AgentState, Standoffs
 __all__ = ["RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
 
 _EPS = 1e-9
+_DETECTED = ("depart", "arrive", "start", "end")  # the events a motion detector gives
+_DRAIN = 12.0  # s after the last phase in which a motion detector may still give the person's last events
+_QUIET = 30.0  # s with nothing due but the tracker's positions: nobody can go on (stuck)
 _ACK = 0.002  # s: the robot's acknowledgement snaps into its window when this close to it
 
 
@@ -70,7 +75,8 @@ class SimSettings:
     (s), the robot's slowdown band (m, beyond the safety margin), the dispatcher's tick (s: time passing
     is reported when the robot waits and nothing else was said for that long; 0, the default: never,
     every observation carries the time anyway), the stall limit and the time cap (s; default five times the
-    deadline, or 600 s)."""
+    deadline, or 600 s); the `detector` ("buttons": the person's events, `detection_delay` late; "motion":
+    their position through the `sensor` to `hrc.detect`'s detector, for the dispatched policies)."""
 
     human: HumanModel = HumanModel()
     detection_delay: float = 0.0
@@ -78,10 +84,21 @@ class SimSettings:
     tick: float = 0.0
     stall: float = 60.0
     time_cap: float | None = None
+    detector: str = "buttons"
+    sensor: SensorModel = SensorModel()
 
     def to_json(self) -> dict:
-        return {"human": self.human.to_json(), "detection_delay": self.detection_delay, "slowdown": self.slowdown,
-                "tick": self.tick, "stall": self.stall, "time_cap": self.time_cap}
+        out = {"human": self.human.to_json(), "detection_delay": self.detection_delay, "slowdown": self.slowdown,
+               "tick": self.tick, "stall": self.stall, "time_cap": self.time_cap}
+        if self.detector != "buttons":  # a buttons simulation's file stays as it was
+            out.update(detector=self.detector, sensor=self.sensor.to_json())
+        return out
+
+    @property
+    def motion(self) -> bool:
+        """The person's position goes to a motion detector in front of the dispatcher (`hrc.detect`), not
+        their events (``--detector motion``)."""
+        return self.detector == "motion"
 
 
 @dataclass(slots=True)
@@ -143,6 +160,7 @@ class RunResult:
     robot_sequence: tuple[str, ...]
     overruns: int
     absent: float
+    detection: Detection | None = None
     latencies: tuple[float, ...] = field(default=(), compare=False)
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
@@ -162,7 +180,8 @@ class RunResult:
                 "first_broken": list(self.first_broken),
                 "refused": list(self.refused), "late_robot_events": self.late,
                 "robot_travel_excess": r(self.robot_travel_excess), "human_sequence": list(self.human_sequence),
-                "robot_sequence": list(self.robot_sequence), "overruns": self.overruns, "absent": r(self.absent)}
+                "robot_sequence": list(self.robot_sequence), "overruns": self.overruns, "absent": r(self.absent),
+                **({} if self.detection is None else {"detection": self.detection.to_json()})}
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -171,12 +190,20 @@ def make_controller(ctx: SimContext, policy: Policy) -> Controller:
     if not policy.dispatched:
         return FixedController(cps)
 
-    key = ("dispatcher", policy.name)
+    motion = ctx.settings.motion
+    key = ("dispatcher", policy.name, motion)
     pristine = ctx.cache.get(key)
     if pristine is None:
         from hrc.dispatch import Dispatcher
 
-        pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
+        if motion:
+            from hrc.detect import DetectingDispatcher, DetectParams
+
+            pristine = ctx.cache[key] = DetectingDispatcher.from_compiled(
+                cps, feasible_only=policy.feasible_only, threads=1,
+                params=DetectParams(sigma=max(ctx.settings.sensor.sigma, 0.01)))
+        else:
+            pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
     # A dispatcher replaces its whole (immutable) state on every message, so a shallow copy of a fresh one
     # is a fresh one: 30 us instead of 0.3 s (workshop) for `from_compiled` (the API has no reset or copy).
     return DispatchedController(pristine.fork(), cps, ctx.paths, policy.compile == "blind")
@@ -189,12 +216,21 @@ def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
     `record` keeps the happenings and the agents' positions at every step (for figures)."""
     rng = np.random.default_rng([ctx.seed, index])
     draws = draw_human(ctx.task, ctx.settings.human, rng)
-    return _Run(ctx, POLICIES[policy], draws, controller(ctx, POLICIES[policy]), record).run(index)
+    ctl = controller(ctx, POLICIES[policy])
+    sensor = None
+    if ctx.settings.motion and isinstance(ctl, DispatchedController):  # its own numbers: the same person
+        sensor = Sensor(ctx.settings.sensor, np.random.default_rng([ctx.seed, index, 28]))
+    return _Run(ctx, POLICIES[policy], draws, ctl, record, sensor).run(index)
 
 
 class _Run(Standoffs):
-    def __init__(self, ctx: SimContext, policy: Policy, draws: HumanDraws, ctl: Controller, record: bool) -> None:
+    def __init__(self, ctx: SimContext, policy: Policy, draws: HumanDraws, ctl: Controller, record: bool,
+                 sensor: Sensor | None = None) -> None:
         self.ctx, self.policy, self.draws, self.ctl, self.record = ctx, policy, draws, ctl, record
+        self.sensor = sensor
+        # when the last phase ended: (t, closest, overlaps, robot held, person held); the rest is the drain
+        self.finished_at: tuple[float, float, int, float, float] | None = None
+        self.quiet_since: float | None = None
         task = self.task = ctx.task
         s = ctx.settings
         self.model: HumanModel = s.human
@@ -240,7 +276,11 @@ class _Run(Standoffs):
         if event == "end" and action is not None and phase is not None:
             self.ended.add((action, phase))
         if agent is self.h:
-            self.detector.see(h)
+            if self.sensor is None or action is None:  # a tracker sees positions, not away and back
+                self.detector.see(h)
+            else:
+                assert isinstance(self.ctl, DispatchedController)
+                self.ctl.known.append(h)  # the person knows what they did (their guide: `_guide`)
             return
         t = self.t
         o = self.ctl.order()  # the window the robot was given for this event (arrive, park: the travel's end)
@@ -502,7 +542,29 @@ class _Run(Standoffs):
         out = self.detector.release(self.t)
         for h in out:
             self._tell(Happening(max(h.t, self.last_obs), h.agent, h.event, h.action, h.phase))
-        return bool(out)
+        changed = bool(out)
+        if self.sensor is not None:
+            assert isinstance(self.ctl, DispatchedController)
+            for t, x, y in self.sensor.due(self.t):
+                changed = self.ctl.position(self.t, t, x, y) or changed
+        return changed
+
+    def _sample(self) -> None:
+        """The tracker measures the person (nobody while they are away) at its times up to now."""
+        sensor = self.sensor
+        while sensor is not None and sensor.next_time <= self.t + _EPS:
+            sensor.measure(sensor.next_time, self.h.mover.xy if self.h.mover.present else None)
+
+    def _drained(self) -> bool:
+        """After the last phase: the motion detector has given every leg event of the person, or had
+        `_DRAIN` seconds to (the person walks home meanwhile, and it sees them leave)."""
+        if self.sensor is None:
+            return True
+        assert self.finished_at is not None and isinstance(self.ctl, DispatchedController)
+        given = {d[2:] for d in self.ctl.detected}
+        wanted = {(h.event, h.action, h.phase) for h in self.happenings if h.agent == self.h.id
+                  and h.action is not None and h.event in _DETECTED}
+        return wanted <= given or self.t >= self.finished_at[0] + _DRAIN
 
     def next_time(self) -> float:
         t = self.t
@@ -531,6 +593,11 @@ class _Run(Standoffs):
             if o is None or o.event == "wait" or self.h.mode in ("free", "parked", "arrived"):
                 cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
         future = [c for c in cands if c > t + _EPS and math.isfinite(c)]
+        if self.sensor is not None:  # the tracker goes on measuring; the detector may yet give an event
+            quiet = not future and self.finished_at is None
+            self.quiet_since = (self.quiet_since if self.quiet_since is not None else t) if quiet else None
+            if self.quiet_since is None or t - self.quiet_since < _QUIET:
+                future += [c for c in (self.sensor.next_time, self.sensor.next_arrival()) if c > t + _EPS]
         return min(min(future), self.cap) if future else math.inf  # nothing due: nobody can go on (stuck)
 
     def _guide_times(self) -> list[float]:
@@ -553,6 +620,7 @@ class _Run(Standoffs):
         reason = ""
         stall_since: float | None = None
         while True:
+            self._sample()
             for _ in range(100):
                 changed = self.deliver()
                 changed = self.human() or changed
@@ -560,7 +628,11 @@ class _Run(Standoffs):
                 if not changed:
                     break
             if self.done():
-                break
+                if self.finished_at is None:
+                    self.finished_at = (self.t, self.floor.min_free, self.floor.overlaps, self.floor.robot.held,
+                                        self.floor.human.held)
+                if self._drained():
+                    break
             if self.t >= self.cap - _EPS:
                 reason = "time cap"
                 break
@@ -636,21 +708,33 @@ class _Run(Standoffs):
             broken = tuple(broken_constraints(plan_network(cps, first_cp), times))
         if self.h.mode == "away" and self.away_since is not None:
             self.absent += span - self.away_since
-        min_free = self.floor.min_free
+        min_free, overlaps = self.floor.min_free, self.floor.overlaps
+        robot_held, human_held = self.floor.robot.held, self.floor.human.held
+        if self.finished_at is not None:  # the floor as it was when the last phase ended (not the drain)
+            _, min_free, overlaps, robot_held, human_held = self.finished_at
         return RunResult(
             policy=self.policy.name, run=index, finished=finished, reason="" if finished else reason,
             makespan=makespan, deadline_met=bool(deadline_met), limits_met=bool(limits_met),
             human_idle=max(0.0, span - human_busy - self.absent), robot_idle=max(0.0, span - robot_busy),
-            robot_yield=self.floor.robot.held, human_held=self.floor.human.held, standoffs=self.standoffs,
+            robot_yield=robot_held, human_held=human_held, standoffs=self.standoffs,
             robot_aside=self.r.aside_time, human_aside=self.h.aside_time,
-            min_distance=None if not math.isfinite(min_free) else min_free, overlaps=self.floor.overlaps,
+            min_distance=None if not math.isfinite(min_free) else min_free, overlaps=overlaps,
             plan_switches=ctl.switches, first_plan=first, first_class=ctl.first_class,
             first_blocked=first_cp is not None and _blocked(first_cp), final_plan=ctl.plan_id,
             first_kept=bool(kept), first_broken=broken, refused=tuple(ctl.refused), late=self.late,
             robot_travel_excess=self.excess, human_sequence=human_seq, robot_sequence=robot_seq,
             overruns=sum(1 for k in self.draws.overrun if times.get(f"{self.h.id}.{k[1]}.{k[0]}.end") is not None),
-            absent=self.absent, latencies=tuple(ctl.latencies),
+            absent=self.absent, detection=self._detection(), latencies=tuple(ctl.latencies),
             happenings=tuple(self.happenings) if self.record else (), frames=tuple(self.frames))
+
+    def _detection(self) -> Detection | None:
+        """How the motion detector did against what happened (None: buttons)."""
+        if self.sensor is None:
+            return None
+        assert isinstance(self.ctl, DispatchedController)
+        truth = [(h.t, h.event, h.action or "", h.phase or "") for h in self.happenings
+                 if h.agent == self.h.id and h.action is not None and h.event in _DETECTED]
+        return detection_of(truth, self.ctl.detected, tuple(self.ctl.detect_refused), self.ctl.withdrawn)
 
     def _constraints_met(self) -> bool:
         """The task's temporal constraints, on the times of the events whoever did them."""

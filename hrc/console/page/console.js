@@ -254,21 +254,40 @@
       svg.append(el("svg:text", { x: p[0] + 0.14, y: -p[1] - 0.1, "font-size": 0.32, fill: "#222" }, id));
     }
     for (const [agent, a] of Object.entries(m.agents)) {
+      if (s.tracked && a.kind === "human") continue;  // the tracker says where the person is
       const at = s.where && s.where[agent] ? s.where[agent] : a.start, p = m.locations[at];
       if (!p) continue;
       svg.append(el("svg:circle", { cx: p[0], cy: -p[1], r: a.radius, fill: colors[agent] || "#333", "fill-opacity": 0.35, stroke: colors[agent] || "#333", "stroke-width": 0.05 }));
     }
+    // The motion detector (hrc console --detect motion): the person's tracked position and its belief.
+    if (s.tracked) {
+      const human = Object.entries(m.agents).find(([, a]) => a.kind === "human"), b = s.belief || {};
+      const r = human ? human[1].radius : 0.3, col = colors[human ? human[0] : "human"] || "#d9731a";
+      const dot = el("svg:circle", { id: "tracked", cx: s.tracked.x, cy: -s.tracked.y, r, fill: col, "fill-opacity": 0.5, stroke: col, "stroke-width": 0.06, "stroke-dasharray": "0.12 0.08" });
+      dot.append(el("svg:title", {}, `tracked at ${fmt(s.tracked.t)} s: (${s.tracked.x}, ${s.tracked.y})`));
+      svg.append(dot);
+      svg.append(el("svg:text", { id: "belief", x: s.tracked.x + r + 0.1, y: -s.tracked.y + 0.12, "font-size": 0.34, fill: "#222", stroke: "#fff", "stroke-width": 0.06, "paint-order": "stroke" }, beliefText(b)));
+    }
+  }
+
+  function beliefText(b) {
+    if (!b || !b.doing) return "";
+    const leg = b.action ? ` ${b.action}.${b.phase}` : "";
+    const p = b.p !== undefined && b.p < 1 ? ` (${Math.round(100 * b.p)} %)` : "";
+    return `${b.doing}${leg}${p}`;
   }
 
   function describeIn(m) {
     if (m.event === "tick") return "tick";
+    if (m.event === "position") return `position (${m.x.toFixed(2)}, ${m.y.toFixed(2)})`;
     return [m.agent, m.event, m.action, m.phase].filter(Boolean).join(" ");
   }
   function describeOut(o) {
     if (!o.ok) return "refused: " + o.error;
     const r = o.robot;
     const step = !r ? "robot: nothing" : r.wait_for ? "robot waits for " + r.wait_for : `robot ${r.event} ${r.action}.${r.phase} in [${fmt(r.earliest)}, ${fmt(r.latest)}]`;
-    return `${step} · plan ${o.plan} (${o.class})`;
+    const seen = o.detect && o.detect.events.length ? "detected " + o.detect.events.map((e) => `${e.event} ${e.action}.${e.phase} @${fmt(e.t)}`).join(", ") + " · " : "";
+    return `${seen}${step} · plan ${o.plan} (${o.class})`;
   }
   function drawLog() {
     const s = C.state, body = $("log").querySelector("tbody");
@@ -279,6 +298,7 @@
     for (const e of s.log) {
       const key = JSON.stringify([e.out.robot, e.out.plan, e.out.ok]);
       if (e.in.event === "tick" && e.out.ok && key === prev) continue;  // ticks that changed nothing
+      if (e.in.event === "position" && e.out.ok && !(e.out.detect && e.out.detect.events.length)) continue;  // nothing detected
       prev = e.out.ok ? key : prev;
       const tr = el("tr", { class: e.out.ok ? "ok" : "refused", "data-n": e.n });
       tr.append(el("td", {}, String(e.n)), el("td", {}, fmt(e.in.t)), el("td", {}, e.source), el("td", {}, describeIn(e.in)), el("td", { class: "decision" }, describeOut(e.out)));

@@ -1,0 +1,19 @@
+"""The human action detector from motion (Strassmair & Taylor 2014, section V.B): the person's tracked
+position in, the observations the buttons give out (depart, arrive, start, end, each at the time it is
+estimated to have happened) and, while they walk, the action they are heading for.
+
+`hrc.detect.field` (walking distances on the floor), `hrc.detect.changepoint` (when a person left or
+reached a place), `hrc.detect.model` (what the detector knows of a task, its settings),
+`hrc.detect.situation` (what the dispatcher knows of the person: the leg under way, the options, the
+futures the remaining plans allow), `hrc.detect.filter` (the filter: positions and a
+situation in, events out), `hrc.detect.online` (a dispatcher that takes positions: ``hrc dispatch
+--detect motion``, the console, the simulator), `hrc.detect.trace` (``hrc detect``: a trace file in,
+observations out), `hrc.detect.sensor` (a simulated tracker). See docs/detect.md.
+"""
+
+from hrc.detect.filter import Belief, Detected, Track
+from hrc.detect.model import DetectorModel, DetectParams, detector_model
+from hrc.detect.online import DetectingDispatcher, position_from_json
+
+__all__ = ["Belief", "DetectParams", "Detected", "DetectingDispatcher", "DetectorModel", "Track",
+           "detector_model", "position_from_json"]

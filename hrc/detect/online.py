@@ -1,0 +1,148 @@
+"""The dispatcher with the motion detector in front of it: position messages in, the person's events out
+to the dispatcher, one answer per message (``hrc dispatch --detect motion``, the console, the
+simulator).
+
+`DetectingDispatcher` is a `hrc.dispatch.Dispatcher` that also takes the person's tracked position,
+``{"t": 12.3, "agent": "human", "event": "position", "x": 4.1, "y": 2.0}`` (`position`): the detector
+(`hrc.detect.filter`) reads it against what the dispatcher knows (`hrc.detect.situation`) and gives the
+events it now is sure of, each with the time it estimates the event happened; each goes to the
+dispatcher as if the person had pressed its button (`Dispatcher.observe`). Every other message goes to
+the dispatcher as it is, so a tracker and a robot controller share one stream.
+
+**Time.** A position's ``t`` is when it was measured (a tracker's latency makes it lag); positions come
+in time order, but may lag behind the robot's messages. An event goes to the dispatcher at the time the
+detector estimates, or at the dispatcher's last accepted message when that is later (its clock never
+goes back): the answer says both (``detect.events[i].t`` and ``.at``). A position does not move the
+dispatcher's clock.
+
+**Replay.** The detector's state (`hrc.detect.filter.Track`) is immutable, replaced whole with each
+position, and part of this object's state: `fork` copies it with the dispatcher's, so the write-ahead
+log (`hrc.dispatch.durable`) and ``--replay`` treat a position like any other message, and a run
+replays byte for byte.
+
+An event the dispatcher refuses (it should not happen: the detector offers only what the dispatcher's
+options allow) is left out and named in the answer (``detect.refused``), and the detector goes on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+from hrc.dispatch import Dispatcher, Observation
+from hrc.dispatch.plan_set import PlanSet
+from hrc.dispatch.validation import MAX_JUMP
+from hrc.errors import DispatchError
+
+from .filter import Detected, Track, decide, ingest
+from .model import DetectorModel, DetectParams, detector_model
+from .situation import Situation, situation
+
+__all__ = ["POSITION_KEYS", "DetectingDispatcher", "position_from_json"]
+
+POSITION_KEYS = ("t", "agent", "event", "x", "y")
+_MAX_ROUNDS = 12  # events one position may give (a walk's end, the legs on the way, the departure)
+
+
+def position_from_json(obj: Any, human: str = "human") -> tuple[float, float, float]:
+    """``(t, x, y)`` of a position message; `DispatchError` saying in one line what is wrong."""
+    if not isinstance(obj, dict):
+        raise DispatchError(f"a message must be a JSON object, found {type(obj).__name__}")
+    unknown = sorted(set(obj) - set(POSITION_KEYS))
+    if unknown:
+        raise DispatchError(f"unknown key {unknown[0][:40]!r} in a position (keys: {', '.join(POSITION_KEYS)})")
+    agent = obj.get("agent", human)
+    if agent != human:
+        raise DispatchError(f"a position is the human's ({human!r}), not {str(agent)[:40]!r}'s")
+    out = []
+    for key in ("t", "x", "y"):
+        value = obj.get(key)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+            raise DispatchError(f"a position needs {key!r}, a finite number" + (" of seconds" if key == "t" else
+                                                                                " of metres"))
+        out.append(float(value))
+    if not 0 <= out[0] <= 1e9:
+        raise DispatchError("'t' must be a number of seconds from the task's start (0 to 1e9)")
+    return out[0], out[1], out[2]
+
+
+class DetectingDispatcher(Dispatcher):
+    """A `Dispatcher` that also takes positions (see the module docstring). `params`: the detector's
+    settings (`DetectParams`); `model`: share an already built `DetectorModel` of the same task."""
+
+    def __init__(self, plan_set: PlanSet, *, params: DetectParams | None = None,
+                 model: DetectorModel | None = None, **options: Any) -> None:
+        super().__init__(plan_set, **options)
+        self.model = model if model is not None and model.task is plan_set.task else \
+            detector_model(plan_set.task, params)
+        self.track = Track()
+        self._situation: tuple[object, Situation] | None = None
+
+    def detect_settings(self) -> dict[str, Any]:
+        """What a log records of the detector (`hrc.dispatch.protocol.log_header`): a replay needs the same."""
+        return {"detector": "motion", "params": self.model.params.to_json()}
+
+    def situation(self) -> Situation:
+        """What the dispatcher knows of the person now (cached per decision)."""
+        cached = self._situation
+        if cached is None or cached[0] is not self.decision:
+            cached = self._situation = (self.decision, situation(self.model, self))
+        return cached[1]
+
+    def position(self, t: float, x: float, y: float) -> tuple[list[tuple[Detected, float]], list[str]]:
+        """Take the person's position (x, y) measured at `t`: the events given to the dispatcher, each with
+        the time it went in (``(event, t_in)``), and those it refused (one line each). Raises
+        `DispatchError` (nothing changed) when `t` is before the last position or a clock error."""
+        last = self.track.t
+        if last is not None and t < last:
+            raise DispatchError(f"position time goes backwards: t = {t:g} s is before the last position ({last:g} s)")
+        if t > max(last or 0.0, self.now) + MAX_JUMP:
+            raise DispatchError(f"position t = {t:g} s is more than {MAX_JUMP:g} s after the last message: "
+                                "a clock error?")
+        track = ingest(self.model, self.track, t, x, y)
+        given: list[tuple[Detected, float]] = []
+        refused: list[str] = []
+        human = self.model.human
+        for _ in range(_MAX_ROUNDS):
+            track, events = decide(self.model, track, self.situation())
+            if not events:
+                break
+            stop = False
+            for ev in events:
+                at = max(round(ev.t, 3), self.now)  # the clock never goes back (a rounded time might)
+                try:
+                    if ev.event == "undo":  # a departure given for the wrong place, withdrawn
+                        self.observe(Observation(at, "undo"))
+                    else:
+                        self.observe(Observation(at, ev.event, human, ev.action, ev.phase))
+                except DispatchError as err:
+                    what = ev.event if ev.event == "undo" else f"{ev.event} {ev.action}.{ev.phase}"
+                    refused.append(f"{what}: {str(err).splitlines()[0]}")
+                    stop = True
+                    break
+                given.append((ev, at))
+                if ev.event != "undo":  # (a withdrawal keeps the times of what stands)
+                    track = replace(track, last=max(track.last, ev.t), given_at=t)
+            if stop:
+                break
+        self.track = track
+        return given, refused
+
+    def answer_position(self, obj: Any) -> dict[str, Any]:
+        """The protocol's answer to a position message (`hrc.dispatch.protocol`): the decision, with
+        ``t`` the position's and ``detect``: the events given (``t``: estimated, ``at``: as given to the
+        dispatcher), any refused, and the belief. `DispatchError` when the message is refused."""
+        t, x, y = position_from_json(obj, self.model.human)
+        work = self.fork()  # the state changes whole or not at all, whatever goes wrong
+        assert isinstance(work, DetectingDispatcher)
+        given, refused = work.position(t, x, y)
+        self._state, self.track, self._situation = work._state, work.track, work._situation
+        out = self.decision.to_json()
+        out["t"] = t
+        detect: dict[str, Any] = {"events": [{**ev.to_json(self.model.human), "at": at} for ev, at in given],
+                                  "belief": self.track.belief.to_json()}
+        if refused:
+            detect["refused"] = refused
+        out["detect"] = detect
+        return out
