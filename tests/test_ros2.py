@@ -6,7 +6,8 @@ a ROS_DOMAIN_ID per test, discovery limited to this machine, Fast DDS over UDP).
   replays byte for byte, the same MCAP recording, goals and routes for Nav2 in the frame asked for, the
   latest answer and goal for a subscriber that comes late, a clean stop on SIGTERM;
 - SIGINT in the middle, then ``--resume``: the whole run answered as uninterrupted (and recorded whole);
-  poses refused in one line (no motion detector yet; a pose in another frame) and never in the log;
+  poses refused in one line (no motion detector asked for; a pose in another frame) and never in the log;
+- ``--detect motion``: a recorded noisy run's poses drive the detector as they drive ``hrc dispatch``;
 - ``--use-sim-time``: ticks from ``/clock``, goals stamped with it;
 - without the extra, one line that says how to install it; bad options in one line.
 
@@ -228,6 +229,53 @@ def test_sigint_then_resume_and_poses_refused(folder: Path, tmp_path: Path) -> N
     # the resumed node's recording holds the whole run, as the one made from the log
     assert (tmp_path / "whole.mcap").read_bytes() == (tmp_path / "replayed.mcap").read_bytes()
     assert read_mcap(tmp_path / "whole.mcap").counts["/hrc/in"] == len(lines)
+
+
+def test_poses_drive_the_motion_detector_as_they_drive_hrc_dispatch(folder: Path, tmp_path: Path) -> None:
+    """A recorded noisy workshop run (tests/data/detect): the person's positions as poses in a rotated,
+    shifted frame, the robot's messages as strings; the answers are those of ``hrc dispatch --detect
+    motion`` on the same stream, and the node's log replays there byte for byte."""
+    from ros2_client import Client, NodeProcess, ros_env
+
+    frame = MapFrame("map", *ORIGIN)
+    trace = ROOT / "tests" / "data" / "detect" / "workshop_015_5hz_drop5.trace.jsonl"
+    stream = []  # what the node makes of each: positions in mm (as it rounds them), other messages as they are
+    for msg in map(json.loads, trace.read_text().splitlines()):
+        if "event" not in msg:
+            msg = {"t": msg["t"], "agent": "human", "event": "position", "x": round(msg["x"], 3),
+                   "y": round(msg["y"], 3)}
+        stream.append(msg)
+    detect = ("--detect", "motion", "--sensor-sigma", "0.15")
+    expected = _dispatch(folder, *detect, stdin="".join(json.dumps(m) + "\n" for m in stream).encode())
+    assert expected.returncode == 0, expected.stderr
+    env = ros_env(tmp_path)
+    log = tmp_path / "run.log"
+    node = NodeProcess(folder, env, "--log", str(log), "--map-origin", *(str(v) for v in ORIGIN), *detect)
+    client = Client(env)
+    got = []
+    try:
+        client.wait_matched()
+        for msg in stream:
+            if msg.get("event") != "position":
+                got.append(client.send(json.dumps(msg)))
+                continue
+            pose = client.PoseStamped()
+            pose.header.frame_id = "map"
+            pose.header.stamp.sec = int(msg["t"])
+            pose.header.stamp.nanosec = round((msg["t"] - int(msg["t"])) * 1e9)
+            pose.pose.position.x, pose.pose.position.y = frame.to_frame(msg["x"], msg["y"])
+            before = len(client.answers)
+            client.poses.publish(pose)
+            client.spin_until(lambda b=before: len(client.answers) > b, 20, f"the answer to the pose at {msg['t']}")
+            got.append(client.answers[-1])
+        assert node.stop(signal.SIGTERM) == 0
+    finally:
+        client.close()
+        node.kill()
+    assert got == expected.stdout.decode().splitlines()
+    assert any(json.loads(a).get("detect", {}).get("events") for a in got)  # the detector gave events
+    replayed = _dispatch(folder, *detect, "--replay", str(log))
+    assert replayed.returncode == 0 and replayed.stdout == expected.stdout
 
 
 def test_sim_time_ticks_from_clock_and_stamps_goals_with_it(folder: Path, tmp_path: Path) -> None:

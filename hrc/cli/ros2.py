@@ -3,7 +3,8 @@
 Messages of ``hrc dispatch``'s protocol come in as ``std_msgs/String`` on ``NAMESPACE/observations`` and
 ``NAMESPACE/robot/acks``; every answer goes out on ``NAMESPACE/answers`` and the robot's next drive on
 ``NAMESPACE/robot/goal`` (``geometry_msgs/PoseStamped`` in ``--frame-id``, for Nav2) and
-``NAMESPACE/robot/route``. The log (default ``OUT_DIR/runs/ros2-N.jsonl``, never overwritten) replays with
+``NAMESPACE/robot/route``; with ``--detect motion`` the person's tracked pose on ``NAMESPACE/human/pose``
+goes to the motion detector. The log (default ``OUT_DIR/runs/ros2-N.jsonl``, never overwritten) replays with
 ``hrc dispatch OUT_DIR --replay LOG``; ``--resume LOG`` goes on after a crash; ``--record FILE`` writes
 an MCAP recording. SIGINT or SIGTERM stop it cleanly (exit 0, the log whole). Needs the ``ros2`` extra:
 ``pip install 'hrc[ros2]'``.
@@ -17,6 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hrc.cli.detect import add_detect_options, detect_params
 from hrc.errors import HrcError
 
 __all__ = ["INSTALL", "add_parser", "run"]
@@ -64,6 +66,10 @@ def add_parser(sub: Any) -> None:
                    help="drop plans that are neither DC nor consistent; stop when none is left")
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
                    help="do not narrow the robot's windows to APA's optimal (DO) windows")
+    p.add_argument("--detect", choices=("buttons", "motion"), default="buttons",
+                   help="motion: the person's tracked pose on human/pose goes to the motion detector, its "
+                        "events to the dispatcher (docs/detect.md); buttons: poses are refused")
+    add_detect_options(p)
     p.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None,
                    help="everything after it goes to ROS 2 (remappings, parameters), as for any ROS 2 node")
     p.set_defaults(run=run)
@@ -101,8 +107,17 @@ def run(args: argparse.Namespace) -> int:
     from hrc.motion import plan_paths
     from hrc.ros2.drive import MapFrame
 
-    dispatcher = Dispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial,
-                                         feasible_only=args.feasible_only, use_preferences=args.preferences)
+    options = dict(allow_partial=args.allow_partial, feasible_only=args.feasible_only,
+                   use_preferences=args.preferences)
+    if args.detect == "motion":
+        from hrc.detect import DetectingDispatcher
+
+        dispatcher: Dispatcher = DetectingDispatcher.from_folder(args.out_dir, params=detect_params(args), **options)
+    else:
+        if args.sensor_sigma is not None:
+            print("error: hrc ros2: --sensor-sigma needs --detect motion", file=sys.stderr)
+            return 2
+        dispatcher = Dispatcher.from_folder(args.out_dir, **options)
     routes = PlanRoutes(plan_motions(args.out_dir, dispatcher.plan_set),
                         plan_paths(dispatcher.task, seed=int(read_header(args.out_dir).get("seed", 0)))).routes
     recording = None

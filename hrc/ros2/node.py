@@ -6,8 +6,9 @@ protocol (its bytes, UTF-8), handed to the same `hrc.dispatch.durable.LoggedDisp
 dispatch``'s: in the log (fsync'd when accepted) before the state changes or the answer goes out, so
 that the log replays byte for byte (``hrc dispatch OUT_DIR --replay LOG``) and ``--resume`` goes on
 after a crash. A ``geometry_msgs/PoseStamped`` on ``human/pose`` becomes the motion detector's position
-message (``{"t", "agent", "event": "position", "x", "y"}``, in hrc's map: `MapFrame.from_frame`), which is
-refused in one line, here, while the dispatcher has no such event (the detector is issue 28).
+message (``{"t", "agent", "event": "position", "x", "y"}``, in hrc's map: `MapFrame.from_frame`) for the
+motion detector in front of the dispatcher (``hrc ros2 --detect motion``, `hrc.detect`); without it each
+pose is refused in one line, here, and never logged.
 
 **Out.** Each answer, exactly as ``hrc dispatch`` prints it, on ``answers``; when an answer names a new
 drive of the robot (`hrc.ros2.drive.next_drive`), its destination on ``robot/goal`` and its planned
@@ -45,9 +46,9 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.validate_namespace import validate_namespace
 from std_msgs.msg import String
 
+from hrc.detect import DetectingDispatcher
 from hrc.dispatch.durable import LoggedDispatcher
 from hrc.dispatch.limits import MAX_LINE
-from hrc.dispatch.messages import EVENTS
 from hrc.model import Task
 from hrc.ros2.drive import Drive, MapFrame, next_drive
 from hrc.ros2.topics import ANSWERS, GOAL, NODE_NAME, OBSERVATIONS, POSE, ROBOT_ACKS, ROUTE, Qos
@@ -55,7 +56,7 @@ from hrc.ros2.topics import ANSWERS, GOAL, NODE_NAME, OBSERVATIONS, POSE, ROBOT_
 __all__ = ["POSITION", "DispatcherNode", "Stopped", "qos_profile", "serve"]
 
 POSITION = "position"
-"""The motion detector's event (issue 28): what a pose becomes."""
+"""The motion detector's event (`hrc.detect`): what a pose becomes."""
 Routes = Callable[[str], Any]
 _IDENTITY = MapFrame()
 
@@ -125,15 +126,15 @@ class DispatcherNode:
             self._say(_refusal(t, f"{POSE.name}: a pose in frame {msg.header.frame_id!r}, expected "
                                   f"{self.frame.frame_id!r}; ignored"))
             return
-        if POSITION not in EVENTS:
+        if not isinstance(self.logged.dispatcher, DetectingDispatcher):
             if not self._pose_refused:
                 self._pose_refused = True
-                self.report(f"{POSE.name}: the person's pose needs the motion detector (hrc dispatch --detect "
-                            "motion, issue 28), which this hrc does not have: each pose is refused")
+                self.report(f"{POSE.name}: the person's pose needs the motion detector (hrc ros2 --detect "
+                            "motion): each pose is refused")
             self._say(_refusal(t, f"{POSE.name}: the person's pose needs the motion detector, which this "
-                                  "dispatcher does not have; ignored"))
+                                  "node was not started with (--detect motion); ignored"))
             return
-        x, y = self.frame.from_frame(msg.pose.position.x, msg.pose.position.y)  # pragma: no cover - issue 28
+        x, y = self.frame.from_frame(msg.pose.position.x, msg.pose.position.y)
         line = json.dumps({"t": round(t, 3), "agent": self.human, "event": POSITION, "x": round(x, 3),
                            "y": round(y, 3)})
         self._answer(self._submit(line.encode("ascii")))

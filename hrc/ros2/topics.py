@@ -52,8 +52,8 @@ OBSERVATIONS = Topic("observations", "std_msgs/msg/String", "in", INPUT,
 ROBOT_ACKS = Topic("robot/acks", "std_msgs/msg/String", "in", INPUT,
                    "the robot controller's acknowledgements, the same lines (a topic of its own for the controller)")
 POSE = Topic("human/pose", "geometry_msgs/msg/PoseStamped", "in", INPUT,
-             "the person's tracked position, for the motion detector (issue 28); refused in one line while "
-             "the dispatcher has none")
+             "the person's tracked position, for the motion detector (--detect motion); refused in one line "
+             "without it")
 ANSWERS = Topic("answers", "std_msgs/msg/String", "out", LATEST,
                 "every answer, exactly as `hrc dispatch` prints it (one JSON object)")
 GOAL = Topic("robot/goal", "geometry_msgs/msg/PoseStamped", "out", LATEST,
