@@ -291,6 +291,65 @@ def test_two_actions_at_one_place_are_told_apart_by_the_time_spent_there(one_pla
     check(given, want)
 
 
+WAITS_FOR_THE_ROBOT = """
+name: waits_for_the_robot
+map: {map}
+safety_margin: 0.1
+deadline: 120
+agents:
+  - {{id: human, kind: human, radius: 0.30, speed: 1.2, start: H}}
+  - {{id: robot, kind: robot, radius: 0.35, speed: 0.6, start: R}}
+actions:
+  - id: part
+    name: bring the part to the table
+    agents: [human]
+    phases:
+      - {{id: fetch, location: S5, duration: {{human: [2, 4]}}}}
+      - {{id: put, location: T, duration: {{human: [2, 4]}}}}
+  - id: cube
+    name: fetch cube 4
+    agents: [human, robot]
+    phases:
+      - {{id: fetch, location: S4, duration: {{human: [2, 4], robot: [5, 6]}}}}
+  - id: check
+    name: check the part and the cube on the table
+    agents: [human]
+    phases:
+      - {{id: look, location: T, duration: {{human: [1, 2]}}}}
+  - id: tidy
+    name: put the tray back
+    agents: [human]
+    phases:
+      - {{id: fetch, location: S3, duration: {{human: [2, 4]}}}}
+precedence:
+  - [part, check]
+  - [cube, check]
+  - [check, tidy]
+"""
+
+
+def test_leaving_before_the_next_legs_here_could_start_ends_the_leg_at_once(tmp_path):
+    """The person puts the part at T (3 s) and leaves for cube 4. In the plans where the robot fetches the
+    cube, the person's next legs are the check at T (1-2 s), then the tray: the stay (3 s) fits the put and
+    the check, but the check cannot have started (the robot's cube is not done), so the put ended when
+    they left, and is given at once, not after the walk names their destination (1 m or more)."""
+    path = tmp_path / "waits_for_the_robot.yaml"
+    path.write_text(WAITS_FOR_THE_ROBOT.format(map=ROOT / "maps" / "workshop.yaml"), encoding="utf-8")
+    cps = compile_task(load_task(path), seed=0, jobs=1)
+    tr = Trace(cps, "H", seed=3)
+    tr.stand(0.5)
+    tr.leg("part", "fetch", "H", "S5", work=3.0)
+    tr.leg("part", "put", "S5", "T", work=3.0)
+    tr.leg("cube", "fetch", "T", "S4", work=3.0)
+    tr.stand(1.0)
+    given = run(detector(cps), tr.samples)
+    check(given, tr.truth[:-1])  # the last end: they stay
+    put_end = next(t for t, e, a, p in tr.truth if (e, a, p) == ("end", "part", "put"))
+    at = next(g[0] for g in given if g[2:] == ("end", "part", "put"))
+    depart = next(g[0] for g in given if g[2:] == ("depart", "cube", "fetch"))
+    assert at - put_end < 0.6 and at < depart, (at - put_end, depart - put_end)
+
+
 # ---------------------------------------------------------------------------------------------------------
 
 def test_the_walking_distance_fields_agree_with_the_compiles_routes(workshop):

@@ -212,7 +212,7 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
                                 prior=_next_place(sit))
             assert track.left is not None
             left = track.left[1]
-            if any(len(f.legs) > 1 and _could_stay(model, leg, f, left - sit.start) for f in sit.futures):
+            if any(len(f.legs) > 1 and _could_stay(model, sit, leg, f, left) for f in sit.futures):
                 return _leaving(model, track, sit, x, y, here, leg)  # legs here first in some plan: the walk says
             # as they ended (no plan has them do more here in the time they stayed), unless well past the bound
             end = sit.start + model.mid(leg) if left - sit.start > ub + _late(model) else left
@@ -326,11 +326,21 @@ def split(model: DetectorModel, legs: Sequence[Leg], total: float) -> list[float
     return [x + rest * (x / sum(clipped) if sum(clipped) > 0 else 1 / len(legs)) for x in clipped]
 
 
-def _could_stay(model: DetectorModel, working: Leg, future: Future, stay: float) -> bool:
-    """Whether the person could have done `working` and `future`'s legs at this place in `stay` seconds
-    (the sum of their lower bounds fits)."""
-    legs = [working, *(future.legs[:-1] if future.destination is not None else future.legs)]
-    return sum(model.durations.get(leg, (0.0, 0.0))[0] for leg in legs) <= stay + _late(model)
+def _could_stay(model: DetectorModel, sit: Situation, working: Leg, future: Future, left: float) -> bool:
+    """Whether the person, working on `working` since ``sit.start``, could also have done `future`'s legs at
+    this place before leaving at `left`: the first of them ready by then (its predecessors in the task
+    graph ended, the robot's included: a plan in which the person takes the kit once the robot's picks are
+    done cannot have them take it while a pick is under way) and the lower bounds fitting in the time
+    from when it could start."""
+    stays = future.legs[:-1] if future.destination is not None else future.legs
+    if not stays:
+        return False
+    ready = sit.ready(stays[0])
+    if ready is None:
+        return False
+    assert sit.start is not None
+    begin = max(sit.start + model.durations.get(working, (0.0, 0.0))[0], ready)
+    return begin + sum(model.durations.get(leg, (0.0, 0.0))[0] for leg in stays) <= left + _late(model)
 
 
 def _next_place(sit: Situation) -> str | None:
