@@ -104,6 +104,9 @@ def test_hrc_detect_says_in_one_line_what_is_wrong_with_its_arguments(folder, tm
     got = subprocess.run([*HRC, "detect", str(folder), "--sensor-sigma", "-1"], capture_output=True, text=True,
                          timeout=60, input="")
     assert got.returncode == 2 and got.stderr.count("\n") == 1
+    got = subprocess.run([*HRC, "dispatch", str(folder), "--sensor-sigma", "0.1"], capture_output=True, text=True,
+                         timeout=60, input="")
+    assert got.returncode == 2 and got.stderr == "error: hrc dispatch: --sensor-sigma needs --detect motion\n"
 
 
 def _dispatch_stream(name: str) -> str:

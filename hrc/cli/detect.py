@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_detect_options", "add_parser", "detect_params", "run"]
+__all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "run"]
 
 
 def _nonneg(text: str) -> float:
@@ -38,6 +38,24 @@ def detect_params(args: argparse.Namespace) -> Any:
     from hrc.detect import DetectParams
 
     return DetectParams() if args.sensor_sigma is None else DetectParams(sigma=max(args.sensor_sigma, 0.01))
+
+
+def open_dispatcher(args: argparse.Namespace, command: str) -> Any:
+    """The dispatcher `hrc dispatch` and `hrc ros2` serve on ``args.out_dir``: with the motion detector in
+    front of it (``--detect motion``) or not. None, after one ``error:`` line, for ``--sensor-sigma``
+    without ``--detect motion``."""
+    from hrc.dispatch import Dispatcher
+
+    options = dict(allow_partial=args.allow_partial, feasible_only=args.feasible_only,
+                   use_preferences=args.preferences)
+    if args.detect == "motion":
+        from hrc.detect import DetectingDispatcher
+
+        return DetectingDispatcher.from_folder(args.out_dir, params=detect_params(args), **options)
+    if args.sensor_sigma is not None:
+        print(f"error: hrc {command}: --sensor-sigma needs --detect motion", file=sys.stderr)
+        return None
+    return Dispatcher.from_folder(args.out_dir, **options)
 
 
 def add_parser(sub: Any) -> None:

@@ -16,7 +16,7 @@ import argparse
 import sys
 from typing import Any
 
-from hrc.cli.detect import add_detect_options, detect_params
+from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.errors import HrcError
 
 
@@ -46,23 +46,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hrc.dispatch import Dispatcher
-
     given = [f"--{name}" for name in ("log", "resume", "replay") if getattr(args, name)]
     if len(given) > 1:
         print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
         return 2
-    options = dict(allow_partial=args.allow_partial, feasible_only=args.feasible_only,
-                   use_preferences=args.preferences)
-    if args.detect == "motion":
-        from hrc.detect import DetectingDispatcher
-
-        dispatcher: Dispatcher = DetectingDispatcher.from_folder(args.out_dir, params=detect_params(args), **options)
-    else:
-        if args.sensor_sigma is not None:
-            print("error: hrc dispatch: --sensor-sigma needs --detect motion", file=sys.stderr)
-            return 2
-        dispatcher = Dispatcher.from_folder(args.out_dir, **options)
+    dispatcher = open_dispatcher(args, "dispatch")
+    if dispatcher is None:
+        return 2
     recording = None
     if args.record:
         from hrc.record import open_folder_recording

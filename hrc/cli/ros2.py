@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hrc.cli.detect import add_detect_options, detect_params
+from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.errors import HrcError
 
 __all__ = ["INSTALL", "add_parser", "run"]
@@ -102,22 +102,13 @@ def run(args: argparse.Namespace) -> int:
     from hrc.compile.output import read_header
     from hrc.console.run import plan_motions
     from hrc.console.views import PlanRoutes
-    from hrc.dispatch import Dispatcher
     from hrc.dispatch.durable import LoggedDispatcher
     from hrc.motion import plan_paths
     from hrc.ros2.drive import MapFrame
 
-    options = dict(allow_partial=args.allow_partial, feasible_only=args.feasible_only,
-                   use_preferences=args.preferences)
-    if args.detect == "motion":
-        from hrc.detect import DetectingDispatcher
-
-        dispatcher: Dispatcher = DetectingDispatcher.from_folder(args.out_dir, params=detect_params(args), **options)
-    else:
-        if args.sensor_sigma is not None:
-            print("error: hrc ros2: --sensor-sigma needs --detect motion", file=sys.stderr)
-            return 2
-        dispatcher = Dispatcher.from_folder(args.out_dir, **options)
+    dispatcher = open_dispatcher(args, "ros2")
+    if dispatcher is None:
+        return 2
     routes = PlanRoutes(plan_motions(args.out_dir, dispatcher.plan_set),
                         plan_paths(dispatcher.task, seed=int(read_header(args.out_dir).get("seed", 0)))).routes
     recording = None
