@@ -233,8 +233,7 @@ def test_a_person_who_follows_the_plan_is_named_before_the_ways_part(workshop):
     assert named < 4.0
 
 
-TWO_AT_ONE_PLACE = """
-name: two_at_one_place
+_PART_AT_THE_TABLE = """
 map: {map}
 safety_margin: 0.1
 deadline: 120
@@ -248,6 +247,9 @@ actions:
     phases:
       - {{id: fetch, location: S5, duration: {{human: [2, 4]}}}}
       - {{id: put, location: T, duration: {{human: [2, 4]}}}}
+"""  # the start of both small tasks below: a person brings a part from S5 to the table T
+
+TWO_AT_ONE_PLACE = "name: two_at_one_place" + _PART_AT_THE_TABLE + """\
   - id: check
     name: check the part on the table
     agents: [human]
@@ -291,21 +293,7 @@ def test_two_actions_at_one_place_are_told_apart_by_the_time_spent_there(one_pla
     check(given, want)
 
 
-WAITS_FOR_THE_ROBOT = """
-name: waits_for_the_robot
-map: {map}
-safety_margin: 0.1
-deadline: 120
-agents:
-  - {{id: human, kind: human, radius: 0.30, speed: 1.2, start: H}}
-  - {{id: robot, kind: robot, radius: 0.35, speed: 0.6, start: R}}
-actions:
-  - id: part
-    name: bring the part to the table
-    agents: [human]
-    phases:
-      - {{id: fetch, location: S5, duration: {{human: [2, 4]}}}}
-      - {{id: put, location: T, duration: {{human: [2, 4]}}}}
+WAITS_FOR_THE_ROBOT = "name: waits_for_the_robot" + _PART_AT_THE_TABLE + """\
   - id: cube
     name: fetch cube 4
     agents: [human, robot]
