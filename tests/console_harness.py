@@ -31,6 +31,16 @@ CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic
 START_TIMEOUT = 60.0  # s for `hrc console` to listen (it plans the map's paths first)
 
 
+def compiled_workshop(out: Path) -> Path:
+    """The bundled workshop compiled into `out` (seed 0, one process), for a console to serve."""
+    from hrc.compile.compiler import compile_task
+    from hrc.compile.output import write_compiled
+    from hrc.io.task_file import load_task
+
+    write_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1), out)
+    return out
+
+
 def browser_or_skip() -> Any:
     """playwright's sync API, or skip (fail when HRC_REQUIRE_BROWSER=1, as in CI) naming what is missing."""
     missing = None

@@ -17,11 +17,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium
-
-from hrc.compile.compiler import compile_task
-from hrc.compile.output import write_compiled
-from hrc.io.task_file import load_task
+from console_harness import ConsoleProcess, browser_or_skip, chromium, compiled_workshop
 
 pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 
@@ -29,8 +25,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 @pytest.fixture(scope="module")
 def console(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ConsoleProcess]:
     browser_or_skip()
-    out = tmp_path_factory.mktemp("ws")
-    write_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1), out)
+    out = compiled_workshop(tmp_path_factory.mktemp("ws"))
     proc = ConsoleProcess(out, out / "run.jsonl", "--tick", "0")
     try:
         yield proc

@@ -17,10 +17,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium, record_requests
+from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium, compiled_workshop, record_requests
 
-from hrc.compile.compiler import compile_task
-from hrc.compile.output import write_compiled
 from hrc.io.task_file import load_task
 
 SPEED = 5.0           # run seconds per real second: the workshop's ~70 s run takes ~15 s
@@ -35,9 +33,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 @pytest.fixture(scope="module")
 def workshop(tmp_path_factory: pytest.TempPathFactory) -> Path:
     browser_or_skip()  # before spending seconds on compiling
-    out = tmp_path_factory.mktemp("ws")
-    write_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1), out)
-    return out
+    return compiled_workshop(tmp_path_factory.mktemp("ws"))
 
 
 @pytest.fixture

@@ -20,15 +20,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium
+from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium, compiled_workshop
 from test_online_faults import _fill, small_file_system
 
-from hrc.compile.compiler import compile_task
-from hrc.compile.output import write_compiled
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.logfile import read_log
 from hrc.dispatch.protocol import replay
-from hrc.io.task_file import load_task
 
 SPEED = 5.0
 pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
@@ -37,9 +34,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 @pytest.fixture(scope="module")
 def workshop(tmp_path_factory: pytest.TempPathFactory) -> Path:
     browser_or_skip()
-    out = tmp_path_factory.mktemp("ws")
-    write_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1), out)
-    return out
+    return compiled_workshop(tmp_path_factory.mktemp("ws"))
 
 
 def _rss_mb(pid: int) -> float:

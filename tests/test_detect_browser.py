@@ -10,11 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium
-
-from hrc.compile.compiler import compile_task
-from hrc.compile.output import write_compiled
-from hrc.io.task_file import load_task
+from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium, compiled_workshop
 
 SPEED = 5.0
 TRACE = ROOT / "tests" / "data" / "detect" / "workshop_015_5hz_drop5.trace.jsonl"
@@ -27,9 +23,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 @pytest.fixture(scope="module")
 def workshop(tmp_path_factory: pytest.TempPathFactory) -> Path:
     browser_or_skip()
-    out = tmp_path_factory.mktemp("ws")
-    write_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1), out)
-    return out
+    return compiled_workshop(tmp_path_factory.mktemp("ws"))
 
 
 def test_the_page_shows_the_tracked_person_and_the_belief(workshop: Path, tmp_path: Path) -> None:
