@@ -18,6 +18,8 @@ from hrc.apa.compile import TICKS_PER_SECOND, compile_stpp, do_form, prune_repor
 from hrc.apa.io import load_stpp
 from hrc.apa.qp import SOLVERS
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("apa", help="compile an STPP (JSON) into its dispatchably optimal form",

@@ -18,6 +18,8 @@ from hrc.temporal.dc import ALGORITHMS, DEFAULT_ALGORITHM, Verdict, check_dc
 from hrc.temporal.graphml import read_network
 from hrc.temporal.limits import show_path
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("check", help="decide whether an STNU file is dynamically controllable",

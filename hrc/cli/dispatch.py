@@ -19,6 +19,8 @@ from typing import Any
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.errors import HrcError
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("dispatch", help="dispatch a compiled plan set online (JSON lines in and out)",
