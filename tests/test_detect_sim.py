@@ -55,6 +55,8 @@ def test_a_few_simulated_runs_with_the_motion_detector(workshop):
     assert doc["settings"]["detector"] == "motion" and doc["settings"]["sensor"]["rate"] == 10.0
     comparison = doc["comparison"]
     assert set(comparison["policies"]) == {"hrc"} and comparison["buttons_delay"] >= 0
+    for side in comparison["policies"]["hrc"].values():  # the promise is counted over the runs that could keep it
+        assert side["promise_kept"] <= side["first_plan_dc_kept"] <= side["first_plan_dc"] <= 4
     assert len(sim.baseline["hrc"]) == 4 and all(r.detection is None for r in sim.baseline["hrc"])
     again = simulate(task, 4, 1, ("hrc", "fixed"), settings, jobs=1, compiles=compiles)
     assert simulation_json(again) == simulation_json(sim)  # the same seed, the same bytes

@@ -152,8 +152,8 @@ def format_detection(sim: Any) -> str:
             lines.append(f"    vs buttons {sim.baseline_delay:g} s late: makespan median {m['makespan_median']} / "
                          f"{b['makespan_median']} s, deadline met {m['deadline_met_rate']} / {b['deadline_met_rate']}, "
                          f"closest {m['min_distance']} / {b['min_distance']} m, DC promise kept {m['promise_kept']} / "
-                         f"{b['promise_kept']} of {m['first_plan_dc']} / {b['first_plan_dc']}, unfinished "
-                         f"{m['unfinished']} / {b['unfinished']}")
+                         f"{b['promise_kept']} of the {m['first_plan_dc_kept']} / {b['first_plan_dc_kept']} runs "
+                         f"that stayed on a DC first plan, unfinished {m['unfinished']} / {b['unfinished']}")
     return "\n".join(lines)
 
 
