@@ -379,3 +379,21 @@ def test_progress_lines_off_a_terminal_cover_every_long_stage(capsys):
     quiet = _Progress(tty=False, quiet=True, every=0.0)
     quiet("runs", 7, 10)
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["compile", str(WORKSHOP_TASK), "--jobs", "0"], "argument --jobs: must be at least 1, found 0"),
+    (["compile", str(WORKSHOP_TASK), "--jobs", "two"], "argument --jobs: expected a whole number, found 'two'"),
+    (["apa", "x.json", "--ticks-per-second", "-5"], "argument --ticks-per-second: must be at least 1, found -5"),
+    (["console", "OUT", "--speed", "0"], "argument --speed: must lie in (0, 1000], got 0"),
+    (["console", "OUT", "--port", "65536"], "argument --port: must lie in 0..65535, found 65536"),
+    (["console", "OUT", "--tick", "nan"], "argument --tick: not a finite number: 'nan'"),
+    (["detect", "OUT", "--sensor-sigma", "fine"], "argument --sensor-sigma: not a number: 'fine'"),
+    (["ros2", "OUT", "--map-origin", "0", "inf", "0"], "argument --map-origin: not a finite number: 'inf'"),
+])
+def test_a_number_out_of_its_bounds_is_one_line(argv, message, capsys):
+    """Every numeric option goes through hrc.cli.argtypes: one line naming the option and what it wants."""
+    with pytest.raises(SystemExit) as done:
+        main(argv)
+    err = capsys.readouterr().err
+    assert done.value.code == 2 and err.count("\n") == 1 and err.startswith("error: ") and message in err, err

@@ -76,7 +76,7 @@ def _hrc(*argv: str) -> subprocess.CompletedProcess[str]:
 @pytest.mark.parametrize("argv, message", [
     (["--port", "99999"], "must lie in 0..65535"),
     (["--port", "-1"], "must lie in 0..65535"),
-    (["--port", "http"], "not a port number"),
+    (["--port", "http"], "expected a port number"),
     (["--host", "0.0.0.0"], "add --allow-remote"),
     (["--host", "192.0.2.7"], "add --allow-remote"),
     (["--tick", "-1"], "must lie in [0, 3600]"),

@@ -17,6 +17,7 @@ import math
 from hrc.apa.compile import TICKS_PER_SECOND, compile_stpp, do_form, prune_report
 from hrc.apa.io import load_stpp
 from hrc.apa.qp import SOLVERS
+from hrc.cli.argtypes import whole
 
 __all__ = ["add_parser", "run"]
 
@@ -27,20 +28,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("file", metavar="STPP.json", help="an STPP in the JSON format of docs/apa.md")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--solver", choices=sorted(SOLVERS), default="piqp", help="QP solver (default piqp)")
-    p.add_argument("--ticks-per-second", type=_positive_int, default=TICKS_PER_SECOND,
+    p.add_argument("--ticks-per-second", type=whole(1), default=TICKS_PER_SECOND,
                    help=f"resolution of the exact temporal core (default {TICKS_PER_SECOND})")
     p.add_argument("--no-do-form", action="store_true",
                    help="skip the DO form's constraint list (O(n^3): use for thousands of events)")
     p.add_argument("--prune", action="store_true",
                    help="also count Fig. 5 lines 1-2: APSP edges and those left after pruning (O(n^3))")
     p.set_defaults(run=run)
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, found {text}")
-    return value
 
 
 def _num(v: float | None) -> float | None:

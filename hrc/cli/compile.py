@@ -37,6 +37,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hrc.cli.argtypes import whole
 from hrc.errors import InputError
 from hrc.io.claim import FolderClaim
 from hrc.io.task_file import load_task
@@ -48,16 +49,6 @@ __all__ = ["PROGRESS_EVERY", "add_parser", "run"]
 
 PROGRESS_EVERY = 30.0
 """Seconds between progress lines when stderr is not a terminal."""
-
-
-def _positive(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected at least 1, found {text}")
-    return n
 
 
 def _pin(text: str) -> tuple[str, str]:
@@ -76,7 +67,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("task", help="task YAML file")
     p.add_argument("--out", default=None, help="output folder (default: out/TASK_NAME)")
     p.add_argument("--seed", type=int, default=0, help="seed for motion planning (default 0)")
-    p.add_argument("--jobs", type=_positive, default=None,
+    p.add_argument("--jobs", type=whole(1), default=None,
                    help="worker processes, at most the cores (default: one per core; 1 = serial)")
     p.add_argument("--executor", default=None, metavar="URL",
                    help="run plans on a Dask scheduler instead, e.g. dask://127.0.0.1:8786")
@@ -88,20 +79,20 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--stnu", choices=STNU_MODES, default="graphml",
                    help="STNUs as one GraphML file per plan in stnu/ (default), packed into stnu.zip "
                         "(archive), or not written (none)")
-    p.add_argument("--max-plans", type=_positive, default=DEFAULT_MAX_PLANS,
+    p.add_argument("--max-plans", type=whole(1), default=DEFAULT_MAX_PLANS,
                    help=f"refuse a task with more plans than this (default {DEFAULT_MAX_PLANS:,})")
     p.add_argument("--pin", type=_pin, action="append", default=[], metavar="ACTION=AGENT",
                    help="give ACTION to AGENT only (fewer plans: the others are not compiled); repeatable")
     p.add_argument("--symmetry", action="store_true",
                    help="compile one plan per relabelling of identical actions (same agents, phases, "
                         "locations, durations; in no precedence, constraint or preference)")
-    p.add_argument("--best-per-allocation", type=_positive, default=None, metavar="K",
+    p.add_argument("--best-per-allocation", type=whole(1), default=None, metavar="K",
                    help="keep only the K best plans of each allocation (all are compiled; the others are not "
                         "written, ranked or offered to the dispatcher)")
     p.add_argument("--resume", action="store_true",
                    help="go on with the interrupted compile in --out (same task and options): its plans are "
                         "kept, the rest compiled; the output is the same as an uninterrupted run's")
-    p.add_argument("--report-top", type=_positive, default=REPORT_TOP, metavar="N",
+    p.add_argument("--report-top", type=whole(1), default=REPORT_TOP, metavar="N",
                    help=f"the report's ranked table shows the N best plans and the best of each class "
                         f"(default {REPORT_TOP}), with statistics over all plans")
     p.add_argument("--no-report", action="store_true", help="write compiled.json and STNUs only")

@@ -14,40 +14,11 @@ import argparse
 import sys
 from typing import Any
 
+from hrc.cli.argtypes import real, whole
 from hrc.cli.detect import add_detect_options, detect_params
 from hrc.errors import HrcError
 
 __all__ = ["add_parser", "run"]
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0 < value <= 1000:
-        raise argparse.ArgumentTypeError(f"must lie in (0, 1000], got {text}")
-    return value
-
-
-def _port(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"must lie in 0..65535, got {text}")
-    return value
-
-
-def _tick(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0 <= value <= 3600:
-        raise argparse.ArgumentTypeError(f"must lie in [0, 3600] run seconds, got {text}")
-    return value
 
 
 def add_parser(sub: Any) -> None:
@@ -57,12 +28,13 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
     p.add_argument("--allow-remote", action="store_true",
                    help="allow a --host other machines can reach (plain HTTP: the token travels unencrypted)")
-    p.add_argument("--port", type=_port, default=8765, help="port (default 8765; 0: any free port)")
+    p.add_argument("--port", type=whole(0, 65535, what="a port number"), default=8765,
+                   help="port (default 8765; 0: any free port)")
     p.add_argument("--simulate-robot", action="store_true",
                    help="play the robot: each of its events at the start of its window")
-    p.add_argument("--speed", type=_positive, default=1.0,
+    p.add_argument("--speed", type=real(0, 1000, low_open=True), default=1.0,
                    help="run seconds per real second (default 1; e.g. 5 to try a run quickly)")
-    p.add_argument("--tick", type=_tick, default=2.0,
+    p.add_argument("--tick", type=real(0, 3600, unit="run seconds"), default=2.0,
                    help="tell the dispatcher time passed after this many quiet run seconds (0: never)")
     p.add_argument("--log", metavar="FILE", help="the run's log (default OUT_DIR/runs/console-N.jsonl); must be new")
     p.add_argument("--resume", metavar="LOG", help="continue the run logged in LOG (after a crash), appending to it")

@@ -15,22 +15,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hrc.cli.argtypes import real
+
 __all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "run"]
-
-
-def _nonneg(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0 <= value <= 5:
-        raise argparse.ArgumentTypeError(f"must lie in [0, 5] metres, got {text}")
-    return value
 
 
 def add_detect_options(p: argparse.ArgumentParser) -> None:
     """The detector's settings, shared by `hrc detect`, `hrc dispatch --detect motion` and the console."""
-    p.add_argument("--sensor-sigma", type=_nonneg, default=None, metavar="M",
+    p.add_argument("--sensor-sigma", type=real(0, 5, unit="metres"), default=None, metavar="M",
                    help="the tracker's position noise (m, per axis) the detector assumes (default 0.05)")
 
 

@@ -13,34 +13,17 @@ an MCAP recording. SIGINT or SIGTERM stop it cleanly (exit 0, the log whole). Ne
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 from typing import Any
 
+from hrc.cli.argtypes import real
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.errors import HrcError
 
 __all__ = ["INSTALL", "add_parser", "run"]
 
 INSTALL = "pip install 'hrc[ros2]'"
-
-
-def _number(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
-    return value
-
-
-def _tick(text: str) -> float:
-    value = _number(text)
-    if not 0 <= value <= 3600:
-        raise argparse.ArgumentTypeError(f"must lie in [0, 3600] seconds, got {text}")
-    return value
 
 
 def add_parser(sub: Any) -> None:
@@ -53,11 +36,11 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--record", metavar="FILE.mcap",
                    help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
     p.add_argument("--frame-id", default="map", help="the frame of goals and poses (default map)")
-    p.add_argument("--map-origin", nargs=3, type=_number, default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
+    p.add_argument("--map-origin", nargs=3, type=real(), default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
                    help="the pose of hrc's map origin in that frame: metres, metres, radians (default 0 0 0)")
     p.add_argument("--use-sim-time", action="store_true",
                    help="the node's clock is /clock (run seconds): goals stamped with it, --tick from it")
-    p.add_argument("--tick", type=_tick, default=0.0,
+    p.add_argument("--tick", type=real(0, 3600, unit="seconds"), default=0.0,
                    help="with --use-sim-time: tell the dispatcher time passed after this many quiet /clock "
                         "seconds (default 0: never)")
     p.add_argument("--allow-partial", action="store_true",
