@@ -42,10 +42,7 @@ def add_parser(sub: Any) -> None:
                    help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
     p.add_argument("--allow-partial", action="store_true",
                    help="serve a partial compile output (an interrupted compile: not every plan is in it)")
-    p.add_argument("--detect", choices=("buttons", "motion"), default="buttons",
-                   help="motion: the robot endpoint also takes the person's tracked position and the detector "
-                        "reports their events (docs/detect.md)")
-    add_detect_options(p)
+    add_detect_options(p, "the robot endpoint also takes the person's tracked position")
     p.add_argument("--token-file", metavar="FILE",
                    help="the page's secret: read from FILE, or a new one written there (mode 0600)")
     p.add_argument("--robot-token-file", metavar="FILE",

@@ -20,8 +20,12 @@ from hrc.cli.argtypes import real
 __all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "run"]
 
 
-def add_detect_options(p: argparse.ArgumentParser) -> None:
-    """The detector's settings, shared by `hrc detect`, `hrc dispatch --detect motion` and the console."""
+def add_detect_options(p: argparse.ArgumentParser, positions: str | None = None) -> None:
+    """The detector's settings, shared by `hrc detect`, `hrc dispatch`, `hrc console` and `hrc ros2`; the
+    last three also get ``--detect buttons|motion``, `positions` saying where their positions come from."""
+    if positions is not None:
+        p.add_argument("--detect", choices=("buttons", "motion"), default="buttons",
+                       help=f"motion: {positions}, the motion detector reports their events (docs/detect.md)")
     p.add_argument("--sensor-sigma", type=real(0, 5, unit="metres"), default=None, metavar="M",
                    help="the tracker's position noise (m, per axis) the detector assumes (default 0.05)")
 

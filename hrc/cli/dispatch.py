@@ -37,10 +37,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="dispatch a partial compile output (an interrupted compile: not every plan is in it)")
     p.add_argument("--feasible-only", action="store_true",
                    help="drop plans that are neither DC nor consistent; stop when none is left")
-    p.add_argument("--detect", choices=("buttons", "motion"), default="buttons",
-                   help="motion: also take the person's tracked position ({\"t\", \"agent\": \"human\", \"event\": "
-                        "\"position\", \"x\", \"y\"}) and detect their events from it (docs/detect.md)")
-    add_detect_options(p)
+    add_detect_options(p, "also take the person's tracked position ({\"t\", \"agent\": \"human\", \"event\": "
+                          "\"position\", \"x\", \"y\"})")
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
                    help="do not narrow the robot's windows to APA's optimal (DO) windows where the task has "
                         "preferences")

@@ -49,10 +49,7 @@ def add_parser(sub: Any) -> None:
                    help="drop plans that are neither DC nor consistent; stop when none is left")
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
                    help="do not narrow the robot's windows to APA's optimal (DO) windows")
-    p.add_argument("--detect", choices=("buttons", "motion"), default="buttons",
-                   help="motion: the person's tracked pose on human/pose goes to the motion detector, its "
-                        "events to the dispatcher (docs/detect.md); buttons: poses are refused")
-    add_detect_options(p)
+    add_detect_options(p, "the person's tracked pose on human/pose is read (buttons: each pose is refused)")
     p.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None,
                    help="everything after it goes to ROS 2 (remappings, parameters), as for any ROS 2 node")
     p.set_defaults(run=run)
