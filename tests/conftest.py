@@ -21,6 +21,17 @@ ROOT = Path(__file__).resolve().parents[1]
 WORKSHOP_TASK = ROOT / "tasks" / "cube_stacking.yaml"
 WORKSHOP_MAP = ROOT / "maps" / "workshop.yaml"
 
+
+
+def compiled_folder(out: Path, task: Path = WORKSHOP_TASK, *args: str) -> Path:
+    """`task` compiled into the new folder `out` as ``hrc compile --no-report`` writes it (more options in
+    `args`); the folder."""
+    from hrc.cli import main
+
+    assert main(["compile", str(task), "--out", str(out), "--no-report", "-q", *args]) == 0
+    return out
+
+
 # A 10 m x 8 m floor with one box in the middle; every optional key present so that tests can break it.
 MIN_MAP: dict[str, Any] = {
     "name": "mini",

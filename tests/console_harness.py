@@ -24,6 +24,7 @@ from typing import Any
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
 CHROMIUM = os.environ.get("HRC_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -32,13 +33,10 @@ START_TIMEOUT = 60.0  # s for `hrc console` to listen (it plans the map's paths 
 
 
 def compiled_workshop(out: Path) -> Path:
-    """The bundled workshop compiled into `out` (seed 0, one process), for a console to serve."""
-    from hrc.compile.compiler import compile_task
-    from hrc.compile.output import write_compiled
-    from hrc.io.task_file import load_task
+    """The bundled workshop compiled into a new folder below `out` (one process), for a console to serve."""
+    from conftest import compiled_folder
 
-    write_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1), out)
-    return out
+    return compiled_folder(out / "ws", WORKSHOP, "--jobs", "1")
 
 
 def browser_or_skip() -> Any:

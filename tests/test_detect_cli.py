@@ -10,14 +10,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, compiled_folder
 
-from hrc.cli import main
 from hrc.console.clock import RunClock
 from hrc.console.run import open_console
 from hrc.detect import DetectParams
 
-WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
 DATA = ROOT / "tests" / "data" / "detect"
 TRACES = {"workshop_005_10hz": 0.05, "workshop_015_5hz_drop5": 0.15}
 HRC = [sys.executable, "-m", "hrc"]
@@ -25,9 +23,7 @@ HRC = [sys.executable, "-m", "hrc"]
 
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory):
-    out = tmp_path_factory.mktemp("detect") / "ws"
-    assert main(["compile", str(WORKSHOP), "--out", str(out), "--no-report", "-q"]) == 0
-    return out
+    return compiled_folder(tmp_path_factory.mktemp("detect") / "ws")
 
 
 def _lines(path: Path) -> list[dict]:

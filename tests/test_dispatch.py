@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, compiled_folder
 from dispatch_client import Run, broken_links
 
 from hrc.cli import main
@@ -31,9 +31,7 @@ WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
 
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dispatch") / "ws"
-    assert main(["compile", str(WORKSHOP), "--out", str(out), "--no-report", "-q"]) == 0
-    return out
+    return compiled_folder(tmp_path_factory.mktemp("dispatch") / "ws")
 
 
 @pytest.fixture(scope="module")

@@ -37,10 +37,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, compiled_folder
 from dispatch_client import Run
 
-from hrc.cli import main
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.durable import LoggedDispatcher
 from hrc.dispatch.limits import MAX_LINE
@@ -49,7 +48,6 @@ from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.protocol import answer, replay
 from hrc.errors import InputError
 
-WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
 TIMEOUT = 60.0  # s: any one wait for a process
 
 # The bad lines, and a few more; none of them may change the state.
@@ -73,9 +71,7 @@ BAD_LINES = [
 
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("faults") / "ws"
-    assert main(["compile", str(WORKSHOP), "--out", str(out), "--no-report", "-q"]) == 0
-    return out
+    return compiled_folder(tmp_path_factory.mktemp("faults") / "ws")
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, compiled_folder
 from dispatch_client import Run
 from mcap_check import EXPECTED, read_mcap
 
@@ -46,9 +46,7 @@ def _hrc(*args: str, stdin: bytes = b"", timeout: float = 120) -> subprocess.Com
 
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("record") / "ws"
-    assert main(["compile", str(WORKSHOP), "--out", str(out), "--no-report", "-q"]) == 0
-    return out
+    return compiled_folder(tmp_path_factory.mktemp("record") / "ws")
 
 
 @pytest.fixture(scope="module")

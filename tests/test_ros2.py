@@ -26,7 +26,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, compiled_folder
 from dispatch_client import Run
 from mcap_check import read_mcap
 
@@ -37,15 +37,12 @@ from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.protocol import answer
 from hrc.ros2.drive import MapFrame, next_drive
 
-WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
 ORIGIN = (2.0, -1.0, math.pi / 2)  # hrc's map in the ROS frame: a quarter turn, shifted
 
 
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("ros2") / "ws"
-    assert main(["compile", str(WORKSHOP), "--out", str(out), "--no-report", "-q"]) == 0
-    return out
+    return compiled_folder(tmp_path_factory.mktemp("ros2") / "ws")
 
 
 def _dispatch(folder: Path, *args: str, stdin: bytes = b"") -> subprocess.CompletedProcess[bytes]:
