@@ -142,6 +142,14 @@ class ConsoleProcess:
                 f.close()
 
 
+def connected_page(ctx: Any, url: str) -> Any:
+    """A new page of browser context `ctx` at the console's `url`, once its websocket is connected."""
+    page = ctx.new_page()
+    page.goto(url)
+    page.wait_for_function("() => window.hrcConsole && window.hrcConsole.connected", timeout=15_000)
+    return page
+
+
 def record_requests(page: Any) -> list[str]:
     """Every URL the page asks for (its websockets included), appended as they happen."""
     seen: list[str] = []

@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from console_harness import ConsoleProcess, browser_or_skip, chromium, compiled_workshop
+from console_harness import ConsoleProcess, browser_or_skip, chromium, compiled_workshop, connected_page
 
 pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 
@@ -192,9 +192,7 @@ def test_a_page_from_another_origin_can_neither_read_nor_press(console: ConsoleP
     try:
         with chromium() as ctx:
             # the person has the console open in this browser: its cookie is there to be (mis)used
-            own = ctx.new_page()
-            own.goto(console.url)
-            own.wait_for_function("() => window.hrcConsole && window.hrcConsole.connected", timeout=15_000)
+            own = connected_page(ctx, console.url)
             cookies = {c["name"]: c for c in ctx.cookies()}
             port = _host(console).split(":")[1]
             assert cookies[f"hrc_console_{port}"]["httpOnly"] and cookies[f"hrc_console_{port}"]["sameSite"] == "Strict"

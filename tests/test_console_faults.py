@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium, compiled_workshop
+from console_harness import ROOT, ConsoleProcess, browser_or_skip, chromium, compiled_workshop, connected_page
 from test_online_faults import _fill, small_file_system
 
 from hrc.dispatch import Dispatcher
@@ -131,9 +131,7 @@ def test_a_flood_of_impossible_presses_never_delays_the_robot_and_memory_stays_f
         latencies: list[float] = []
         memory: list[float] = []
         with chromium() as ctx:
-            page = ctx.new_page()
-            page.goto(console.url)
-            page.wait_for_function("() => window.hrcConsole && window.hrcConsole.connected", timeout=15_000)
+            page = connected_page(ctx, console.url)
             memory.append(_rss_mb(console.proc.pid))
             before = console.state()
             for flood in range(3):  # the robot's next three events, each acknowledged during a flood
@@ -177,9 +175,7 @@ def test_bad_frames_get_one_line_refusals_and_never_break_the_state(workshop: Pa
     console = ConsoleProcess(workshop, tmp_path / "run.jsonl", "--tick", "0")
     try:
         with chromium() as ctx:
-            page = ctx.new_page()
-            page.goto(console.url)
-            page.wait_for_function("() => window.hrcConsole && window.hrcConsole.connected", timeout=15_000)
+            page = connected_page(ctx, console.url)
             hseq = console.state()["hseq"]
             cases = [
                 ("[" * 20_000, "longer than 4096 bytes"),
@@ -218,9 +214,7 @@ def test_a_full_file_system_is_said_on_the_page_and_nothing_changes(workshop: Pa
         console = ConsoleProcess(workshop, mnt / "run.jsonl", "--tick", "0")
         try:
             with chromium() as ctx:
-                page = ctx.new_page()
-                page.goto(console.url)
-                page.wait_for_function("() => window.hrcConsole && window.hrcConsole.connected", timeout=15_000)
+                page = connected_page(ctx, console.url)
                 filler = _fill(mnt)
                 refused = None
                 for _ in range(60):  # the log's last page may hold a few more records: away, back, ...
