@@ -13,11 +13,11 @@ from oracles import lp_consistent, orders_schedulable
 
 from hrc.cli import main
 from hrc.compile.classify import PlanClass
-from hrc.compile.compiler import compile_task, rank_key, task_digest
+from hrc.compile.compiler import compile_task, rank_key
 from hrc.compile.output import compiled_to_dict, load_compiled_task
 from hrc.compile.temporal_net_creator import ORIGIN, create_stnu
 from hrc.errors import InputError
-from hrc.io.task_file import load_task
+from hrc.io.task_file import load_task, task_digest
 from hrc.motion import plan_motions
 from hrc.plans import agent_legs, generate_plans
 from hrc.temporal import check_dc

@@ -264,9 +264,10 @@ def test_a_plan_the_compile_found_blocked_is_never_promised():
     a person whose inspect and deliver at Q enclose the robot's label there blocks it in most plans."""
     from dataclasses import replace as dc_replace
 
-    from hrc.compile.compiler import CompiledPlanSet, CompileOptions, compile_plan, rank_key, task_digest
+    from hrc.compile.compiler import CompiledPlanSet, CompileOptions, compile_plan, rank_key
     from hrc.dispatch.ranking import CLASS_ORDER, reference_evaluate
     from hrc.dispatch.validation import History, seen_arrays
+    from hrc.io.task_file import task_digest
     from hrc.motion import plan_paths
     from hrc.plans import generate_plans
     from hrc.temporal import check_dc

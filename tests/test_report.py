@@ -427,7 +427,8 @@ def test_reused_figures_match_fresh_ones(cps: CompiledPlanSet, report_dir: Path,
 def waiting_plan():
     """The workshop's plan 8999847204 compiled for real: the person waits at H (a waiting place) on the way
     to cube2 put, and twice for passing orders."""
-    from hrc.compile.compiler import compile_plan, task_digest
+    from hrc.compile.compiler import compile_plan
+    from hrc.io.task_file import task_digest
     from hrc.motion import plan_paths
 
     task = load_task(Path(__file__).resolve().parents[1] / "tasks" / "cube_stacking.yaml")

@@ -80,9 +80,8 @@ def run(args: argparse.Namespace) -> int:
         print("error: hrc ros2: --tick needs --use-sim-time (the node never reads the wall clock)", file=sys.stderr)
         return 2
     from hrc.compile.output import read_header
-    from hrc.console.run import plan_motions
-    from hrc.console.views import PlanRoutes
     from hrc.dispatch.durable import LoggedDispatcher
+    from hrc.dispatch.routes import PlanRoutes, plan_motions
     from hrc.motion import plan_paths
     from hrc.ros2.drive import MapFrame
 

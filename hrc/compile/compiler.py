@@ -11,9 +11,7 @@ executor, the number of jobs or the order in which plans finish: plans are ranke
 from __future__ import annotations
 
 import functools
-import hashlib
 import itertools
-import json
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
@@ -32,8 +30,7 @@ from hrc.compile.motion_pattern import (
 )
 from hrc.compile.preferences import plan_preference
 from hrc.compile.temporal_net_creator import blocked_stnu, relabel_timepoints
-from hrc.io.map_file import workspace_to_dict
-from hrc.io.task_file import task_to_dict
+from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
 from hrc.motion import Motion, PathLibrary, plan_paths
 from hrc.plans import count_plans, plan_families, symmetry_factor
@@ -42,7 +39,7 @@ from hrc.temporal.graphml import write_graphml
 
 __all__ = ["ClassStats", "CompileOptions", "CompiledPlan", "CompiledPlanSet", "PlanSetSummary", "compile_chunk",
            "compile_family", "compile_plan", "compile_task", "relabel_check", "relabel_record",
-           "rank_key", "task_digest"]
+           "rank_key"]
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
 
@@ -138,13 +135,6 @@ class CompiledPlanSet:
         for p in self.plans:
             out[p.plan_class.value] += 1
         return out
-
-
-def task_digest(task: Task) -> str:
-    """SHA-256 of the task and its map as loaded (not of the files' bytes: comments do not count)."""
-    payload = {"task": task_to_dict(task, map_path="-"), "map": workspace_to_dict(task.workspace)}
-    text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def compile_plan(task: Task, plan: Plan, paths: PathLibrary, options: CompileOptions = CompileOptions(),

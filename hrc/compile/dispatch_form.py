@@ -57,6 +57,7 @@ import numpy as np
 
 from hrc.compile.temporal_net_creator import ORIGIN, block_target, leg_names
 from hrc.errors import InputError
+from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
 from hrc.plans import agent_legs
 from hrc.temporal.graphml import tool_name
@@ -392,8 +393,6 @@ class FormWriter:
     form's 32-bit weights raises OverflowError from `add`: write again with `wide`."""
 
     def __init__(self, folder: Path, task: Task, rank_by: str, wide: bool = False) -> None:
-        from hrc.compile.compiler import task_digest
-
         self.task, self.rank_by = task, rank_by
         self.sizes = G, A, L = task_sizes(task)
         self.folder = Path(folder) / FORM_FOLDER
@@ -558,8 +557,6 @@ def read_form(folder: str | os.PathLike[str], task: Task, rank_by: str, *, expec
 def _check_consistent(form: DispatchForm, meta: Mapping[str, Any], where: str) -> None:
     """The arrays fit each other and the task (cheap checks, O(P) on small columns; the edges' indices
     are checked by the dispatcher's core as it reads them)."""
-    from hrc.compile.compiler import task_digest
-
     P = len(form.plans)
     G, A, L = task_sizes(form.task)
     if meta.get("task_digest") != task_digest(form.task):

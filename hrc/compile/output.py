@@ -62,13 +62,13 @@ from typing import Any
 import yaml
 
 from hrc import __version__
-from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, task_digest
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions
 from hrc.compile.dispatch_form import FORM_FOLDER, FormWriter, plan_sequences
 from hrc.compile.motion_pattern import MotionPattern, PassingOrder
 from hrc.compile.temporal_net_creator import ref_namer
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
-from hrc.io.task_file import load_task, task_to_dict
+from hrc.io.task_file import load_task, task_digest, task_to_dict
 from hrc.model import Plan, Task
 from hrc.motion import Conflict, Motion, Occupancy, TimeRef
 from hrc.plans import Leg, agent_legs

@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hrc.compile.compiler import CompileOptions, task_digest
+from hrc.compile.compiler import CompileOptions
 from hrc.compile.output import header_dict
 from hrc.errors import InputError
+from hrc.io.task_file import task_digest
 from hrc.model import Task
 from hrc.plans import identical_actions
 

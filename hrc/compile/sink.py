@@ -35,7 +35,6 @@ from hrc.compile.compiler import (
     PlanSetSummary,
     compile_family,
     rank_key,
-    task_digest,
 )
 from hrc.compile.dispatch_form import FormWriter, plan_record, plan_sequences, read_form
 from hrc.compile.output import (
@@ -52,6 +51,7 @@ from hrc.compile.output import (
 from hrc.compile.resume import KEY_COLUMNS, RESUME_FILE, line_tails, resume_dtype
 from hrc.compile.spool import Spooled, Written, kernel_copy, link_or_copy, open_folder, write_stnu_file
 from hrc.errors import HrcError, InputError
+from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary
 from hrc.plans import family_of, plan_code, plan_from_code

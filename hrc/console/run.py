@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import asyncio
 import gc
-import json
 import os
 import socket
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import uvicorn
@@ -19,45 +17,12 @@ from hrc.console.clock import RunClock
 from hrc.console.runlog import next_log_path, open_log, resume_log
 from hrc.console.server import MAX_FRAME, ConsoleServer
 from hrc.console.session import ConsoleSession
-from hrc.console.views import PlanRoutes
 from hrc.dispatch import Dispatcher
-from hrc.dispatch.plan_set import PlanSet
-from hrc.errors import HrcError, InputError
+from hrc.dispatch.routes import PlanRoutes, plan_motions
+from hrc.errors import HrcError
 from hrc.motion import plan_paths
 
-__all__ = ["open_console", "plan_motions", "serve"]
-
-
-def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable[[str], list[dict[str, Any]] | None]:
-    """A plan's ``motions`` from ``compiled.json``, by plan id (None: no such plan), read when asked for:
-    its one line, where the dispatch form says it lies (a large compile's file is gigabytes); for an
-    output without a form, the file is read once."""
-    path = Path(out_dir) / "compiled.json"
-    rows = plan_set.form.plans
-    everything: dict[str, Any] | None = None
-
-    def motions(plan_id: str) -> list[dict[str, Any]] | None:
-        nonlocal everything
-        try:
-            p = plan_set.index(plan_id)
-        except KeyError:
-            return None
-        at, size = int(rows["line_at"][p]), int(rows["line_len"][p])
-        try:
-            if size:
-                with open(path, "rb") as f:
-                    f.seek(at)
-                    line = json.loads(f.read(size))
-                if isinstance(line, dict) and line.get("id") == plan_id:
-                    return list(line.get("motions", []))
-                raise ValueError(f"plan {plan_id}'s line is not where the dispatch form says")
-            if everything is None:
-                everything = {p["id"]: p for p in json.loads(path.read_text(encoding="utf-8"))["plans"]}
-            return list(everything[plan_id]["motions"]) if plan_id in everything else None
-        except (OSError, ValueError, KeyError, TypeError) as err:
-            raise InputError(str(path), "", f"cannot read plan {plan_id}'s motions ({err})") from err
-
-    return motions
+__all__ = ["open_console", "serve"]
 
 
 def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,

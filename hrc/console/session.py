@@ -25,11 +25,12 @@ from pathlib import Path
 from typing import Any
 
 from hrc.console.clock import RunClock
-from hrc.console.views import PlanRoutes, gantt_bars, map_view, under_way
+from hrc.console.views import gantt_bars, map_view, under_way
 from hrc.dispatch import Dispatcher, RobotStep
 from hrc.dispatch.durable import LoggedDispatcher
 from hrc.dispatch.limits import parse_message
 from hrc.dispatch.logfile import Message
+from hrc.dispatch.routes import PlanRoutes
 from hrc.errors import LogWriteError, MessageError
 
 __all__ = ["LOG_SHOWN", "PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply", "parse"]

@@ -10,13 +10,12 @@ where observed, else the plan's earliest schedule given what happened) and from 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any, Protocol
 
 from hrc.model import Task
-from hrc.motion import PathLibrary
 
-__all__ = ["PlanRoutes", "gantt_bars", "map_view", "under_way"]
+__all__ = ["gantt_bars", "map_view", "under_way"]
 
 # (agent, action, phase, event) -> run seconds, as `Dispatcher.planned_times` gives them
 Times = Mapping[tuple[str, str, str, str], float]
@@ -52,47 +51,6 @@ def map_view(task: Task) -> dict[str, Any]:
         "locations": {loc.id: _xy(loc.xy) for loc in ws.locations},
         "agents": {a.id: {"kind": a.kind.value, "radius": a.radius, "start": a.start} for a in task.agents},
     }
-
-
-class PlanRoutes:
-    """Each plan's routes, one polyline per agent leg: ``routes(plan_id) -> {agent: [leg, ...]}``, a leg
-    being ``{"action", "phase", "from", "to", "points": [[x, y], ...], "detour": str | None}``.
-
-    `motions` gives a plan's ``motions`` from ``compiled.json`` by its id (None: no such plan;
-    `hrc.console.run.plan_motions` reads one line of the file); `paths` the free-space paths for its
-    seed. Cost: one pass over a plan's motions on first use, the last `KEPT` plans cached.
-    """
-
-    KEPT = 64
-
-    def __init__(self, motions: Callable[[str], list[dict[str, Any]] | None], paths: PathLibrary) -> None:
-        self._motions = motions
-        self._paths = paths
-        self._cache: dict[str, dict[str, list[dict[str, Any]]]] = {}
-
-    def routes(self, plan_id: str | None) -> dict[str, list[dict[str, Any]]]:
-        if plan_id is None:
-            return {}
-        if plan_id not in self._cache:
-            found = self._motions(plan_id)
-            if found is None:
-                return {}
-            if len(self._cache) >= self.KEPT:
-                self._cache.pop(next(iter(self._cache)))
-            out: dict[str, list[dict[str, Any]]] = {}
-            for m in found:
-                if m["detour"]:
-                    points = m["detour"]["points"]
-                elif m["from"] == m["to"]:
-                    points = []
-                else:
-                    points = [_xy(p) for p in self._paths.get(m["agent"], m["from"], m["to"]).points]
-                out.setdefault(m["agent"], []).append({
-                    "action": m["action"], "phase": m["phase"], "from": m["from"], "to": m["to"],
-                    "points": points, "detour": m["detour"]["round"] if m["detour"] else None,
-                    "park": m["park"]["at"] if m["park"] else None})
-            self._cache[plan_id] = out
-        return self._cache[plan_id]
 
 
 def gantt_bars(planned: Times, history: Iterable[_Observed], now: float) -> dict[str, list[dict[str, Any]]]:

@@ -131,7 +131,7 @@ class PlanSet:
     def digest(self) -> str:
         """What a log names the set by: SHA-256 of the task's digest and every plan id in rank order."""
         if self._digest is None:
-            from hrc.compile.compiler import task_digest
+            from hrc.io.task_file import task_digest
 
             ids = ",".join(raw.decode("ascii").rstrip() for raw in self.form.plans["id"].tolist())
             self._digest = hashlib.sha256(f"{task_digest(self.task)}:{ids}".encode()).hexdigest()[:16]

@@ -8,6 +8,8 @@ planning (ids, bounds, the task graph, locations against the map and each agent'
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
 from typing import Any
@@ -17,7 +19,7 @@ import yaml
 
 from hrc.errors import TaskFileError
 from hrc.io.atomic import write_text_atomic
-from hrc.io.map_file import clearance, load_workspace
+from hrc.io.map_file import clearance, load_workspace, workspace_to_dict
 from hrc.io.yamldoc import Doc, read_yaml
 from hrc.model import (
     DEFAULT_TRAVEL_SLACK,
@@ -36,7 +38,7 @@ from hrc.model import (
     Workspace,
 )
 
-__all__ = ["dump_task", "load_task", "task_to_dict"]
+__all__ = ["dump_task", "load_task", "task_digest", "task_to_dict"]
 
 MAX_SECONDS = 1e6
 """Largest duration, deadline or constraint bound (s, about 11.6 days): schedules are exact to the
@@ -318,6 +320,13 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
     if task.preference_sets:  # written only when present: older files round-trip unchanged
         out["preference_sets"] = {name: [_preference_dict(p) for p in prefs] for name, prefs in task.preference_sets}
     return out
+
+
+def task_digest(task: Task) -> str:
+    """SHA-256 of the task and its map as loaded (not of the files' bytes: comments do not count)."""
+    payload = {"task": task_to_dict(task, map_path="-"), "map": workspace_to_dict(task.workspace)}
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _preference_dict(p: Preference) -> dict[str, Any]:

@@ -49,7 +49,7 @@ __all__ = ["CLASS_RANK", "FRAME_PERIOD", "Places", "Recording", "RunRecorder", "
            "open_folder_recording"]
 
 Routes = Callable[[str], Mapping[str, Sequence[Mapping[str, Any]]]]
-"""A plan's legs per agent by plan id (`hrc.console.views.PlanRoutes.routes`)."""
+"""A plan's legs per agent by plan id (`hrc.dispatch.routes.PlanRoutes.routes`)."""
 
 FRAME_PERIOD = 0.1
 """Run seconds: measured positions are written at most this often (and the last one of a run)."""
@@ -360,14 +360,13 @@ def check_new(path: str | os.PathLike[str]) -> None:
 def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLike[str], dispatcher: Any,
                           report: Callable[[str], None] | None = None, routes: Routes | None = None) -> Recording:
     """A recording of a run of the dispatcher on the compiled folder `out_dir`. `routes`: the plans' routes
-    (default: the ones the console draws, `hrc.console.views.PlanRoutes`: free-space paths planned again
+    (default: the ones the console draws, `hrc.dispatch.routes.PlanRoutes`: free-space paths planned again
     with the compile's seed, about 2 s for the workshop; detours from ``compiled.json``). The same run
     gives the same bytes whichever command records it (``hrc dispatch``, ``hrc console``, ``hrc ros2``)."""
     check_new(path)
     if routes is None:
         from hrc.compile.output import read_header
-        from hrc.console.run import plan_motions
-        from hrc.console.views import PlanRoutes
+        from hrc.dispatch.routes import PlanRoutes, plan_motions
         from hrc.motion import plan_paths
 
         compiled = read_header(out_dir)

@@ -169,7 +169,7 @@ def agents_update(task: Task, t: float, where: Mapping[str, tuple[float, float]]
 
 def routes_update(task: Task, t: float, routes: Mapping[str, Sequence[Mapping[str, Any]]]) -> SceneUpdate:
     """Each agent's route in a plan (`routes`: agent -> legs, each with ``points``, as
-    `hrc.console.views.PlanRoutes` gives them), one line strip per leg in the agent's colour. Entities
+    `hrc.dispatch.routes.PlanRoutes` gives them), one line strip per leg in the agent's colour. Entities
     ``route/ID``; an agent with no leg gets an empty entity (its old route goes)."""
     entities = []
     for agent in task.agents:

@@ -19,7 +19,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from hrc.compile.output import plan_dict
-from hrc.console.views import PlanRoutes
+from hrc.dispatch.routes import PlanRoutes
 from hrc.record.recorder import RunRecorder
 from hrc.sim.detector import Happening
 from hrc.sim.policies import POLICIES, Controller, DispatchedController, Policy

@@ -2,7 +2,7 @@
 
 A navigation stack (Nav2's ``NavigateToPose``) needs a goal pose in its map frame; hrc's dispatcher says
 which event of which leg the robot does next and when (`hrc.dispatch.Decision`). `next_drive` reads the
-answer (as JSON, the protocol's shape) and the plan's routes (`hrc.console.views.PlanRoutes`: each leg's
+answer (as JSON, the protocol's shape) and the plan's routes (`hrc.dispatch.routes.PlanRoutes`: each leg's
 points, its detour, its waiting place) and gives the `Drive`: its destination and the route's points in
 hrc's map coordinates. A leg that stops at a waiting place is two drives: ``depart`` to the waiting place
 (the plan's ``park``), ``unpark`` from there to the phase's location. `MapFrame` places hrc's map in a

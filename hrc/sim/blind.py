@@ -24,12 +24,13 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from hrc.compile.classify import classify
-from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, rank_key, task_digest
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, rank_key
 from hrc.compile.dispatch_form import plan_record
 from hrc.compile.executors import make_executor
 from hrc.compile.motion_pattern import MotionPattern
 from hrc.compile.preferences import plan_preference
 from hrc.compile.temporal_net_creator import create_stnu
+from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_motions
 from hrc.motion.paths import Path, agent_pairs

@@ -1,0 +1,100 @@
+"""Each plan's routes as the console, the recorder and the ROS 2 node draw and drive them, read from an
+`hrc compile` output folder: a plan's ``motions`` from ``compiled.json`` (`plan_motions`: its one line,
+where the plan set's dispatch form says it lies) and each agent leg's polyline (`PlanRoutes`: the
+free-space paths planned again with the compile's seed, a detour's points from the plan's ``motions``).
+
+They belong to the compiled plan set the dispatcher loads (`hrc.dispatch.plan_set`), below every front
+end that shows or drives a run (console, record, ros2).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+from hrc.dispatch.plan_set import PlanSet
+from hrc.errors import InputError
+from hrc.motion import PathLibrary
+
+__all__ = ["PlanRoutes", "plan_motions"]
+
+
+def _xy(p: Iterable[float]) -> list[float]:
+    x, y = p
+    return [round(float(x), 3), round(float(y), 3)]
+
+
+def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable[[str], list[dict[str, Any]] | None]:
+    """A plan's ``motions`` from ``compiled.json``, by plan id (None: no such plan), read when asked for:
+    its one line, where the dispatch form says it lies (a large compile's file is gigabytes); for an
+    output without a form, the file is read once."""
+    path = Path(out_dir) / "compiled.json"
+    rows = plan_set.form.plans
+    everything: dict[str, Any] | None = None
+
+    def motions(plan_id: str) -> list[dict[str, Any]] | None:
+        nonlocal everything
+        try:
+            p = plan_set.index(plan_id)
+        except KeyError:
+            return None
+        at, size = int(rows["line_at"][p]), int(rows["line_len"][p])
+        try:
+            if size:
+                with open(path, "rb") as f:
+                    f.seek(at)
+                    line = json.loads(f.read(size))
+                if isinstance(line, dict) and line.get("id") == plan_id:
+                    return list(line.get("motions", []))
+                raise ValueError(f"plan {plan_id}'s line is not where the dispatch form says")
+            if everything is None:
+                everything = {p["id"]: p for p in json.loads(path.read_text(encoding="utf-8"))["plans"]}
+            return list(everything[plan_id]["motions"]) if plan_id in everything else None
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            raise InputError(str(path), "", f"cannot read plan {plan_id}'s motions ({err})") from err
+
+    return motions
+
+
+class PlanRoutes:
+    """Each plan's routes, one polyline per agent leg: ``routes(plan_id) -> {agent: [leg, ...]}``, a leg
+    being ``{"action", "phase", "from", "to", "points": [[x, y], ...], "detour": str | None}``.
+
+    `motions` gives a plan's ``motions`` from ``compiled.json`` by its id (None: no such plan;
+    `plan_motions` reads one line of the file); `paths` the free-space paths for its
+    seed. Cost: one pass over a plan's motions on first use, the last `KEPT` plans cached.
+    """
+
+    KEPT = 64
+
+    def __init__(self, motions: Callable[[str], list[dict[str, Any]] | None], paths: PathLibrary) -> None:
+        self._motions = motions
+        self._paths = paths
+        self._cache: dict[str, dict[str, list[dict[str, Any]]]] = {}
+
+    def routes(self, plan_id: str | None) -> dict[str, list[dict[str, Any]]]:
+        if plan_id is None:
+            return {}
+        if plan_id not in self._cache:
+            found = self._motions(plan_id)
+            if found is None:
+                return {}
+            if len(self._cache) >= self.KEPT:
+                self._cache.pop(next(iter(self._cache)))
+            out: dict[str, list[dict[str, Any]]] = {}
+            for m in found:
+                if m["detour"]:
+                    points = m["detour"]["points"]
+                elif m["from"] == m["to"]:
+                    points = []
+                else:
+                    points = [_xy(p) for p in self._paths.get(m["agent"], m["from"], m["to"]).points]
+                out.setdefault(m["agent"], []).append({
+                    "action": m["action"], "phase": m["phase"], "from": m["from"], "to": m["to"],
+                    "points": points, "detour": m["detour"]["round"] if m["detour"] else None,
+                    "park": m["park"]["at"] if m["park"] else None})
+            self._cache[plan_id] = out
+        return self._cache[plan_id]
