@@ -135,7 +135,7 @@ BAD = [
     ('{"t": 1, "event": "start", "agent": "human", "action": "cube2", "phase": "fetch"}', "not ended cube1.fetch"),
     ('{"t": 1, "event": "depart", "agent": "human", "action": "cube1", "phase": "fetch"}', "comes after its start"),
     ('{"t": 1, "event": "start", "agent": "robot", "action": "cube1", "phase": "fetch"}', "being done by the human"),
-    ('{"t": 1, "event": "start", "agent": "human", "action": "cube1", "phase": "fetch"}', "duplicate"),
+    ('{"t": 1.5, "event": "start", "agent": "human", "action": "cube1", "phase": "fetch"}', "duplicate"),
     ('{"t": 0.5, "event": "tick"}', "time goes backwards"),
     ('{"t": 1, "event": "back", "agent": "human"}', "not away"),
     ('{"t": 1, "event": "tick", "action": "cube1"}', "takes no action"),
@@ -403,3 +403,63 @@ def test_a_partial_output_dispatches_only_when_allowed(folder, tmp_path, capsys)
     run = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(partial), "--allow-partial"],
                          input='{"t": 0, "event": "tick"}\n', capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert run.returncode == 0 and json.loads(run.stdout.splitlines()[0])["ok"], run.stderr
+
+
+def test_a_redundant_message_gets_the_last_answer_again_unchanged_at_no_cost(plan_set):
+    """A tick within the 0.05 s gap, and the last accepted message again whole, change nothing: answered
+    `ok`, the previous answer marked unchanged, and the dispatcher's state not even rebuilt (the same
+    object), where before the tick was refused."""
+    from hrc.dispatch.protocol import TICK_GAP, is_accepted
+
+    d, send = _in_process(plan_set)
+    first = send('{"t": 0, "event": "tick"}')
+    assert json.loads(first)["ok"] and is_accepted(first)
+    depart = '{"t": 0.5, "agent": "human", "action": "cube1", "phase": "fetch", "event": "depart"}'
+    taken = send(depart)
+    state = d._state
+    for line in ('{"t": 0.5, "event": "tick"}', '{"t": 0.53, "event": "tick"}', json.dumps({"t": 0.5 + TICK_GAP * 0.99,
+                 "event": "tick"}), depart, depart.replace('"t": 0.5', '"t": 0.50')):
+        again = send(line)
+        assert again == taken[:-1] + ', "unchanged": true}', line  # the previous answer, byte for byte, marked
+        assert json.loads(again)["ok"] is True and not is_accepted(again)
+        assert d._state is state, line  # nothing taken, nothing ranked again
+    later = json.loads(send(json.dumps({"t": 0.5 + TICK_GAP, "event": "tick"})))  # the gap's end: time passes
+    assert later["ok"] and "unchanged" not in later and d.now == 0.5 + TICK_GAP and d._state is not state
+    # a repeat that is no longer the last accepted message is a duplicate event: refused as before
+    dup = json.loads(send(depart.replace('"t": 0.5', '"t": 0.6')))
+    assert dup["ok"] is False and "duplicate" in dup["error"], dup
+    assert not json.loads(send(depart))["ok"]  # time goes backwards: not the last message any more
+    assert not json.loads(send('{"t": 0.52, "event": "tick"}'))["ok"]  # before the last accepted message
+
+
+def test_an_undo_again_is_never_redundant(plan_set):
+    d, send = _in_process(plan_set)
+    send('{"t": 1, "agent": "human", "action": "cube1", "phase": "fetch", "event": "start"}')
+    assert json.loads(send('{"t": 2, "event": "undo"}'))["ok"] and d.history == ()
+    again = json.loads(send('{"t": 2, "event": "undo"}'))
+    assert again["ok"] is False and "nothing to undo" in again["error"]
+
+
+def test_redundant_messages_log_and_resume_byte_for_byte(plan_set, tmp_path):
+    """Answered unchanged, logged with their answer (not synced: `is_accepted` is false), and a resume
+    (which answers every logged message again and compares the bytes) and a replay agree."""
+    from hrc.dispatch.durable import LoggedDispatcher
+    from hrc.dispatch.logfile import read_log
+    from hrc.dispatch.protocol import replay
+
+    path = tmp_path / "run.log"
+    logged = LoggedDispatcher.create(Dispatcher(plan_set), path)
+    lines = ['{"t": 0, "event": "tick"}', '{"t": 0.01, "event": "tick"}',
+             '{"t": 1, "agent": "human", "action": "cube1", "phase": "fetch", "event": "depart"}',
+             '{"t": 1, "agent": "human", "action": "cube1", "phase": "fetch", "event": "depart"}',
+             '{"t": 1.04, "event": "tick"}', '{"t": 1.2, "event": "tick"}']
+    answers = [logged.submit(line.encode()) for line in lines]
+    logged.close()
+    assert [json.loads(a).get("unchanged", False) for a in answers] == [False, True, False, True, True, False]
+    assert all(json.loads(a)["ok"] for a in answers)
+    resumed, info = LoggedDispatcher.resume(Dispatcher(plan_set), path)
+    resumed.close()
+    assert info.messages == len(lines) and resumed.dispatcher.accepted == logged.dispatcher.accepted
+    assert len(resumed.dispatcher.accepted) == 3
+    pairs = list(replay(Dispatcher(plan_set), read_log(path)))
+    assert [got for got, _ in pairs] == [want for _, want in pairs] == answers

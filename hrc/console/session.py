@@ -74,7 +74,8 @@ class ConsoleSession:
 
     `hseq` counts the person's accepted messages: a page sends the `hseq` it has drawn with each press,
     and a press made on a page that has not yet shown the previous one (two tabs pressing at once) is
-    refused, so that no one confirms what they have not seen. `seq` counts every accepted message.
+    refused, so that no one confirms what they have not seen. `seq` counts every accepted message (an
+    answer marked ``unchanged`` accepted none).
     """
 
     def __init__(self, logged: LoggedDispatcher, compiled: Mapping[str, Any], routes: PlanRoutes,
@@ -140,7 +141,7 @@ class ConsoleSession:
     def _record(self, message: dict[str, Any], out: dict[str, Any], source: str) -> None:
         self.total += 1
         self.entries.append({"n": self.total, "source": source, "in": message, "out": out})
-        if out.get("ok"):
+        if out.get("ok") and not out.get("unchanged"):  # a redundant message is answered, changes nothing
             self.seq += 1
             if source == "person":
                 self.hseq += 1

@@ -6,11 +6,16 @@ refusal ``{"t": ..., "ok": false, "error": "one line"}`` that changed nothing. `
 text) and `answer` (a line's bytes, as ``hrc dispatch`` reads them and its log keeps them) never raise.
 
 Before the dispatcher sees a message, it must be at most `MAX_LINE` bytes of UTF-8, nested at most
-`MAX_DEPTH` deep (`hrc.dispatch.limits`), and well formed (`observation_from_json`); a tick less than
-`TICK_GAP` run seconds after the last accepted message is refused too: it would tell the dispatcher
-nothing new and costs it a re-ranking (a few milliseconds), so that a clock ticking 10,000 times a
-second cannot bury the messages that matter. Each check depends only on the message and the
-dispatcher's state, so a replay refuses the same messages.
+`MAX_DEPTH` deep (`hrc.dispatch.limits`), and well formed (`observation_from_json`).
+
+**Redundant messages** (`redundant`) are answered, not refused, and not taken: a tick less than
+`TICK_GAP` run seconds after the last accepted message, and an exact repeat of the last accepted message
+(a controller's retry; an ``undo`` is never a repeat) would tell the dispatcher nothing new, and a
+re-ranking costs a few milliseconds. They get the current decision again, the answer to the last
+accepted message, marked ``"unchanged": true`` (its ``t`` is that message's: the state is as of then),
+at the cost of writing it out: a clock ticking at 20 Hz or 10,000 times a second gets valid answers and
+cannot bury the messages that matter. Each check depends only on the message and the dispatcher's
+state, so a replay answers the same messages the same way, byte for byte.
 
 The log that makes a run replayable is `hrc.dispatch.logfile`'s; `hrc.dispatch.durable` writes it ahead
 of every change. `replay` feeds a log's messages to a fresh dispatcher over the same compiled folder
@@ -28,13 +33,13 @@ from hrc.errors import DispatchError, HrcError, MessageError
 from .dispatcher import Dispatcher
 from .limits import MAX_DEPTH, MAX_LINE, parse_message
 from .logfile import LogContents
-from .messages import observation_from_json
+from .messages import Observation, observation_from_json
 
 __all__ = ["MAX_DEPTH", "MAX_LINE", "TICK_GAP", "answer", "check_header", "handle_line", "is_accepted", "log_header",
-           "replay"]
+           "redundant", "replay"]
 
 TICK_GAP = 0.05
-"""Run seconds: a tick closer than this to the last accepted message is refused (changes nothing)."""
+"""Run seconds: a tick closer than this to the last accepted message changes nothing (`redundant`)."""
 
 
 def _dumps(obj: Any) -> str:
@@ -65,16 +70,26 @@ def handle_line(dispatcher: Dispatcher, line: str) -> str:
         return _position(dispatcher, obj, t)
     try:
         obs = observation_from_json(obj)
-        now = dispatcher.now
-        if obs.event == "tick" and dispatcher.accepted and now <= obs.t < now + TICK_GAP:
-            raise DispatchError(f"tick {obs.t - now:.3f} s after the last accepted message (ticks at least "
-                                f"{TICK_GAP} s apart); nothing changed")
+        if redundant(dispatcher, obs):
+            return _dumps({**dispatcher.decision.to_json(), "unchanged": True})
         decision = dispatcher.observe(obs)
     except DispatchError as err:
         return _refusal(t, str(err))
     except Exception as err:  # noqa: BLE001 - a bug must not end a run; the state was not changed
         return _refusal(t, f"internal error ({type(err).__name__}: {err}); nothing changed")
     return _dumps(decision.to_json())
+
+
+def redundant(dispatcher: Dispatcher, obs: Observation) -> bool:
+    """Whether `obs` would change nothing (see the module docstring): a tick at most `TICK_GAP` s after
+    the last accepted message (not before it: that is time going backwards, refused), or the last
+    accepted message again, whole (an ``undo`` again undoes one more). The first message never is. O(1)."""
+    accepted = dispatcher.accepted
+    if not accepted:
+        return False
+    if obs.event == "tick":
+        return dispatcher.now <= obs.t < dispatcher.now + TICK_GAP
+    return obs.event != "undo" and obs == accepted[-1]
 
 
 def _position(dispatcher: Dispatcher, obj: dict[str, Any], t: Any) -> str:
@@ -105,8 +120,10 @@ def answer(dispatcher: Dispatcher, data: bytes) -> str:
 
 
 def is_accepted(answer_line: str) -> bool:
-    """Whether an answer of `handle_line` / `answer` accepted its message (it changed the state)."""
-    return bool(json.loads(answer_line).get("ok") is True)
+    """Whether an answer of `handle_line` / `answer` accepted its message (it changed the state: an
+    answer marked ``unchanged`` did not)."""
+    out = json.loads(answer_line)
+    return bool(out.get("ok") is True and out.get("unchanged") is not True)
 
 
 def _digest(dispatcher: Dispatcher) -> str:
