@@ -245,12 +245,41 @@ def test_the_console_records_its_run(folder: Path, tmp_path: Path) -> None:
                 assert msg["ok"], msg
     finally:
         console.stop()  # SIGTERM
-    assert console.proc.returncode == 130 and "recorded 3 messages" in console.stderr(), console.stderr()
+    assert console.proc.returncode == 0 and "recorded 3 messages" in console.stderr(), console.stderr()
+    assert f"stopped by SIGTERM after 3 messages; the log {log} is complete" in console.stderr()
     rec = read_mcap(path)
     assert rec.counts["/hrc/in"] == 3 and all(o["ok"] for o in rec.of("/hrc/out"))
     again = _hrc("dispatch", str(folder), "--replay", str(log), "--record", str(tmp_path / "again.mcap"))
     assert again.returncode == 0, again.stderr
     assert path.read_bytes() == (tmp_path / "again.mcap").read_bytes()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_the_console_stops_on_a_signal_as_hrc_ros2_does(folder: Path, tmp_path: Path, sig: int) -> None:
+    """SIGINT or SIGTERM: the console shuts down, says so in one line and exits 0 with its log whole, the
+    way ``hrc ros2`` ends (tests/test_ros2.py); it used to end as an error (130, "error: interrupted")."""
+    from console_harness import ConsoleProcess
+    from websockets.sync.client import connect
+
+    log = tmp_path / "console.jsonl"
+    console = ConsoleProcess(folder, log, "--tick", "0")
+    try:
+        with connect(console.ws + "ws", open_timeout=10, close_timeout=5,
+                     additional_headers=console.page_headers()) as page:
+            state = console.state()
+            page.send(json.dumps({"type": "press", "hseq": state["hseq"], "id": 1, **state["options"][0]}))
+            while (msg := json.loads(page.recv(timeout=10)))["type"] != "reply":
+                pass
+            assert msg["ok"], msg
+        console.proc.send_signal(sig)
+        assert console.proc.wait(timeout=30) == 0, console.stderr()
+    finally:
+        console.stop()
+    err = console.stderr()
+    name = signal.Signals(sig).name
+    assert f"hrc console: stopped by {name} after 1 messages; the log {log} is complete" in err, err
+    assert "Traceback" not in err and "error" not in err, err
+    assert len(console.log_lines()) == 2
 
 
 def test_a_recording_on_a_full_disk_stops_and_the_run_goes_on(folder: Path, session: list[str],

@@ -5,7 +5,8 @@ It prints, once, the address to open with the run's secret (``http://127.0.0.1:8
 notebook server does), and where a robot controller connects with its own secret. ``--token-file`` and
 ``--robot-token-file`` read the secrets from files (or write new ones there, mode 0600), so that a robot
 controller can be given its token before the console starts. Listening on another address than this
-machine's loopback needs ``--allow-remote``.
+machine's loopback needs ``--allow-remote``. SIGINT or SIGTERM stop it cleanly, as ``hrc ros2``: the message
+being handled finishes, then exit 0 with the log whole ("stopped by SIGTERM after N messages").
 """
 
 from __future__ import annotations
@@ -87,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
 
     recording = server.session.recording
     try:
-        serve(server, args.host, args.port, ready)
+        stopped = serve(server, args.host, args.port, ready)
     except (HrcError, OSError):
         if recording is not None and recording.recorder.exchanges == 0:
             recording.abort()  # it never served (the port is taken): no file
@@ -97,4 +98,7 @@ def run(args: argparse.Namespace) -> int:
         if recording is not None and recording.close() is not None:
             print(f"hrc console: recorded {recording.recorder.exchanges} messages into {recording.path}",
                   file=sys.stderr, flush=True)
+    # as hrc ros2 ends: a stop by SIGINT or SIGTERM is how a server is meant to end (exit 0, the log whole)
+    print(f"hrc console: stopped by {stopped or 'the server'} after {server.session.total} messages; the log "
+          f"{server.session.log_path} is complete", file=sys.stderr, flush=True)
     return 0

@@ -5,7 +5,9 @@ from __future__ import annotations
 import asyncio
 import gc
 import os
+import signal
 import socket
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -23,6 +25,8 @@ from hrc.errors import HrcError
 from hrc.motion import plan_paths
 
 __all__ = ["open_console", "serve"]
+
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: str | os.PathLike[str] | None = None,
@@ -83,10 +87,12 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
 
 
 def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
-          ready: Callable[[str], None] | None = None) -> None:
-    """Serve until interrupted; `ready(base_url)` is called once the socket listens (port 0: any free
-    port), with the address served (``http://HOST:PORT/``, no token). Raises `HrcError` when the address
-    cannot be listened on."""
+          ready: Callable[[str], None] | None = None) -> str:
+    """Serve until SIGINT or SIGTERM; `ready(base_url)` is called once the socket listens (port 0: any
+    free port), with the address served (``http://HOST:PORT/``, no token). Returns the name of the signal
+    that stopped it ("" when none did), once the server has shut down gracefully (the message being
+    handled finished, in the log and answered): a stop, as ``hrc ros2``'s, not an error. Raises
+    `HrcError` when the address cannot be listened on."""
     sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -108,7 +114,15 @@ def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
     # permanent generation: a full collection scanned it for ~100 ms, a pause in front of the robot's
     # next acknowledgement (the `gc` docs' advice for a long-lived server with a large, stable heap)
     gc.freeze()
+    # uvicorn takes SIGINT and SIGTERM while it serves, shuts down gracefully and then raises the signal
+    # again for the handler that was in place: here one that notes it (hrc.cli's would make it an error)
+    stop: list[int] = []
+    main = threading.current_thread() is threading.main_thread()
+    previous = {s: signal.signal(s, lambda signum, _frame: stop.append(signum)) for s in _STOP_SIGNALS} if main else {}
     try:
         asyncio.run(uvicorn.Server(config).serve(sockets=[sock]))
     finally:
         gc.unfreeze()  # let the bindings' objects be collected at exit, as usual
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    return signal.Signals(stop[0]).name if stop else ""
