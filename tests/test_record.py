@@ -152,6 +152,60 @@ def test_a_run_stopped_by_a_signal_leaves_a_whole_recording(folder: Path, sessio
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
+def test_a_killed_recordings_hidden_file_is_removed_by_the_next_one(folder: Path, session: list[str],
+                                                                   tmp_path: Path) -> None:
+    """SIGKILL mid-run leaves ``.run.mcap.hrc-*.tmp``; the next recording into the folder removes it (and
+    says so), while a recording still being written there (locked) and other hidden files stay."""
+    from hrc.io.atomic import AtomicFile
+
+    log, path = tmp_path / "run.log", tmp_path / "run.mcap"
+    proc = subprocess.Popen([sys.executable, "-m", "hrc", "dispatch", str(folder), "--log", str(log), "--record",
+                             str(path)], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    assert proc.stdin is not None and proc.stdout is not None
+    for line in session[:5]:
+        proc.stdin.write(line.encode() + b"\n")
+        proc.stdin.flush()
+        assert proc.stdout.readline()
+    proc.kill()
+    proc.wait(timeout=30)
+    proc.stdin.close()
+    proc.stdout.close()
+    (left,) = [p for p in tmp_path.iterdir() if p.name.startswith(".run.mcap.")]
+    assert left.name.endswith(".tmp") and not path.exists()
+    (tmp_path / ".notes.tmp").write_text("not ours")
+    live = AtomicFile(tmp_path / "live.mcap")  # a recording of another run, going on
+    assert live.cleaned == [left] and not left.exists()  # it is the next one here: it cleans
+    again = _hrc("dispatch", str(folder), "--replay", str(log), "--record", str(tmp_path / "again.mcap"))
+    assert again.returncode == 0, again.stderr
+    assert b"removed" not in again.stderr  # nothing stale left; the live one's file is locked, so kept
+    assert live.tmp.exists() and (tmp_path / ".notes.tmp").exists()
+    assert read_mcap(tmp_path / "again.mcap").counts["/hrc/in"] == 5
+    live.discard()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".notes.tmp", "again.mcap", "run.log"]
+
+
+def test_the_next_recording_says_what_it_removed(folder: Path, tmp_path: Path) -> None:
+    """The hidden file of a writer that is gone (its lock went with it), as the next recording reports it."""
+    import fcntl
+
+    from hrc.io.atomic import clean_stale
+
+    dead = tmp_path / ".old.mcap.hrc-abcd1234.tmp"
+    dead.write_bytes(b"half a recording")
+    held = tmp_path / ".held.mcap.hrc-efgh5678.tmp"
+    held.write_bytes(b"being written")
+    with open(held, "rb") as f:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX)
+        run = _hrc("dispatch", str(folder), "--record", str(tmp_path / "new.mcap"),
+                   stdin=b'{"t": 0, "event": "tick"}\n')
+        assert run.returncode == 0, run.stderr
+        assert b"removed .old.mcap.hrc-abcd1234.tmp: the unfinished recording of a run that was killed" in run.stderr
+        assert not dead.exists() and held.exists()
+        assert clean_stale(tmp_path) == []  # still held
+    assert clean_stale(tmp_path) == [held]
+
+
 @pytest.fixture(scope="module")
 def kitting():
     """Kitting pinned to 12 plans (as tests/test_sim.py does) so that it compiles in seconds."""

@@ -7,13 +7,15 @@ built in a staging folder beside it, flushed, and swapped into place when comple
 one process at a time, never a moment without the folder, a killed run's leftovers cleaned by the next).
 `AtomicFile` is the streaming form of `write_bytes_atomic`, for a file written over a whole run (an
 MCAP recording): it grows under a hidden name beside its target and takes the target's name only when
-`commit` is called.
+`commit` is called; the hidden file of a run killed before that is removed by the next `AtomicFile` in
+the same folder (`clean_stale`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import functools
 import os
 import tempfile
@@ -24,7 +26,10 @@ from typing import BinaryIO
 from hrc.io.claim import FolderClaim
 from hrc.io.durable import fsync_folder
 
-__all__ = ["AtomicFile", "atomic_dir", "write_bytes_atomic", "write_text_atomic"]
+__all__ = ["AtomicFile", "atomic_dir", "clean_stale", "write_bytes_atomic", "write_text_atomic"]
+
+_MARK = "hrc-"
+"""An `AtomicFile`'s hidden name is ``.NAME.hrc-XXXXXXXX.tmp``: the pattern `clean_stale` looks for."""
 
 
 @functools.cache
@@ -76,12 +81,55 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
         yield stage
 
 
+def _locked_by_a_live_process(fd: int) -> bool:
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    return False
+
+
+def clean_stale(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove the hidden files (``.NAME.hrc-XXXXXXXX.tmp``) that an `AtomicFile` of a process now gone
+    left in `folder` (a recording killed with SIGKILL, a power cut); the paths removed.
+
+    Which are stale is known, not guessed: a writer holds an exclusive ``flock`` on its hidden file from
+    before the file has that name until it is removed or renamed, and the kernel drops the lock when the
+    process dies. So a file of the pattern that can be locked is a dead writer's; one that cannot is being
+    written. Other files are never touched. Never raises (a folder that cannot be read is left alone)."""
+    removed: list[Path] = []
+    try:
+        found = sorted(Path(folder).glob(f".*.{_MARK}*.tmp"))
+    except OSError:
+        return removed
+    for path in found:
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+        except OSError:
+            continue  # gone meanwhile, a symlink, not ours to read
+        try:
+            if _locked_by_a_live_process(fd) or not os.path.samestat(os.fstat(fd), os.lstat(path)):
+                continue
+            os.unlink(path)
+            removed.append(path)
+        except OSError:
+            continue
+        finally:
+            os.close(fd)
+    return removed
+
+
 class AtomicFile:
-    """A new file at `path`, written through `file` under a hidden name beside it (``.NAME.XXXX.tmp``) and
-    given its name by `commit`: flushed to the disk, then linked to `path`, which must not exist then
-    either (a file that appeared meanwhile is never overwritten: `FileExistsError`), then the folder
-    flushed. `discard` removes it. A run killed before `commit` leaves only the hidden file (no reader
-    takes it for the real one); nothing is ever under `path` but a whole file.
+    """A new file at `path`, written through `file` under a hidden name beside it
+    (``.NAME.hrc-XXXXXXXX.tmp``) and given its name by `commit`: flushed to the disk, then linked to
+    `path`, which must not exist then either (a file that appeared meanwhile is never overwritten:
+    `FileExistsError`), then the folder flushed. `discard` removes it. A run killed before `commit`
+    leaves only the hidden file (no reader takes it for the real one), which the next `AtomicFile` in the
+    same folder removes (`clean_stale`; `cleaned` says what it removed); nothing is ever under `path` but
+    a whole file.
+
+    The hidden file is locked (``flock``) by its writer from before it takes its hidden name until it is
+    gone, through a descriptor of its own (`_lock`) that `commit` and `discard` close last.
 
     Raises `FileExistsError` at once when `path` exists, `IsADirectoryError` when it is a folder.
     """
@@ -90,8 +138,18 @@ class AtomicFile:
         self.path = Path(path)
         self.check(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
-        self.tmp = Path(tmp)
+        self.cleaned = clean_stale(self.path.parent)
+        fd, new = tempfile.mkstemp(prefix=f".{self.path.name}.{_MARK}", suffix=".new", dir=self.path.parent)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)  # a new file: no one else holds it
+            self._lock = os.dup(fd)  # the lock lives as long as one descriptor of the file is open
+            self.tmp = Path(new[: -len(".new")] + ".tmp")
+            os.rename(new, self.tmp)  # under the name `clean_stale` looks for only once locked
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(new)
+            os.close(fd)
+            raise
         self.file: BinaryIO = os.fdopen(fd, "w+b")
         self.done = False
 
@@ -128,8 +186,15 @@ class AtomicFile:
         self.done = True
         if self.tmp != self.path:
             os.unlink(self.tmp)
+        self._unlock()
         fsync_folder(self.path.parent)
         return self.path
+
+    def _unlock(self) -> None:
+        if self._lock >= 0:
+            with contextlib.suppress(OSError):
+                os.close(self._lock)
+            self._lock = -1
 
     def discard(self) -> None:
         """Remove the hidden file (nothing is ever at `path`); idempotent, and quiet: what was not written
@@ -139,3 +204,4 @@ class AtomicFile:
             self.file.close()
         with contextlib.suppress(FileNotFoundError):
             os.unlink(self.tmp)
+        self._unlock()

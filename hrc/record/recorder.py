@@ -302,6 +302,9 @@ class Recording:
         self.file = AtomicFile(path)
         self.report = report
         self.error: str | None = None
+        for stale in self.file.cleaned:
+            if report is not None:
+                report(f"removed {stale.name}: the unfinished recording of a run that was killed")
         try:
             self.recorder = RunRecorder(self.file.file, task, routes, **options)
         except BaseException:
