@@ -281,6 +281,12 @@ def test_a_plan_the_compile_found_blocked_is_never_promised():
     d = Dispatcher.from_compiled(cps)
     blocked = [e for e in d.plan_set.plans if e.blocked]
     assert blocked and all(e.compiled_class == "inconsistent" for e in blocked)
+    # the compiled plan's flag (what hrc.sim.run reads) is the form's, and does not hang on wording
+    assert {cp.plan.id for cp in compiled if cp.blocked} == {e.id for e in blocked}
+    reworded = [dc_replace(cp, classification=dc_replace(cp.classification, explanation="(in other words)"))
+                for cp in compiled]
+    assert [cp.blocked for cp in reworded] == [cp.blocked for cp in compiled]
+    assert all(cp.plan_class.value == "inconsistent" for cp in compiled if cp.blocked)
     assert not any(check_dc(e.stnu).consistent for e in blocked)  # its file carries the block (issue 27)
     seen, legs_seen = seen_arrays(History.start(task), d.plan_set.form.nodes.shape[2])
     for e in blocked:

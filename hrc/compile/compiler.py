@@ -77,6 +77,15 @@ class CompiledPlan:
         return self.classification.plan_class
 
     @property
+    def blocked(self) -> bool:
+        """Motion acquisition found no motion pattern at all: the co-workers would block each other whatever
+        the order and route (`hrc.compile.motion_pattern.choose_pattern`). Such a plan is inconsistent, and
+        its STNU carries none of its conflicts (its file carries the block instead: `blocked_stnu`; its
+        dispatch form record the flag: `PlanEntry.blocked`). What readers test, never the explanation's
+        words."""
+        return self.pattern.candidates == 0
+
+    @property
     def motions(self) -> tuple[Motion, ...]:
         return self.pattern.motions
 
@@ -158,7 +167,7 @@ def _record(task: Task, plan: Plan, choice: PlanChoice, graphml: bool, text: str
     with it its dispatch form record (or `form`: the same, of a plan it is a relabelling of)."""
     stnu = choice.net.stnu
     size = (len(stnu.timepoints), len(stnu.requirements), len(stnu.contingents))
-    blocked = choice.pattern.candidates == 0  # its file carries the block (`blocked_stnu`)
+    blocked = choice.pattern.candidates == 0  # `CompiledPlan.blocked`: its file carries the block (`blocked_stnu`)
     if text is None:
         text = write_graphml(blocked_stnu(stnu) if blocked else stnu) if graphml else ""
     if form is None:
@@ -205,12 +214,12 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
     if not first.classification.explanation:
         return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) for plan in family[1:])]
     out = [first]
-    written = blocked_stnu(choice.net.stnu) if first.pattern.candidates == 0 else choice.net.stnu  # once: `_layout`
+    written = blocked_stnu(choice.net.stnu) if first.blocked else choice.net.stnu  # once: `_layout`
     result = choice.check  # the first plan's check, with its negative cycle (None: each member checks)
     for plan in family[1:]:
         names = relabel_timepoints(task, family[0], plan)
         known = None if result is None else relabel_check(result, names)
-        if known is None or first.pattern.candidates == 0:
+        if known is None or first.blocked:
             member = apply_pattern(task, plan, first.pattern, human_waits=options.human_waits, known=known)
         else:  # the first's numbers, renamed, and its explanation in this plan's words (`renamed`)
             net = pattern_network(task, plan, first.pattern, options.human_waits)

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+from hrc.compile.compiler import CompiledPlanSet
 from hrc.detect.sensor import Sensor, SensorModel
 from hrc.model import Task
 from hrc.motion import PathLibrary
@@ -720,7 +720,7 @@ class _Run(Standoffs):
             robot_aside=self.r.aside_time, human_aside=self.h.aside_time,
             min_distance=None if not math.isfinite(min_free) else min_free, overlaps=overlaps,
             plan_switches=ctl.switches, first_plan=first, first_class=ctl.first_class,
-            first_blocked=first_cp is not None and _blocked(first_cp), final_plan=ctl.plan_id,
+            first_blocked=first_cp is not None and first_cp.blocked, final_plan=ctl.plan_id,
             first_kept=bool(kept), first_broken=broken, refused=tuple(ctl.refused), late=self.late,
             robot_travel_excess=self.excess, human_sequence=human_seq, robot_sequence=robot_seq,
             overruns=sum(1 for k in self.draws.overrun if times.get(f"{self.h.id}.{k[1]}.{k[0]}.end") is not None),
@@ -764,11 +764,3 @@ class _Run(Standoffs):
                 if base + ".unpark" in times and base + ".park" in times:
                     busy[agent] -= times[base + ".unpark"] - times[base + ".park"]
         return busy[self.h.id], busy[self.r.id]
-
-
-def _blocked(cp: CompiledPlan) -> bool:
-    """The compile found no passing order that keeps the co-workers apart in this plan (its class is
-    inconsistent for that reason, but the STNU it wrote carries none of the plan's conflicts, so a
-    dispatcher re-checking that STNU sees the plan as if the two never met: see docs/simulate.md)."""
-    return cp.plan_class.value == "inconsistent" \
-        and (cp.classification.explanation or "").startswith("the co-workers would block each other: no order")
