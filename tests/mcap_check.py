@@ -75,3 +75,44 @@ def read_mcap(source: Path | bytes) -> Recorded:
     for topic, kinds in channels.items():
         assert EXPECTED.get(topic) == kinds, (topic, kinds)
     return out
+
+
+EXPECTED_ROS2 = {  # topic -> (schema name, schema encoding, message encoding): --record-format ros2
+    "/hrc/map": ("visualization_msgs/msg/MarkerArray", "ros2msg", "cdr"),
+    "/hrc/routes": ("visualization_msgs/msg/MarkerArray", "ros2msg", "cdr"),
+    "/hrc/agents": ("visualization_msgs/msg/MarkerArray", "ros2msg", "cdr"),
+    "/hrc/human/pose": ("geometry_msgs/msg/PoseStamped", "ros2msg", "cdr"),
+    "/hrc/robot/pose": ("geometry_msgs/msg/PoseStamped", "ros2msg", "cdr"),
+    "/hrc/robot/goal": ("geometry_msgs/msg/PoseStamped", "ros2msg", "cdr"),
+    "/hrc/in": ("std_msgs/msg/String", "ros2msg", "cdr"),
+    "/hrc/out": ("std_msgs/msg/String", "ros2msg", "cdr"),
+    "/hrc/decision": ("std_msgs/msg/String", "ros2msg", "cdr"),
+}
+
+
+def read_ros2_mcap(source: Path | bytes) -> Recorded:
+    """`read_mcap` for a ROS-typed recording: decoded by ``mcap-ros2-support``'s decoder, which builds each
+    type from the ``ros2msg`` definition stored in the file (MCAP's ``ros2`` profile); each message is
+    kept as (topic, log time, publish time, (decoded, CDR bytes)) so that another decoder can read it too."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    data = source if isinstance(source, bytes) else Path(source).read_bytes()
+    reader = make_reader(io.BytesIO(data), decoder_factories=[DecoderFactory()])
+    assert reader.get_header().profile == "ros2"
+    summary = reader.get_summary()
+    assert summary is not None and summary.statistics is not None, "no summary: the file was not closed"
+    channels = {c.topic: (summary.schemas[c.schema_id].name, summary.schemas[c.schema_id].encoding,
+                          c.message_encoding) for c in summary.channels.values()}
+    counts = {summary.channels[c].topic: n for c, n in summary.statistics.channel_message_counts.items()}
+    out = Recorded(reader.get_header().library, {m.name: dict(m.metadata) for m in reader.iter_metadata()},
+                   channels, counts)
+    last = -1
+    for _schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+        assert message.log_time >= last, f"{channel.topic}: time goes back at {message.log_time}"
+        last = message.log_time
+        out.messages.append((channel.topic, message.log_time, message.publish_time, (decoded, message.data)))
+    assert sum(counts.values()) == len(out.messages) == summary.statistics.message_count
+    for topic, kinds in channels.items():
+        assert EXPECTED_ROS2.get(topic) == kinds, (topic, kinds)
+    return out

@@ -17,6 +17,7 @@ from typing import Any
 
 from hrc.cli.argtypes import real, whole
 from hrc.cli.detect import add_detect_options, detect_params
+from hrc.cli.record import add_record_format
 from hrc.errors import HrcError
 
 __all__ = ["add_parser", "run"]
@@ -41,6 +42,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--resume", metavar="LOG", help="continue the run logged in LOG (after a crash), appending to it")
     p.add_argument("--record", metavar="FILE.mcap",
                    help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
+    add_record_format(p)
     p.add_argument("--allow-partial", action="store_true",
                    help="serve a partial compile output (an interrupted compile: not every plan is in it)")
     add_detect_options(p, "the robot endpoint also takes the person's tracked position")
@@ -72,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     server = open_console(args.out_dir, speed=args.speed, log=args.log, simulate_robot=args.simulate_robot,
                           tick=args.tick, credentials=Credentials(page, robot), resume=args.resume,
-                          allow_partial=args.allow_partial, record=args.record,
+                          allow_partial=args.allow_partial, record=args.record, record_format=args.record_format,
                           detect=detect_params(args) if args.detect == "motion" else None,
                           report=lambda text: print(f"hrc console: {text}", file=sys.stderr, flush=True))
     if not is_loopback(args.host):

@@ -17,6 +17,7 @@ import sys
 from typing import Any
 
 from hrc.cli.detect import add_detect_options, open_dispatcher
+from hrc.cli.record import add_record_format
 from hrc.errors import HrcError
 
 __all__ = ["add_parser", "run"]
@@ -33,6 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--replay", metavar="LOG", help="re-run a log written with --log and print its answers")
     p.add_argument("--record", metavar="FILE.mcap",
                    help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
+    add_record_format(p)
     p.add_argument("--allow-partial", action="store_true",
                    help="dispatch a partial compile output (an interrupted compile: not every plan is in it)")
     p.add_argument("--feasible-only", action="store_true",
@@ -57,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     if args.record:
         from hrc.record import open_folder_recording
 
-        recording = open_folder_recording(args.record, args.out_dir, dispatcher, report=_say)
+        recording = open_folder_recording(args.record, args.out_dir, dispatcher, report=_say, fmt=args.record_format)
     try:
         status = _run(args, dispatcher, recording)
     except (HrcError, OSError):

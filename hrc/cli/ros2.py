@@ -19,6 +19,7 @@ from typing import Any
 
 from hrc.cli.argtypes import real
 from hrc.cli.detect import add_detect_options, open_dispatcher
+from hrc.cli.record import add_record_format
 from hrc.errors import HrcError
 
 __all__ = ["INSTALL", "add_parser", "run"]
@@ -35,6 +36,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--resume", metavar="LOG", help="continue the run logged in LOG (after a crash), appending to it")
     p.add_argument("--record", metavar="FILE.mcap",
                    help="record the run as MCAP for Foxglove into FILE, a new file (docs/record.md)")
+    add_record_format(p)
     p.add_argument("--frame-id", default="map", help="the frame of goals and poses (default map)")
     p.add_argument("--map-origin", nargs=3, type=real(), default=(0.0, 0.0, 0.0), metavar=("X", "Y", "YAW"),
                    help="the pose of hrc's map origin in that frame: metres, metres, radians (default 0 0 0)")
@@ -94,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     if args.record:
         from hrc.record import open_folder_recording
 
-        recording = open_folder_recording(args.record, args.out_dir, dispatcher, _say, routes)
+        recording = open_folder_recording(args.record, args.out_dir, dispatcher, _say, routes, args.record_format)
     opened: list[Any] = []
 
     def open_log() -> Any:

@@ -33,7 +33,8 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
                  simulate_robot: bool = False, tick: float = 2.0, credentials: Credentials | None = None,
                  resume: str | os.PathLike[str] | None = None, allow_partial: bool = False,
                  report: Callable[[str], None] | None = None,
-                 record: str | os.PathLike[str] | None = None, detect: Any = None) -> ConsoleServer:
+                 record: str | os.PathLike[str] | None = None, detect: Any = None,
+                 record_format: str = "foxglove") -> ConsoleServer:
     """A console for the compiled plan set in `out_dir`, its log at `log` (default: the first free
     ``OUT_DIR/runs/console-N.jsonl``), or the run logged at `resume` continued (its torn end, if any,
     reported through `report`), `credentials` its secrets (default: new ones); `detect`: the motion
@@ -45,7 +46,7 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     `resume` is no log of this compiled set. Cost: loading the plan set (its dispatch form: well under a
     second for 40,320 plans) and planning the free-space paths again (about 2 s for the workshop).
     `record`: also record the run as MCAP into this new file (`hrc.record`; ``session.recording``, which
-    the caller closes when the server has stopped).
+    the caller closes when the server has stopped), in `record_format` (`hrc.record.FORMATS`).
     """
     if detect is not None:  # the motion detector in front (`hrc.detect`): `detect` is its DetectParams
         from hrc.detect import DetectingDispatcher
@@ -60,7 +61,7 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     if record is not None:  # before the log: a taken name must not leave a new log behind
         from hrc.record import open_folder_recording
 
-        recording = open_folder_recording(record, out_dir, dispatcher, report, routes.routes)
+        recording = open_folder_recording(record, out_dir, dispatcher, report, routes.routes, record_format)
     try:
         if resume is not None:
             logged, resumed = resume_log(resume, dispatcher)

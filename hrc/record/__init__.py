@@ -22,10 +22,14 @@ topic                schema               what
 /hrc/log             foxglove.Log         the messages (``in``) and answers (``out``) as text lines
 ==================== ==================== ===========================================================
 
-Modules: `scene` (the Foxglove messages drawn), `recorder` (`RunRecorder`, `Recording`: a run into a
-file), `sim` (recording simulated runs).
+With ``--record-format ros2`` the same topics carry ROS 2 message types instead (`ros2msg`:
+std_msgs/String, geometry_msgs/PoseStamped, visualization_msgs/MarkerArray; no /hrc/log), for ``ros2 bag``
+and RViz.
+
+Modules: `scene` (the Foxglove messages drawn), `ros2msg` (the ROS 2 ones), `recorder` (`RunRecorder`,
+`Recording`: a run into a file), `sim` (recording simulated runs).
 """
 
-from hrc.record.recorder import CLASS_RANK, FRAME_PERIOD, Recording, RunRecorder, open_folder_recording
+from hrc.record.recorder import CLASS_RANK, FORMATS, FRAME_PERIOD, Recording, RunRecorder, open_folder_recording
 
-__all__ = ["CLASS_RANK", "FRAME_PERIOD", "Recording", "RunRecorder", "open_folder_recording"]
+__all__ = ["CLASS_RANK", "FORMATS", "FRAME_PERIOD", "Recording", "RunRecorder", "open_folder_recording"]

@@ -45,7 +45,7 @@ from hrc.model import Task
 from hrc.record import scene
 from hrc.ros2.drive import next_drive
 
-__all__ = ["CLASS_RANK", "FRAME_PERIOD", "Places", "Recording", "RunRecorder", "Routes", "check_new",
+__all__ = ["CLASS_RANK", "FORMATS", "FRAME_PERIOD", "Places", "Recording", "RunRecorder", "Routes", "check_new",
            "open_folder_recording"]
 
 Routes = Callable[[str], Mapping[str, Sequence[Mapping[str, Any]]]]
@@ -154,22 +154,12 @@ class Places:
                                      "end": f"done {action}.{phase}"}[str(event)]
 
 
-class RunRecorder:
-    """Writes one run to `sink` as MCAP (see the module docstring; channels: `hrc.record`).
+class _FoxgloveOut:
+    """The writing end of `RunRecorder` in Foxglove's well-known schemas (`hrc.record.scene`) and JSON
+    (`SCHEMAS`), by Foxglove's SDK; `hrc.record.ros2msg.Ros2Out` is the ROS 2 one, with the same calls."""
 
-    `routes` gives a plan's legs by plan id (None: no routes drawn, goals at the phases' locations);
-    `measured`: positions come from `positions` (a simulation), not from the observations. `metadata`
-    goes into the file's ``hrc`` metadata record beside the generator and the task's name. Call `finish`
-    at the end (it writes MCAP's summary; the sink is left open).
-    """
-
-    def __init__(self, sink: BinaryIO, task: Task, routes: Routes | None = None, *, measured: bool = False,
-                 metadata: Mapping[str, str] | None = None) -> None:
+    def __init__(self, sink: BinaryIO, task: Task) -> None:
         self.task = task
-        self.routes = routes
-        self.measured = measured
-        self.human = next(a.id for a in task.agents if a.is_human)
-        self.robot = next(a.id for a in task.agents if not a.is_human)
         ctx = self._context = foxglove.Context()
         # zstd on this thread (0 worker threads): the same bytes whatever the machine
         options = MCAPWriteOptions(compression=MCAPCompression.Zstd, compression_threads=0)
@@ -184,8 +174,78 @@ class RunRecorder:
         self._out = self._json("/hrc/out", "hrc.Answer")
         self._decision = self._json("/hrc/decision", "hrc.Decision")
         self._log = LogChannel("/hrc/log", context=ctx)
+
+    def _json(self, topic: str, name: str) -> Any:
+        schema = foxglove.Schema(name=name, encoding="jsonschema", data=_dumps(SCHEMAS[name]))
+        return foxglove.Channel(topic, schema=schema, message_encoding="json", context=self._context)
+
+    def metadata(self, info: Mapping[str, str]) -> None:
+        self._writer.write_metadata("hrc", dict(info))
+
+    def map(self) -> None:
+        self._map.log(scene.map_update(self.task), log_time=0)
+
+    def message(self, data: bytes, ns: int) -> None:
+        self._in.log(data, log_time=ns)
+
+    def answer(self, data: bytes, ns: int) -> None:
+        self._out.log(data, log_time=ns)
+
+    def log(self, t: float, ok: bool, text: str, name: str, ns: int) -> None:
+        self._log.log(Log(timestamp=scene.stamp(t), level=LogLevel.Info if ok else LogLevel.Warning, message=text,
+                          name=name), log_time=ns)
+
+    def decision(self, data: bytes, ns: int) -> None:
+        self._decision.log(data, log_time=ns)
+
+    def routes(self, t: float, legs: Mapping[str, Sequence[Mapping[str, Any]]], ns: int) -> None:
+        self._routes.log(scene.routes_update(self.task, t, legs), log_time=ns)
+
+    def pose(self, agent: str, t: float, x: float, y: float, ns: int) -> None:
+        self._pose[agent].log(scene.pose_in_frame(t, x, y), log_time=ns)
+
+    def goal(self, t: float, x: float, y: float, heading: float, ns: int) -> None:
+        self._goal.log(scene.pose_in_frame(t, x, y, heading), log_time=ns)
+
+    def agents(self, t: float, where: Mapping[str, tuple[float, float]], labels: Mapping[str, str],
+               present: Mapping[str, bool], ns: int) -> None:
+        self._agents.log(scene.agents_update(self.task, t, where, labels, present), log_time=ns)
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+FORMATS = ("foxglove", "ros2")
+"""Recording formats (``--record-format``): Foxglove's schemas (the default), or ROS 2 message types
+(`hrc.record.ros2msg`: ``ros2 bag`` and RViz read it; Foxglove reads both)."""
+
+
+class RunRecorder:
+    """Writes one run to `sink` as MCAP (see the module docstring; channels: `hrc.record`).
+
+    `routes` gives a plan's legs by plan id (None: no routes drawn, goals at the phases' locations);
+    `measured`: positions come from `positions` (a simulation), not from the observations. `metadata`
+    goes into the file's ``hrc`` metadata record beside the generator and the task's name. `fmt`: one of
+    `FORMATS`. Call `finish` at the end (it writes MCAP's summary; the sink is left open).
+    """
+
+    def __init__(self, sink: BinaryIO, task: Task, routes: Routes | None = None, *, measured: bool = False,
+                 metadata: Mapping[str, str] | None = None, fmt: str = "foxglove") -> None:
+        self.task = task
+        self.routes = routes
+        self.measured = measured
+        self.human = next(a.id for a in task.agents if a.is_human)
+        self.robot = next(a.id for a in task.agents if not a.is_human)
+        if fmt == "ros2":
+            from hrc.record.ros2msg import Ros2Out
+
+            self._sink: _FoxgloveOut | Ros2Out = Ros2Out(sink, task)
+        elif fmt == "foxglove":
+            self._sink = _FoxgloveOut(sink, task)
+        else:
+            raise ValueError(f"unknown recording format {fmt!r} (expected one of {', '.join(FORMATS)})")
         info = {"generator": f"hrc {__version__}", "task": task.name, **(metadata or {})}
-        self._writer.write_metadata("hrc", {k: str(v) for k, v in sorted(info.items())})
+        self._sink.metadata({k: str(v) for k, v in sorted(info.items())})
         self.t = 0.0
         self.plan: str | None = None
         self.answer: Mapping[str, Any] = {}
@@ -195,12 +255,8 @@ class RunRecorder:
         self.present = dict(self.places.present)
         self.frame_t: float | None = None
         self.exchanges = 0
-        self._map.log(scene.map_update(task), log_time=0)
+        self._sink.map()
         self._draw_agents()
-
-    def _json(self, topic: str, name: str) -> Any:
-        schema = foxglove.Schema(name=name, encoding="jsonschema", data=_dumps(SCHEMAS[name]))
-        return foxglove.Channel(topic, schema=schema, message_encoding="json", context=self._context)
 
     def _ns(self) -> int:
         return round(self.t * 1e9)
@@ -228,12 +284,10 @@ class RunRecorder:
         self._advance(out.get("t") if out.get("t") is not None else obs.get("t") if isinstance(obs, dict) else None)
         ns = self._ns()
         text = data.decode("utf-8", "replace")
-        self._in.log(data if isinstance(obs, dict) else _dumps({"text": text[:_SHOWN]}), log_time=ns)
-        self._out.log(answer.encode("utf-8"), log_time=ns)
-        self._log.log(Log(timestamp=scene.stamp(self.t), level=LogLevel.Info, message=text[:_SHOWN], name="in"),
-                      log_time=ns)
-        self._log.log(Log(timestamp=scene.stamp(self.t), level=LogLevel.Info if out.get("ok") else LogLevel.Warning,
-                          message=answer, name="out"), log_time=ns)
+        self._sink.message(data if isinstance(obs, dict) else _dumps({"text": text[:_SHOWN]}), ns)
+        self._sink.answer(answer.encode("utf-8"), ns)
+        self._sink.log(self.t, True, text[:_SHOWN], "in", ns)
+        self._sink.log(self.t, bool(out.get("ok")), answer, "out", ns)
         self.exchanges += 1
         if not out.get("ok"):
             return
@@ -241,25 +295,25 @@ class RunRecorder:
         cls = out.get("class")
         robot = out.get("robot")
         window = robot if isinstance(robot, dict) and "earliest" in robot else {}
-        self._decision.log(_dumps({"t": self.t, "plan": out.get("plan"), "class": cls,
+        self._sink.decision(_dumps({"t": self.t, "plan": out.get("plan"), "class": cls,
                                    "class_rank": CLASS_RANK.get(str(cls), -1), "candidates": out.get("candidates", {}),
                                    "robot": _step_words(robot), "earliest": window.get("earliest"),
                                    "latest": window.get("latest"), "human_away": bool(out.get("human_away")),
-                                   "stopped": bool(out.get("stopped"))}), log_time=ns)
+                                   "stopped": bool(out.get("stopped"))}), ns)
         if out.get("plan") != self.plan:
             self.plan = out.get("plan")
-            self._routes.log(scene.routes_update(self.task, self.t, self._legs()), log_time=ns)
+            self._sink.routes(self.t, self._legs(), ns)
         if isinstance(obs, dict):
             self.places.see(obs)
         if not self.measured:
             self.where, self.present = dict(self.places.where), dict(self.places.present)
             for agent, (x, y) in self.where.items():
-                self._pose[agent].log(scene.pose_in_frame(self.t, x, y), log_time=ns)
+                self._sink.pose(agent, self.t, x, y, ns)
         self._draw_agents()
         drive = next_drive(self.task, out, self._legs())
         if drive is not None and drive.leg != self.goal:
             self.goal = drive.leg
-            self._goal.log(scene.pose_in_frame(self.t, *drive.target, drive.heading), log_time=ns)
+            self._sink.goal(self.t, *drive.target, drive.heading, ns)
 
     def positions(self, t: float, where: Mapping[str, tuple[float, float]], present: Mapping[str, bool],
                   last: bool = False) -> None:
@@ -272,7 +326,7 @@ class RunRecorder:
         self.where, self.present = dict(where), dict(present)
         ns = self._ns()
         for agent, (x, y) in self.where.items():
-            self._pose[agent].log(scene.pose_in_frame(self.t, x, y), log_time=ns)
+            self._sink.pose(agent, self.t, x, y, ns)
         self._draw_agents()
 
     def _draw_agents(self) -> None:
@@ -280,12 +334,11 @@ class RunRecorder:
         robot = self.answer.get("robot", None) if self.answer else None
         if self.answer:
             labels[self.robot] += f"\nnext: {_step_words(robot)}"
-        self._agents.log(scene.agents_update(self.task, self.t, self.where, labels, self.present),
-                         log_time=self._ns())
+        self._sink.agents(self.t, self.where, labels, self.present, self._ns())
 
     def finish(self) -> None:
         """Write MCAP's summary and end the file (the sink stays open)."""
-        self._writer.close()
+        self._sink.close()
 
 
 class Recording:
@@ -361,11 +414,13 @@ def check_new(path: str | os.PathLike[str]) -> None:
 
 
 def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLike[str], dispatcher: Any,
-                          report: Callable[[str], None] | None = None, routes: Routes | None = None) -> Recording:
+                          report: Callable[[str], None] | None = None, routes: Routes | None = None,
+                          fmt: str = "foxglove") -> Recording:
     """A recording of a run of the dispatcher on the compiled folder `out_dir`. `routes`: the plans' routes
     (default: the ones the console draws, `hrc.dispatch.routes.PlanRoutes`: free-space paths planned again
     with the compile's seed, about 2 s for the workshop; detours from ``compiled.json``). The same run
-    gives the same bytes whichever command records it (``hrc dispatch``, ``hrc console``, ``hrc ros2``)."""
+    gives the same bytes whichever command records it (``hrc dispatch``, ``hrc console``, ``hrc ros2``).
+    `fmt`: one of `FORMATS`."""
     check_new(path)
     if routes is None:
         from hrc.compile.output import read_header
@@ -376,4 +431,4 @@ def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLi
         routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
                             plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0)))).routes
     return Recording(path, dispatcher.task, routes, report=report,
-                     metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set))})
+                     metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set))}, fmt=fmt)
