@@ -4,11 +4,25 @@ its value so the id cannot be reused while it is held), bounded, the oldest entr
 The compiler reads one network or task many times over (`hrc.temporal.rul.edge_arrays`,
 `hrc.compile.classify.packed_graph`, `hrc.temporal.network.lineage`, the links the temporal net creator
 builds per task); hashing those frozen objects by value would cost more than what is kept.
+
+On disk (`cache_folder`, `disk_load`, `disk_store`): what does not change between runs on the same map,
+such as the roadmaps of `hrc.motion.paths.plan_paths`, keyed by everything they are computed from (the
+inputs, and the digest of the code that computes them: `source_digest`), in a folder the user may delete
+at any time (``~/.cache/hrc``; ``HRC_CACHE_DIR`` moves it, or turns it off when empty).
 """
 
 from __future__ import annotations
 
-__all__ = ["make_room"]
+import contextlib
+import hashlib
+import importlib.util
+import os
+import pickle
+import tempfile
+from pathlib import Path
+from typing import Any
+
+__all__ = ["CACHE_ENV", "cache_folder", "disk_load", "disk_store", "make_room", "source_digest"]
 
 
 def make_room(cache: dict, cap: int) -> None:
@@ -21,3 +35,65 @@ def make_room(cache: dict, cap: int) -> None:
             cache.pop(next(iter(cache)), None)
         except (StopIteration, RuntimeError):
             return
+
+
+# ---------------------------------------------------------------------------------------------- on disk
+CACHE_ENV = "HRC_CACHE_DIR"
+"""The environment variable naming the folder of hrc's caches on disk (empty: no cache on disk)."""
+
+
+def cache_folder(kind: str) -> Path | None:
+    """The folder of the on-disk cache `kind` (``roadmaps``): ``$HRC_CACHE_DIR/KIND``, else
+    ``$XDG_CACHE_HOME/hrc/KIND``, else ``~/.cache/hrc/KIND``; None when ``HRC_CACHE_DIR`` is set empty.
+    Deleting it is always safe: what is in it is made again when needed."""
+    base = os.environ.get(CACHE_ENV)
+    if base is None:
+        base = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "hrc")
+    return Path(base) / kind if base else None
+
+
+def source_digest(*modules: str) -> str:
+    """SHA-256 of the source files of `modules` (dotted names): a cache key part that changes whenever
+    the code that computed a cached value changes (another branch, another version), so no stale value
+    is ever served."""
+    h = hashlib.sha256()
+    for name in modules:
+        spec = importlib.util.find_spec(name)
+        origin = spec.origin if spec is not None else None
+        h.update(name.encode() + b"\0")
+        if origin and os.path.exists(origin):
+            h.update(Path(origin).read_bytes())
+    return h.hexdigest()
+
+
+def disk_load(folder: Path | None, key: str) -> Any:
+    """The value stored under `key` in `folder`, or None (no cache, none stored, or unreadable: a damaged
+    or foreign file is a miss, never an error). Only pickles that `disk_store` wrote under the key's
+    SHA-256 name are read."""
+    if folder is None:
+        return None
+    path = folder / f"{hashlib.sha256(key.encode()).hexdigest()}.pickle"
+    try:
+        stored_key, value = pickle.loads(path.read_bytes())
+    except Exception:  # noqa: BLE001 - missing, truncated, another format: recompute
+        return None
+    return value if stored_key == key else None
+
+
+def disk_store(folder: Path | None, key: str, value: Any) -> None:
+    """Store `value` under `key` in `folder` (atomically: a reader sees all of it or nothing); quiet when
+    the folder cannot be written (the cache is an optimisation, never a requirement)."""
+    if folder is None:
+        return
+    path = folder / f"{hashlib.sha256(key.encode()).hexdigest()}.pickle"
+    tmp = None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        with os.fdopen(fd, "wb") as f:
+            f.write(pickle.dumps((key, value), protocol=pickle.HIGHEST_PROTOCOL))
+        os.replace(tmp, path)
+    except OSError:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)

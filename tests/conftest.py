@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import os
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,10 @@ from hypothesis import settings
 settings.register_profile("ci", derandomize=True, print_blob=True)
 settings.register_profile("dev", print_blob=True)
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
+
+# hrc's on-disk caches (`hrc.caches.cache_folder`: the roadmaps) go to a folder of this test session, never
+# the user's ~/.cache/hrc; the hrc processes tests start inherit it.
+os.environ["HRC_CACHE_DIR"] = tempfile.mkdtemp(prefix="hrc-test-cache-")
 
 ROOT = Path(__file__).resolve().parents[1]
 WORKSHOP_TASK = ROOT / "tasks" / "cube_stacking.yaml"

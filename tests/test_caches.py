@@ -45,3 +45,83 @@ def test_threads_trimming_one_cache_never_raise():
         sys.setswitchinterval(switch)
     assert errors == []
     assert len(cache) <= 8 + 3  # each thread may add one after another's trim
+
+
+# -- on disk: the roadmaps of plan_paths ---------------------------------------------------------------
+def _library(task, seed=0, *, cache=True):
+    from hrc.motion import plan_paths
+
+    return plan_paths(task, seed=seed, cache=cache)
+
+
+def _same(a, b) -> None:
+    assert a == b  # every path, point for point
+    assert {c: (r.points, r.edges) for c, r in a.roadmaps.items()} == \
+        {c: (r.points, r.edges) for c, r in b.roadmaps.items()}
+
+
+def test_a_cached_roadmap_gives_the_paths_planned_afresh(tmp_path, monkeypatch):
+    """The second plan_paths of the workshop reads every clearance's roadmap from the cache and gives the
+    same library as planning without a cache; a duration edited keeps the key, an obstacle moved or
+    another seed does not; a damaged file is a miss, never an error; an empty HRC_CACHE_DIR turns it off."""
+    import dataclasses
+
+    from conftest import WORKSHOP_TASK
+
+    from hrc.caches import CACHE_ENV, cache_folder
+    from hrc.io.task_file import load_task
+    from hrc.model import Interval
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    task = load_task(WORKSHOP_TASK)
+    fresh = _library(task, cache=False)
+    assert fresh.stats["cached"] == 0
+    first = _library(task)
+    files = sorted((tmp_path / "roadmaps").iterdir())
+    assert first.stats["cached"] == 0 and len(files) == first.stats["roadmaps"] >= 1
+    again = _library(task)
+    assert again.stats["cached"] == again.stats["roadmaps"]
+    _same(fresh, first)
+    _same(fresh, again)
+    # a duration edited: the same map and agents, the same key
+    action = task.actions[0]
+    phase = dataclasses.replace(action.phases[0], durations=tuple((k, Interval(d.lb + 1, d.ub + 1))
+                                                                   for k, d in action.phases[0].durations))
+    edited = dataclasses.replace(task, actions=(dataclasses.replace(action, phases=(phase, *action.phases[1:])),
+                                                *task.actions[1:]))
+    assert _library(edited).stats["cached"] == again.stats["roadmaps"]
+    # another seed, an obstacle moved: planned again (and stored beside)
+    assert _library(task, seed=1).stats["cached"] == 0
+    ws = task.workspace
+    ob = ws.obstacles[0]
+    moved = dataclasses.replace(ob, polygon=tuple((x + 0.01, y) for x, y in ob.polygon))
+    shifted = dataclasses.replace(task, workspace=dataclasses.replace(ws, obstacles=(moved, *ws.obstacles[1:])))
+    assert _library(shifted).stats["cached"] == 0
+    # a damaged file: a miss, planned again, the same library
+    for f in files:
+        f.write_bytes(b"not a pickle")
+    damaged = _library(task)
+    assert damaged.stats["cached"] == 0
+    _same(fresh, damaged)
+    monkeypatch.setenv(CACHE_ENV, "")
+    assert cache_folder("roadmaps") is None and _library(task).stats["cached"] == 0
+
+
+def test_a_compile_with_a_warm_cache_writes_the_same_bytes(tmp_path, monkeypatch):
+    """``hrc compile`` cold (an empty cache) and warm: the same compiled.json and STNUs, byte for byte."""
+    from conftest import compiled_folder
+
+    from hrc.caches import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    cold = compiled_folder(tmp_path / "cold")
+    assert len(list((tmp_path / "cache" / "roadmaps").iterdir())) >= 1
+    warm = compiled_folder(tmp_path / "warm")
+    for name in ("compiled.json", "stnu.zip"):
+        if (cold / name).exists():
+            assert (cold / name).read_bytes() == (warm / name).read_bytes(), name
+    cold_files = sorted(p.relative_to(cold) for p in cold.rglob("*") if p.is_file())
+    assert cold_files == sorted(p.relative_to(warm) for p in warm.rglob("*") if p.is_file())
+    for rel in cold_files:
+        if rel.parts[0] in ("stnu", "dispatch") or rel.name == "compiled.json":
+            assert (cold / rel).read_bytes() == (warm / rel).read_bytes(), rel

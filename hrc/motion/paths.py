@@ -14,12 +14,17 @@ the agent's start and the locations of the phases of actions it may do, targets 
   would add ``v / a`` per stop; the task format has no acceleration, so none is modelled.)
 - Seeds: each roadmap / fallback query gets its own OMPL seed derived from ``(seed, clearance,
   locations)`` by SHA-256, so results do not depend on planning order; same seed, same library.
+- **Cache** (`hrc.caches`, on disk, ``~/.cache/hrc/roadmaps``): a clearance's roadmap and its routes
+  are kept, keyed by the obstacles and bounds, the clearance, the seed, the routed locations (ids and
+  coordinates) and the digest of this code (planner, world, paths), so a compile of the same map and
+  agents (a duration edited, a deadline, a preference) plans nothing again and gets the same paths.
 
 Raises `hrc.errors.UnreachableLocationError` when a location pair has no collision-free path.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import math
@@ -27,6 +32,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from hrc.caches import cache_folder, disk_load, disk_store, source_digest
 from hrc.errors import UnreachableLocationError
 from hrc.model import Task
 from hrc.motion.planner import Roadmap, plan_points
@@ -120,11 +126,27 @@ def _seed(*parts: object) -> int:
     return 1 + int.from_bytes(digest[:4], "big") % (2**31 - 2)
 
 
-def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] | None = None) -> PathLibrary:
+def _cache_key(task: Task, clearance: float, seed: int, ends: list[str], pairs: list[tuple[str, str]]) -> str:
+    """Everything a clearance's roadmap and routes are computed from (see the module docstring)."""
+    ws = task.workspace
+    locs = {loc.id: loc.xy for loc in ws.locations}
+    return repr(("roadmaps-1", _code_digest(), ws.bounds, [(o.id, o.polygon) for o in ws.obstacles], clearance,
+                 seed, [(e, locs[e]) for e in ends], pairs))
+
+
+@functools.cache
+def _code_digest() -> str:
+    return source_digest("hrc.motion.planner", "hrc.motion.world", "hrc.motion.paths")
+
+
+def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] | None = None,
+               cache: bool = True) -> PathLibrary:
     """Plan every path of `task` (see the module docstring); `progress(done, total)` per planned pair.
+    `cache`: keep and reuse each clearance's roadmap and routes on disk (`hrc.caches.cache_folder`).
 
     Cost: one roadmap per distinct clearance plus one roadmap query (and shortening) per unordered
-    location pair and clearance. Raises `UnreachableLocationError` naming agent and locations.
+    location pair and clearance; with the cache, on the same map and agents, reading one file per
+    clearance. Raises `UnreachableLocationError` naming agent and locations.
     """
     t0 = time.perf_counter()
     world = World(task.workspace)
@@ -144,18 +166,30 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
     milestones = 0
     done = 0
     kept: dict[float, Roadmap] = {}
+    folder = cache_folder("roadmaps") if cache else None
+    cached = 0
     for c in sorted(wanted):
-        roadmap = kept[c] = Roadmap.build(world, c, _seed(seed, c))
-        roadmaps += 1
-        milestones += len(roadmap.points)
         ends = sorted({x for pair in wanted[c] for x in pair})
-        routes = roadmap.routes(world, [locs[e] for e in ends])
+        ckey = _cache_key(task, c, seed, ends, wanted[c]) if folder is not None else ""
+        found = disk_load(folder, ckey)
+        if found is not None:
+            kept[c], these = found
+            cached += 1
+        else:
+            roadmap = kept[c] = Roadmap.build(world, c, _seed(seed, c))
+            routes = roadmap.routes(world, [locs[e] for e in ends])
+            these = {}
+            for a, b in wanted[c]:
+                pts = routes[(ends.index(a), ends.index(b))]
+                if pts is None:
+                    fallbacks += 1
+                    pts = plan_points(world, locs[a], locs[b], c, _seed(seed, c, a, b))
+                these[(a, b)] = None if pts is None else tuple(pts)
+            disk_store(folder, ckey, (roadmap, these))
+        roadmaps += 1
+        milestones += len(kept[c].points)
         for a, b in wanted[c]:
-            pts = routes[(ends.index(a), ends.index(b))]
-            if pts is None:
-                fallbacks += 1
-                pts = plan_points(world, locs[a], locs[b], c, _seed(seed, c, a, b))
-            planned[(c, a, b)] = None if pts is None else tuple(pts)
+            planned[(c, a, b)] = these[(a, b)]
             done += 1
             if progress is not None:
                 progress(done, total)
@@ -173,5 +207,5 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
             length = sum(math.dist(p, q) for p, q in itertools.pairwise(route))
             paths[(agent.id, o, t)] = Path(agent.id, o, t, route, length, length / agent.speed)
     stats = {"requested": requested, "planned": total, "roadmaps": roadmaps, "milestones": milestones,
-             "fallbacks": fallbacks, "seconds": time.perf_counter() - t0}
+             "fallbacks": fallbacks, "cached": cached, "seconds": time.perf_counter() - t0}
     return PathLibrary(seed=seed, paths=paths, locations=locs, stats=stats, roadmaps=kept)
