@@ -6,6 +6,8 @@ from __future__ import annotations
 import sys
 import threading
 
+from conftest import WORKSHOP_TASK
+
 from hrc.caches import make_room
 
 
@@ -66,8 +68,6 @@ def test_a_cached_roadmap_gives_the_paths_planned_afresh(tmp_path, monkeypatch):
     another seed does not; a damaged file is a miss, never an error; an empty HRC_CACHE_DIR turns it off."""
     import dataclasses
 
-    from conftest import WORKSHOP_TASK
-
     from hrc.caches import CACHE_ENV, cache_folder
     from hrc.io.task_file import load_task
     from hrc.model import Interval
@@ -107,16 +107,26 @@ def test_a_cached_roadmap_gives_the_paths_planned_afresh(tmp_path, monkeypatch):
     assert cache_folder("roadmaps") is None and _library(task).stats["cached"] == 0
 
 
-def test_a_compile_with_a_warm_cache_writes_the_same_bytes(tmp_path, monkeypatch):
-    """``hrc compile`` cold (an empty cache) and warm: the same compiled.json and STNUs, byte for byte."""
+def test_a_compile_with_a_warm_cache_writes_the_same_bytes(tmp_path, monkeypatch, capsys):
+    """``hrc compile`` cold (an empty cache) and warm: the same compiled.json and STNUs, byte for byte;
+    ``-v`` says where the time went, and how many roadmaps came from the cache."""
+    import re
+
     from conftest import compiled_folder
 
     from hrc.caches import CACHE_ENV
 
     monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
-    cold = compiled_folder(tmp_path / "cold")
-    assert len(list((tmp_path / "cache" / "roadmaps").iterdir())) >= 1
-    warm = compiled_folder(tmp_path / "warm")
+    capsys.readouterr()
+    cold = compiled_folder(tmp_path / "cold", WORKSHOP_TASK, "-v")
+    said = capsys.readouterr().err
+    assert "paths (2 roadmaps, 0 from the cache)" in said, said
+    for stage in ("start-up (imports, reading the task): ", "plans (32, ", "total: "):
+        assert stage in said, (stage, said)
+    assert all(float(x) >= 0 for x in re.findall(r"(\d+\.\d\d) s", said))
+    assert len(list((tmp_path / "cache" / "roadmaps").iterdir())) == 2
+    warm = compiled_folder(tmp_path / "warm", WORKSHOP_TASK, "-v")
+    assert "paths (2 roadmaps, 2 from the cache)" in capsys.readouterr().err
     for name in ("compiled.json", "stnu.zip"):
         if (cold / name).exists():
             assert (cold / name).read_bytes() == (warm / name).read_bytes(), name

@@ -97,6 +97,8 @@ def add_parser(sub: Any) -> None:
                         f"(default {REPORT_TOP}), with statistics over all plans")
     p.add_argument("--no-report", action="store_true", help="write compiled.json and STNUs only")
     p.add_argument("--quiet", "-q", action="store_true", help="no estimate, no progress, no summary")
+    p.add_argument("--verbose", "-v", action="store_true",
+                   help="say where the time went: start-up, paths (planned or from the cache), plans, report")
     p.set_defaults(run=run)
 
 
@@ -265,8 +267,26 @@ def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
         raise
 
 
+def _times(start_cpu: float, stages: list[tuple[str, float, float]]) -> str:
+    """``-v``: where the time went, as lines: each stage's wall and CPU time (this process's; worker
+    processes' apart), after the start-up's CPU (imports, reading the task: before any clock was read)."""
+    import resource
+
+    lines = ["where the time went (wall / CPU of this process):",
+             f"  start-up (imports, reading the task): {start_cpu:.2f} s CPU"]
+    lines += [f"  {name}: {wall:.2f} s / {cpu:.2f} s" for name, wall, cpu in stages]
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    workers = children.ru_utime + children.ru_stime
+    total = start_cpu + sum(cpu for _, _, cpu in stages)
+    lines.append(f"  total: {sum(w for _, w, _ in stages):.2f} s after start-up / {total:.2f} s"
+                 + (f", and {workers:.2f} s CPU in worker processes" if workers else ""))
+    return "\n".join(lines)
+
+
 def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, out: str, workers: int,
              claim: FolderClaim, say: Callable[[str], None]) -> int:
+    start_cpu = time.process_time()  # CPU since the process began: the imports, reading the task
+    start = time.perf_counter()
     from hrc.compile.compiler import CompileOptions
     from hrc.compile.estimate import estimate, fmt_bytes, fmt_span
     from hrc.compile.stream import Sample
@@ -309,7 +329,10 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
             "follows the real pace)")
 
     progress = _Progress(tty=sys.stderr.isatty(), quiet=quiet)
+    stages: list[tuple[str, float, float]] = [("estimate", time.perf_counter() - start,
+                                               time.process_time() - start_cpu)]
     t0 = time.perf_counter()
+    c0 = time.process_time()
     from hrc.compile.stream import Abandoned, compile_stream
 
     # an earlier output is not replaced by a partial one (but the one resumed is: it holds fewer plans)
@@ -323,12 +346,23 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                                         resume=resume, keep_partial=not earlier, stop=interrupt.check)
             finally:
                 progress.close()
+            path_stats = result.plan_set.paths.stats
+            path_wall = float(path_stats.get("seconds", 0.0))
+            path_cpu = float(path_stats.get("cpu_seconds", 0.0))
+            roadmaps, cached = int(path_stats.get("roadmaps", 0)), int(path_stats.get("cached", 0))
+            stages += [(f"paths ({roadmaps} roadmap{'s' * (roadmaps != 1)}, {cached} from the cache)", path_wall,
+                        path_cpu),  # planned in this process
+                       (f"plans ({result.compiled:,}, {jobs or workers} worker{'s' * ((jobs or workers) > 1)}) and "
+                        "compiled.json, STNUs", time.perf_counter() - t0 - path_wall,
+                        time.process_time() - c0 - path_cpu)]
             # from here on a signal only is noted: the report and the swap are finished first (the output
             # is complete; throwing it away would lose every plan)
             if not args.no_report and not result.partial:
                 from hrc.report import write_report
 
+                t1, c1 = time.perf_counter(), time.process_time()
                 write_report(result.plan_set, stage)
+                stages.append(("report (figures, tables)", time.perf_counter() - t1, time.process_time() - c1))
     except Abandoned as kept:  # the staging folder is gone with nothing written into it
         print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
               "(a partial output replaces only a new or empty folder)", file=sys.stderr)
@@ -359,5 +393,7 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                 "none": "no STNU files"}[args.stnu]
         print(f"wrote {out}/compiled.json, {stnu}"
               + ("" if args.no_report else f", {out}/report.md, {out}/report.html"))
+    if args.verbose:
+        print(_times(start_cpu, stages), file=sys.stderr, flush=True)
     return 0
 
