@@ -373,5 +373,8 @@ def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLi
         compiled = read_header(out_dir)
         routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
                             plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0)))).routes
+    from hrc.compile.compiler import task_digest
+
     return Recording(path, dispatcher.task, routes, report=report,
-                     metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set))})
+                     metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set)),
+                               "task_digest": task_digest(dispatcher.task)})  # checked by `hrc learn`

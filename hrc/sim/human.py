@@ -15,6 +15,9 @@ not reverted). The simulator needs a person who actually makes those choices and
   times the bound (an overrun the STNU does not allow: the dispatcher has to cope).
 - **walking pace** per leg, uniform between the agent's speed and ``speed / travel_slack`` (the
   contingent travel bounds of `hrc.compile.temporal_net_creator`).
+- **a hidden true duration model** (`true_scale`, default 1: off): the person's manipulation times lie
+  on the task's bounds times this factor, not on the bounds as typed (what ``hrc learn`` should find);
+  overruns then go beyond the scaled bound.
 - **absences**: with probability `absence_rate` the person leaves once, between two actions, at a time
   uniform in the first `absence_window` seconds, for `absence_seconds` (uniform in the range); with
   probability `leave_for_good_rate` such an absence is for good.
@@ -53,6 +56,7 @@ class HumanModel:
     absence_window: float | None = None  # s; default: the task's deadline (or 60 s)
     absence_seconds: tuple[float, float] = (10.0, 30.0)
     leave_for_good_rate: float = 0.0
+    true_scale: float = 1.0  # the hidden true durations: the task's bounds times this (1: the task's own)
 
     def __post_init__(self) -> None:
         if self.choice not in CHOICES:
@@ -65,6 +69,8 @@ class HumanModel:
                 raise SimulationError(f"--{name.replace('_', '-')} must be in [0, 1], found {value:g}")
         if not (self.overrun_max >= 0 and math.isfinite(self.overrun_max)):
             raise SimulationError(f"--overrun-max must be a finite number >= 0, found {self.overrun_max:g}")
+        if not (self.true_scale > 0 and math.isfinite(self.true_scale)):
+            raise SimulationError(f"--true-scale must be a finite number > 0, found {self.true_scale:g}")
         lo, hi = self.absence_seconds
         if not (0 <= lo <= hi and math.isfinite(hi)):
             raise SimulationError(f"--absence-seconds must be 0 <= LO <= HI, found {lo:g} {hi:g}")
@@ -81,7 +87,15 @@ class HumanModel:
         return {"choice": self.choice, "preferred": list(self.preferred), "durations": self.durations,
                 "overrun_rate": self.overrun_rate, "overrun_max": self.overrun_max,
                 "absence_rate": self.absence_rate, "absence_window": self.absence_window,
-                "absence_seconds": list(self.absence_seconds), "leave_for_good_rate": self.leave_for_good_rate}
+                "absence_seconds": list(self.absence_seconds), "leave_for_good_rate": self.leave_for_good_rate,
+                **({} if self.true_scale == 1.0 else {"true_scale": self.true_scale})}  # as before by default
+
+    def true_bounds(self, bounds: Interval) -> Interval:
+        """Where the person's manipulation durations really lie (the hidden truth `hrc learn` is measured
+        against): the task's `bounds` scaled by `true_scale`."""
+        if self.true_scale == 1.0:
+            return bounds
+        return Interval(bounds.lb * self.true_scale, bounds.ub * self.true_scale)
 
 
 def sample_duration(bounds: Interval, u: float, shape: str) -> float:
@@ -132,7 +146,7 @@ def draw_human(task: Task, model: HumanModel, rng: np.random.Generator) -> Human
             key = (action.id, phase.id)
             u, v, w, p, r = rng.random(5)
             if human.id in action.agents:
-                bounds = phase.duration(human.id)
+                bounds = model.true_bounds(phase.duration(human.id))
                 d = sample_duration(bounds, float(u), model.durations)
                 if v < model.overrun_rate:
                     d = bounds.ub * (1.0 + float(w) * model.overrun_max)
