@@ -1,0 +1,209 @@
+"""`hrc learn`: order-statistic bounds on hand-made logs of known durations, the guard rails, the task
+edit that keeps comments, and the records the simulator and the recorder write read back."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import WORKSHOP_TASK
+from scipy.stats import beta
+
+from hrc.cli import main
+from hrc.compile.compiler import task_digest
+from hrc.dispatch.logfile import encode_answer, encode_header, encode_input
+from hrc.io.task_file import load_task
+from hrc.learn.estimate import learn
+from hrc.learn.runs import read_runs
+from hrc.learn.task_edit import replace_bounds
+from hrc.learn.tolerance import min_observations, tolerance_interval
+from hrc.model import Interval
+
+TASK = load_task(WORKSHOP_TASK)
+OK = json.dumps({"ok": True})
+
+
+def _log(path: Path, events: list[dict], digest: str | None = None, answers: list[str] | None = None,
+         raw: list[bytes] | None = None) -> Path:
+    """A dispatcher log in the project's format (its own encoders) holding `events` as accepted messages."""
+    header = {"hrc_dispatch_log": 2, "compiled": "0123456789abcdef", "plans": 32}
+    if digest != "":
+        header["task"] = digest or task_digest(TASK)
+    parts = [encode_header(header)]
+    for i, ev in enumerate(events):
+        parts += [encode_input(json.dumps(ev).encode()), encode_answer(answers[i] if answers else OK)]
+    parts += raw or []
+    path.write_bytes(b"".join(parts))
+    return path
+
+
+def _phase(t0: float, d: float, action: str = "cube1", phase: str = "fetch") -> list[dict]:
+    return [{"t": t0, "agent": "human", "action": action, "phase": phase, "event": "start"},
+            {"t": round(t0 + d, 3), "agent": "human", "action": action, "phase": phase, "event": "end"}]
+
+
+def _logs(folder: Path, durations: list[float]) -> Path:
+    folder.mkdir()
+    for i, d in enumerate(durations):
+        _log(folder / f"run-{i:04d}.jsonl", _phase(10.0, d))
+    return folder
+
+
+# -- the order statistics --------------------------------------------------------------------------
+def test_fewest_observations_are_the_classic_table_values() -> None:
+    # two-sided distribution-free tolerance limits [min, max] (Wilks): the NIST/SEMATECH table values
+    assert min_observations(0.90, 0.95) == 46
+    assert min_observations(0.95, 0.95) == 93
+    assert min_observations(0.99, 0.95) == 473
+    assert min_observations(0.90, 0.90) == 38
+
+
+@pytest.mark.parametrize("n", [46, 60, 100, 250, 1000])
+@pytest.mark.parametrize("p,gamma", [(0.90, 0.95), (0.95, 0.90), (0.80, 0.99)])
+def test_the_interval_is_the_widest_order_that_keeps_the_promise(n: int, p: float, gamma: float) -> None:
+    xs = [float(k) for k in range(n, 0, -1)]  # x(k) = k: the order statistic is its own index
+    got = tolerance_interval(xs, p, gamma)
+    if beta.sf(p, n - 1, 2) < gamma:  # coverage of [x(1), x(n)] is Beta(n-1, 2)
+        assert got is None
+        return
+    assert got is not None
+    lo, hi, r, conf = got
+    assert (lo, hi) == (r, n + 1 - r)
+    # the coverage of [x(r), x(n+1-r)] is Beta(n+1-2r, 2r): r keeps the promise, r+1 does not
+    assert beta.sf(p, n + 1 - 2 * r, 2 * r) >= gamma > beta.sf(p, n - 1 - 2 * r, 2 * r + 2)
+    assert conf == pytest.approx(beta.sf(p, n + 1 - 2 * r, 2 * r))
+
+
+# -- hand-made logs of known durations ---------------------------------------------------------------
+def test_bounds_from_known_durations_are_the_exact_order_statistics(tmp_path: Path) -> None:
+    durations = [2.0 + 0.01 * k for k in range(100)]  # 2.00 .. 2.99, one run each, shuffled
+    order = sorted(range(100), key=lambda k: (k * 37) % 100)
+    runs, skipped = read_runs(TASK, [_logs(tmp_path / "runs", [durations[k] for k in order])])
+    assert len(runs) == 100 and not skipped
+    b = learn(TASK, runs, 0.90, 0.95).bound("human", "cube1", "fetch")
+    # n = 100, p = 0.90, gamma = 0.95: r = 2 (P(Binomial(100, 0.9) <= 96) = 0.976, <= 94: 0.942)
+    assert b.n == 100 and b.order == 2 and not b.kept
+    assert (b.new.lb, b.new.ub) == (2.01, 2.98)  # x(2) and x(99)
+    assert b.overruns == 0
+    # nothing else was observed: every other bound of the person is kept, with a warning each
+    other = learn(TASK, runs, 0.90, 0.95)
+    assert sum(1 for x in other.bounds if x.changed) == 1
+    assert len(other.warnings) == 9
+
+
+def test_too_few_observations_keep_the_old_bound_with_a_warning(tmp_path: Path) -> None:
+    wide = [1.0 + 0.1 * k for k in range(45)]  # 1.0 .. 5.4: overruns of [2, 4] below and above
+    runs, _ = read_runs(TASK, [_logs(tmp_path / "a", wide)])
+    got = learn(TASK, runs, 0.90, 0.95)
+    b = got.bound("human", "cube1", "fetch")
+    assert b.kept and b.new == Interval(2, 4) and b.n == 45
+    assert any("cube1.fetch: 45 observations, fewer than the 46" in w for w in got.warnings)
+    assert (b.below, b.above) == (10, 14)  # 1.0..1.9 below 2; 4.1..5.4 above 4
+    runs, _ = read_runs(TASK, [_logs(tmp_path / "b", [*wide, 5.5])])  # the 46th: [min, max]
+    b = learn(TASK, runs, 0.90, 0.95).bound("human", "cube1", "fetch")
+    assert not b.kept and (b.new.lb, b.new.ub) == (1.0, 5.5)
+
+
+def test_the_robots_durations_are_reported_not_learned(tmp_path: Path) -> None:
+    folder = tmp_path / "r"
+    folder.mkdir()
+    for i in range(50):
+        ev = _phase(10.0, 5.5)
+        for e in ev:
+            e["agent"] = "robot"
+        _log(folder / f"{i}.jsonl", ev)
+    runs, _ = read_runs(TASK, [folder])
+    b = learn(TASK, runs).bound("robot", "cube1", "fetch")
+    assert b.n == 50 and b.kept and "controllable" in b.why
+    b = learn(TASK, runs, agents=("robot",)).bound("robot", "cube1", "fetch")
+    assert not b.kept and (b.new.lb, b.new.ub) == (5.5, 5.5)
+
+
+# -- guard rails: bad lines, refused messages, other tasks ---------------------------------------------
+def test_a_bad_line_is_reported_with_its_place_and_skipped(tmp_path: Path) -> None:
+    events = [*_phase(1.0, 3.0), *_phase(20.0, 2.5, "cube3", "put")]
+    answers = [OK, OK, OK, "not json"]  # the last answer cannot be read: its message is not used
+    raw = [encode_input(b"{broken"), encode_answer(OK),                       # accepted, yet not JSON
+           encode_input(json.dumps({"t": 30, "event": "end"}).encode()), encode_answer(OK)]  # no agent
+    log = _log(tmp_path / "bad.jsonl", events, answers=answers, raw=raw)
+    runs, skipped = read_runs(TASK, [log])
+    assert [str(s) for s in skipped] == [
+        f"{log}:8: its answer is not JSON: skipped",
+        f"{log}:10: a message that is not JSON, yet accepted: skipped",
+        f"{log}:12: an event without a time, agent, action, phase or event: skipped"]
+    (run,) = runs
+    assert [(e.action, e.phase, e.event) for e in run.events] == [
+        ("cube1", "fetch", "start"), ("cube1", "fetch", "end"), ("cube3", "put", "start")]
+
+
+def test_refused_messages_tell_nothing(tmp_path: Path) -> None:
+    refused = json.dumps({"t": 5, "ok": False, "error": "the human has not started cube1.fetch"})
+    log = _log(tmp_path / "r.jsonl", [*_phase(1.0, 3.0), _phase(1.0, 9.0)[1]], answers=[OK, OK, refused])
+    (run,), skipped = read_runs(TASK, [log])
+    assert not skipped and len(run.events) == 2
+
+
+def test_a_damaged_log_is_skipped_whole_and_said_where(tmp_path: Path) -> None:
+    good = _log(tmp_path / "good.jsonl", _phase(1.0, 3.0))
+    bad = _log(tmp_path / "bad.jsonl", _phase(1.0, 3.0),
+               raw=[b"{not a record\n", encode_input(b'{"t": 9, "event": "tick"}'), encode_answer(OK)])
+    runs, skipped = read_runs(TASK, [good, bad])
+    assert [r.source for r in runs] == [str(good)]
+    assert len(skipped) == 1 and str(skipped[0]).startswith(f"{bad}:6: damaged record")
+
+
+def _learn(tmp_path: Path, *runs: Path, extra: tuple[str, ...] = ()) -> int:
+    return main(["learn", str(WORKSHOP_TASK), *map(str, runs), "--out", str(tmp_path / "new.yaml"),
+                 "--no-compile", "-q", *extra])
+
+
+def test_a_log_of_another_task_is_refused_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    good = _logs(tmp_path / "runs", [3.0] * 3)
+    other = _log(tmp_path / "other.jsonl", _phase(1.0, 3.0), digest="f" * 64)
+    assert _learn(tmp_path, good, other) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"error: {other}: header.task: a run of another task")
+    assert not (tmp_path / "new.yaml").exists() and not (tmp_path / "new-learn").exists()
+    old = _log(tmp_path / "old.jsonl", _phase(1.0, 3.0), digest="")  # written before logs named their task
+    assert _learn(tmp_path, old) == 2
+    assert "names no task digest" in capsys.readouterr().err
+
+
+def test_no_usable_run_is_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "empty").mkdir()
+    assert _learn(tmp_path, tmp_path / "empty") == 2
+    assert "holds no run records" in capsys.readouterr().err
+
+
+# -- the task written back -----------------------------------------------------------------------------
+def test_new_bounds_change_only_their_numbers(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    runs = _logs(tmp_path / "runs", [2.0 + 0.01 * k for k in range(100)])
+    out = tmp_path / "sub" / "new.yaml"
+    assert main(["learn", str(WORKSHOP_TASK), str(runs), "--out", str(out), "--no-compile"]) == 0
+    diff = capsys.readouterr().out
+    changed = [ln for ln in diff.splitlines() if ln.startswith(("-", "+")) and not ln.startswith(("---", "+++"))]
+    assert changed == [
+        "-map: ../maps/workshop.yaml",
+        f"+map: {os.path.relpath(WORKSHOP_TASK.parent.parent / 'maps' / 'workshop.yaml', out.parent)}",
+        "-      - {id: fetch, location: S1, duration: {human: [2, 4], robot: [5, 6]}}",
+        "+      - {id: fetch, location: S1, duration: {human: [2.01, 2.98], robot: [5, 6]}}"]
+    old_text, new_text = WORKSHOP_TASK.read_text(), out.read_text()
+    old_lines, new_lines = old_text.splitlines(), new_text.splitlines()
+    assert len(old_lines) == len(new_lines)
+    assert [a for a in old_lines if a.lstrip().startswith("#")] == [b for b in new_lines if b.lstrip().startswith("#")]
+    new = load_task(out)  # loads where it lives: the map path re-pointed
+    assert new.action("cube1").phase("fetch").duration("human") == Interval(2.01, 2.98)
+    assert new.workspace == TASK.workspace
+    assert (tmp_path / "sub" / "new-learn" / "report.md").is_file()
+    assert (tmp_path / "sub" / "new-learn" / "figures" / "durations-human.png").is_file()
+
+
+def test_replace_bounds_keeps_block_style_and_comments() -> None:
+    text = ("actions:\n  - id: a   # the first\n    phases:\n      - id: p\n        duration:\n"
+            "          human:   # typed by hand\n            - 2     # lb\n            - 4.0   # ub\n")
+    out = replace_bounds(text, {("human", "a", "p"): Interval(1.5, 3.25)})
+    assert out == text.replace("- 2     #", "- 1.5     #").replace("- 4.0   #", "- 3.25   #")
+    assert yaml.safe_load(out)["actions"][0]["phases"][0]["duration"]["human"] == [1.5, 3.25]

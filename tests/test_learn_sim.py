@@ -1,0 +1,81 @@
+"""The simulator's logs (``hrc simulate --keep-logs``) and recordings as `hrc learn` reads them: the same
+runs, a log the dispatcher itself replays answer for answer, and simulation.json unchanged."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from conftest import WORKSHOP_TASK
+
+from hrc.dispatch import Dispatcher
+from hrc.dispatch.logfile import read_log
+from hrc.dispatch.protocol import replay
+from hrc.io.task_file import load_task
+from hrc.learn.runs import read_run, read_runs
+from hrc.sim.human import HumanModel
+from hrc.sim.montecarlo import simulate, simulation_json
+from hrc.sim.run import SimSettings
+from hrc.sim.runlog import log_name
+
+TASK = load_task(WORKSHOP_TASK)
+
+
+@pytest.fixture(scope="module")
+def sims() -> tuple:
+    settings = SimSettings(human=HumanModel(choice="free"))
+    plain = simulate(TASK, 4, 3, ["hrc", "fixed"], settings, jobs=1)
+    kept = simulate(TASK, 4, 3, ["hrc", "fixed"], settings, jobs=1, compiles=plain.context.compiles, keep_logs=True)
+    return plain, kept
+
+
+def _write(kept, folder: Path) -> Path:
+    folder.mkdir()
+    for policy, logs in kept.logs.items():
+        for i, data in logs.items():
+            (folder / log_name(policy, i)).write_bytes(data)
+    return folder
+
+
+def test_keeping_logs_changes_no_run(sims: tuple) -> None:
+    plain, kept = sims
+    assert plain.logs is None and sorted(kept.logs) == ["fixed", "hrc"]
+    assert simulation_json(plain) == simulation_json(kept)
+
+
+def test_a_simulated_runs_log_replays_answer_for_answer(sims: tuple, tmp_path: Path) -> None:
+    _, kept = sims
+    folder = _write(kept, tmp_path / "runs")
+    pristine = Dispatcher.from_compiled(kept.context.compiles["motion"])
+    for i in range(4):
+        contents = read_log(folder / log_name("hrc", i))
+        assert contents.torn is None and len(contents.messages) > 10
+        pairs = list(replay(pristine.fork(), contents))
+        assert all(a == b for a, b in pairs)
+
+
+def test_learn_reads_each_run_as_it_happened(sims: tuple, tmp_path: Path) -> None:
+    _, kept = sims
+    folder = _write(kept, tmp_path / "runs")
+    runs, skipped = read_runs(TASK, [folder])
+    assert not skipped and len(runs) == 8
+    results = {(r.policy, r.run): r for p in kept.results.values() for r in p}
+    for run in runs:
+        policy, index = Path(run.source).stem.rsplit("-", 1)
+        result = results[(policy, int(index))]
+        assert run.sequence("human") == result.human_sequence
+        assert run.sequence("robot") == result.robot_sequence
+
+
+def test_a_recording_holds_the_same_events_as_the_log(sims: tuple, tmp_path: Path) -> None:
+    from hrc.compile.compiler import task_digest
+    from hrc.record.sim import record_run
+
+    _, kept = sims
+    data, _ = record_run(kept.context, "hrc", 1)
+    (tmp_path / "run.mcap").write_bytes(data)
+    (tmp_path / "run.jsonl").write_bytes(kept.logs["hrc"][1])
+    from_mcap, skip_a = read_run(tmp_path / "run.mcap", task_digest(TASK))
+    from_log, skip_b = read_run(tmp_path / "run.jsonl", task_digest(TASK))
+    assert not skip_a and not skip_b and from_mcap is not None and from_log is not None
+    assert from_mcap.events == from_log.events and len(from_log.events) > 20
