@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import statistics
 from pathlib import Path
 
 import pytest
@@ -207,3 +208,49 @@ def test_replace_bounds_keeps_block_style_and_comments() -> None:
     out = replace_bounds(text, {("human", "a", "p"): Interval(1.5, 3.25)})
     assert out == text.replace("- 2     #", "- 1.5     #").replace("- 4.0   #", "- 3.25   #")
     assert yaml.safe_load(out)["actions"][0]["phases"][0]["duration"]["human"] == [1.5, 3.25]
+
+
+# -- worker types -----------------------------------------------------------------------------------
+def test_adjusted_rand_index_on_hand_worked_cases() -> None:
+    from hrc.learn.worker_types import adjusted_rand_index as ari
+
+    assert ari([0, 0, 1, 1, 2], [5, 5, 3, 3, 4]) == 1.0  # the same partition, other names
+    assert ari([0, 0, 0, 0], [1, 1, 1, 1]) == 1.0
+    # contingency [[2, 1], [0, 2]] (rows: a, cols: b): sum C(n_ij, 2) = 2, rows 3 + 1 = 4, cols 1 + 3 = 4,
+    # C(5, 2) = 10: expected 4 * 4 / 10 = 1.6, max 4: (2 - 1.6) / (4 - 1.6) = 1/6
+    assert ari([0, 0, 0, 1, 1], [0, 0, 1, 1, 1]) == pytest.approx(1 / 6)
+
+
+def _typed_run(path: Path, fast: bool, i: int) -> Path:
+    """A run of a fast worker who takes cube1 then cube3, or a slow one who takes cube1 then cube2."""
+    second = "cube3" if fast else "cube2"
+    d = (2.1 if fast else 3.7) + 0.01 * (i % 17)
+    events = []
+    for k, action in enumerate(("cube1", second)):
+        t0 = 30.0 * k
+        events.append({"t": t0, "agent": "human", "action": action, "phase": "fetch", "event": "depart"})
+        events += _phase(t0 + 5, d, action, "fetch") + _phase(t0 + 15, d + 0.05, action, "put")
+    return _log(path, events)
+
+
+def test_two_kinds_of_worker_are_told_apart_and_written_as_preference_sets(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from hrc.learn.worker_types import adjusted_rand_index, find_types
+
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    truth = [int(i % 3 == 0) for i in range(48)]  # 16 fast, 32 slow, interleaved
+    files = [_typed_run(folder / f"{i:03d}.jsonl", bool(f), i) for i, f in enumerate(truth)]
+    runs, _ = read_runs(TASK, files)
+    types = find_types(TASK, runs, 0.80, 0.80)
+    assert types.k == 2 and adjusted_rand_index(truth, types.labels) == 1.0
+    assert _learn(tmp_path, folder, extra=("--types", "--coverage", "0.8", "--confidence", "0.8")) == 0
+    new = load_task(tmp_path / "new.yaml")
+    sets = dict(new.preference_sets)
+    assert sorted(sets) == ["type_1", "type_2"]
+    fast = sets["type_1"]  # run 0 is a fast one, so type_1: the fast worker
+    fetch = next(p for p in fast if str(p.source) == "cube1.fetch.start")
+    assert fetch.domain.lb == 2.1 and fetch.domain.ub <= 2.27
+    m = statistics.median(2.1 + 0.01 * (i % 17) for i, f in enumerate(truth) if f)  # it peaks at the median
+    assert max((fetch.value(2.1 + 0.001 * j), 2.1 + 0.001 * j) for j in range(200))[1] == pytest.approx(m, abs=1e-3)
+    assert "worker types" in (tmp_path / "new-learn" / "report.md").read_text().lower()

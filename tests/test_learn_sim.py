@@ -79,3 +79,29 @@ def test_a_recording_holds_the_same_events_as_the_log(sims: tuple, tmp_path: Pat
     from_log, skip_b = read_run(tmp_path / "run.jsonl", task_digest(TASK))
     assert not skip_a and not skip_b and from_mcap is not None and from_log is not None
     assert from_mcap.events == from_log.events and len(from_log.events) > 20
+
+
+@pytest.mark.slow
+def test_two_simulated_worker_types_are_recovered(sims: tuple, tmp_path: Path) -> None:
+    """A fast worker who takes the actions in a preferred order and a slow one who chooses freely (the
+    hidden true durations 0.6 and 1.3 times the task's bounds), 25 runs each: the types found match."""
+    from hrc.compile.compiler import task_digest
+    from hrc.learn.worker_types import adjusted_rand_index, find_types
+
+    compiles = sims[0].context.compiles
+    fast = HumanModel(choice="preferred", preferred=("cube2", "cube4", "cube1", "cube3", "triangle"), true_scale=0.6)
+    slow = HumanModel(choice="free", true_scale=1.3)
+    runs, truth = [], []
+    for label, (model, seed) in enumerate(((fast, 11), (slow, 12))):
+        sim = simulate(TASK, 25, seed, ["hrc"], SimSettings(human=model), jobs=1, compiles=compiles, keep_logs=True)
+        for i, data in sorted(sim.logs["hrc"].items()):
+            path = tmp_path / f"{label}-{i:04d}.jsonl"
+            path.write_bytes(data)
+            run, _ = read_run(path, task_digest(TASK))
+            assert run is not None
+            runs.append(run)
+            truth.append(label)
+    types = find_types(TASK, runs, 0.80, 0.80)
+    ari = adjusted_rand_index(truth, types.labels)
+    print(f"worker types: k={types.k}, silhouettes {types.scores}, adjusted Rand index {ari:.3f}")
+    assert types.k == 2 and ari >= 0.8
