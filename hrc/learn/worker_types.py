@@ -147,7 +147,7 @@ def adjusted_rand_index(a: Sequence[int], b: Sequence[int]) -> float:
     """
     if len(a) != len(b):
         raise ValueError("the two labellings must have the same length")
-    pairs = {}
+    pairs: dict[tuple[int, int], int] = {}
     for x, y in zip(a, b, strict=True):
         pairs[(x, y)] = pairs.get((x, y), 0) + 1
     rows: dict[int, int] = {}
