@@ -13,7 +13,7 @@ from hrc.dispatch.logfile import read_log
 from hrc.dispatch.protocol import replay
 from hrc.io.task_file import load_task
 from hrc.learn.runs import read_run, read_runs
-from hrc.sim.human import HumanModel
+from hrc.sim.human import HumanModel, scaled_truth
 from hrc.sim.montecarlo import simulate, simulation_json
 from hrc.sim.run import SimSettings
 from hrc.sim.runlog import log_name
@@ -89,8 +89,9 @@ def test_two_simulated_worker_types_are_recovered(sims: tuple, tmp_path: Path) -
     from hrc.learn.worker_types import adjusted_rand_index, find_types
 
     compiles = sims[0].context.compiles
-    fast = HumanModel(choice="preferred", preferred=("cube2", "cube4", "cube1", "cube3", "triangle"), true_scale=0.6)
-    slow = HumanModel(choice="free", true_scale=1.3)
+    fast = HumanModel(choice="preferred", preferred=("cube2", "cube4", "cube1", "cube3", "triangle"),
+                      truth=scaled_truth(TASK, 0.6))
+    slow = HumanModel(choice="free", truth=scaled_truth(TASK, 1.3))
     runs, truth = [], []
     for label, (model, seed) in enumerate(((fast, 11), (slow, 12))):
         sim = simulate(TASK, 25, seed, ["hrc"], SimSettings(human=model), jobs=1, compiles=compiles, keep_logs=True)

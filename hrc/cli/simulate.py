@@ -164,7 +164,7 @@ def format_detection(sim: Any) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hrc.sim.human import HumanModel
+    from hrc.sim.human import HumanModel, scaled_truth
     from hrc.sim.montecarlo import simulate, simulation_json
     from hrc.sim.run import SimSettings, simulate_run
 
@@ -190,7 +190,8 @@ def run(args: argparse.Namespace) -> int:
     human = HumanModel(choice=args.human, preferred=tuple(a for a in args.prefer.split(",") if a),
                        durations=args.durations, overrun_rate=args.overrun_rate, overrun_max=args.overrun_max,
                        absence_rate=args.absence_rate, absence_seconds=tuple(args.absence_seconds),
-                       leave_for_good_rate=args.leave_for_good_rate, true_scale=args.true_scale)
+                       leave_for_good_rate=args.leave_for_good_rate,
+                       truth=() if args.true_scale == 1.0 else scaled_truth(task, args.true_scale))
     settings = SimSettings(human=human, detection_delay=args.detection_delay, slowdown=args.slowdown,
                            tick=args.tick, detector=args.detector, sensor=sensor)
     bar = _Progress(tty=sys.stderr.isatty(), quiet=args.quiet)

@@ -47,7 +47,7 @@ def durations_figure(task: Task, learned: Learned, agent: str, path: Path) -> bo
         ax.tick_params(labelsize=7)
         ax.set_xlabel("s", fontsize=7)
     fig.suptitle(f"{agent}: observed durations, old bound dashed, new bound solid", fontsize=9)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.06, right=0.98, bottom=0.12 / rows, top=1 - 0.12 / rows, hspace=0.6, wspace=0.25)
     save_png(fig, path)
     return True
 
