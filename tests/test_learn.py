@@ -254,3 +254,29 @@ def test_two_kinds_of_worker_are_told_apart_and_written_as_preference_sets(
     m = statistics.median(2.1 + 0.01 * (i % 17) for i, f in enumerate(truth) if f)  # it peaks at the median
     assert max((fetch.value(2.1 + 0.001 * j), 2.1 + 0.001 * j) for j in range(200))[1] == pytest.approx(m, abs=1e-3)
     assert "worker types" in (tmp_path / "new-learn" / "report.md").read_text().lower()
+
+
+def test_a_motion_detectors_events_give_their_delays_and_an_undo_takes_one_back(tmp_path: Path) -> None:
+    def position(t: float, *given: dict) -> tuple[dict, str]:
+        return {"t": t, "event": "position", "x": 1.0, "y": 1.0}, json.dumps(
+            {"t": t, "ok": True, "detect": {"events": list(given), "belief": {}}})
+
+    def ev(t: float, at: float, action: str, phase: str, event: str) -> dict:
+        return {"t": t, "agent": "human", "action": action, "phase": phase, "event": event, "at": at}
+
+    exchanges = [position(1.0), position(2.4, ev(2.0, 2.4, "cube2", "fetch", "depart")),
+                 position(3.0, {"t": 3.0, "event": "undo", "at": 3.0}),  # that departure was for cube1
+                 position(3.5, ev(2.0, 3.5, "cube1", "fetch", "depart")),
+                 position(9.9, ev(9.0, 9.9, "cube1", "fetch", "arrive")),
+                 position(10.6, ev(10.0, 10.6, "cube1", "fetch", "start")),
+                 position(13.7, ev(13.0, 13.7, "cube1", "fetch", "end"))]
+    log = _log(tmp_path / "motion.jsonl", [m for m, _ in exchanges], answers=[a for _, a in exchanges])
+    (run,), skipped = read_runs(TASK, [log])
+    assert not skipped
+    assert [(e.action, e.event) for e in run.events] == [("cube1", "depart"), ("cube1", "arrive"),
+                                                         ("cube1", "start"), ("cube1", "end")]
+    got = learn(TASK, [run])
+    assert dict(got.delays.by_event) == {"arrive": (pytest.approx(0.9),), "depart": (pytest.approx(1.5),),
+                                         "end": (pytest.approx(0.7),), "start": (pytest.approx(0.6),)}
+    assert got.bound("human", "cube1", "fetch").samples == (3.0,)
+    assert got.travels[0].samples == (7.0,)
