@@ -254,6 +254,21 @@ def test_two_kinds_of_worker_are_told_apart_and_written_as_preference_sets(
     m = statistics.median(2.1 + 0.01 * (i % 17) for i, f in enumerate(truth) if f)  # it peaks at the median
     assert max((fetch.value(2.1 + 0.001 * j), 2.1 + 0.001 * j) for j in range(200))[1] == pytest.approx(m, abs=1e-3)
     assert "worker types" in (tmp_path / "new-learn" / "report.md").read_text().lower()
+    # APA's worker-type switch, fed the learned sets, names the type a person's timing belongs to
+    from hrc.apa.model import STPP, Constraint
+    from hrc.apa.plan import ORIGIN, preference_constraint
+    from hrc.apa.workers import best_worker_type
+
+    sets = {name: tuple(preference_constraint(str(p.source), str(p.target), p) for p in prefs)
+            for name, prefs in new.preference_sets}
+    events = sorted({e for cons in sets.values() for c in cons for e in (c.source, c.target)})
+    hard = STPP((ORIGIN, *events), tuple(
+        [Constraint(ORIGIN, e, 0.0, 200.0) for e in events]
+        + [Constraint(f"{a}.{p}.start", f"{a}.{p}.end", *TASK.action(a).phase(p).duration("human"))
+           for a, p, _ in (e.split(".") for e in events if e.endswith(".start"))]), "typed")
+    for d, want in ((2.16, "type_1"), (3.81, "type_2")):
+        seen = {ORIGIN: 0.0, "cube1.fetch.start": 5.0, "cube1.fetch.end": 5.0 + d}
+        assert best_worker_type(hard, sets, seen, 5.0 + d, ticks_per_second=1000) == want
 
 
 def test_a_motion_detectors_events_give_their_delays_and_an_undo_takes_one_back(tmp_path: Path) -> None:

@@ -12,6 +12,7 @@ from hrc.dispatch import Dispatcher
 from hrc.dispatch.logfile import read_log
 from hrc.dispatch.protocol import replay
 from hrc.io.task_file import load_task
+from hrc.learn.estimate import durations_of
 from hrc.learn.runs import read_run, read_runs
 from hrc.sim.human import HumanModel, scaled_truth
 from hrc.sim.montecarlo import simulate, simulation_json
@@ -106,3 +107,27 @@ def test_two_simulated_worker_types_are_recovered(sims: tuple, tmp_path: Path) -
     ari = adjusted_rand_index(truth, types.labels)
     print(f"worker types: k={types.k}, silhouettes {types.scores}, adjusted Rand index {ari:.3f}")
     assert types.k == 2 and ari >= 0.8
+
+
+def test_simulate_keeps_logs_learn_reads_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from hrc.cli import main
+
+    out = tmp_path / "sim"
+    assert main(["simulate", str(WORKSHOP_TASK), "--runs", "2", "--policy", "hrc", "--keep-logs", "--no-figures",
+                 "--true-scale", "0.8", "--jobs", "1", "-q", "--out", str(out)]) == 0
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["hrc-0000.jsonl", "hrc-0001.jsonl"]
+    human = json.loads((out / "simulation.json").read_text())["settings"]["human"]
+    assert human["truth"][0] == ["cube1", "fetch", pytest.approx(1.6), pytest.approx(3.2)]
+    runs, skipped = read_runs(TASK, [out])
+    assert len(runs) == 2 and not skipped
+    truth = {(a, p): (lb, ub) for a, p, lb, ub in human["truth"]}
+    seen = durations_of(runs)
+    assert any(agent == "human" for agent, _, _ in seen)
+    for (agent, action, phase), ds in seen.items():  # the person's times on the hidden truth (times: to the ms)
+        lb, ub = truth[(action, phase)] if agent == "human" else TASK.action(action).phase(phase).duration(agent)
+        assert all(lb - 0.002 <= d <= ub + 0.002 for d in ds)
+    assert main(["simulate", str(WORKSHOP_TASK), "--runs", "1", "--true-scale", "0", "-q",
+                 "--out", str(tmp_path / "bad")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
