@@ -295,3 +295,27 @@ def test_a_motion_detectors_events_give_their_delays_and_an_undo_takes_one_back(
                                          "end": (pytest.approx(0.7),), "start": (pytest.approx(0.6),)}
     assert got.bound("human", "cube1", "fetch").samples == (3.0,)
     assert got.travels[0].samples == (7.0,)
+
+
+def test_recordings_another_tasks_is_refused_and_a_broken_one_skipped(tmp_path: Path) -> None:
+    import io
+
+    from hrc.errors import RunFileError
+    from hrc.record.recorder import RunRecorder
+
+    def recording(path: Path, digest: str) -> Path:
+        sink = io.BytesIO()
+        rec = RunRecorder(sink, TASK, metadata={"task_digest": digest})
+        for ev in _phase(1.0, 3.0):
+            rec.exchange(json.dumps(ev).encode(), OK)
+        rec.finish()
+        path.write_bytes(sink.getvalue())
+        return path
+
+    good = recording(tmp_path / "good.mcap", task_digest(TASK))
+    (tmp_path / "broken.mcap").write_bytes(good.read_bytes()[:200])
+    runs, skipped = read_runs(TASK, [good, tmp_path / "broken.mcap"])
+    assert [r.source for r in runs] == [str(good)] and len(runs[0].events) == 2
+    assert len(skipped) == 1 and str(skipped[0]).startswith(f"{tmp_path / 'broken.mcap'}: not a readable MCAP")
+    with pytest.raises(RunFileError, match="metadata.hrc.task_digest: a run of another task"):
+        read_runs(TASK, [recording(tmp_path / "other.mcap", "0" * 64)])
