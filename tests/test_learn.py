@@ -277,7 +277,8 @@ def test_a_motion_detectors_events_give_their_delays_and_an_undo_takes_one_back(
             {"t": t, "ok": True, "detect": {"events": list(given), "belief": {}}})
 
     def ev(t: float, at: float, action: str, phase: str, event: str) -> dict:
-        return {"t": t, "agent": "human", "action": action, "phase": phase, "event": event, "at": at}
+        # "at": the time the dispatcher stamped it (not the position's): the delay is the position's t - t
+        return {"t": t, "agent": "human", "action": action, "phase": phase, "event": event, "at": t}
 
     exchanges = [position(1.0), position(2.4, ev(2.0, 2.4, "cube2", "fetch", "depart")),
                  position(3.0, {"t": 3.0, "event": "undo", "at": 3.0}),  # that departure was for cube1

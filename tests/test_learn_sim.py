@@ -131,3 +131,26 @@ def test_simulate_keeps_logs_learn_reads_them(tmp_path: Path, capsys: pytest.Cap
     assert main(["simulate", str(WORKSHOP_TASK), "--runs", "1", "--true-scale", "0", "-q",
                  "--out", str(tmp_path / "bad")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_a_motion_detectors_run_keeps_its_positions_and_gives_the_sensing_delays(sims: tuple, tmp_path: Path) -> None:
+    from hrc.detect import DetectingDispatcher, DetectParams
+    from hrc.learn.estimate import learn
+
+    compiles = sims[0].context.compiles
+    settings = SimSettings(human=HumanModel(choice="follow"), detector="motion")
+    sim = simulate(TASK, 1, 5, ["hrc"], settings, jobs=1, compiles=compiles, keep_logs=True, baseline=0.0)
+    path = tmp_path / "motion.jsonl"
+    path.write_bytes(sim.logs["hrc"][0])
+    contents = read_log(path)
+    assert contents.header["detect"]["detector"] == "motion"
+    fresh = DetectingDispatcher.from_compiled(compiles["motion"], threads=1,
+                                              params=DetectParams(sigma=max(settings.sensor.sigma, 0.01)))
+    assert all(a == b for a, b in replay(fresh, contents, str(path)))  # the dispatcher's own answers
+    (run,), skipped = read_runs(TASK, [path])
+    assert not skipped
+    human = [e for e in run.events if e.agent == "human"]
+    assert {e.event for e in human} >= {"depart", "arrive", "start", "end"} and all(e.at is not None for e in human)
+    delays = dict(learn(TASK, [run]).delays.by_event)
+    assert sorted(delays) == ["arrive", "depart", "end", "start"]
+    assert all(0.0 <= x < 5.0 for xs in delays.values() for x in xs)

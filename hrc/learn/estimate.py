@@ -17,7 +17,8 @@ what it can do); its observations are still reported.
 
 An **overrun** is an observed duration outside today's bounds (below ``lb`` or above ``ub``): each
 breaks the contingent link the compile's promise rests on. The **observation delay** of a motion
-detector is ``at - t`` of each event it gave (given at `at`, estimated to have happened at `t`).
+detector is ``at - t`` of each event it gave (given with the position of time `at`, estimated to have
+happened at `t`).
 """
 
 from __future__ import annotations

@@ -11,9 +11,9 @@ Three kinds of record hold the same events (docs/learn.md):
 
 Only what the dispatcher *accepted* is used: a message it refused changed nothing on the floor either
 (a refused observation is one the dispatcher did not believe). With a motion detector in front
-(``--detect motion``), the events are the ones it gave (each at the time it *estimated* the event
-happened, and given ``at`` a later time: the sensing path's delay), and a withdrawn departure
-(``undo``) takes back the one it withdrew.
+(``--detect motion``), the events are the ones it gave, each at the time it *estimated* the event
+happened, and given when a later position came (the position's time: the sensing path's delay is the
+difference); a withdrawn departure (``undo``) takes back the one it withdrew.
 
 **Guard rails.** A record from another task is refused whole (`RunFileError`, one line: its header's
 task digest is not this task's, `hrc.compile.compiler.task_digest`): bounds learned from another task's
@@ -145,7 +145,7 @@ class _Events:
                     if human:
                         del self.events[human[-1]]
                     continue
-                self._event(ev, line, ev.get("at") if isinstance(ev, dict) else None)
+                self._event(ev, line, msg.get("t"))  # given when this position came
             return
         if msg.get("event") in LEG_EVENTS:
             self._event(msg, line, None)

@@ -62,9 +62,39 @@ def catching(exchanges: list[Exchange]) -> Any:
             exchanges.append((t, line.encode("utf-8"), json.dumps(_answer(ctl, before, t))))
 
         ctl.observe = observe  # type: ignore[method-assign]  # this instance only: what the run loop calls
+        if isinstance(ctl, DispatchedController) and hasattr(ctl.d, "answer_position"):
+            _catch_positions(ctl.d, exchanges)
         return ctl
 
     return factory
+
+
+def _catch_positions(d: Any, exchanges: list[Exchange]) -> None:
+    """With a motion detector in front (`hrc.detect.online.DetectingDispatcher`): each tracked position it
+    is given, and the answer the protocol would give (`answer_position`: the decision, the events given
+    with the time each was stamped, the belief), into `exchanges`; the dispatcher itself is unchanged."""
+    from hrc.errors import DispatchError
+
+    inner = d.position
+
+    def position(t: float, x: float, y: float) -> Any:
+        line = json.dumps({"t": t, "event": "position", "x": x, "y": y}).encode("utf-8")
+        try:
+            given, refused = inner(t, x, y)
+        except DispatchError as err:
+            exchanges.append((t, line, json.dumps({"t": t, "ok": False, "error": " ".join(str(err).split())[:500]})))
+            raise
+        out = d.decision.to_json()
+        out["t"] = t
+        detect: dict[str, Any] = {"events": [{**ev.to_json(d.model.human), "at": at} for ev, at in given],
+                                  "belief": d.track.belief.to_json()}
+        if refused:
+            detect["refused"] = refused
+        out["detect"] = detect
+        exchanges.append((t, line, json.dumps(out)))
+        return given, refused
+
+    d.position = position
 
 
 def _plan_set_digest(ctx: SimContext, policy: Policy) -> tuple[str, int]:
@@ -90,6 +120,9 @@ def log_bytes(ctx: SimContext, policy: Policy, exchanges: Sequence[Exchange]) ->
         ctx.cache[key] = task_digest(ctx.task)
     header = {"hrc_dispatch_log": LOG_VERSION, "compiled": digest, "plans": plans, "task": ctx.cache[key],
               "policy": policy.name}
+    detect = ctx.cache.get(("dispatcher", policy.name, True)) if ctx.settings.motion and policy.dispatched else None
+    if detect is not None:  # as `hrc.dispatch.protocol.log_header`: a replay needs the same detector
+        header["detect"] = dict(detect.detect_settings())
     parts = [encode_header(header)]
     for _, data, answer in exchanges:
         parts += [encode_input(data), encode_answer(answer)]
