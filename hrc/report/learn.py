@@ -91,7 +91,8 @@ def learn_markdown(task: Task, learned: Learned, sources: int, skipped: Sequence
         out.append("")
     out += ["## Sensing delays", ""]
     if learned.delays.by_event:
-        out += ["A motion detector's events: given to the dispatcher at `at`, estimated to have happened at `t`.", "",
+        out += ["A motion detector's events: given with the tracked position of time `at`, estimated to have "
+                "happened at `t`.", "",
                 "| event | n | median / p90 / max of at - t (s) |", "|---|---:|---|"]
         for ev, xs in learned.delays.by_event:
             out.append(f"| {ev} | {len(xs)} | {_f(float(np.median(xs)))} / {_f(float(np.quantile(xs, 0.9)))} / "
