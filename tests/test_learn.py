@@ -244,6 +244,10 @@ def test_two_kinds_of_worker_are_told_apart_and_written_as_preference_sets(
     runs, _ = read_runs(TASK, files)
     types = find_types(TASK, runs, 0.80, 0.80)
     assert types.k == 2 and adjusted_rand_index(truth, types.labels) == 1.0
+    # at (0.90, 0.95) the 16 runs of the fast worker are too few for any bound: no sets, and a warning
+    assert _learn(tmp_path, folder, extra=("--types",)) == 0
+    assert "2 worker types found, no preference sets written: a type has no learned bound" in capsys.readouterr().err
+    assert not load_task(tmp_path / "new.yaml").preference_sets
     assert _learn(tmp_path, folder, extra=("--types", "--coverage", "0.8", "--confidence", "0.8")) == 0
     new = load_task(tmp_path / "new.yaml")
     sets = dict(new.preference_sets)

@@ -101,7 +101,14 @@ def run(args: argparse.Namespace) -> int:
 
         found = find_types(task, runs, args.coverage, args.confidence)
         types_md = types_markdown(found)
-        new_text = new_text.rstrip("\n") + "\n" + types_yaml(task, found)
+        block = types_yaml(task, found)
+        if block:
+            new_text = new_text.rstrip("\n") + "\n" + block
+        elif found.k > 1:
+            why = ("the task has preference sets already (kept)" if task.preference_sets
+                   else "a type has no learned bound to prefer (too few observations)")
+            print(f"warning: {found.k} worker types found, no preference sets written: {why}; see the report",
+                  file=sys.stderr)
     map_abs = (Path(args.task).parent / task.map_path).resolve()
     new_map = os.path.relpath(map_abs, out.resolve().parent)
     if Path(new_map) != Path(task.map_path):
