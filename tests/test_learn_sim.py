@@ -154,3 +154,16 @@ def test_a_motion_detectors_run_keeps_its_positions_and_gives_the_sensing_delays
     delays = dict(learn(TASK, [run]).delays.by_event)
     assert sorted(delays) == ["arrive", "depart", "end", "start"]
     assert all(0.0 <= x < 5.0 for xs in delays.values() for x in xs)
+
+
+def test_a_hidden_truth_is_checked() -> None:
+    from hrc.errors import SimulationError
+
+    with pytest.raises(SimulationError, match=r"true duration of cube1.fetch must be 0 <= LB <= UB, found 3 2"):
+        HumanModel(truth=(("cube1", "fetch", 3.0, 2.0),))
+    with pytest.raises(SimulationError, match=r"name cube9.fetch, not a phase of cube_stacking"):
+        HumanModel(truth=(("cube9", "fetch", 1.0, 2.0),)).check(TASK)
+    with pytest.raises(SimulationError, match="--true-scale must be a finite number > 0, found -1"):
+        scaled_truth(TASK, -1.0)
+    truth = dict(((a, p), (lb, ub)) for a, p, lb, ub in scaled_truth(TASK, 0.5))
+    assert truth[("triangle", "put")] == (1.5, 3.0) and len(truth) == 10
