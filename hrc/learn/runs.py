@@ -209,9 +209,7 @@ def _read_mcap(file: Path, want: str) -> tuple[Run | None, list[Skipped]]:
                     pending = None
                 else:
                     events._skip(None, f"an answer without its message (message {n}): skipped")
-    except (McapError, OSError, ValueError, KeyError, EOFError) as err:
-        if isinstance(err, RunFileError):
-            raise
+    except (McapError, OSError, ValueError, KeyError, EOFError) as err:  # (a RunFileError goes through)
         return None, [Skipped(str(file), f"not a readable MCAP recording ({type(err).__name__}: {err}): "
                                          "the whole file skipped")]
     events.finish()
