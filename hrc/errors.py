@@ -8,7 +8,8 @@ and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit stat
     │   ├── TaskFileError          task YAML
     │   ├── MapFileError           map YAML or DXF floor plan
     │   ├── NetworkFileError       STNU file (GraphML, .stnu, HEATlab JSON)
-    │   └── StppFileError          STPP JSON file (APA)
+    │   ├── StppFileError          STPP JSON file (APA)
+    │   └── RunFileError           a recorded run (dispatcher log, MCAP) that `hrc learn` cannot use
     ├── UnreachableLocationError   no collision-free path between two locations
     ├── ExecutorError              a parallel or distributed executor failed or cannot be reached
     ├── SimulationError            a simulation asked for something impossible (bad model parameter, policy)
@@ -32,6 +33,7 @@ __all__ = [
     "MapFileError",
     "MessageError",
     "NetworkFileError",
+    "RunFileError",
     "SimulationError",
     "StppFileError",
     "TaskFileError",
@@ -62,6 +64,10 @@ class InputError(HrcError):
 
 class TaskFileError(InputError):
     """The task YAML is malformed or inconsistent."""
+
+
+class RunFileError(InputError):
+    """A recorded run is damaged, or was made for another task (its header's task digest)."""
 
 
 class MapFileError(InputError):

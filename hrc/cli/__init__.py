@@ -32,6 +32,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "detect": ("hrc.cli.detect", "the human action detector: the person's tracked positions in, observations out"),
     "console": ("hrc.cli.console", "serve the operator console: the person's buttons, the engineer's live view"),
     "simulate": ("hrc.cli.simulate", "simulate a person and the robot doing a task, many times; compare policies"),
+    "learn": ("hrc.cli.learn", "learn duration bounds and worker types from recorded runs; write a new task"),
     "ros2": ("hrc.cli.ros2", "serve the dispatcher as a ROS 2 node (topics in, answers and Nav2 goals out)"),
 }
 

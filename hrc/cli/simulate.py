@@ -52,6 +52,9 @@ def add_parser(sub: Any) -> None:
                    help="how long an absence lasts (uniform, default 10 30)")
     g.add_argument("--leave-for-good-rate", type=float, default=0.0,
                    help="probability that an absence is for good")
+    g.add_argument("--true-scale", type=float, default=1.0, metavar="F",
+                   help="a hidden true duration model: the person's manipulation times lie on the task's bounds "
+                        "times F (default 1: on the bounds), for measuring hrc learn (docs/learn.md)")
     g = p.add_argument_group("the floor and the detector")
     g.add_argument("--detector", choices=("buttons", "motion"), default="buttons",
                    help="buttons: the person's events reach the dispatcher (--detection-delay late); motion: their "
@@ -73,6 +76,9 @@ def add_parser(sub: Any) -> None:
                    help="m beyond the safety margin in which the robot slows down (default 0: stops at it)")
     g.add_argument("--tick", type=float, default=0.0,
                    help="report time passing to the dispatcher every S s while the robot waits (default 0: no)")
+    p.add_argument("--keep-logs", action="store_true",
+                   help="also keep each run's observations and answers as a dispatcher log, runs/POLICY-NNNN.jsonl "
+                        "in the output folder (what hrc learn reads; simulation.json is the same either way)")
     p.add_argument("--no-figures", action="store_true", help="write simulation.json only")
     p.add_argument("--record", metavar="DIR", default=None,
                    help="also record runs as MCAP for Foxglove into DIR, one POLICY-NNNN.mcap per run (docs/record.md)")
@@ -158,7 +164,7 @@ def format_detection(sim: Any) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hrc.sim.human import HumanModel
+    from hrc.sim.human import HumanModel, scaled_truth
     from hrc.sim.montecarlo import simulate, simulation_json
     from hrc.sim.run import SimSettings, simulate_run
 
@@ -184,19 +190,28 @@ def run(args: argparse.Namespace) -> int:
     human = HumanModel(choice=args.human, preferred=tuple(a for a in args.prefer.split(",") if a),
                        durations=args.durations, overrun_rate=args.overrun_rate, overrun_max=args.overrun_max,
                        absence_rate=args.absence_rate, absence_seconds=tuple(args.absence_seconds),
-                       leave_for_good_rate=args.leave_for_good_rate)
+                       leave_for_good_rate=args.leave_for_good_rate,
+                       truth=() if args.true_scale == 1.0 else scaled_truth(task, args.true_scale))
     settings = SimSettings(human=human, detection_delay=args.detection_delay, slowdown=args.slowdown,
                            tick=args.tick, detector=args.detector, sensor=sensor)
     bar = _Progress(tty=sys.stderr.isatty(), quiet=args.quiet)
     t0 = time.perf_counter()
     try:
         sim = simulate(task, args.runs, args.seed, policies, settings, jobs=args.jobs, executor=args.executor,
-                       progress=bar, compile_seed=args.compile_seed, baseline=args.baseline_delay)
+                       progress=bar, compile_seed=args.compile_seed, baseline=args.baseline_delay,
+                       keep_logs=args.keep_logs)
     finally:
         bar.close()
     elapsed = time.perf_counter() - t0
     with atomic_dir(out) as stage:
         (stage / "simulation.json").write_text(simulation_json(sim), encoding="utf-8")
+        if sim.logs is not None:
+            from hrc.sim.runlog import log_name
+
+            (stage / "runs").mkdir()
+            for policy, logs in sorted(sim.logs.items()):
+                for index, data in sorted(logs.items()):
+                    (stage / "runs" / log_name(policy, index)).write_bytes(data)
         if not args.no_figures:
             from hrc.report.simulation import write_simulation_figures
 
@@ -210,7 +225,8 @@ def run(args: argparse.Namespace) -> int:
         print(format_table(sim))
         if sim.baseline is not None:
             print(format_detection(sim))
-        print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/"))
+        print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/")
+              + ("" if sim.logs is None else f", {out}/runs/ (one dispatcher log per run)"))
     if args.record is not None:
         from hrc.record.sim import write_recordings
 

@@ -41,7 +41,7 @@ import fcntl
 import json
 import os
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -61,11 +61,13 @@ _RECORD_MAX = 8 * MAX_LINE  # the longest record a writer makes (a MAX_LINE mess
 @dataclass(frozen=True, slots=True)
 class Message:
     """One logged message: `data`, its bytes (the first ``MAX_LINE + 1`` of them when it was longer:
-    enough to give the same answer), `size` its full length in bytes, and `answer` the logged answer."""
+    enough to give the same answer), `size` its full length in bytes, `answer` the logged answer, and
+    `line` the line of the log its record starts on (1 = the header)."""
 
     data: bytes
     size: int
     answer: str
+    line: int = field(default=0, compare=False)  # the log line its (first) record is on, for messages about it
 
 
 @dataclass(frozen=True, slots=True)
@@ -227,7 +229,7 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
                         raise _Damaged("an answer without its message")
                     if not isinstance(rec["out"], str):
                         raise _Damaged("'out' must be a string")
-                    messages.append(Message(bytes(pending.first), pending.size, rec["out"]))
+                    messages.append(Message(bytes(pending.first), pending.size, rec["out"], pending.line))
                     pending = None
                     good = offset + len(raw)
                 elif "resumed" in rec and pending is None:

@@ -132,7 +132,12 @@ def _digest(dispatcher: Dispatcher) -> str:
 
 def log_header(dispatcher: Dispatcher, version: int) -> dict[str, Any]:
     """The header of a log of `dispatcher`'s compiled plan set: the set's digest and size."""
-    header = {"hrc_dispatch_log": version, "compiled": _digest(dispatcher), "plans": len(dispatcher.plan_set)}
+    from hrc.io.task_file import task_digest
+
+    # "task": the task's digest, so that `hrc learn` can tell a log of this task from another's (the
+    # compiled digest alone depends on the compile too); a replay checks "compiled" only
+    header = {"hrc_dispatch_log": version, "compiled": _digest(dispatcher), "plans": len(dispatcher.plan_set),
+              "task": task_digest(dispatcher.plan_set.task)}
     detect = _detect(dispatcher)
     if detect is not None:  # a run with a detector in front replays only with the same detector
         header["detect"] = detect

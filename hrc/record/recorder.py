@@ -41,6 +41,7 @@ from hrc import __version__
 from hrc.dispatch.limits import parse_message
 from hrc.errors import MessageError
 from hrc.io.atomic import AtomicFile
+from hrc.io.task_file import task_digest
 from hrc.model import Task
 from hrc.record import scene
 from hrc.ros2.drive import next_drive
@@ -431,4 +432,6 @@ def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLi
         routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
                             plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0)))).routes
     return Recording(path, dispatcher.task, routes, report=report,
-                     metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set))}, fmt=fmt)
+                     metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set)),
+                               "task_digest": task_digest(dispatcher.task)},  # checked by `hrc learn`
+                     fmt=fmt)

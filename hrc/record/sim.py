@@ -14,16 +14,15 @@ in parallel, in a fixed order: the same seed gives the same files, byte for byte
 from __future__ import annotations
 
 import io
-import json
 from collections.abc import Iterator, Sequence
 from typing import Any
 
 from hrc.compile.output import plan_dict
 from hrc.dispatch.routes import PlanRoutes
 from hrc.record.recorder import RunRecorder
-from hrc.sim.detector import Happening
-from hrc.sim.policies import POLICIES, Controller, DispatchedController, Policy
-from hrc.sim.run import RunResult, SimContext, make_controller, simulate_run
+from hrc.sim.policies import POLICIES, Policy
+from hrc.sim.run import RunResult, SimContext, simulate_run
+from hrc.sim.runlog import catching
 
 __all__ = ["check_record_folder", "file_name", "record_run", "record_runs", "write_recordings"]
 
@@ -46,46 +45,10 @@ def _routes(ctx: SimContext, policy: Policy) -> PlanRoutes:
     return PlanRoutes(motions, ctx.paths)
 
 
-def _answer(ctl: Controller, before: int, t: float) -> dict[str, Any]:
-    """What the controller answered to the observation it has just been given."""
-    if len(ctl.refused) > before:
-        return {"t": t, "ok": False, "error": ctl.refused[-1].split(": ", 1)[-1]}
-    if isinstance(ctl, DispatchedController):
-        return dict(ctl.d.decision.to_json())
-    order = ctl.order()  # the fixed plan: its order for the robot
-    robot = None if order is None else {"action": order.action, "phase": order.phase, "event": order.event,
-                                        "earliest": round(order.earliest, 3),
-                                        "latest": None if order.latest is None else round(order.latest, 3)}
-    return {"t": t, "ok": True, "plan": ctl.plan_id, "class": ctl.plan_class, "candidates": {}, "robot": robot,
-            "human": None, "human_away": False, "stopped": False, "policy": "fixed"}
-
-
-def _catching(exchanges: list[tuple[float, bytes, str]]) -> Any:
-    """A controller factory for `simulate_run` whose controllers also put every observation and its answer
-    into `exchanges` (the controller itself is unchanged: the run is the one `simulation.json` holds)."""
-
-    def factory(ctx: SimContext, policy: Policy) -> Controller:
-        ctl = make_controller(ctx, policy)
-        inner = ctl.observe
-
-        def observe(h: Happening) -> None:
-            before = len(ctl.refused)
-            inner(h)
-            t = round(h.t, 3)
-            message = {"t": t, "agent": h.agent or None, "action": h.action, "phase": h.phase, "event": h.event}
-            line = json.dumps({k: v for k, v in message.items() if v is not None})
-            exchanges.append((t, line.encode("utf-8"), json.dumps(_answer(ctl, before, t))))
-
-        ctl.observe = observe  # type: ignore[method-assign]  # this instance only: what the run loop calls
-        return ctl
-
-    return factory
-
-
 def record_run(ctx: SimContext, policy: str, index: int) -> tuple[bytes, RunResult]:
     """Run `index` of `policy` again, recorded: the MCAP file's bytes and the run's result."""
     exchanges: list[tuple[float, bytes, str]] = []
-    result = simulate_run(ctx, policy, index, record=True, controller=_catching(exchanges))
+    result = simulate_run(ctx, policy, index, record=True, controller=catching(exchanges))
     human = next(a.id for a in ctx.task.agents if a.is_human)
     robot = next(a.id for a in ctx.task.agents if not a.is_human)
     # frames (positions after the floor advanced to t) before the exchanges at t: events happen there
@@ -93,8 +56,11 @@ def record_run(ctx: SimContext, policy: str, index: int) -> tuple[bytes, RunResu
     timeline += [(t, 1, (data, answer)) for t, data, answer in exchanges]
     timeline.sort(key=lambda item: (item[0], item[1]))
     sink = io.BytesIO()
+    from hrc.io.task_file import task_digest
+
     meta = {"policy": policy, "run": str(index), "seed": str(ctx.seed), "finished": str(result.finished).lower(),
-            "makespan": "" if result.makespan is None else f"{result.makespan:.3f}"}
+            "makespan": "" if result.makespan is None else f"{result.makespan:.3f}",
+            "task_digest": task_digest(ctx.task)}  # what `hrc learn` checks a recording against
     rec = RunRecorder(sink, ctx.task, _routes(ctx, POLICIES[policy]).routes, measured=True, metadata=meta)
     frames = len(result.frames)
     seen = 0

@@ -15,6 +15,9 @@ not reverted). The simulator needs a person who actually makes those choices and
   times the bound (an overrun the STNU does not allow: the dispatcher has to cope).
 - **walking pace** per leg, uniform between the agent's speed and ``speed / travel_slack`` (the
   contingent travel bounds of `hrc.compile.temporal_net_creator`).
+- **a hidden true duration model** (`truth`, default none): the person's manipulation times lie on these
+  bounds (per action and phase, absolute seconds), not on the task's as typed: what ``hrc learn`` should
+  find; the same truth then holds for a task with other (learned) bounds. Overruns go beyond it.
 - **absences**: with probability `absence_rate` the person leaves once, between two actions, at a time
   uniform in the first `absence_window` seconds, for `absence_seconds` (uniform in the range); with
   probability `leave_for_good_rate` such an absence is for good.
@@ -34,7 +37,7 @@ import numpy as np
 from hrc.errors import SimulationError
 from hrc.model import Interval, Task
 
-__all__ = ["CHOICES", "DURATIONS", "HumanDraws", "HumanModel", "draw_human", "sample_duration"]
+__all__ = ["CHOICES", "DURATIONS", "HumanDraws", "HumanModel", "draw_human", "sample_duration", "scaled_truth"]
 
 CHOICES = ("follow", "preferred", "free")
 DURATIONS = ("triangular", "uniform")
@@ -53,6 +56,7 @@ class HumanModel:
     absence_window: float | None = None  # s; default: the task's deadline (or 60 s)
     absence_seconds: tuple[float, float] = (10.0, 30.0)
     leave_for_good_rate: float = 0.0
+    truth: tuple[tuple[str, str, float, float], ...] = ()  # hidden true bounds (action, phase, lb, ub); (): the task's
 
     def __post_init__(self) -> None:
         if self.choice not in CHOICES:
@@ -65,23 +69,49 @@ class HumanModel:
                 raise SimulationError(f"--{name.replace('_', '-')} must be in [0, 1], found {value:g}")
         if not (self.overrun_max >= 0 and math.isfinite(self.overrun_max)):
             raise SimulationError(f"--overrun-max must be a finite number >= 0, found {self.overrun_max:g}")
+        for action, phase, lb, ub in self.truth:
+            if not (0 <= lb <= ub and math.isfinite(ub)):
+                raise SimulationError(f"the true duration of {action}.{phase} must be 0 <= LB <= UB, "
+                                      f"found {lb:g} {ub:g}")
         lo, hi = self.absence_seconds
         if not (0 <= lo <= hi and math.isfinite(hi)):
             raise SimulationError(f"--absence-seconds must be 0 <= LO <= HI, found {lo:g} {hi:g}")
 
     def check(self, task: Task) -> None:
-        """Raise `SimulationError` if `preferred` names an action the task does not have."""
+        """Raise `SimulationError` if `preferred` or `truth` names an action or phase the task does not have."""
         known = set(task.action_ids)
         for a in self.preferred:
             if a not in known:
                 raise SimulationError(f"--prefer names {a!r}, which is not an action of {task.name} "
                                       f"(expected some of: {', '.join(task.action_ids)})")
+        phases = {(a.id, p.id) for a in task.actions for p in a.phases}
+        for action, phase, _, _ in self.truth:
+            if (action, phase) not in phases:
+                raise SimulationError(f"the true durations name {action}.{phase}, not a phase of {task.name}")
 
     def to_json(self) -> dict:
         return {"choice": self.choice, "preferred": list(self.preferred), "durations": self.durations,
                 "overrun_rate": self.overrun_rate, "overrun_max": self.overrun_max,
                 "absence_rate": self.absence_rate, "absence_window": self.absence_window,
-                "absence_seconds": list(self.absence_seconds), "leave_for_good_rate": self.leave_for_good_rate}
+                "absence_seconds": list(self.absence_seconds), "leave_for_good_rate": self.leave_for_good_rate,
+                **({"truth": [list(x) for x in self.truth]} if self.truth else {})}  # as before by default
+
+    def true_bounds(self, action: str, phase: str, bounds: Interval) -> Interval:
+        """Where the person's manipulation durations at `action`.`phase` really lie (the hidden truth
+        `hrc learn` is measured against): `truth`'s bounds for it, else the task's `bounds`."""
+        for a, p, lb, ub in self.truth:
+            if (a, p) == (action, phase):
+                return Interval(lb, ub)
+        return bounds
+
+
+def scaled_truth(task: Task, scale: float) -> tuple[tuple[str, str, float, float], ...]:
+    """A hidden truth (`HumanModel.truth`): the person's bounds of `task` times `scale` (``--true-scale``)."""
+    if not (scale > 0 and math.isfinite(scale)):
+        raise SimulationError(f"--true-scale must be a finite number > 0, found {scale:g}")
+    human = next(a.id for a in task.agents if a.is_human)
+    return tuple((a.id, p.id, p.duration(human).lb * scale, p.duration(human).ub * scale)
+                 for a in task.actions if human in a.agents for p in a.phases)
 
 
 def sample_duration(bounds: Interval, u: float, shape: str) -> float:
@@ -132,7 +162,7 @@ def draw_human(task: Task, model: HumanModel, rng: np.random.Generator) -> Human
             key = (action.id, phase.id)
             u, v, w, p, r = rng.random(5)
             if human.id in action.agents:
-                bounds = phase.duration(human.id)
+                bounds = model.true_bounds(action.id, phase.id, phase.duration(human.id))
                 d = sample_duration(bounds, float(u), model.durations)
                 if v < model.overrun_rate:
                     d = bounds.ub * (1.0 + float(w) * model.overrun_max)

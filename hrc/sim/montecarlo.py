@@ -63,17 +63,22 @@ class Simulation:
     compile_seed: int = 0
     baseline: dict[str, tuple[RunResult, ...]] | None = None  # with the motion detector: buttons, same seeds
     baseline_delay: float | None = None
+    logs: dict[str, dict[int, bytes]] | None = None  # keep_logs: each run's dispatcher log (hrc.sim.runlog)
 
 
 def _run_all(ctx: SimContext, chosen: Sequence[str], runs: int, executor: str | None, jobs: int | None,
-             progress: Progress | None, label: str) -> dict[str, tuple[RunResult, ...]]:
+             progress: Progress | None, label: str, logs: dict[str, dict[int, bytes]] | None = None
+             ) -> dict[str, tuple[RunResult, ...]]:
+    """Every run of every chosen policy; with `logs` (a dict to fill), each run's dispatcher log too."""
     results: dict[str, list[RunResult]] = {p: [] for p in chosen}
     total = runs * len(chosen)
     done = 0
     with make_executor(executor, jobs) as ex:
-        for batch in ex.map_chunks(_chunk, ctx, None, _work(chosen, runs)):
-            for r in batch:
+        for batch in ex.map_chunks(_chunk, ctx, logs is not None, _work(chosen, runs)):
+            for r, log in batch:
                 results[r.policy].append(r)
+                if logs is not None and log is not None:
+                    logs.setdefault(r.policy, {})[r.run] = log
             done += len(batch)
             if progress:
                 progress(label, done, total)
@@ -87,9 +92,19 @@ def baseline_delay(results: dict[str, tuple[RunResult, ...]]) -> float:
     return max(0.0, round(float(np.median(delays)), 2)) if delays else 0.0
 
 
-def _chunk(ctx: SimContext, _: object, work: list[tuple[str, int]]) -> list[RunResult]:
-    """The unit of work sent to an executor: some runs of one policy (module-level, so it pickles)."""
-    return [simulate_run(ctx, policy, i) for policy, i in work]
+def _chunk(ctx: SimContext, keep_logs: object, work: list[tuple[str, int]]) -> list[tuple[RunResult, bytes | None]]:
+    """The unit of work sent to an executor: some runs of one policy (module-level, so it pickles), each
+    with its dispatcher log when `keep_logs` (`hrc.sim.runlog`: the same run, its exchanges caught)."""
+    if not keep_logs:
+        return [(simulate_run(ctx, policy, i), None) for policy, i in work]
+    from hrc.sim.runlog import catching, log_bytes
+
+    out: list[tuple[RunResult, bytes | None]] = []
+    for policy, i in work:
+        exchanges: list = []
+        result = simulate_run(ctx, policy, i, controller=catching(exchanges))
+        out.append((result, log_bytes(ctx, POLICIES[policy], exchanges)))
+    return out
 
 
 def _work(policies: Sequence[str], runs: int) -> Iterator[list[tuple[str, int]]]:
@@ -109,10 +124,12 @@ def check_policies(names: Sequence[str]) -> tuple[str, ...]:
 def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(POLICIES),
              settings: SimSettings | None = None, jobs: int | None = None, executor: str | None = None,
              progress: Progress | None = None, compile_seed: int = 0,
-             compiles: dict[str, CompiledPlanSet] | None = None, baseline: float | None = None) -> Simulation:
+             compiles: dict[str, CompiledPlanSet] | None = None, baseline: float | None = None,
+             keep_logs: bool = False) -> Simulation:
     """Compile (unless `compiles` are given) and run everything (see the module docstring). With the motion
     detector, the dispatched policies again with buttons `baseline` seconds late (default: the detector's
-    median delay, `baseline_delay`) on the same seeds."""
+    median delay, `baseline_delay`) on the same seeds. `keep_logs`: each run's observations and answers as
+    a dispatcher log too (`Simulation.logs`, for ``hrc learn``; the runs themselves are the same)."""
     if runs < 1:
         raise SimulationError(f"--runs must be at least 1, found {runs}")
     chosen = check_policies(policies)
@@ -126,16 +143,17 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
 
         compiles["blind"] = blind_compile(task, seed=compile_seed, jobs=jobs, executor=executor, progress=progress)
     ctx = SimContext(task, compiles, settings, seed)
-    ordered = _run_all(ctx, chosen, runs, executor, jobs, progress, "runs")
+    logs: dict[str, dict[int, bytes]] | None = {} if keep_logs else None
+    ordered = _run_all(ctx, chosen, runs, executor, jobs, progress, "runs", logs)
     if not settings.motion:
-        return Simulation(ctx, runs, chosen, ordered, compile_seed)
+        return Simulation(ctx, runs, chosen, ordered, compile_seed, logs=logs)
     delay = baseline_delay(ordered) if baseline is None else baseline
     if not (delay >= 0 and math.isfinite(delay)):
         raise SimulationError(f"--baseline-delay must be a finite number >= 0, found {delay:g}")
     dispatched = [p for p in chosen if POLICIES[p].dispatched]
     buttons = SimContext(task, compiles, replace(settings, detector="buttons", detection_delay=delay), seed)
     base = _run_all(buttons, dispatched, runs, executor, jobs, progress, "buttons") if dispatched else {}
-    return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay)
+    return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay, logs)
 
 
 def _outcome(runs: Sequence[RunResult]) -> dict:

@@ -1,0 +1,129 @@
+"""A simulated run's exchanges with its controller, caught as they happen, and written as a dispatcher
+log (``hrc simulate --keep-logs``, `hrc.dispatch.logfile`'s format) or an MCAP recording (`hrc.record.sim`).
+
+`catching` wraps the run's controller so that every observation it is given, and what it answered, is
+also put into a list (the run itself is unchanged: the same run ``simulation.json`` holds). For the
+dispatcher's policies each observation is the protocol's message (`hrc.dispatch.Observation.to_json`)
+and its answer the decision (or the refusal) the dispatcher gave; for ``fixed`` (no dispatcher) the
+answer is the robot's order from the fixed plan. `log_bytes` makes a log of them whose header names
+the compiled plan set (as ``hrc dispatch --log`` does) and the task (its digest), so that ``hrc learn``
+reads a simulated run as it reads a run on the floor.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from typing import Any
+
+from hrc.sim.detector import Happening
+from hrc.sim.policies import Controller, DispatchedController, Policy
+from hrc.sim.run import SimContext, make_controller
+
+__all__ = ["Exchange", "catching", "log_bytes", "log_name"]
+
+Exchange = tuple[float, bytes, str]
+"""(run time, the message's bytes, the answer's line)."""
+
+
+def log_name(policy: str, index: int) -> str:
+    """``POLICY-NNNN.jsonl``: the log of run `index` of `policy` (sorted as the runs are)."""
+    return f"{policy}-{index:04d}.jsonl"
+
+
+def _answer(ctl: Controller, before: int, t: float) -> dict[str, Any]:
+    """What the controller answered to the observation it has just been given."""
+    if len(ctl.refused) > before:
+        return {"t": t, "ok": False, "error": ctl.refused[-1].split(": ", 1)[-1]}
+    if isinstance(ctl, DispatchedController):
+        return dict(ctl.d.decision.to_json())
+    order = ctl.order()  # the fixed plan: its order for the robot
+    robot = None if order is None else {"action": order.action, "phase": order.phase, "event": order.event,
+                                        "earliest": round(order.earliest, 3),
+                                        "latest": None if order.latest is None else round(order.latest, 3)}
+    return {"t": t, "ok": True, "plan": ctl.plan_id, "class": ctl.plan_class, "candidates": {}, "robot": robot,
+            "human": None, "human_away": False, "stopped": False, "policy": "fixed"}
+
+
+def catching(exchanges: list[Exchange]) -> Any:
+    """A controller factory for `hrc.sim.run.simulate_run` whose controllers also put every observation
+    and its answer into `exchanges` (the controller itself is unchanged)."""
+
+    def factory(ctx: SimContext, policy: Policy) -> Controller:
+        ctl = make_controller(ctx, policy)
+        inner = ctl.observe
+
+        def observe(h: Happening) -> None:
+            before = len(ctl.refused)
+            inner(h)
+            t = round(h.t, 3)
+            message = {"t": t, "agent": h.agent or None, "action": h.action, "phase": h.phase, "event": h.event}
+            line = json.dumps({k: v for k, v in message.items() if v is not None})
+            exchanges.append((t, line.encode("utf-8"), json.dumps(_answer(ctl, before, t))))
+
+        ctl.observe = observe  # type: ignore[method-assign]  # this instance only: what the run loop calls
+        if isinstance(ctl, DispatchedController) and hasattr(ctl.d, "answer_position"):
+            _catch_positions(ctl.d, exchanges)
+        return ctl
+
+    return factory
+
+
+def _catch_positions(d: Any, exchanges: list[Exchange]) -> None:
+    """With a motion detector in front (`hrc.detect.online.DetectingDispatcher`): each tracked position it
+    is given, and the answer the protocol would give (`answer_position`: the decision, the events given
+    with the time each was stamped, the belief), into `exchanges`; the dispatcher itself is unchanged."""
+    from hrc.errors import DispatchError
+
+    inner = d.position
+
+    def position(t: float, x: float, y: float) -> Any:
+        line = json.dumps({"t": t, "event": "position", "x": x, "y": y}).encode("utf-8")
+        try:
+            given, refused = inner(t, x, y)
+        except DispatchError as err:
+            exchanges.append((t, line, json.dumps({"t": t, "ok": False, "error": " ".join(str(err).split())[:500]})))
+            raise
+        out = d.decision.to_json()
+        out["t"] = t
+        detect: dict[str, Any] = {"events": [{**ev.to_json(d.model.human), "at": at} for ev, at in given],
+                                  "belief": d.track.belief.to_json()}
+        if refused:
+            detect["refused"] = refused
+        out["detect"] = detect
+        exchanges.append((t, line, json.dumps(out)))
+        return given, refused
+
+    d.position = position
+
+
+def _plan_set_digest(ctx: SimContext, policy: Policy) -> tuple[str, int]:
+    """The digest and size of the policy's compiled plan set as a dispatcher names it (per process)."""
+    key = ("plan_set_digest", policy.compile)
+    got = ctx.cache.get(key)
+    if got is None:
+        from hrc.dispatch.plan_set import plan_set_from_compiled
+
+        ps = plan_set_from_compiled(ctx.compiles[policy.compile])
+        got = ctx.cache[key] = (ps.digest, len(ps))
+    return got
+
+
+def log_bytes(ctx: SimContext, policy: Policy, exchanges: Sequence[Exchange]) -> bytes:
+    """The run's exchanges as a dispatcher log (`hrc.dispatch.logfile`, version 2), header first."""
+    from hrc.dispatch.logfile import LOG_VERSION, encode_answer, encode_header, encode_input
+    from hrc.io.task_file import task_digest
+
+    digest, plans = _plan_set_digest(ctx, policy)
+    key = ("task_digest",)
+    if key not in ctx.cache:
+        ctx.cache[key] = task_digest(ctx.task)
+    header = {"hrc_dispatch_log": LOG_VERSION, "compiled": digest, "plans": plans, "task": ctx.cache[key],
+              "policy": policy.name}
+    detect = ctx.cache.get(("dispatcher", policy.name, True)) if ctx.settings.motion and policy.dispatched else None
+    if detect is not None:  # as `hrc.dispatch.protocol.log_header`: a replay needs the same detector
+        header["detect"] = dict(detect.detect_settings())
+    parts = [encode_header(header)]
+    for _, data, answer in exchanges:
+        parts += [encode_input(data), encode_answer(answer)]
+    return b"".join(parts)
