@@ -1,0 +1,140 @@
+"""Issue 34's attacks on the console, each through a real ``hrc console`` process, and a watchdog after
+each that proves the process still answers (the robot's messages reach the dispatcher and are
+answered; ``/state`` answers).
+
+- the robot controller sends an acknowledgement with a 310-digit integer ``t`` (it ended the console's
+  only message worker: ``float()`` overflowed), and with ``--detect motion`` a position with
+  ``x = 10**400``;
+- duplicate JSON keys (``{"type": "ack", "type": "position"}``: which one?) and ``NaN``;
+- the compiled folder's ``compiled.json`` overwritten under the running console (what a recompile into
+  the folder did), so that reading a plan's motions fails: the worker survives its own faults;
+- ``GET /?`` with nine query fields (500 and a traceback before), and refused websocket upgrades (each
+  wrote an ASGI error line before).
+
+No browser: the robot controller and the page are websocket clients (``websockets``) with their tokens.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from console_harness import ConsoleProcess, compiled_workshop
+
+pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
+ANSWER_WITHIN = 5.0  # s: the watchdog's bound for one answer
+
+
+@pytest.fixture(scope="module")
+def workshop(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return compiled_workshop(tmp_path_factory.mktemp("attacks"))
+
+
+class Client:
+    """A websocket client of the console (the robot's or a page's), every wait bounded."""
+
+    def __init__(self, console: ConsoleProcess, path: str, headers: dict[str, str]) -> None:
+        from websockets.sync.client import connect
+
+        self.ws = connect(console.ws + path, open_timeout=10, close_timeout=5,
+                          additional_headers=headers).__enter__()
+        self.n = 0
+
+    def ask(self, message: dict[str, Any] | str) -> dict[str, Any]:
+        """Send one frame; its reply (by id when it is an object), within `ANSWER_WITHIN`."""
+        self.n += 1
+        rid = f"m{self.n}"
+        frame = json.dumps({**message, "id": rid}) if isinstance(message, dict) else message
+        self.ws.send(frame)
+        deadline = time.monotonic() + ANSWER_WITHIN
+        while True:
+            left = deadline - time.monotonic()
+            assert left > 0, f"no reply within {ANSWER_WITHIN} s to {frame[:80]}: the console stopped answering"
+            msg = json.loads(self.ws.recv(timeout=left))
+            if msg["type"] == "reply" and (not isinstance(message, dict) or msg.get("id") == rid):
+                return msg
+
+    def close(self) -> None:
+        self.ws.close()
+
+
+def _robot(console: ConsoleProcess) -> Client:
+    return Client(console, "robot", console.robot_headers())
+
+
+def _watchdog(console: ConsoleProcess, robot: Client) -> None:
+    """The process still answers: the robot's acknowledgement reaches the dispatcher (which refuses an
+    action the task does not have, in its own words) and ``/state`` answers."""
+    before = console.state()["log_total"]
+    reply = robot.ask({"type": "ack", "action": "no_such_action", "phase": "fetch", "event": "start"})
+    assert reply["ok"] is False and "no_such_action" in reply["error"], reply
+    assert console.state()["log_total"] == before + 1  # it went through the log to the dispatcher
+
+
+def test_a_huge_number_from_the_robot_is_refused_in_one_line_and_the_console_still_answers(
+        workshop: Path, tmp_path: Path) -> None:
+    console = ConsoleProcess(workshop, tmp_path / "run.jsonl", "--tick", "0", "--detect", "motion")
+    try:
+        robot = _robot(console)
+        _watchdog(console, robot)
+        attacks = [
+            ('{"type": "ack", "action": "cube2", "phase": "fetch", "event": "depart", "t": -1' + "0" * 309 + "}",
+             "key 't': an integer of 310 digits"),
+            ('{"type": "position", "t": 0, "x": 1' + "0" * 400 + ', "y": 1}', "key 'x': an integer of 401 digits"),
+            ('{"type": "position", "t": 0, "x": 1e400, "y": 1}', "key 'x': 1e400 is beyond the range of a double"),
+            ('{"type": "position", "t": 0, "x": NaN, "y": 1}', "key 'x': NaN is not a number JSON allows"),
+            ('{"type": "ack", "type": "position", "t": 0, "x": 1, "y": 1}', "key 'type': given twice"),
+            ('{"type": "ack", "action": "cube2", "phase": "fetch", "event": "depart", "t": 1e300}',
+             "t must be a number of run seconds (0 to 1e+09)"),
+            ('{"type": "position", "t": 0, "x": 1e300, "y": 1}', "x must be a finite number (within ±1e+06)"),
+        ]
+        for frame, expected in attacks:
+            reply = robot.ask(frame)
+            assert reply["ok"] is False and expected in reply["error"], (frame[:60], reply)
+            assert "\n" not in reply["error"]
+            _watchdog(console, robot)
+        # a page's press with the person's agent given twice is refused too, by the same reader
+        page = Client(console, "ws", console.page_headers())
+        hseq = console.state()["hseq"]
+        reply = page.ask(f'{{"type": "away", "hseq": {hseq}, "hseq": {hseq}}}')
+        assert reply["ok"] is False and "key 'hseq': given twice in one object" in reply["error"], reply
+        page.close()
+        assert console.state()["traffic"]["faults"] == 0  # refused by the reader, not by the supervisor
+        robot.close()
+    finally:
+        console.stop()
+    assert "Traceback" not in console.stderr()
+
+
+def test_the_worker_survives_its_own_faults_and_says_them_once_a_second(workshop: Path, tmp_path: Path) -> None:
+    folder = tmp_path / "ws"
+    shutil.copytree(workshop, folder)
+    console = ConsoleProcess(folder, tmp_path / "run.jsonl", "--tick", "0")
+    try:
+        robot = _robot(console)
+        _watchdog(console, robot)
+        hseq = console.state()["hseq"]
+        # the folder's compiled.json replaced under the running console (what a recompile into it did):
+        # a plan's motions are read where the dispatch form says they lie, and now they are not there, so
+        # building the new state after each accepted message fails (the robot's best plan when the person
+        # is away has not been shown yet)
+        compiled = folder / "compiled.json"
+        compiled.write_bytes(b" " * compiled.stat().st_size)
+        page = Client(console, "ws", console.page_headers())
+        for kind in ("away", "back") * 4:  # within the page's burst of 10: each answered
+            reply = page.ask({"type": kind, "hseq": hseq})
+            assert reply["ok"] is True, reply
+            hseq += 1
+        reply = robot.ask({"type": "ack", "action": "no_such_action", "phase": "fetch", "event": "start"})
+        assert reply["ok"] is False and "no_such_action" in reply["error"], reply  # the worker still answers
+        page.close()
+        robot.close()
+    finally:
+        console.stop()
+    said = [x for x in console.stderr().splitlines() if x.startswith("hrc console: the new state could not be")]
+    assert 1 <= len(said) <= 3, console.stderr()[-2000:]  # said once a second at most, not once a message
+    assert "cannot read plan" in said[0]
