@@ -61,7 +61,7 @@ def read_line(data: bytes) -> tuple[float, float, float] | dict[str, Any]:
         value = obj.get(key)
         if isinstance(value, bool) or not isinstance(value, int | float) or not -MAX_METRES <= value <= MAX_METRES:
             found = "nothing" if key not in obj else json.dumps(value)[:40]
-            raise DispatchError(f"key {key!r}: a finite number was expected, found {found}")
+            raise DispatchError(f"key {key!r}: a finite number (within ±{MAX_METRES:g}) was expected, found {found}")
         out.append(float(value))
     if not 0 <= out[0] <= 1e9:
         raise DispatchError(f"key 't': seconds from the task's start (0 to 1e9) were expected, found {out[0]:g}")
