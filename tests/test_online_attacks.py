@@ -10,6 +10,7 @@ import json
 import math
 import signal
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import compiled_folder
@@ -21,7 +22,8 @@ from hrc.detect import DetectingDispatcher
 from hrc.detect.filter import MAX_SAMPLES
 from hrc.detect.trace import Refusal, detect_lines
 from hrc.dispatch.limits import MAX_INT, read_json
-from hrc.errors import MessageError
+from hrc.dispatch.logfile import read_log
+from hrc.errors import InputError, MessageError
 
 HUGE_T = b'{"t": -1' + b"0" * 309 + b', "event": "tick"}'
 TICK = b'{"t": 1, "event": "tick"}'
@@ -97,6 +99,7 @@ def test_hrc_dispatch_refuses_a_huge_number_and_repeated_keys_by_the_parser_and_
         assert run.proc.wait(timeout=30) == 0
 
 
+@pytest.mark.slow
 def test_hrc_dispatch_with_the_detector_refuses_a_position_beyond_any_float(folder: Path) -> None:
     with Dispatch(folder, "--detect", "motion") as run:
         position = b'{"t": 0.5, "agent": "human", "event": "position", "x": X, "y": 1}'
@@ -134,6 +137,7 @@ def test_a_trace_line_beyond_any_float_is_refused_and_the_trace_goes_on(folder: 
 
 
 # -- hrc ros2 ----------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_the_ros2_node_refuses_huge_numbers_and_an_infinite_pose_and_still_answers(folder: Path,
                                                                                     tmp_path: Path) -> None:
     from ros2_client import Client, NodeProcess, ros_env
@@ -161,3 +165,72 @@ def test_the_ros2_node_refuses_huge_numbers_and_an_infinite_pose_and_still_answe
         client.close()
         node.kill()
     assert "internal error" not in node.stderr() and "Traceback" not in node.stderr()
+
+
+# -- the log -----------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def thirty(folder: Path, tmp_path_factory: pytest.TempPathFactory) -> bytes:
+    """A log of 30 accepted messages (ticks a second apart), written by ``hrc dispatch --log``."""
+    log = tmp_path_factory.mktemp("log") / "run.log"
+    with Dispatch(folder, "--log", str(log)) as run:
+        run.send([b'{"t": %d, "event": "tick"}' % t for t in range(30)])
+        assert all(json.loads(a)["ok"] for a in run.answers(30))
+        run.close_input()
+        assert run.proc.wait(timeout=30) == 0
+    return log.read_bytes()
+
+
+def _lines(data: bytes) -> list[bytes]:
+    return data.splitlines(keepends=True)  # the log is ASCII: no other line ends in it
+
+
+def _edited(thirty: bytes) -> bytes:
+    lines = _lines(thirty)
+    lines[20] = lines[20].replace(b'\\"ok\\": true', b'\\"ok\\": true ', 1)  # message 10's answer, edited
+    assert lines[20] != _lines(thirty)[20] and lines[20].startswith(b'{"out"')
+    return b"".join(lines)
+
+
+@pytest.mark.parametrize(("damage", "line", "message"), [
+    (lambda d: d + _lines(d)[0], 62, "a header line inside the log"),  # the issue's attack: 30 messages lost
+    (lambda d: b"".join(_lines(d)[:31] + _lines(d)[:1] + _lines(d)[31:]), 32, "a header line inside the log"),
+    (lambda d: d + b'{"resumed": 3}\n', 62, "resumed after 3 messages, but 30 came before"),
+    (lambda d: d + b'{"out": "{}"}\n', 62, "damaged record (an answer without its message)"),
+    (lambda d: d + b'{"in": "{}", "in": "[]"}\n', 62, "key 'in': given twice"),
+    (lambda d: d + b'{"in": "{}", "out": "{}"}\n', 62, "not a log record (keys in, out)"),
+    (lambda d: d + b'{"in": "{}"}\n{"in": "{}"}\n', 63, "a message after a message without its answer"),
+])
+def test_a_damaged_log_is_refused_in_one_line_never_read_as_a_shorter_one(tmp_path: Path, thirty: bytes, damage: Any,
+                                                                        line: int, message: str) -> None:
+    log = tmp_path / "damaged.log"
+    log.write_bytes(damage(thirty))
+    with pytest.raises(InputError) as caught:
+        read_log(log)
+    assert caught.value.line == line and message in str(caught.value) and "\n" not in str(caught.value)
+    # what is still a torn end: an incomplete last line, a message without its answer, NUL padding
+    for torn in (thirty + b'{"in": "{\\"t\\": 3', thirty + b'{"in": "{}"}\n', thirty + b"\x00" * 100):
+        log.write_bytes(torn)
+        assert read_log(log).torn is not None and len(read_log(log).messages) == 30
+
+
+def test_resume_and_replay_refuse_a_log_with_its_header_appended_or_an_answer_edited(folder: Path, tmp_path: Path,
+                                                                                     thirty: bytes) -> None:
+    from test_online_faults import _hrc_dispatch
+
+    log = tmp_path / "damaged.log"
+    log.write_bytes(thirty + _lines(thirty)[0])  # the issue's attack: --resume said "after 0 messages"
+    for option in ("--resume", "--replay"):
+        done = _hrc_dispatch(folder, option, str(log))
+        err = done.stderr.decode()
+        assert done.returncode == 2 and err.count("\n") == 1 and done.stdout == b"", (option, err)
+        assert err.startswith(f"error: {log}:62: a header line inside the log"), (option, err)
+    assert log.read_bytes() == thirty + _lines(thirty)[0]  # left as it was
+    log.write_bytes(_edited(thirty))
+    done = _hrc_dispatch(folder, "--resume", str(log))
+    err = done.stderr.decode()
+    assert done.returncode == 2 and err == f"error: {log}:21: message 10's answer differs from the logged one " \
+                                           "(an edited log, another hrc, or the compiled folder changed?): " \
+                                           "not resuming\n", err
+    done = _hrc_dispatch(folder, "--replay", str(log))
+    assert done.returncode == 1 and done.stderr.decode() == f"error: {log}:21: answer 10 differs from the logged one\n"
+    assert log.read_bytes() == _edited(thirty)
