@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import json
 import shutil
+import socket
 import time
+import urllib.error
+import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -138,3 +141,83 @@ def test_the_worker_survives_its_own_faults_and_says_them_once_a_second(workshop
     said = [x for x in console.stderr().splitlines() if x.startswith("hrc console: the new state could not be")]
     assert 1 <= len(said) <= 3, console.stderr()[-2000:]  # said once a second at most, not once a message
     assert "cannot read plan" in said[0]
+
+
+IDLE = 2000
+NOFILE = 1024
+
+
+def _idle_connections(port: int, n: int) -> list[socket.socket]:
+    """`n` connections to 127.0.0.1:`port` that never send a byte (non-blocking connects: none waits)."""
+    import resource
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft < n + 256:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (min(hard, n + 1024), hard))
+    out = []
+    for _ in range(n):  # bounded: n sockets, no retries
+        s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        s.setblocking(False)
+        s.connect_ex(("127.0.0.1", port))
+        out.append(s)
+    return out
+
+
+def test_the_robot_reconnects_within_a_second_under_2000_idle_connections(workshop: Path, tmp_path: Path) -> None:
+    console = ConsoleProcess(workshop, tmp_path / "run.jsonl", "--tick", "0", nofile=NOFILE)
+    idle: list[socket.socket] = []
+    try:
+        port = int(console.base.rsplit(":", 1)[1].strip("/"))
+        robot = _robot(console)
+        _watchdog(console, robot)
+        robot.close()
+        start = time.monotonic()
+        idle = _idle_connections(port, IDLE)
+        deadline = start + 60
+        while (t := console.state()["traffic"])["connections"] + t["shed"] + t["timed_out"] < IDLE:
+            assert time.monotonic() < deadline, t  # the server takes every connection in (and sheds most)
+            time.sleep(0.2)
+        absorbed = time.monotonic() - start
+        took = []
+        for _ in range(3):  # the robot's controller reconnects, three times
+            start = time.monotonic()
+            robot = _robot(console)
+            assert json.loads(robot.ws.recv(timeout=5))["type"] == "hello"
+            took.append(time.monotonic() - start)
+            _watchdog(console, robot)
+            robot.close()
+        print(f"\nrobot reconnects under {IDLE} idle connections at a {NOFILE}-file limit: "
+              f"{[round(x * 1000) for x in took]} ms (the {IDLE} taken in in {absorbed:.1f} s; {t})")
+        assert max(took) <= 1.0, took
+        assert console.state()["traffic"]["shed"] > 0
+    finally:
+        for s in idle:
+            s.close()
+        console.stop()
+    err = console.stderr()
+    assert len(err) < 20_000 and err.count("\n") < 60, err[:6000]  # once per interval, not per event
+
+
+def test_a_long_query_and_refused_upgrades_get_one_line_refusals_and_no_error_lines(workshop: Path,
+                                                                                    tmp_path: Path) -> None:
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    console = ConsoleProcess(workshop, tmp_path / "run.jsonl", "--tick", "0")
+    try:
+        nine = "&".join(f"f{i}=1" for i in range(9))
+        for query, status in ((nine, 400), ("token=" + "x" * 2000, 414), (f"token={console.token}&" + nine, 400)):
+            with pytest.raises(urllib.error.HTTPError) as caught:
+                urllib.request.urlopen(console.base + "?" + query, timeout=10)
+            assert caught.value.code == status and caught.value.read().decode().count("\n") == 1
+        for headers in ({}, {"Authorization": "Bearer wrong"}, console.page_headers()):  # /robot: robot token only
+            with pytest.raises(InvalidStatus):
+                connect(console.ws + "robot", open_timeout=10, additional_headers=headers).__enter__()
+        robot = _robot(console)
+        _watchdog(console, robot)
+        robot.close()
+        time.sleep(0.5)
+    finally:
+        console.stop()
+    err = console.stderr()
+    assert "ASGI" not in err and "Traceback" not in err and "ERROR" not in err, err

@@ -42,6 +42,7 @@ from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketState
 
 from hrc.console.access import AccessGuard, Credentials
+from hrc.console.connections import ConnectionLimiter
 from hrc.console.inbox import Inbox, Letter, TokenBucket
 from hrc.console.robot import SimulatedRobot
 from hrc.console.session import ConsoleSession, Reply, parse
@@ -144,6 +145,8 @@ class ConsoleServer:
         self.guard = AccessGuard(routes, self.credentials)
         self.app = self.guard
         self.faults = Throttle()  # faults survived, by kind (said on stderr once a second at most)
+        self.connections = ConnectionLimiter(fault=self.fault)  # held by `hrc.console.run.serve`'s protocol
+        self.guard.on_request = self.connections.admitted
         self.received = 0  # websocket messages received
         self.limited = 0   # of which refused at once by a rate limit or a full inbox
 
@@ -160,7 +163,10 @@ class ConsoleServer:
 
     async def state(self, request: Request) -> Response:
         traffic = {"received": self.received, "limited": self.limited, "denied": self.guard.denied,
-                   "faults": sum(self.faults.count.values())}
+                   "faults": self.faults.count.get("message", 0) + self.faults.count.get("push", 0)
+                   + self.faults.count.get("tick", 0),
+                   "connections": len(self.connections), "shed": self.connections.shed,
+                   "timed_out": self.connections.timed_out}
         return Response(_json({**self.session.state(), "traffic": traffic}), media_type="application/json",
                         headers=_NO_STORE)
 

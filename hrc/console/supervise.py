@@ -21,7 +21,7 @@ import sys
 import time
 from collections.abc import Callable
 
-__all__ = ["INTERVAL", "Throttle", "ThrottleFilter", "stderr_line"]
+__all__ = ["INTERVAL", "DenialFilter", "Throttle", "ThrottleFilter", "stderr_line"]
 
 INTERVAL = 1.0
 """Seconds: a kind of fault is said at most this often."""
@@ -76,4 +76,28 @@ class ThrottleFilter(logging.Filter):
             return False
         if self._kept:  # "" when said at once; else " (N more like it since)"
             record.msg = f"{record.msg}{self._kept}"
+        return True
+
+
+class DenialFilter(logging.Filter):
+    """Drops the error line uvicorn's websockets-sansio protocol writes after every websocket refused with
+    a denial response ("ASGI callable returned without completing handshake.": it never marks such a
+    handshake complete; Kludex/uvicorn pull request 3138, open), one line per refusal the access guard
+    `refused` made, so that a genuine incomplete handshake is still said."""
+
+    MESSAGE = "ASGI callable returned without completing handshake."
+    PENDING = 64
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.expected = 0
+
+    def refused(self) -> None:
+        """The access guard refused a websocket: its spurious line is coming."""
+        self.expected = min(self.PENDING, self.expected + 1)
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if self.expected and record.getMessage() == self.MESSAGE:
+            self.expected -= 1
+            return False
         return True
