@@ -28,6 +28,8 @@ from typing import Any
 import pytest
 from console_harness import ConsoleProcess, compiled_workshop
 
+from hrc.console.connections import HEADER_TIMEOUT
+
 pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 ANSWER_WITHIN = 5.0  # s: the watchdog's bound for one answer
 
@@ -216,7 +218,15 @@ def test_a_long_query_and_refused_upgrades_get_one_line_refusals_and_no_error_li
         robot = _robot(console)
         _watchdog(console, robot)
         robot.close()
-        time.sleep(0.5)
+        # a connection that never sends its headers is closed at the deadline (a slow or idle client
+        # holds its descriptor for HEADER_TIMEOUT at most)
+        port = int(console.base.rsplit(":", 1)[1].strip("/"))
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as idle:
+            idle.sendall(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # and never the blank line
+            start = time.monotonic()
+            assert idle.recv(100) == b""  # closed by the server, without a response
+            assert HEADER_TIMEOUT - 0.5 < time.monotonic() - start < HEADER_TIMEOUT + 3
+        assert console.state()["traffic"]["timed_out"] >= 1
     finally:
         console.stop()
     err = console.stderr()
