@@ -231,3 +231,55 @@ def test_a_long_query_and_refused_upgrades_get_one_line_refusals_and_no_error_li
         console.stop()
     err = console.stderr()
     assert "ASGI" not in err and "Traceback" not in err and "ERROR" not in err, err
+
+
+def test_the_limiter_sheds_idle_then_plain_http_connections_never_an_admitted_websocket() -> None:
+    """`ConnectionLimiter` on real loopback connections (an asyncio server, cap 3): over the cap, the
+    oldest connection without a request goes first, then the oldest plain HTTP one; the admitted
+    websocket (the robot's) stays."""
+    import asyncio
+
+    from hrc.console.connections import ConnectionLimiter
+
+    async def run() -> tuple[list[str], int, int]:
+        limiter = ConnectionLimiter(cap=3, header_timeout=30)
+
+        class Held(asyncio.Protocol):
+            def connection_made(self, transport: asyncio.BaseTransport) -> None:
+                self.transport = transport
+                limiter.opened(transport, asyncio.get_running_loop())
+
+            def connection_lost(self, exc: Exception | None) -> None:
+                limiter.closed(self.transport)
+
+        server2 = await asyncio.get_running_loop().create_server(Held, "127.0.0.1", 0)
+        port = server2.sockets[0].getsockname()[1]
+        clients = []
+
+        async def connect() -> tuple[str, int]:
+            reader, writer = await asyncio.open_connection("127.0.0.1", port)
+            clients.append((reader, writer))
+            await asyncio.sleep(0.05)  # the server has taken it
+            return writer.get_extra_info("sockname")
+
+        robot, page, _idle = await connect(), await connect(), await connect()
+        limiter.admitted(robot, trusted=True)
+        limiter.admitted(page, trusted=False)
+        fourth = await connect()  # over the cap: the idle one goes
+        limiter.admitted(fourth, trusted=False)  # (it sends a request)
+        await connect()  # none idle now: the oldest plain HTTP one goes, the page's
+        closed = []
+        for name, (reader, _w) in zip(("robot", "page", "idle", "fourth", "fifth"), clients, strict=True):
+            try:
+                data = await asyncio.wait_for(reader.read(1), 0.2)
+                closed.append(name) if data == b"" else None
+            except TimeoutError:
+                pass
+        for _r, w in clients:
+            w.close()
+        server2.close()
+        await server2.wait_closed()
+        return closed, limiter.shed, len(limiter)
+
+    closed, shed, held = asyncio.run(run())
+    assert closed == ["page", "idle"] and shed == 2 and held == 3, (closed, shed, held)
