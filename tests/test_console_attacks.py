@@ -115,6 +115,7 @@ def test_a_huge_number_from_the_robot_is_refused_in_one_line_and_the_console_sti
     assert "Traceback" not in console.stderr()
 
 
+@pytest.mark.slow
 def test_the_worker_survives_its_own_faults_and_says_them_once_a_second(workshop: Path, tmp_path: Path) -> None:
     folder = tmp_path / "ws"
     shutil.copytree(workshop, folder)
@@ -200,6 +201,7 @@ def test_the_robot_reconnects_within_a_second_under_2000_idle_connections(worksh
     assert len(err) < 20_000 and err.count("\n") < 60, err[:6000]  # once per interval, not per event
 
 
+@pytest.mark.slow
 def test_a_long_query_and_refused_upgrades_get_one_line_refusals_and_no_error_lines(workshop: Path,
                                                                                     tmp_path: Path) -> None:
     from websockets.exceptions import InvalidStatus

@@ -60,7 +60,7 @@ def test_the_reader_takes_what_json_takes_within_the_bounds() -> None:
         assert read_json(text) == json.loads(text) and read_json(text.encode("utf-8", "surrogatepass")) == value
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(st.one_of(st.binary(max_size=300), st.text(max_size=300),
                  st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
                               lambda kids: st.lists(kids, max_size=4) | st.dictionaries(st.text(max_size=3), kids,
@@ -213,6 +213,7 @@ def test_a_damaged_log_is_refused_in_one_line_never_read_as_a_shorter_one(tmp_pa
         assert read_log(log).torn is not None and len(read_log(log).messages) == 30
 
 
+@pytest.mark.slow
 def test_resume_and_replay_refuse_a_log_with_its_header_appended_or_an_answer_edited(folder: Path, tmp_path: Path,
                                                                                      thirty: bytes) -> None:
     from test_online_faults import _hrc_dispatch
