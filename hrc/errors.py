@@ -17,7 +17,7 @@ and misuse. The CLI maps every `HrcError` to one `error: ...` line and exit stat
     ├── ApaError                   an STPP built wrong through the API, or its QP could not be solved
     ├── LogWriteError              a dispatcher's log could not be written or synced (the message was refused)
     └── DispatchError              a dispatcher (hrc.dispatch, or APA's) refused a message (it changed nothing)
-        └── MessageError           ... before parsing it: too long, or nested too deep
+        └── MessageError           ... as it was read: too long, too deep, not UTF-8, not strict JSON
 """
 
 from __future__ import annotations
@@ -111,7 +111,8 @@ class DispatchError(HrcError):
 
 
 class MessageError(DispatchError):
-    """A message refused before parsing (`hrc.dispatch.limits`): too long or nested too deep. One line."""
+    """A message refused as it was read (`hrc.dispatch.limits.read_json`): too long, nested too deep, not
+    UTF-8, not JSON, or not strict JSON (a key twice, NaN, a number beyond a double or ±2**53). One line."""
 
 
 class LogWriteError(HrcError):

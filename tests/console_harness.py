@@ -74,9 +74,10 @@ class ConsoleProcess:
     """``python -m hrc console OUT_DIR --port 0 ...`` in a subprocess; once it listens, `url` (what it
     printed to open, with the page's token), `base` (the same without the token), `token` and
     `robot_token` (from ``--robot-token-file`` beside the log). `log_option` False: no ``--log`` given
-    (a test that resumes gives ``--resume``)."""
+    (a test that resumes gives ``--resume``). `nofile`: the process's open-file limit (default: as inherited)."""
 
-    def __init__(self, out_dir: Path, log: Path, *args: str, log_option: bool = True) -> None:
+    def __init__(self, out_dir: Path, log: Path, *args: str, log_option: bool = True,
+                 nofile: int | None = None) -> None:
         env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
         self.log = log
         self._stderr: str | None = None
@@ -84,7 +85,8 @@ class ConsoleProcess:
         logging = ["--log", str(log)] if log_option else []
         self.proc = subprocess.Popen([sys.executable, "-m", "hrc", "console", str(out_dir), "--port", "0",
                                       *logging, "--robot-token-file", str(robot_file), *args], cwd=ROOT, env=env,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     preexec_fn=None if nofile is None else lambda: _limit_files(nofile))
         lines: queue.Queue[str] = queue.Queue()
         threading.Thread(target=lambda: [lines.put(x) for x in self.proc.stdout or ()], daemon=True).start()
         try:
@@ -140,6 +142,13 @@ class ConsoleProcess:
         for f in (self.proc.stdout, self.proc.stderr):
             if f:
                 f.close()
+
+
+def _limit_files(n: int) -> None:
+    """In the console's process, before it starts: at most `n` open files (``RLIMIT_NOFILE``'s soft limit)."""
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_NOFILE, (n, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
 
 
 def connected_page(ctx: Any, url: str) -> Any:

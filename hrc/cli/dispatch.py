@@ -87,16 +87,17 @@ def _run(args: argparse.Namespace, dispatcher: Any, recording: Any) -> int:
         contents = read_log(args.replay)
         if contents.torn is not None:
             print(f"hrc dispatch: {args.replay}: {contents.torn}", file=sys.stderr, flush=True)
-        differ = 0
+        differ: tuple[int, int] | None = None
         for number, ((out, was), message) in enumerate(zip(replay(dispatcher, contents, args.replay),
                                                            contents.messages, strict=True), 1):
             print(out, flush=True)
             if recording is not None:
                 recording.listener(message.data, out)
-            if out != was and not differ:
-                differ = number
-        if differ:
-            print(f"error: {args.replay}: answer {differ} differs from the logged one", file=sys.stderr)
+            if out != was and differ is None:
+                differ = (number, message.line)
+        if differ is not None:
+            print(f"error: {args.replay}:{differ[1]}: answer {differ[0]} differs from the logged one",
+                  file=sys.stderr)
             return 1
         return 0
     if args.resume:

@@ -12,6 +12,9 @@ pushes every decision to the page and the robot over websockets.
     views     the map, each plan's routes, the Gantt bars
     session   ConsoleSession: the one dispatcher (written ahead to its log), the page's and robot's messages
     inbox     each client's rate limit, the robot's messages before the pages' (Inbox, TokenBucket)
+    connections  the connections held: a cap under the open-file limit, a header deadline, the
+              unauthenticated shed first (ConnectionLimiter)
+    supervise faults said once a second, not once an event (Throttle, ThrottleFilter, DenialFilter)
     robot     SimulatedRobot: ``--simulate-robot``
     server    ConsoleServer: the Starlette app (page, /ws, /robot)
     run       open_console, serve

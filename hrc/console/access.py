@@ -175,6 +175,8 @@ class AccessGuard:
         self.hosts: frozenset[str] = frozenset()
         self.cookie = "hrc_console"
         self.denied = 0
+        self.on_refused_upgrade: Callable[[], None] | None = None  # after each websocket refused
+        self.on_request: Callable[[Any, bool], None] | None = None  # (client, an admitted websocket?)
 
     def listen(self, host: str, port: int, hosts: Iterable[str] | None = None) -> None:
         """Serve `host`:`port` (its `allowed_hosts`, or `hosts`)."""
@@ -185,6 +187,14 @@ class AccessGuard:
         if scope["type"] not in ("http", "websocket"):
             await self.app(scope, receive, send)  # lifespan
             return
+        if self.on_request is not None:  # a whole request came: the connection is no longer idle
+            self.on_request(scope.get("client"), False)
+        refusal = _bounded(scope)
+        if refusal is not None:  # before anything reads them: no 500 for a long or many-fielded query
+            self.denied += 1
+            await _refuse(scope, receive, send, *refusal)
+            self._refused_upgrade(scope)
+            return
         headers = _headers(scope)
         first_load = scope["type"] == "http" and scope["path"] == "/" and _query_token(scope) is not None
         refusal = self._check(scope, headers, first_load)
@@ -194,8 +204,15 @@ class AccessGuard:
         if refusal is not None:
             self.denied += 1
             await _refuse(scope, receive, send, *refusal)
+            self._refused_upgrade(scope)
             return
+        if scope["type"] == "websocket" and self.on_request is not None:  # an admitted websocket: kept
+            self.on_request(scope.get("client"), True)
         await self.app(scope, receive, send)
+
+    def _refused_upgrade(self, scope: Scope) -> None:
+        if scope["type"] == "websocket" and self.on_refused_upgrade is not None:
+            self.on_refused_upgrade()
 
     def _check(self, scope: Scope, headers: dict[str, str], first_load: bool) -> tuple[int, str] | None:
         host = headers.get("host", "").lower()
@@ -256,9 +273,32 @@ def _cookie(headers: dict[str, str], name: str) -> str | None:
     return morsel.value if morsel is not None else None
 
 
+MAX_QUERY = 1024
+"""Bytes of a query string at most (the only one this console reads is ``?token=``)."""
+MAX_QUERY_FIELDS = 8
+MAX_HEADERS = 64
+"""Header lines of a request at most (uvicorn's h11 bounds their total size: `hrc.console.limits`)."""
+
+
+def _bounded(scope: Scope) -> tuple[int, str] | None:
+    """The refusal of a request whose query string or headers exceed the bounds, or None (issue 34:
+    nine query fields made ``parse_qs`` raise, and the server answered 500 with a traceback)."""
+    query = scope.get("query_string", b"")
+    if len(query) > MAX_QUERY:
+        return 414, f"refused: a query string longer than {MAX_QUERY} bytes"
+    if query.count(b"&") + query.count(b";") >= MAX_QUERY_FIELDS:
+        return 400, f"refused: a query string of more than {MAX_QUERY_FIELDS} fields"
+    if len(scope.get("headers", ())) > MAX_HEADERS:
+        return 431, f"refused: more than {MAX_HEADERS} header lines"
+    return None
+
+
 def _query_token(scope: Scope) -> str | None:
     query = scope.get("query_string", b"").decode("latin-1")
-    values = parse_qs(query, max_num_fields=8).get("token") if query else None
+    try:
+        values = parse_qs(query, max_num_fields=MAX_QUERY_FIELDS).get("token") if query else None
+    except ValueError:  # more fields than allowed (`_bounded` refuses such a request first)
+        return None
     return values[-1] if values else None
 
 

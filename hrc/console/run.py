@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import json
+import logging
 import os
 import signal
 import socket
@@ -16,9 +18,11 @@ import uvicorn
 from hrc.compile.output import read_header
 from hrc.console.access import Credentials
 from hrc.console.clock import RunClock
+from hrc.console.connections import KEEP_ALIVE, limited_protocol
 from hrc.console.runlog import next_log_path, open_log, resume_log
 from hrc.console.server import MAX_FRAME, ConsoleServer
 from hrc.console.session import ConsoleSession
+from hrc.console.supervise import DenialFilter, ThrottleFilter
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.routes import PlanRoutes, plan_motions
 from hrc.errors import HrcError
@@ -87,6 +91,25 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     return ConsoleServer(session, simulate_robot=simulate_robot, tick=tick, credentials=credentials)
 
 
+MAX_HEADER_BYTES = 16384
+"""Bytes of a request line and headers at most (h11 answers 431 beyond)."""
+
+
+def _quiet_logs(server: ConsoleServer) -> None:
+    """uvicorn's and asyncio's errors at most once a second per kind (with the count held back), and
+    not the line uvicorn writes after every refused websocket (`hrc.console.supervise.DenialFilter`)."""
+    denials = DenialFilter()
+    server.guard.on_refused_upgrade = denials.refused
+    throttle = ThrottleFilter()
+    for name in ("uvicorn.error", "asyncio"):
+        logger = logging.getLogger(name)
+        for old in [f for f in logger.filters if isinstance(f, DenialFilter | ThrottleFilter)]:
+            logger.removeFilter(old)  # (a second console in one process)
+        if name == "uvicorn.error":
+            logger.addFilter(denials)
+        logger.addFilter(throttle)
+
+
 def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
           ready: Callable[[str], None] | None = None) -> str:
     """Serve until SIGINT or SIGTERM; `ready(base_url)` is called once the socket listens (port 0: any
@@ -98,16 +121,21 @@ def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind((host, port))
-        sock.listen(64)
+        sock.listen(server.connections.backlog)  # asyncio accepts as many at once (`hrc.console.connections`)
     except (OSError, OverflowError) as err:
         sock.close()
         raise HrcError(f"cannot listen on {host}:{port}: {getattr(err, 'strerror', None) or err}") from err
     bound = sock.getsockname()[1]
     server.guard.listen(host, bound)
-    # proxy_headers off: no client may pass itself off as another address or scheme
+    # proxy_headers off: no client may pass itself off as another address or scheme. Connections are
+    # bounded below the app (`hrc.console.connections`): a cap under the open-file limit, a deadline for
+    # headers, unauthenticated ones shed first; h11 bounds a request's headers to MAX_HEADER_BYTES
     config = uvicorn.Config(server.app, log_level="warning", ws_max_size=MAX_FRAME, ws_ping_interval=5.0,
                             ws_ping_timeout=10.0, timeout_graceful_shutdown=2, lifespan="on",
-                            proxy_headers=False, server_header=False)
+                            proxy_headers=False, server_header=False, http=limited_protocol(server.connections),
+                            timeout_keep_alive=int(KEEP_ALIVE), h11_max_incomplete_event_size=MAX_HEADER_BYTES,
+                            backlog=server.connections.backlog)
+    _quiet_logs(server)
     if ready is not None:
         shown = f"[{host}]" if ":" in host else host
         ready(f"http://{shown}:{bound}/")

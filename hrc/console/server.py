@@ -42,9 +42,11 @@ from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketState
 
 from hrc.console.access import AccessGuard, Credentials
+from hrc.console.connections import ConnectionLimiter
 from hrc.console.inbox import Inbox, Letter, TokenBucket
 from hrc.console.robot import SimulatedRobot
 from hrc.console.session import ConsoleSession, Reply, parse
+from hrc.console.supervise import Throttle
 
 __all__ = ["MAX_FRAME", "MAX_MESSAGE", "MAX_PAGES", "PAGE_RATE", "ROBOT_RATE", "SUMMARY_EVERY", "ConsoleServer"]
 
@@ -142,6 +144,9 @@ class ConsoleServer:
         ], lifespan=self._lifespan)
         self.guard = AccessGuard(routes, self.credentials)
         self.app = self.guard
+        self.faults = Throttle()  # faults survived, by kind (said on stderr once a second at most)
+        self.connections = ConnectionLimiter(fault=self.fault)  # held by `hrc.console.run.serve`'s protocol
+        self.guard.on_request = self.connections.admitted
         self.received = 0  # websocket messages received
         self.limited = 0   # of which refused at once by a rate limit or a full inbox
 
@@ -157,7 +162,11 @@ class ConsoleServer:
         return Response(_page_file(name), media_type=_STATIC[name], headers=_NO_STORE)
 
     async def state(self, request: Request) -> Response:
-        traffic = {"received": self.received, "limited": self.limited, "denied": self.guard.denied}
+        traffic = {"received": self.received, "limited": self.limited, "denied": self.guard.denied,
+                   "faults": self.faults.count.get("message", 0) + self.faults.count.get("push", 0)
+                   + self.faults.count.get("tick", 0),
+                   "connections": len(self.connections), "shed": self.connections.shed,
+                   "timed_out": self.connections.timed_out}
         return Response(_json({**self.session.state(), "traffic": traffic}), media_type="application/json",
                         headers=_NO_STORE)
 
@@ -232,24 +241,45 @@ class ConsoleServer:
                 await writer
 
     async def _worker(self) -> None:
-        """The one consumer of the inbox: each message to the session, its reply, then the new state."""
+        """The one consumer of the inbox: each message to the session, its reply, then the new state.
+
+        Supervised (issue 34): whatever goes wrong while one message is handled becomes that message's
+        one-line refusal (said on stderr at most once a second, counted in ``/state``'s ``traffic``),
+        and the worker takes the next one; it never ends but by cancellation."""
         while True:
             letter = await self.inbox.get()
+            ident = {} if letter.reply_id is None else {"id": letter.reply_id}
             error_before = self.session.log_error
             handle = self.session.robot_message if letter.robot else self.session.page_message
-            reply = handle(letter.message)
-            ident = {} if letter.reply_id is None else {"id": letter.reply_id}
+            try:
+                reply = handle(letter.message)
+            except Exception as err:  # noqa: BLE001 - one message's fault must not stop every answer
+                self.fault("message", f"hrc console: internal error while handling a "
+                                      f"{'robot' if letter.robot else 'page'} message ({type(err).__name__}: "
+                                      f"{err}); it was refused")
+                reply = Reply.error(f"refused: internal error ({type(err).__name__}); nothing changed")
             if not letter.client.push({"type": "reply", **reply, **ident}):
                 self._drop(letter.client)
             await asyncio.sleep(0)  # the reply goes out before the state is built
             if reply["ok"] or self.session.log_error != error_before:
-                self.changed()
+                self._changed_safely()
+
+    def fault(self, kind: str, text: str) -> None:
+        """A fault survived: said once per interval (`hrc.console.supervise.Throttle`), counted."""
+        self.faults.note(kind, text)
+
+    def _changed_safely(self) -> None:
+        """`changed`, its own failure said and survived (whatever state there is, pushed)."""
+        try:
+            self.changed()
+        except Exception as err:  # noqa: BLE001 - the message was answered; the next push may do
+            self.fault("push", f"hrc console: the new state could not be pushed ({type(err).__name__}: {err})")
 
     def _start_run(self) -> None:
         """The run's clock starts when the first page or robot controller connects."""
         if not self.session.clock.started:
             self.session.clock.start()
-            self.changed()
+            self._changed_safely()
 
     async def page_socket(self, ws: WebSocket) -> None:
         if len(self.pages) >= MAX_PAGES:
@@ -278,24 +308,27 @@ class ConsoleServer:
         client = self.robot = _Client(ws, ROBOT_RATE)
         self.session.robot_link = "connected"
         client.push({"type": "hello", "now": self.session.now(), "speed": self.session.clock.speed})
-        self.changed()  # the decision to the robot, the link to the pages
+        self._changed_safely()  # the decision to the robot, the link to the pages
         try:
             await self._serve(client)
         finally:
             if self.robot is client:
                 self.robot = None
                 self.session.robot_link = "none"
-                self.changed()
+                self._changed_safely()
 
     # -- time passing -------------------------------------------------------------------------------
     async def _ticker(self) -> None:
         s = self.session
         while self.tick > 0:
             await asyncio.sleep(self.tick / s.clock.speed)
-            if s.clock.started and not s.finished and s.clock.now() - s.dispatcher.now >= self.tick:
-                error_before = s.log_error
-                if s.tick()["ok"] or s.log_error != error_before:
-                    self.changed()
+            try:
+                if s.clock.started and not s.finished and s.clock.now() - s.dispatcher.now >= self.tick:
+                    error_before = s.log_error
+                    if s.tick()["ok"] or s.log_error != error_before:
+                        self._changed_safely()
+            except Exception as err:  # noqa: BLE001 - supervised, as the worker
+                self.fault("tick", f"hrc console: internal error on a tick ({type(err).__name__}: {err})")
 
     @contextlib.asynccontextmanager
     async def _lifespan(self, app: Starlette) -> AsyncIterator[None]:

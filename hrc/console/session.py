@@ -26,6 +26,7 @@ from typing import Any
 
 from hrc.console.clock import RunClock
 from hrc.console.views import gantt_bars, map_view, under_way
+from hrc.detect.online import MAX_METRES
 from hrc.dispatch import Dispatcher, RobotStep
 from hrc.dispatch.durable import LoggedDispatcher
 from hrc.dispatch.limits import parse_message
@@ -33,7 +34,7 @@ from hrc.dispatch.logfile import Message
 from hrc.dispatch.routes import PlanRoutes
 from hrc.errors import LogWriteError, MessageError
 
-__all__ = ["LOG_SHOWN", "PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply", "parse"]
+__all__ = ["LOG_SHOWN", "MAX_RUN_SECONDS", "PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply", "parse"]
 
 # How long after a press of the person the page offers to undo it, in run seconds (the dispatcher
 # itself accepts an undo within 10 s of the observation it withdraws).
@@ -41,6 +42,8 @@ UNDO_WINDOW = 8.0
 # The page's messages and the keys each needs besides "type" and "hseq".
 PAGE_MESSAGES: dict[str, tuple[str, ...]] = {"press": ("action", "phase", "event"), "away": (), "back": (),
                                              "undo": ()}
+MAX_RUN_SECONDS = 1e9
+"""A message's ``t`` (run seconds) beyond this is refused, as the dispatcher refuses it."""
 LOG_SHOWN = 300
 """Log entries kept for the page (the file keeps all)."""
 
@@ -59,11 +62,9 @@ def parse(text: str | bytes | Mapping[str, Any]) -> dict[str, Any] | str:
     if isinstance(text, Mapping):
         return dict(text)
     try:
-        msg = parse_message(text.decode("utf-8") if isinstance(text, bytes) else text)
+        msg = parse_message(text)  # strict: a repeated key, NaN, 1e400 or a 310-digit number refused
     except MessageError as err:
         return f"malformed message ({err})"
-    except (ValueError, UnicodeDecodeError) as err:
-        return f"malformed message (not JSON: {err})"
     if not isinstance(msg, dict):
         return f"malformed message (a JSON object was expected, got {type(msg).__name__})"
     return msg
@@ -196,8 +197,9 @@ class ConsoleSession:
             return Reply.error("malformed ack: action, phase and event must be strings")
         now = self.now()
         t = msg.get("t", now)
-        if isinstance(t, bool) or not isinstance(t, int | float):
-            return Reply.error("malformed ack: t must be a number of run seconds")
+        # compared, never converted first: float() of a 310-digit integer overflows (issue 34)
+        if isinstance(t, bool) or not isinstance(t, int | float) or not 0 <= t <= MAX_RUN_SECONDS:
+            return Reply.error(f"malformed ack: t must be a number of run seconds (0 to {MAX_RUN_SECONDS:g})")
         if t > now:
             return Reply.error(f"refused: t = {t} lies in the future (the run's time is {now})")
         return self._submit({"t": round(float(t), 3), "agent": "robot", **fields}, source)
@@ -219,9 +221,9 @@ class ConsoleSession:
         t = msg.get("t", now)
         values = {"t": t, "x": msg.get("x"), "y": msg.get("y")}
         for key, value in values.items():
-            if isinstance(value, bool) or not isinstance(value, int | float) or value != value \
-                    or value in (float("inf"), float("-inf")):
-                return Reply.error(f"malformed position: {key} must be a finite number")
+            bound = MAX_RUN_SECONDS if key == "t" else MAX_METRES  # compared, never converted first
+            if isinstance(value, bool) or not isinstance(value, int | float) or not -bound <= value <= bound:
+                return Reply.error(f"malformed position: {key} must be a finite number (within ±{bound:g})")
         if t > now:
             return Reply.error(f"refused: t = {t} lies in the future (the run's time is {now})")
         return self._submit({"t": round(float(t), 3), "agent": "human", "event": "position",

@@ -45,7 +45,7 @@ from .changepoint import arrived_at, left_at
 from .model import DetectorModel
 from .situation import Future, Situation
 
-__all__ = ["Belief", "Detected", "Track", "decide", "ingest", "split"]
+__all__ = ["MAX_SAMPLES", "Belief", "Detected", "Track", "decide", "ingest", "split"]
 
 Leg = tuple[str, str]
 
@@ -113,11 +113,18 @@ class Track:
         return self.samples[-1][0] if self.samples else None
 
 
+MAX_SAMPLES = 2048
+"""Positions kept at most (the newest): a tracker at 100 Hz fills a 4 s window with 400. Positions that
+all carry one ``t`` never leave the window; without this bound each one made the next cost more and the
+memory grow without end (issue 34). The change-point fits cost O(samples) each, so a position costs at
+most a bounded amount."""
+
+
 def ingest(model: DetectorModel, track: Track, t: float, x: float, y: float) -> Track:
     """`track` with the position (x, y) seen at `t` (s, not before the last one); older ones than the
-    window dropped."""
+    window dropped, and all but the newest `MAX_SAMPLES`."""
     keep = t - model.params.window
-    samples = tuple(s for s in track.samples if s[0] >= keep) + ((t, x, y),)
+    samples = tuple(s for s in track.samples[-(MAX_SAMPLES - 1):] if s[0] >= keep) + ((t, x, y),)
     return replace(track, samples=samples)
 
 

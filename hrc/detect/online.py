@@ -26,7 +26,6 @@ options allow) is left out and named in the answer (``detect.refused``), and the
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from typing import Any
 
@@ -39,9 +38,11 @@ from .filter import Detected, Track, decide, ingest
 from .model import DetectorModel, DetectParams, detector_model
 from .situation import Situation, situation
 
-__all__ = ["POSITION_KEYS", "DetectingDispatcher", "position_from_json"]
+__all__ = ["MAX_METRES", "POSITION_KEYS", "DetectingDispatcher", "position_from_json"]
 
 POSITION_KEYS = ("t", "agent", "event", "x", "y")
+MAX_METRES = 1e6
+"""A coordinate beyond this many metres from the map's origin is a tracker's error, refused."""
 _MAX_ROUNDS = 12  # events one position may give (a walk's end, the legs on the way, the departure)
 
 
@@ -58,9 +59,10 @@ def position_from_json(obj: Any, human: str = "human") -> tuple[float, float, fl
     out = []
     for key in ("t", "x", "y"):
         value = obj.get(key)
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        # compared, never converted first: float(10**400) overflows (issue 34); NaN fails the comparison
+        if isinstance(value, bool) or not isinstance(value, int | float) or not -MAX_METRES <= value <= MAX_METRES:
             raise DispatchError(f"a position needs {key!r}, a finite number" + (" of seconds" if key == "t" else
-                                                                                " of metres"))
+                                                                                f" of metres (within ±{MAX_METRES:g})"))
         out.append(float(value))
     if not 0 <= out[0] <= 1e9:
         raise DispatchError("'t' must be a number of seconds from the task's start (0 to 1e9)")
@@ -129,15 +131,21 @@ class DetectingDispatcher(Dispatcher):
         self.track = track
         return given, refused
 
+    def take_position(self, t: float, x: float, y: float) -> tuple[list[tuple[Detected, float]], list[str]]:
+        """`position`, on a copy that becomes the state only when it returns: whatever goes wrong (a
+        refusal, or a defect), the state is as it was."""
+        work = self.fork()
+        assert isinstance(work, DetectingDispatcher)
+        given, refused = work.position(t, x, y)
+        self._state, self.track, self._situation = work._state, work.track, work._situation
+        return given, refused
+
     def answer_position(self, obj: Any) -> dict[str, Any]:
         """The protocol's answer to a position message (`hrc.dispatch.protocol`): the decision, with
         ``t`` the position's and ``detect``: the events given (``t``: estimated, ``at``: as given to the
         dispatcher), any refused, and the belief. `DispatchError` when the message is refused."""
         t, x, y = position_from_json(obj, self.model.human)
-        work = self.fork()  # the state changes whole or not at all, whatever goes wrong
-        assert isinstance(work, DetectingDispatcher)
-        given, refused = work.position(t, x, y)
-        self._state, self.track, self._situation = work._state, work.track, work._situation
+        given, refused = self.take_position(t, x, y)
         out = self.decision.to_json()
         out["t"] = t
         detect: dict[str, Any] = {"events": [{**ev.to_json(self.model.human), "at": at} for ev, at in given],

@@ -19,7 +19,6 @@ are ``{"t", "agent": "human", "action", "phase", "event"}``, the shape ``hrc dis
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -28,7 +27,7 @@ from hrc.dispatch.limits import MAX_LINE, parse_message
 from hrc.dispatch.messages import observation_from_json
 from hrc.errors import DispatchError, MessageError
 
-from .online import DetectingDispatcher
+from .online import MAX_METRES, DetectingDispatcher
 
 __all__ = ["Refusal", "detect_lines", "read_line"]
 
@@ -50,13 +49,9 @@ def read_line(data: bytes) -> tuple[float, float, float] | dict[str, Any]:
     if len(data) > MAX_LINE:
         raise DispatchError(f"longer than {MAX_LINE} bytes")
     try:
-        obj: Any = parse_message(data.decode("utf-8"))
-    except UnicodeDecodeError:
-        raise DispatchError("not UTF-8") from None
+        obj: Any = parse_message(data)  # strict: a repeated key, NaN, 1e400 or a 310-digit number refused
     except MessageError as err:
         raise DispatchError(str(err)) from None
-    except ValueError as err:
-        raise DispatchError(f"not JSON ({err})") from None
     if not isinstance(obj, dict):
         raise DispatchError(f"a JSON object was expected, found {type(obj).__name__}")
     if obj.get("event", "position") != "position":
@@ -64,9 +59,9 @@ def read_line(data: bytes) -> tuple[float, float, float] | dict[str, Any]:
     out = []
     for key in ("t", "x", "y"):
         value = obj.get(key)
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, int | float) or not -MAX_METRES <= value <= MAX_METRES:
             found = "nothing" if key not in obj else json.dumps(value)[:40]
-            raise DispatchError(f"key {key!r}: a finite number was expected, found {found}")
+            raise DispatchError(f"key {key!r}: a finite number (within ±{MAX_METRES:g}) was expected, found {found}")
         out.append(float(value))
     if not 0 <= out[0] <= 1e9:
         raise DispatchError(f"key 't': seconds from the task's start (0 to 1e9) were expected, found {out[0]:g}")
@@ -84,9 +79,13 @@ def detect_lines(d: DetectingDispatcher, lines: Iterable[bytes]) -> Iterator[dic
             if isinstance(got, dict):
                 d.observe(observation_from_json(got))
                 continue
-            given, refused = d.position(*got)
+            given, refused = d.take_position(*got)
         except DispatchError as err:
             yield Refusal(number, " ".join(str(err).split())[:300])
+            continue
+        except Exception as err:  # noqa: BLE001 - supervised: a defect refuses its line, the trace goes on
+            yield Refusal(number, " ".join(f"internal error ({type(err).__name__}: {err}); nothing changed"
+                                           .split())[:300])
             continue
         for ev, at in given:
             yield {**ev.to_json(d.model.human), "t": at}

@@ -34,7 +34,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from hrc.errors import HrcError, InputError, LogWriteError
+from hrc.errors import InputError, LogWriteError
 
 from .dispatcher import Dispatcher
 from .limits import MAX_LINE
@@ -110,8 +110,9 @@ class LoggedDispatcher:
             check_header(dispatcher, contents, str(path))
             for number, message in enumerate(contents.messages, 1):
                 if answer(dispatcher, message.data) != message.answer:
-                    raise HrcError(f"{path}: message {number} is answered differently now than in the log "
-                                   "(another hrc, or the compiled folder changed?): not resuming")
+                    raise InputError(str(path), "", f"message {number}'s answer differs from the logged one (an "
+                                                    "edited log, another hrc, or the compiled folder changed?): "
+                                                    "not resuming", message.line or None)
             writer.cut_to(contents.size)
             writer.append(json.dumps({"resumed": len(contents.messages)}).encode("ascii") + b"\n", sync=True)
         except BaseException:

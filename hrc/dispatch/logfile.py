@@ -17,8 +17,17 @@ ASCII and no character of a message can end a record. The reader splits on ``b"\
 `str.splitlines`, which also splits on U+2028, U+0085, form feeds...).
 
 **Torn ends.** A crash or power cut while a record was written leaves an incomplete last line, or a
-message without its answer, or a tail of NUL bytes. `read_log` drops that end and says so (`Torn`); a
-damaged record *followed by* good ones is not a torn end and is refused (`InputError`).
+message without its answer, or a tail of NUL bytes. `read_log` drops that end and says so (`Torn`).
+
+**Nothing else is reinterpreted** (issue 34: a header line appended at the end made ``--resume`` start
+over "after 0 messages", dropping 30 logged ones). A version-2 log is one header, on its first line,
+then records in sequence: each message (in parts, for an over-long one) followed by its answer, a
+``{"resumed": N}`` only between messages and only with N the number of messages before it. A second
+header anywhere, a record out of that sequence, a record that is not strict JSON (`read_json`: a key
+given twice, ...) or has other keys than its own, and any damaged *whole* line, at the end too, are
+refused (`InputError` naming the line): a crash leaves an incomplete line, never a whole wrong one. An
+answer edited in place is found by the replay that ``--resume`` and ``--replay`` make (each `Message`
+knows the `line` of its answer).
 
 **Version 1** (before issue 26: text records with ``ensure_ascii=False``, over-long and non-UTF-8
 messages replaced by placeholders, so such a replay differs) is still read, for ``--replay``.
@@ -45,9 +54,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hrc.errors import InputError, LogWriteError
+from hrc.errors import InputError, LogWriteError, MessageError
 
-from .limits import MAX_LINE
+from .limits import MAX_LINE, read_json
 
 __all__ = ["LOG_VERSION", "PART", "LogContents", "LogWriter", "Message", "Torn", "encode_answer",
            "encode_header", "encode_input", "encode_input_part", "read_log"]
@@ -56,6 +65,7 @@ LOG_VERSION = 2
 PART = 49152
 """Bytes of an over-long message per ``in_more``/``in_b64`` record (65,536 characters of base64)."""
 _RECORD_MAX = 8 * MAX_LINE  # the longest record a writer makes (a MAX_LINE message, each byte escaped)
+_RECORD_KEYS = frozenset({"in", "in_b64", "in_more", "out", "resumed"})  # each record is one of them, alone
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,7 +77,8 @@ class Message:
     data: bytes
     size: int
     answer: str
-    line: int = field(default=0, compare=False)  # the log line its (first) record is on, for messages about it
+    line: int = field(default=0, compare=False)
+    """The line of the log that holds the answer (1-based; 0: not read from a file)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -202,20 +213,26 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
                 if not raw.endswith(b"\n"):
                     raise _Damaged("an incomplete line" if len(raw) <= _RECORD_MAX else "a line longer than any record")
                 try:
-                    rec = json.loads(raw.decode("utf-8"))
-                except (UnicodeDecodeError, ValueError, RecursionError):
-                    raise _Damaged("not a JSON record") from None
+                    rec = read_json(raw, max_bytes=_RECORD_MAX + 1, max_depth=4)
+                except MessageError as err:
+                    raise _Damaged(f"not a JSON record: {err}") from None
                 if not isinstance(rec, dict):
                     raise _Damaged("not a log record")
                 if "hrc_dispatch_log" in rec:
                     if rec["hrc_dispatch_log"] not in (1, LOG_VERSION):
                         raise _Damaged(f"an unknown log version {rec['hrc_dispatch_log']!r}")
-                    # a new session (version 1 appended one per run): replay the last one; a message
-                    # left without its answer before it was never answered
+                    if header is not None and (header["hrc_dispatch_log"], rec["hrc_dispatch_log"]) != (1, 1):
+                        raise InputError(str(file), "", "a header line inside the log (a log has one header, "
+                                                        "on its first line): the log is damaged; not read as a "
+                                                        "shorter one", number)
+                    # version 1 appended a header per run: replay the last session; a message left
+                    # without its answer before it was never answered
                     header, messages, pending, resumed = rec, [], None, 0
                     good = offset + len(raw)
                 elif header is None:
                     raise InputError(str(file), "", "not an hrc dispatch log (no header line)", number)
+                elif header["hrc_dispatch_log"] == LOG_VERSION and (len(rec) != 1 or not set(rec) <= _RECORD_KEYS):
+                    raise _Damaged(f"not a log record (keys {', '.join(sorted(rec))[:80]})")
                 elif "in" in rec or "in_b64" in rec or "in_more" in rec:
                     if pending is not None and pending.closed:
                         raise _Damaged("a message after a message without its answer")
@@ -229,10 +246,15 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
                         raise _Damaged("an answer without its message")
                     if not isinstance(rec["out"], str):
                         raise _Damaged("'out' must be a string")
-                    messages.append(Message(bytes(pending.first), pending.size, rec["out"], pending.line))
+                    messages.append(Message(bytes(pending.first), pending.size, rec["out"], number))
                     pending = None
                     good = offset + len(raw)
                 elif "resumed" in rec and pending is None:
+                    if header["hrc_dispatch_log"] == LOG_VERSION and (isinstance(rec["resumed"], bool) or
+                                                                      rec["resumed"] != len(messages)):
+                        raise InputError(str(file), "", f"records out of sequence: resumed after "
+                                                        f"{str(rec['resumed'])[:20]} messages, but {len(messages)} "
+                                                        "came before: the log is damaged", number)
                     resumed += 1
                     good = offset + len(raw)
                 else:
@@ -251,9 +273,16 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
 
 def _torn_end(file: Path, header: dict[str, Any] | None, messages: list[Message], good: int, resumed: int,
               number: int, offset: int, pending: _Pending | None, why: str) -> LogContents:
-    """A bad record at line `number`: a torn end if nothing but it (and NUL padding) follows, else damage."""
+    """A bad record at line `number`: a torn end if it is an incomplete line and nothing but NUL padding
+    follows, else damage."""
     if header is None:
         raise InputError(str(file), "", f"not an hrc dispatch log ({why})", number)
+    with open(file, "rb") as fh:
+        fh.seek(offset)
+        raw = fh.readline(_RECORD_MAX + 1)
+    if raw.endswith(b"\n") and raw.strip(b"\x00 \t\r\n"):  # whole: a crash leaves no such line
+        raise InputError(str(file), "", f"damaged record ({why}): the log is damaged, not just torn at its end",
+                         number)
     with open(file, "rb") as fh:
         fh.seek(offset)
         fh.readline(_RECORD_MAX + 1)  # the bad line itself

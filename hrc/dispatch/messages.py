@@ -12,7 +12,6 @@ describes the JSON-lines protocol these shapes make.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -191,7 +190,9 @@ def observation_from_json(obj: Any) -> Observation:
     if unknown:
         raise DispatchError(f"unknown key {unknown[0][:40]!r} (keys: t, event, agent, action, phase, next)")
     t = obj.get("t")
-    if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t) or not 0 <= t <= _MAX_T:
+    # compared, not converted: an integer of 310 digits overflows float() and math.isfinite (issue 34);
+    # NaN fails every comparison, the infinities fail the bound
+    if isinstance(t, bool) or not isinstance(t, int | float) or not 0 <= t <= _MAX_T:
         raise DispatchError("'t' must be a number of seconds from the task's start (0 to 1e9)")
     event = obj.get("event")
     if event not in EVENTS:

@@ -31,7 +31,7 @@ from typing import Any
 from hrc.errors import DispatchError, HrcError, MessageError
 
 from .dispatcher import Dispatcher
-from .limits import MAX_DEPTH, MAX_LINE, parse_message
+from .limits import MAX_DEPTH, MAX_INT, MAX_LINE, parse_message
 from .logfile import LogContents
 from .messages import Observation, observation_from_json
 
@@ -52,19 +52,29 @@ def _dumps(obj: Any) -> str:
 
 
 def _refusal(t: Any, reason: str) -> str:
-    if isinstance(t, bool) or not isinstance(t, int | float) or t != t or t in (float("inf"), float("-inf")):
-        t = None
+    if isinstance(t, bool) or not isinstance(t, int | float) or not -MAX_INT <= t <= MAX_INT:
+        t = None  # (NaN and infinities too: every comparison with NaN is false)
     return _dumps({"t": t, "ok": False, "error": " ".join(reason.split())[:500]})
 
 
 def handle_line(dispatcher: Dispatcher, line: str) -> str:
-    """Answer one message line (see the module docstring); never raises, refusals change nothing."""
+    """Answer one message line (see the module docstring); never raises, refusals change nothing.
+
+    Supervised: whatever goes wrong while one message is handled (a defect included) becomes that
+    message's refusal, ``internal error (...)``, and the dispatcher's state is as it was (each accepted
+    message replaces the state whole, `Dispatcher.observe`), so the next message is answered as usual.
+    """
+    try:
+        return _handle_line(dispatcher, line)
+    except Exception as err:  # noqa: BLE001 - a bug must not end a run; the state was not changed
+        return _refusal(None, f"internal error ({type(err).__name__}: {err}); nothing changed")
+
+
+def _handle_line(dispatcher: Dispatcher, line: str) -> str:
     try:
         obj = parse_message(line)
     except MessageError as err:
         return _refusal(None, str(err))
-    except ValueError as err:
-        return _refusal(None, f"not JSON: {err}")
     t = obj.get("t") if isinstance(obj, dict) else None
     if isinstance(obj, dict) and obj.get("event") == "position":
         return _position(dispatcher, obj, t)

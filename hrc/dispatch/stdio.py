@@ -15,8 +15,10 @@ on ``\\n`` only.
 from __future__ import annotations
 
 import gc
+import json
 import os
 import select
+import sys
 import time
 from collections.abc import Iterator
 from typing import IO
@@ -144,4 +146,16 @@ def _serve(logged: LoggedDispatcher, source: LineSource, out: IO[str]) -> int:
         else:
             if not answers:
                 oldest = time.monotonic()
-            answers.append(logged.take(data))
+            answers.append(_take(logged, data))
+
+
+def _take(logged: LoggedDispatcher, data: bytes) -> str:
+    """`LoggedDispatcher.take`, supervised: it answers every message itself (`protocol.answer` turns a
+    defect into that message's refusal); should anything around it fail, the message is refused here,
+    said once on stderr, and the loop goes on (issue 34)."""
+    try:
+        return logged.take(data)
+    except Exception as err:  # noqa: BLE001 - one message must not end the run
+        why = f"internal error ({type(err).__name__}: {err}); nothing changed"
+        print(f"hrc dispatch: {' '.join(why.split())[:300]}", file=sys.stderr, flush=True)
+        return json.dumps({"t": None, "ok": False, "error": " ".join(why.split())[:500]})

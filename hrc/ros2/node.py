@@ -30,6 +30,7 @@ from __future__ import annotations
 import json
 import math
 import signal
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -99,11 +100,34 @@ class DispatcherNode:
         self.goal = node.create_publisher(PoseStamped, GOAL.name, qos_profile(GOAL.qos))
         self.route = node.create_publisher(PoseArray, ROUTE.name, qos_profile(ROUTE.qos))
         for topic in (OBSERVATIONS, ROBOT_ACKS):
-            node.create_subscription(String, topic.name, self._on_line, qos_profile(topic.qos))
-        node.create_subscription(PoseStamped, POSE.name, self._on_pose, qos_profile(POSE.qos))
+            node.create_subscription(String, topic.name, self._supervised(self._on_line), qos_profile(topic.qos))
+        node.create_subscription(PoseStamped, POSE.name, self._supervised(self._on_pose), qos_profile(POSE.qos))
         self._pose_refused = False
+        self.faults = 0
+        self._fault_said = -math.inf
         if self.tick > 0 and self.sim_time:
-            node.create_timer(self.tick, self._on_tick)  # on the node's clock: /clock
+            node.create_timer(self.tick, self._supervised(self._on_tick))  # on the node's clock: /clock
+
+    def _supervised(self, callback: Callable[[Any], None] | Callable[[], None]) -> Callable[..., None]:
+        """`callback`, whatever goes wrong in it answered with a one-line refusal on ``answers`` and
+        said to the operator at most once a second (issue 34): an exception out of a callback would end
+        ``spin_once`` and the node with it. The log is as `LoggedDispatcher` left it (a message is in
+        the log with its answer, or not at all)."""
+        def run(*args: Any) -> None:
+            try:
+                callback(*args)
+            except Exception as err:  # noqa: BLE001 - one message must not stop the node
+                self.faults += 1
+                why = " ".join(f"internal error ({type(err).__name__}: {err}); nothing changed".split())[:300]
+                now = time.monotonic()
+                if now - self._fault_said >= 1.0:
+                    self._fault_said = now
+                    self.report(f"hrc ros2: {why} ({self.faults} in all)")
+                try:
+                    self._say(_refusal(None, why))
+                except Exception:  # noqa: BLE001, S110 - nothing more can be said if publishing fails
+                    pass
+        return run
 
     # -- in ----------------------------------------------------------------------------------------
     def _submit(self, data: bytes) -> str:
