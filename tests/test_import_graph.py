@@ -21,7 +21,7 @@ sharing a layer may not import each other. A new package must be given a layer h
 | 7 | ``detect`` | the motion detector, turning tracked positions into the dispatcher's observations |
 | 8 | ``sim``, ``ros2`` | the simulated workshop; the dispatcher as a ROS 2 node (independent) |
 | 9 | ``record`` | MCAP recordings of a dispatched, simulated or ROS 2 run |
-| 10 | ``console`` | the engineer's browser console (records its runs) |
+| 10 | ``console``, ``learn`` | the engineer's browser console (records its runs); bounds, worker types and delays learnt from recorded runs (independent) |
 | 11 | ``report`` | figures and tables of compiles and simulations |
 | 12 | ``cli`` | the commands |
 | 13 | ``__main__`` | ``python -m hrc`` |
@@ -48,7 +48,7 @@ LAYERS: dict[str, int] = {
     "detect": 7,
     "sim": 8, "ros2": 8,
     "record": 9,
-    "console": 10,
+    "console": 10, "learn": 10,
     "report": 11,
     "cli": 12,
     "__main__": 13,
