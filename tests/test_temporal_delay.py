@@ -430,3 +430,25 @@ def test_the_strategy_on_networks_where_the_delay_bites() -> None:
                 times = run_strategy(stnu, delays, random.Random(ran), extreme)
                 assert len(times) == len(stnu.timepoints) and _broken(stnu, times) == [], (stnu, d, times)
     assert ran >= 10
+
+
+def _slow_verdict(stnu: STNU, delays: dict[str, ObservationDelay]) -> Verdict:
+    reduced = delayed_network(stnu, delays)
+    if not reduced.broken:
+        verdict = check_dc(reduced.network, "bypass").verdict
+        if verdict is not Verdict.INCONSISTENT:
+            return verdict
+    return Verdict.NOT_DC if check_dc(stnu.as_stn(), "bypass").consistent else Verdict.INCONSISTENT
+
+
+@FAST
+@given(st.one_of(tiny(), medium()), st.data())
+def test_the_fast_verdict_is_the_reductions(stnu: STNU, data: st.DataObject) -> None:
+    """`check_delay` decides on index arrays in C; the reduction as an STNU, checked by another DC algorithm
+    (bypass), says the same."""
+    wide = st.one_of(delay_values, st.tuples(st.integers(0, 20), st.integers(0, 20)).map(
+        lambda p: ObservationDelay(min(p), max(p))))
+    delays = {c.target: data.draw(wide) for c in stnu.contingents}
+    assert check_delay(stnu, delays).verdict is _slow_verdict(stnu, delays)
+    if check_delay(stnu, delays).verdict is Verdict.NOT_DC:
+        assert sum(e.value for e in check_delay(stnu, delays).cycle) < 0

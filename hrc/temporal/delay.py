@@ -67,6 +67,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from itertools import compress
 
 from hrc.temporal.dc import DEFAULT_ALGORITHM, DCResult, Verdict, check_dc
 from hrc.temporal.execution import ExecutionWindow, MustWait, real_time_state
@@ -282,46 +283,103 @@ def check_delay(stnu: STNU, delays: Delays, algorithm: str = DEFAULT_ALGORITHM) 
     if all(d == ZERO for d in per.values()):
         return check_dc(stnu, algorithm)
     verdict = _fast_verdict(stnu, per) if algorithm == DEFAULT_ALGORITHM else None
+    if verdict is None:
+        reduced = delayed_network(stnu, per)
+        if not reduced.broken:
+            result = check_dc(reduced.network, algorithm)
+            if result.verdict is not Verdict.INCONSISTENT:
+                return result
+        # the reduced network is inconsistent, or has a link nature breaks: is the network itself consistent?
+        verdict = "not DC" if check_dc(stnu.as_stn(), algorithm).consistent else "inconsistent"
     if verdict == "DC":
         return DCResult(Verdict.DC, True, (), lambda: check_dc(delayed_network(stnu, per).network, algorithm).added)
-    if verdict == "not DC":  # the reduced network is consistent, so is the original
-        return DCResult(Verdict.NOT_DC, True, lambda: check_dc(delayed_network(stnu, per).network, algorithm).cycle)
+    if verdict == "inconsistent":
+        return DCResult(Verdict.INCONSISTENT, False, lambda: check_dc(stnu.as_stn(), algorithm).cycle)
+    return DCResult(Verdict.NOT_DC, True, lambda: _explain(stnu, per, algorithm))
+
+
+def _explain(stnu: STNU, per: Mapping[str, ObservationDelay], algorithm: str) -> tuple[Edge, ...]:
+    """Why `stnu` is consistent but not controllable under `per`: a link nature breaks after substitution,
+    or the reduced network's semi-reducible negative cycle, or its STN's negative cycle."""
     reduced = delayed_network(stnu, per)
-    if verdict is None and not reduced.broken:
-        result = check_dc(reduced.network, algorithm)
-        if result.verdict is not Verdict.INCONSISTENT:
-            return result
-    # the reduced network is inconsistent or has a link nature breaks: is the network itself consistent?
-    original = check_dc(stnu.as_stn(), algorithm)
-    if not original.consistent:
-        return DCResult(Verdict.INCONSISTENT, False, original.cycle)
     if reduced.broken:
-        return DCResult(Verdict.NOT_DC, True, reduced.broken[0])
-    return DCResult(Verdict.NOT_DC, True, lambda: check_dc(reduced.network, algorithm).cycle)
+        return reduced.broken[0]
+    return check_dc(reduced.network, algorithm).cycle
 
 
 def _fast_verdict(stnu: STNU, per: Mapping[str, ObservationDelay]) -> str | None:
-    """The reduced network's verdict from the C core on index arrays (no `STNU` built), for networks
-    without chains of contingent links: "DC", something else, or None (no core, or a case left to
-    `delayed_network`: a link nature breaks, a chain)."""
+    """`check_delay`'s verdict from the C core on index arrays (no `STNU` built) for networks without
+    chains of contingent links: "DC", "not DC", "inconsistent", or None (no core, or a case left to
+    `delayed_network`: a chain, a link whose two ends a substitution makes one)."""
     src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
     names = stnu.timepoints
-    conts = stnu.contingents
-    lo = [0] * len(names)
-    hi = [0] * len(names)
+    n = len(names)
     contingent = set(ctg)
-    for j in range(len(conts)):
-        d = per[names[ctg[j]]]
-        if not d.informative(xs[j], ys[j]) or act[j] in contingent:
-            return None  # substitution or a chain: the general path
-        lo[ctg[j]], hi[ctg[j]] = d.lo, d.hi or 0
-    # T(v) - T(u) <= w becomes T(v') - T(u') <= w + lo(v) - hi(u)
-    wt2 = [w + lo[v] - hi[u] for u, v, w in zip(src, dst, wt, strict=True)]
-    xs2 = [x + hi[c] for x, c in zip(xs, ctg, strict=True)]
-    ys2 = [y + lo[c] for y, c in zip(ys, ctg, strict=True)]
-    if any(x > y for x, y in zip(xs2, ys2, strict=True)):
-        return None
-    return core_verdict(len(names), src, dst, wt2, act, ctg, xs2, ys2)
+    if not contingent.isdisjoint(act):
+        return None  # a chain: the general path
+    hit = bytearray(n)
+    for c in ctg:
+        hit[c] = 1
+    first = per[names[ctg[0]]] if ctg else ZERO
+    if first.hi is not None and all(d is first or d == first for d in per.values()) and (
+            first.fixed or all(y - x > first.hi - first.lo for x, y in zip(xs, ys, strict=True))):
+        return _fast_uniform(n, src, dst, wt, act, ctg, xs, ys, hit, first.lo, first.hi)
+    lo = [0] * n  # observed C: T(C) in [T(C') - hi, T(C') - lo]
+    hi = [0] * n
+    into = [0] * n  # substituted C: an edge into C moves to its activation, minus the link's upper bound
+    out_of = [0] * n  # ... an edge out of C, plus its lower bound
+    root = list(range(n))
+    kept: list[int] = []
+    for j in range(len(ctg)):
+        c = ctg[j]
+        d = per[names[c]]
+        if d.informative(xs[j], ys[j]):
+            lo[c], hi[c] = d.lo, d.hi or 0
+            kept.append(j)
+        else:
+            root[c], into[c], out_of[c] = act[j], -ys[j], xs[j]
+    if len(kept) < len(ctg):
+        src2, dst2 = list(map(root.__getitem__, src)), list(map(root.__getitem__, dst))
+        if any(map(int.__eq__, src2, dst2)):
+            return None
+    else:
+        src2, dst2 = src, dst
+    # T(v) - T(u) <= w becomes T(v') - T(u') <= w + lo(v) - hi(u) (observed) / + into(v) + out_of(u); only
+    # the edges at a contingent timepoint change, found at C speed (compress / map)
+    shift_in = [a + b for a, b in zip(lo, into, strict=True)]
+    shift_out = [b - a for a, b in zip(hi, out_of, strict=True)]
+    wt2 = list(wt)
+    for i in compress(range(len(src)), map(hit.__getitem__, src)):
+        wt2[i] += shift_out[src[i]]
+    for i in compress(range(len(dst)), map(hit.__getitem__, dst)):
+        wt2[i] += shift_in[dst[i]]
+    act2, ctg2 = [act[j] for j in kept], [ctg[j] for j in kept]
+    xs2 = [xs[j] + hi[ctg[j]] for j in kept]
+    ys2 = [ys[j] + lo[ctg[j]] for j in kept]
+    return _settled(core_verdict(n, src2, dst2, wt2, act2, ctg2, xs2, ys2), n, src, dst, wt, act, ctg, xs, ys)
+
+
+def _fast_uniform(n: int, src: list[int], dst: list[int], wt: list[int], act: list[int], ctg: list[int],
+                  xs: list[int], ys: list[int], hit: bytearray, lo: int, hi: int) -> str | None:
+    """`_fast_verdict` for one delay ``[lo, hi]`` observed usefully at every contingent timepoint (`hit`
+    marks them): an edge out of C loses hi, one into C gains lo (a fixed delay: the renaming C' = C + g)."""
+    wt2 = list(wt)
+    for i in compress(range(len(src)), map(hit.__getitem__, src)):
+        wt2[i] -= hi
+    for i in compress(range(len(dst)), map(hit.__getitem__, dst)):
+        wt2[i] += lo
+    verdict = core_verdict(n, src, dst, wt2, act, ctg, [x + hi for x in xs], [y + lo for y in ys])
+    return _settled(verdict, n, src, dst, wt, act, ctg, xs, ys)
+
+
+def _settled(verdict: str | None, n: int, src: list[int], dst: list[int], wt: list[int], act: list[int],
+             ctg: list[int], xs: list[int], ys: list[int]) -> str | None:
+    """The reduced network's verdict as `check_delay`'s: when it is inconsistent, so is the network
+    itself, or the delay alone makes it uncontrollable (the network's STN, checked here, tells which)."""
+    if verdict != "inconsistent":
+        return verdict
+    stn = core_verdict(n, src + act + ctg, dst + ctg + act, wt + ys + [-x for x in xs], [], [], [], [])
+    return None if stn is None else "inconsistent" if stn == "inconsistent" else "not DC"
 
 
 def observation_points(reduced: DelayedNetwork, learnt: Mapping[str, int], now: int) -> dict[str, int]:
