@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import random
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -452,3 +453,48 @@ def test_the_fast_verdict_is_the_reductions(stnu: STNU, data: st.DataObject) -> 
     assert check_delay(stnu, delays).verdict is _slow_verdict(stnu, delays)
     if check_delay(stnu, delays).verdict is Verdict.NOT_DC:
         assert sum(e.value for e in check_delay(stnu, delays).cycle) < 0
+
+
+# ------------------------------------------------------------------------------------ hrc check --observation-delay
+def test_hrc_check_observation_delay(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from hrc.cli import main
+    from hrc.temporal.graphml import write_graphml
+
+    path = tmp_path / "react.graphml"  # arrival 10-30 after go, robot within 2 of the arrival (file's unit)
+    path.write_text(write_graphml(STNU(("go", "arrive", "robot"), (R("arrive", "robot", 0, 2),),
+                                       (C("go", "arrive", 10, 30),))))
+    expected = {"0": "DC", "1.5": "DC", "2": "DC", "2.5": "not DC", "inf": "not DC", "0:1.5": "DC",
+                "0:2.5": "not DC", "0.5:1": "DC", "1:inf": "not DC"}
+    for text, verdict in expected.items():
+        assert main(["check", str(path), "--observation-delay", text, "--json"]) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert out["verdict"] == verdict, text
+    assert out["observation_delay"] == [1.0, None]
+    assert main(["check", str(path), "--observation-delay", "2.5"]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("not DC at observation delay 2.5\n")
+    assert "arrive@seen --[-1]--> robot" in text  # 2 - 2.5 units = -1 half-unit tick
+    for bad in ("-1", "abc", "1:0.5", "inf:2", "1:2:3", "0.1234567", "nan", "1/2"):
+        with pytest.raises(SystemExit) as stop:
+            main(["check", str(path), "--observation-delay", bad])
+        assert stop.value.code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("error: hrc check: argument --observation-delay"), err
+
+
+@needs_shared
+def test_hrc_check_observation_delay_on_heatlab_decimals(capsys: pytest.CaptureFixture[str]) -> None:
+    """HEATlab bounds are decimals scaled to integers: the delay is scaled alike (0 is the DC check)."""
+    import json
+
+    from hrc.cli import main
+
+    row = next(r for r in _rows() if r["file"].endswith(".json") and r["expected"] == "DC")
+    verdicts = []
+    for text in ("0", "0.05", "inf"):
+        assert main(["check", str(BENCH / row["file"]), "--observation-delay", text, "--json"]) == 0
+        verdicts.append(json.loads(capsys.readouterr().out)["verdict"])
+    assert verdicts[0] == "DC"
+    assert verdicts[2] in ("DC", "not DC") and (verdicts[1] == "DC" or verdicts[2] == "not DC")
