@@ -28,7 +28,7 @@ from hrc.temporal.graphml import read_network_scaled
 from hrc.temporal.limits import show_path
 from hrc.temporal.network import STNU, ContingentLink, RequirementLink
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "delay_in_ticks", "run", "scaled"]
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

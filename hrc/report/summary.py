@@ -24,7 +24,7 @@ __all__ = ["CLASS_MEANING", "DetourNote", "FEATURED_TOP", "INLINE_LINKS", "MIN_W
            "STATS_HEADER", "agent_letters", "allocation_legend", "binding_orders", "build_report_data",
            "empty_class_reason", "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks",
            "fmt_passing", "fmt_preference", "fmt_sequence", "fmt_stnu", "motion_notes", "occupancy_words",
-           "passing_words", "split_explanation", "stats_rows", "table_scope"]
+           "passing_words", "sensing_sentences", "split_explanation", "stats_rows", "table_scope"]
 
 PREFERENCE_HEADER = "Preference (higher is better)"
 """The ranked table's preference column: APA's value has no unit (a sum of the task's preference functions)."""

@@ -24,7 +24,7 @@ from functools import cache
 
 from hrc.temporal.network import STNU
 
-__all__ = ["oracle_is_dc"]
+__all__ = ["oracle_is_dc", "oracle_is_delay_controllable"]
 
 
 def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
