@@ -31,6 +31,8 @@ __all__ = [
     "Precedence",
     "Preference",
     "PreferenceKind",
+    "SENSING_PATHS",
+    "Sensing",
     "Task",
     "TemporalConstraint",
     "Workspace",
@@ -228,6 +230,34 @@ class Preference:
         return sum(c * d**i for i, c in enumerate(self.coefficients))
 
 
+SENSING_PATHS: dict[str, tuple[tuple[float, float | None], bool]] = {
+    "buttons": ((0.0, 0.5), False),
+    "motion": ((0.0, 2.6), True),
+}
+"""The known ways human events reach the robot, with their default observation delay ``[lo, hi]`` (s) and
+whether an observation carries the time the event happened (``dated``). Buttons: pressed after the fact,
+within 0.5 s (issue 32's "buttons 0.5 s late"), stamped when pressed. The motion detector
+(`hrc.detect`): events dated back to when they happened, given 0.28-0.69 s (median) and up to 2.56 s
+(p90) after them in `hrc simulate --detector motion` (docs/detect.md, "Measured"): 2.6 s covers the p90
+of every sensor measured there."""
+
+
+@dataclass(frozen=True, slots=True)
+class Sensing:
+    """How the human's events reach the robot: `path` (a key of `SENSING_PATHS`, or "stated": given on the
+    command line), the observation `delay` ``(lo, hi)`` in seconds (``hi`` None: never) and `dated`
+    (the observation says when the event happened, so only ``hi`` matters: `hrc.temporal.delay`)."""
+
+    path: str
+    delay: tuple[float, float | None]
+    dated: bool = False
+
+    def __str__(self) -> str:
+        lo, hi = self.delay
+        span = f"{lo:g} s" if lo == hi else f"[{lo:g}, {'inf' if hi is None else format(hi, 'g')}] s"
+        return f"{self.path} (observation delay {span}{', events dated' if self.dated else ''})"
+
+
 @dataclass(frozen=True, slots=True)
 class Task:
     """A collaborative task on a workspace.
@@ -251,6 +281,7 @@ class Task:
     safety_margin: float = 0.1
     preference_sets: tuple[tuple[str, tuple[Preference, ...]], ...] = ()
     source: str = field(default="", compare=False)
+    sensing: Sensing | None = None  # how the human's events reach the robot; None: at once (DC)
 
     def preference_set(self, name: str) -> tuple[Preference, ...]:
         """The named set's preferences (raises `KeyError` for an unknown name)."""

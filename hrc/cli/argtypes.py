@@ -10,8 +10,9 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
+from fractions import Fraction
 
-__all__ = ["real", "whole"]
+__all__ = ["delay_range", "real", "whole"]
 
 
 def real(lo: float = -math.inf, hi: float = math.inf, *, unit: str = "",
@@ -47,3 +48,44 @@ def whole(lo: int = 1, hi: int | None = None, *, what: str = "a whole number") -
         return value
 
     return parse
+
+
+_DELAY_MAX = 10**9  # units: a delay past a billion seconds (or ticks) is a typing error, not a sensor
+_DELAY_DECIMALS = 6
+
+
+def delay_range(text: str) -> tuple[Fraction, Fraction | None]:
+    """An observation delay: ``D`` (fixed), ``inf`` (never observed) or ``LO:HI`` (anywhere in between;
+    ``HI`` may be ``inf``), non-negative decimals with at most 6 decimal places, read exactly. Returns
+    ``(lo, hi)``, ``hi`` None for never."""
+
+    def number(part: str, what: str) -> Fraction | None:
+        part = part.strip()
+        if part.lower() in ("inf", "infinity"):
+            return None
+        try:
+            value = Fraction(part)
+        except (ValueError, ZeroDivisionError):
+            raise argparse.ArgumentTypeError(f"{what}: not a number or inf: {part!r}") from None
+        if "/" in part:
+            raise argparse.ArgumentTypeError(f"{what}: a decimal, not a fraction: {part!r}")
+        if value < 0:
+            raise argparse.ArgumentTypeError(f"{what}: a delay cannot be negative, got {part}")
+        if value > _DELAY_MAX or value.denominator > 10**_DELAY_DECIMALS or \
+                10**_DELAY_DECIMALS % value.denominator:
+            raise argparse.ArgumentTypeError(f"{what}: at most {_DELAY_MAX:g} with {_DELAY_DECIMALS} decimals, "
+                                             f"got {part}")
+        return value
+
+    if text.count(":") > 1:
+        raise argparse.ArgumentTypeError(f"expected D, inf or LO:HI, got {text!r}")
+    if ":" in text:
+        low, high = text.split(":")
+        lo, hi = number(low, "LO"), number(high, "HI")
+        if lo is None:
+            raise argparse.ArgumentTypeError(f"LO must be finite, got {text!r}")
+        if hi is not None and lo > hi:
+            raise argparse.ArgumentTypeError(f"LO must not exceed HI, got {text!r}")
+        return lo, hi
+    one = number(text, "delay")
+    return (Fraction(0), None) if one is None else (one, one)

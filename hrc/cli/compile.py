@@ -34,16 +34,18 @@ import os
 import sys
 import time
 from collections.abc import Callable
+from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hrc.cli.argtypes import whole
+from hrc.cli.argtypes import delay_range, whole
 from hrc.errors import InputError
 from hrc.io.claim import FolderClaim
-from hrc.io.task_file import load_task
+from hrc.io.task_file import MAX_SECONDS, load_task
 
 if TYPE_CHECKING:
     from hrc.cli.interrupt import DeferredInterrupt
+    from hrc.model import Task
 
 __all__ = ["PROGRESS_EVERY", "add_parser", "run"]
 
@@ -74,6 +76,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--human-waits", choices=("yes", "no"), default="yes",
                    help="yes (default, the paper's model): the robot's strategy decides when the human leaves "
                         "for and starts each step; no: the human never waits for the robot's sake")
+    p.add_argument("--observation-delay", metavar="LO:HI", type=delay_range, default=None,
+                   help="class every plan for a robot that learns each human event LO to HI seconds after it "
+                        "happens (D: exactly D; inf: never); overrides the task's sensing: (its path kept)")
     p.add_argument("--rank-by", choices=("worst", "earliest", "nominal"), default="worst",
                    help="makespan that ranks plans within a class (default: worst case)")
     p.add_argument("--stnu", choices=STNU_MODES, default="graphml",
@@ -237,6 +242,21 @@ def run(args: argparse.Namespace) -> int:
             return 130
 
 
+def _stated_sensing(task: Task, delay: tuple[Fraction, Fraction | None]) -> Task:
+    """`task` with the observation delay of ``--observation-delay`` (its sensing's path and dating kept,
+    else the path "stated", undated)."""
+    from dataclasses import replace
+
+    from hrc.model import Sensing
+
+    lo, hi = float(delay[0]), None if delay[1] is None else float(delay[1])
+    if lo > MAX_SECONDS or (hi is not None and hi > MAX_SECONDS):
+        raise InputError("--observation-delay", "", f"at most {MAX_SECONDS:g} s")
+    old = task.sensing
+    sensing = Sensing("stated", (lo, hi), False) if old is None else Sensing(old.path, (lo, hi), old.dated)
+    return replace(task, sensing=sensing)
+
+
 def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
     from hrc.plans import pin_actions
@@ -244,6 +264,8 @@ def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
     task = load_task(args.task)
     if args.pin:
         task = pin_actions(task, dict(args.pin))
+    if args.observation_delay is not None:
+        task = _stated_sensing(task, args.observation_delay)
     out = args.out or f"out/{task.name}"
     _check_out(out)
     if args.executor is not None:

@@ -67,6 +67,7 @@ class Classification:
     schedule: tuple[tuple[str, float], ...]  # earliest time (s) of every timepoint, in STNU order
     worst_schedule: tuple[tuple[str, float], ...] = ()  # the same with every human duration at its maximum
     nominal: float | None = None  # makespan (s) with every human duration at its midpoint
+    class_at_delay_0: PlanClass | None = None  # under a stated sensing (`hrc.compile.sensing`): the class at 0
 
 
 Fix = Literal["", "ub", "mid"]

@@ -29,6 +29,7 @@ from hrc.compile.motion_pattern import (
     pattern_network,
 )
 from hrc.compile.preferences import plan_preference
+from hrc.compile.sensing import under_sensing
 from hrc.compile.temporal_net_creator import blocked_stnu, relabel_timepoints
 from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
@@ -151,7 +152,8 @@ def compile_plan(task: Task, plan: Plan, paths: PathLibrary, options: CompileOpt
     """Motion acquisition (routes, conflicts, passing orders), temporal net creator and classification
     for one plan (rank left at 0; `graphml` False leaves its GraphML text empty). With `pattern` (the
     motion pattern of a plan of the same family, `compile_family`) motion acquisition's search is skipped."""
-    return _record(task, plan, _choice(task, plan, paths, options, pattern), graphml)
+    choice = _choice(task, plan, paths, options, pattern)
+    return _sensed(task, [_record(task, plan, choice, graphml)], choice, options)[0]
 
 
 def _choice(task: Task, plan: Plan, paths: PathLibrary, options: CompileOptions,
@@ -212,7 +214,8 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
     choice = _choice(task, family[0], paths, options)
     first = _record(task, family[0], choice, graphml)
     if not first.classification.explanation:
-        return [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) for plan in family[1:])]
+        family_out = [first, *(relabel_record(task, first, choice.net.stnu, plan, graphml) for plan in family[1:])]
+        return _sensed(task, family_out, choice, options)
     out = [first]
     written = blocked_stnu(choice.net.stnu) if first.blocked else choice.net.stnu  # once: `_layout`
     result = choice.check  # the first plan's check, with its negative cycle (None: each member checks)
@@ -227,6 +230,23 @@ def compile_family(task: Task, family: tuple[Plan, ...], paths: PathLibrary,
         # its STNU is the first's renamed, so its GraphML is written from the first's (`relabel_record`)
         text = write_graphml(written, names, f"{task.name}:{plan.id}") if graphml else ""
         out.append(_record(task, plan, member, graphml, text, first.form))
+    return _sensed(task, out, choice, options)
+
+
+def _sensed(task: Task, family: list[CompiledPlan], choice: PlanChoice, options: CompileOptions) -> list[CompiledPlan]:
+    """The family's records classed under the task's sensing (`hrc.compile.sensing`; none: unchanged). The
+    delay check runs once, on the first plan (`choice`): the others are relabellings of it (the same
+    network up to names, the same verdict); a plan that loses DC gets its explanation in its own words."""
+    if task.sensing is None:
+        return family
+    first = under_sensing(task.sensing, choice.net, family[0].classification)
+    out = [replace(family[0], classification=first)]
+    lost = first.plan_class is not family[0].classification.plan_class
+    for cp in family[1:]:
+        c = cp.classification
+        net = pattern_network(task, cp.plan, cp.pattern, options.human_waits) if lost and c.plan_class is PlanClass.DC \
+            else choice.net
+        out.append(replace(cp, classification=under_sensing(task.sensing, net, c, verdict_dc=not lost)))
     return out
 
 

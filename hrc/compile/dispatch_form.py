@@ -22,7 +22,9 @@ this instead: every plan of the compile, in rank order, as a few flat numpy arra
     (ticks), one per ordered pair (parallel bounds merged: the tightest kept), sorted by (v, u).
 ``conts_ptr.npy`` (P + 1,) int64 and ``conts_a``, ``conts_c`` (uint16), ``conts_lb``, ``conts_ub`` (int32
     or int64): plan p's contingent links ``A --[lb, ub]--> C``.
-``form.json``: the version, the task's digest, the shapes, and the SHA-256 of every array file.
+``form.json``: the version, the task's digest, the shapes, and the SHA-256 of every array file; with
+    ``sensing`` (as ``compiled.json`` has it, `hrc.compile.sensing.sensing_dict`) when the task states how
+    the human's events reach the robot: ``cls`` is then the class under that observation delay.
 ``compiled.json``'s header names the SHA-256 of ``form.json`` (``"dispatch_form"``), so a form that is not
 the one compiled with it (a file truncated, swapped, or from another compile) is refused when read.
 
@@ -458,6 +460,10 @@ class FormWriter:
         meta = {"hrc_dispatch_form": FORM_VERSION, "task_digest": self.digest, "rank_by": self.rank_by,
                 "plans": len(plans), "sizes": dict(zip(("agents", "actions", "legs"), self.sizes, strict=True)),
                 "files": dict(sorted(files.items()))}
+        if self.task.sensing is not None:  # what the classes (`cls`) assume; absent: events learnt at once
+            from hrc.compile.sensing import sensing_dict
+
+            meta["sensing"] = sensing_dict(self.task.sensing)
         text = (json.dumps(meta, indent=1, sort_keys=True) + "\n").encode("utf-8")
         with open(self.folder / "form.json", "wb") as f:
             f.write(text)

@@ -30,7 +30,10 @@ to LOC, its start, in ``park.time`` of its moving time, waits there as the plan 
 STNU has the timepoints ``...park`` and ``...unpark``); the robot drives a route in exactly its time.
 
 Optional keys (schema version 2 still: readers of the keys above need no change), present only when
-they say something: ``"stnu_files": "archive"`` with ``"stnu_archive": "stnu.zip"`` (the STNUs are the
+they say something: ``"sensing": {"path", "observation_delay": [lo, hi | null], "dated", "checked_delay",
+"classes"}`` with a ``"class_at_delay_0"`` per plan (the task states how the human's events reach the robot:
+every class is the class under that sensing, `hrc.compile.sensing`; a compile without it has neither key);
+``"stnu_files": "archive"`` with ``"stnu_archive": "stnu.zip"`` (the STNUs are the
 zip file's members named by each plan's ``stnu``, not files beside it) or ``"stnu_files": "none"`` (no
 STNU written, every ``stnu`` is null): `hrc compile --stnu`; ``"partial": true`` with
 ``"plans_expected": N`` (the run was interrupted: ``plans`` holds the plans compiled by then, ranked
@@ -65,6 +68,7 @@ from hrc import __version__
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions
 from hrc.compile.dispatch_form import FORM_FOLDER, FormWriter, plan_sequences
 from hrc.compile.motion_pattern import MotionPattern, PassingOrder
+from hrc.compile.sensing import sensing_dict
 from hrc.compile.temporal_net_creator import ref_namer
 from hrc.errors import InputError
 from hrc.io.map_file import workspace_to_dict
@@ -249,6 +253,7 @@ def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n
         "stnu": f"stnu/{plan.id}.graphml" if stnu not in (None, "none") else None,
         "stnu_size": dict(zip(("timepoints", "requirement_links", "contingent_links"), cp.stnu_size, strict=True)),
         "explanation": c.explanation or None,
+        **({} if c.class_at_delay_0 is None else {"class_at_delay_0": c.class_at_delay_0.value}),
         "motions": motions,
         "passing": passing,
         "pattern": {"conflicts": len(pattern.orders), "implied": len(pattern.orders) - n_passing,
@@ -277,6 +282,8 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
                  "agents": {a.id: a.kind.value for a in task.agents}},
         "counts": counts,
     }
+    if task.sensing is not None:
+        out["sensing"] = sensing_dict(task.sensing)
     if stnu != "graphml":
         out["stnu_files"] = stnu
         if stnu == "archive":

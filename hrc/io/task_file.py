@@ -23,6 +23,7 @@ from hrc.io.map_file import clearance, load_workspace, workspace_to_dict
 from hrc.io.yamldoc import Doc, read_yaml
 from hrc.model import (
     DEFAULT_TRAVEL_SLACK,
+    SENSING_PATHS,
     Action,
     Agent,
     AgentKind,
@@ -33,6 +34,7 @@ from hrc.model import (
     Precedence,
     Preference,
     PreferenceKind,
+    Sensing,
     Task,
     TemporalConstraint,
     Workspace,
@@ -48,7 +50,8 @@ MIN_SPEED = 0.01
 MAX_TRAVEL_SLACK = 100.0
 
 _TOP_REQUIRED = ("name", "map", "agents", "actions")
-_TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "preference_sets", "safety_margin")
+_TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "preference_sets", "safety_margin",
+                 "sensing")
 _COEFFS = {PreferenceKind.CONSTANT: 1, PreferenceKind.LINEAR: 2, PreferenceKind.QUADRATIC: 3}
 
 
@@ -91,10 +94,33 @@ def load_task(path: str | os.PathLike[str]) -> Task:
         items = doc.sequence(raw_set, ("preference_sets", set_name), min_len=1)
         sets.append((set_name, tuple(_preference(doc, raw, ("preference_sets", set_name, i), by_id)
                                      for i, raw in enumerate(items))))
+    sensing = _sensing(doc, top["sensing"]) if top.get("sensing") is not None else None
     return Task(name=name, agents=tuple(agents), actions=tuple(actions), precedence=tuple(precedence),
                 constraints=tuple(constraints), deadline=deadline, preferences=tuple(preferences),
                 map_path=map_path, workspace=workspace, safety_margin=margin, preference_sets=tuple(sets),
-                source=doc.file)
+                source=doc.file, sensing=sensing)
+
+
+def _sensing(doc: Doc, raw: Any) -> Sensing:
+    """``sensing: {path: buttons | motion | stated, delay: [lo, hi]}`` (delay in seconds, optional but for
+    ``stated``: the path's default, `hrc.model.SENSING_PATHS`; ``hi`` may be ``.inf``: never observed)."""
+    m = doc.mapping(raw, ("sensing",), required=("path",), optional=("delay",))
+    path = m["path"]
+    if path not in SENSING_PATHS and path != "stated":
+        doc.fail(("sensing", "path"), f"expected one of {', '.join(SENSING_PATHS)} or stated, found {path!r}")
+    default, dated = SENSING_PATHS.get(path, (None, False))
+    if m.get("delay") is None:
+        if default is None:
+            doc.fail(("sensing", "delay"), "path stated needs a delay [lo, hi] in seconds")
+        return Sensing(path, default, dated)
+    pair = doc.sequence(m["delay"], ("sensing", "delay"))
+    if len(pair) != 2:
+        doc.fail(("sensing", "delay"), f"expected [lo, hi] in seconds, found {len(pair)} value(s)")
+    lo = doc.number(pair[0], ("sensing", "delay", 0), minimum=0, maximum=MAX_SECONDS, unit=" s")
+    hi = doc.number(pair[1], ("sensing", "delay", 1), minimum=0, maximum=MAX_SECONDS, unit=" s", allow_inf=True)
+    if lo > hi:
+        doc.fail(("sensing", "delay"), f"lo {lo:g} s exceeds hi {hi:g} s")
+    return Sensing(path, (lo, None if math.isinf(hi) else hi), dated)
 
 
 def _agents(doc: Doc, raw: Any, ws: Workspace, margin: float) -> list[Agent]:
@@ -319,6 +345,9 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
     out["preferences"] = [_preference_dict(p) for p in task.preferences]
     if task.preference_sets:  # written only when present: older files round-trip unchanged
         out["preference_sets"] = {name: [_preference_dict(p) for p in prefs] for name, prefs in task.preference_sets}
+    if task.sensing is not None:  # likewise
+        lo, hi = task.sensing.delay
+        out["sensing"] = {"path": task.sensing.path, "delay": [lo, math.inf if hi is None else hi]}
     return out
 
 

@@ -124,6 +124,11 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
         '<p class="small"><b>What the classes mean.</b> '
         + " ".join(f"{_badge(c)} {e(text)}" for c, text in CLASS_MEANING) + "</p>",
         f'<p class="small">{e(MODEL_ASSUMPTIONS).replace("`", "")}</p>',
+        *(f'<p class="small">{e(line)}</p>' for line in data.sensing),
+        *(["<table><tr><th>Rank</th><th>Plan</th><th>At delay 0</th><th>Under the sensing</th>"
+            "<th>Which constraint breaks</th></tr>"]
+          + [f"<tr><td>{rank}</td><td><code>{e(pid)}</code></td><td>{e(a)}</td><td>{e(b)}</td><td>{e(why)}</td></tr>"
+             for rank, pid, a, b, why in data.sensing_moves] + ["</table>"] if data.sensing_moves else []),
         '<div class="summary"><div class="cards">',
     ]
     for cls, n in data.counts:

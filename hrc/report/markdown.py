@@ -64,6 +64,13 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
     out += [f"- **{k[0].upper()}{k[1:]}:** {v}" for k, v in data.options]
     out += ["", "**What the classes mean.** " + " ".join(f"**{c}**: {text}" for c, text in CLASS_MEANING), "",
             MODEL_ASSUMPTIONS, ""]
+    out += [f"**{line}**" if i == 0 else line for i, line in enumerate(data.sensing)]
+    if data.sensing:
+        out.append("")
+    if data.sensing_moves:
+        out += ["| Rank | Plan | At delay 0 | Under the sensing | Which constraint breaks |", "|---:|---|---|---|---|"]
+        out += [f"| {rank} | `{pid}` | {a} | {b} | {_cell(why)} |" for rank, pid, a, b, why in data.sensing_moves]
+        out.append("")
     if "counts" in figures:
         out += [f"![Plans per class]({figures['counts']})", ""]
     for _, reason in data.empty_reasons:

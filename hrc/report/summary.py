@@ -24,7 +24,7 @@ __all__ = ["CLASS_MEANING", "DetourNote", "FEATURED_TOP", "INLINE_LINKS", "MIN_W
            "STATS_HEADER", "agent_letters", "allocation_legend", "binding_orders", "build_report_data",
            "empty_class_reason", "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks",
            "fmt_passing", "fmt_preference", "fmt_sequence", "fmt_stnu", "motion_notes", "occupancy_words",
-           "passing_words", "split_explanation", "stats_rows", "table_scope"]
+           "passing_words", "sensing_sentences", "split_explanation", "stats_rows", "table_scope"]
 
 PREFERENCE_HEADER = "Preference (higher is better)"
 """The ranked table's preference column: APA's value has no unit (a sum of the task's preference functions)."""
@@ -132,6 +132,8 @@ class ReportData:
     preferences: bool = False  # the task has preferences: the table shows each plan's value
     total: int = 0  # plans compiled; more than the rows when the table holds only the best (a large set)
     stats: tuple[ClassStats, ...] = ()  # makespans per class over all plans (only then)
+    sensing: tuple[str, ...] = ()  # what the classes assume of how human events reach the robot, in sentences
+    sensing_moves: tuple[tuple[int, str, str, str, str], ...] = ()  # (rank, plan, at delay 0, now, why)
 
     @property
     def truncated(self) -> bool:
@@ -302,7 +304,40 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         preferences=bool(task.preferences),
         total=cps.total,
         stats=cps.summary.stats if cps.summary is not None and cps.total > len(rows) else (),
+        sensing=sensing_sentences(cps),
+        sensing_moves=tuple((cp.rank, cp.plan.id, cp.classification.class_at_delay_0.value, cp.plan_class.value,
+                             cp.classification.explanation) for cp in cps.plans
+                            if cp.classification.class_at_delay_0 not in (None, cp.plan_class)),
     )
+
+
+def sensing_sentences(cps: CompiledPlanSet) -> tuple[str, ...]:
+    """What the classes assume of how the human's events reach the robot (`hrc.compile.sensing`), and how
+    the classes moved from delay 0 to the stated delay."""
+    sensing = cps.task.sensing
+    if sensing is None:
+        return ("No sensing stated (the task has no sensing:): every class assumes that the robot learns each "
+                "of the human's events the instant it happens. Buttons pressed late or a motion detector "
+                "learn them later: state it (sensing: in the task, or hrc compile --observation-delay) to "
+                "class the plans for it.",)
+    held = [cp for cp in cps.plans if cp.classification.class_at_delay_0 is not None]
+    before: dict[str, int] = {}
+    for cp in held:
+        key = cp.classification.class_at_delay_0.value  # type: ignore[union-attr]
+        before[key] = before.get(key, 0) + 1
+    after: dict[str, int] = {}
+    for cp in held:
+        after[cp.plan_class.value] = after.get(cp.plan_class.value, 0) + 1
+    order = [c for c in ("DC", "consistent", "inconsistent")]
+    lost = sum(1 for cp in held if cp.classification.class_at_delay_0 is not cp.plan_class)
+    return (f"Sensing: {sensing}. Every class is the class for a robot that learns each human event that late "
+            "(delay controllability, Bhargava et al. 2018; a dated observation is checked at the delay's upper "
+            "end, an undated one over the whole range). The motion pattern is the one chosen at delay 0.",
+            "Classes at delay 0 → under this sensing"
+            + (" (the plans listed)" if len(held) < cps.total else "") + ": "
+            + ", ".join(f"{c} {before.get(c, 0)} → {after.get(c, 0)}" for c in order)
+            + f"; {lost} plan(s) lose DC" + (":" if lost else "."))
+
 
 
 # Text shared by both formats (plain Unicode; the writers escape it for their own syntax).

@@ -5,13 +5,15 @@ Pure functions over the immutable `STNU` type (`hrc.temporal.network`); exact in
 (distance graphs), `potential` (schedules or negative cycles, Goldberg-Radzik), `stn` (consistency, APSP,
 minimal dispatchable network, propagation), `dc` (`check_dc`, the registry of DC algorithms, Morris 2014),
 `rul` (the default DC algorithm, RUL family, with its C core `_rulcore.c`), `bypass` (bypass closure),
-`oracle` (an independent exhaustive DC check for tests), `graphml` / `stnu_text` / `heatlab` (file formats;
-`read_network` detects the format by content), `limits` / `xmlread` (bounded, hardened reading), `execution`
-(real-time execution: the residual network of a partial execution and the RTE*-style window of each
-timepoint).
+`oracle` (independent exhaustive DC and delay-controllability checks for tests), `delay` (controllability
+when contingent timepoints are learnt late: `check_delay`, and the strategy's `delay_window`), `graphml` /
+`stnu_text` / `heatlab` (file formats; `read_network` detects the format by content), `limits` /
+`xmlread` (bounded, hardened reading), `execution` (real-time execution: the residual network of a
+partial execution and the RTE*-style window of each timepoint).
 """
 
 from hrc.temporal.dc import DCResult, Verdict, check_dc
+from hrc.temporal.delay import ObservationDelay, check_delay, delay_window
 from hrc.temporal.execution import (
     ExecutionMode,
     ExecutionWindow,
@@ -48,6 +50,7 @@ __all__ = [
     "ExecutionWindow",
     "MustWait",
     "NetworkError",
+    "ObservationDelay",
     "RealTimeState",
     "RequirementLink",
     "Verdict",
@@ -55,6 +58,8 @@ __all__ = [
     "all_pairs_shortest_paths",
     "check_consistency",
     "check_dc",
+    "check_delay",
+    "delay_window",
     "earliest_times",
     "minimal_dispatchable_network",
     "propagate_execution",

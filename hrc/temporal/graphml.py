@@ -77,7 +77,8 @@ from hrc.temporal.limits import MAX_BOUNDS, MAX_TIMEPOINTS, check_size, parse_in
 from hrc.temporal.network import STNU, ContingentLink, NetworkError, RequirementLink
 from hrc.temporal.xmlread import MAX_DEPTH, hardened_parser, parse
 
-__all__ = ["FORMATS", "ORIGIN", "TOOL_NAME_RULE", "read_graphml", "read_network", "tool_name", "write_graphml"]
+__all__ = ["FORMATS", "ORIGIN", "TOOL_NAME_RULE", "read_graphml", "read_network", "read_network_scaled", "tool_name",
+           "write_graphml"]
 
 ORIGIN = "Z"
 TOOL_NAME_RULE = re.compile(r"[A-Za-z0-9_ωΩ? ]+")
@@ -478,6 +479,12 @@ def read_network(path: str | Path, *, derived: bool = False, origin: bool = True
     (file, line, what is wrong, on one line); anything else is "not an STNU file" with the accepted
     formats (`FORMATS`).
     """
+    return read_network_scaled(path, derived=derived, origin=origin)[0]
+
+
+def read_network_scaled(path: str | Path, *, derived: bool = False, origin: bool = True) -> tuple[STNU, int]:
+    """`read_network`, also returning the ticks per unit of the file's numbers (1 but for HEATlab JSON,
+    whose decimal bounds are scaled to integers exactly)."""
     from hrc.temporal import heatlab, stnu_text  # local: those modules are only needed for their format
 
     file = show_path(path)
@@ -485,11 +492,11 @@ def read_network(path: str | Path, *, derived: bool = False, origin: bool = True
     body = data[3:] if data.startswith(b"\xef\xbb\xbf") else data
     head = body.lstrip(b" \t\r\n")[:1]
     if head == b"<" or body[:2] in (b"\xff\xfe", b"\xfe\xff"):
-        return read_graphml(data, file, derived=derived)
+        return read_graphml(data, file, derived=derived), 1
     if head in (b"{", b"["):
-        return heatlab.read_heatlab(_decode(data, file), file)
+        return heatlab.read_heatlab_scaled(_decode(data, file), file)
     if head == b"#" and stnu_text.looks_like_stnu_text(body):
-        return stnu_text.read_stnu_text(_decode(data, file), file, origin=origin)
+        return stnu_text.read_stnu_text(_decode(data, file), file, origin=origin), 1
     raise NetworkFileError(file, "", "not an STNU file: expected " + ", ".join(FORMATS[:-1]) + " or " + FORMATS[-1],
                            1)
 

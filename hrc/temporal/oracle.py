@@ -24,7 +24,7 @@ from functools import cache
 
 from hrc.temporal.network import STNU
 
-__all__ = ["oracle_is_dc"]
+__all__ = ["oracle_is_dc", "oracle_is_delay_controllable"]
 
 
 def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
@@ -121,3 +121,148 @@ def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
         return can_wait(times, t) and nature(t + 1, times)
 
     return agent(0, (None,) * n, 0)
+
+
+def oracle_is_delay_controllable(stnu: STNU, delays: dict[str, tuple[int, int | None]], *,
+                                 max_states: int = 2_000_000) -> bool:
+    """True iff the agent wins the execution game in which each contingent timepoint ``C`` is learnt
+    late: nature ends ``C`` at ``c`` and delivers its observation at a tick ``o`` in ``c + [lo, hi]`` of
+    its choice (``delays[C] = (lo, hi)``; missing: ``(0, 0)``; ``hi`` None: never); the observation says
+    that ``C`` happened, not when. Each tick nature moves first (ends, delivers), then the agent executes a
+    set of timepoints, knowing only its own executions, the clock and the observations delivered so far.
+
+    An imperfect-information game, solved over *belief states* (the set of nature's histories the agent
+    cannot tell apart; its strategy is a function of its information, so one action applies to every
+    history in the set, and the agent must win from each set of histories nature's next observations
+    leave). It shares nothing with `hrc.temporal.delay`'s reduction. Integer ticks, contingent lower bounds
+    >= 1, as `oracle_is_dc`; exponential: a handful of timepoints with small bounds only. At delay 0 it is
+    `oracle_is_dc`'s game.
+    """
+    names = stnu.timepoints
+    n = len(names)
+    if any(c.lb == 0 for c in stnu.contingents):
+        raise ValueError("oracle: contingent links need lb >= 1 (nature moves before the agent each tick)")
+    if n == 0:
+        return True
+    idx = {v: i for i, v in enumerate(names)}
+    cons: list[tuple[int, int, int]] = []
+    for r in stnu.requirements:
+        if r.ub is not None:
+            cons.append((idx[r.source], idx[r.target], r.ub))
+        if r.lb is not None:
+            cons.append((idx[r.target], idx[r.source], -r.lb))
+    activation: dict[int, tuple[int, int, int]] = {}
+    delay: dict[int, tuple[int, int | None]] = {}
+    for c in stnu.contingents:
+        activation[idx[c.target]] = (idx[c.source], c.lb, c.ub)
+        delay[idx[c.target]] = delays.get(c.target, (0, 0))
+        cons.append((idx[c.source], idx[c.target], c.ub))
+        cons.append((idx[c.target], idx[c.source], -c.lb))
+    horizon = (1 + sum(abs(w) for _, _, w in cons)
+               + sum(hi for _, hi in delay.values() if hi is not None))
+    executables = [i for i in range(n) if i not in activation]
+    cons_of: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
+    for con in cons:
+        cons_of[con[0]].append(con)
+        cons_of[con[1]].append(con)
+    visited = 0
+    State = tuple[tuple[int | None, ...], tuple[bool, ...]]  # times, observed
+
+    def ok_with(times: tuple[int | None, ...], v: int) -> bool:
+        for i, j, w in cons_of[v]:
+            ti, tj = times[i], times[j]
+            if ti is not None and tj is not None and tj - ti > w:
+                return False
+        return True
+
+    def successors(t: int, state: State) -> list[State] | None:
+        """Nature's moves at tick t from one history; None if one of them breaks a link (nature wins)."""
+        times, seen = state
+        may, must = [], []
+        for c, (a, lb, ub) in activation.items():
+            ta = times[a]
+            if ta is not None and times[c] is None:
+                if ta + ub == t:
+                    must.append(c)
+                elif ta + lb <= t < ta + ub:
+                    may.append(c)
+        out: list[State] = []
+        for mask in range(1 << len(may)):
+            new = list(times)
+            ended = list(must) + [c for k, c in enumerate(may) if mask >> k & 1]
+            for c in ended:
+                new[c] = t
+            tup = tuple(new)
+            if any(not ok_with(tup, c) for c in ended):
+                return None
+            # deliveries: each happened, unobserved C may (must, at its hi) be observed now
+            may_o, must_o = [], []
+            for c in activation:
+                tc = tup[c]
+                if tc is None or seen[c]:
+                    continue
+                lo, hi = delay[c]
+                if hi is not None and t - tc == hi:
+                    must_o.append(c)
+                elif t - tc >= lo and (hi is None or t - tc < hi) and hi is not None:
+                    may_o.append(c)
+            for omask in range(1 << len(may_o)):
+                s = list(seen)
+                for c in must_o:
+                    s[c] = True
+                for k, c in enumerate(may_o):
+                    if omask >> k & 1:
+                        s[c] = True
+                out.append((tup, tuple(s)))
+        return out
+
+    @cache
+    def nature(t: int, belief: frozenset[State]) -> bool:
+        nonlocal visited
+        visited += 1
+        if visited > max_states:
+            raise RuntimeError("oracle: state space too large")
+        if t > horizon:
+            return False
+        groups: dict[tuple[bool, ...], set[State]] = {}
+        for state in belief:
+            nxt = successors(t, state)
+            if nxt is None:
+                return False
+            for s in nxt:
+                groups.setdefault(s[1], set()).add(s)
+        return all(agent(t, frozenset(g)) for g in groups.values())
+
+    @cache
+    def agent(t: int, belief: frozenset[State]) -> bool:
+        some = next(iter(belief))[0]
+        pending = [v for v in executables if some[v] is None]
+        started = any(x is not None for x in some)
+        for mask in range(1 << len(pending)):
+            if mask == 0 and not started:
+                continue  # the first execution is at tick 0 WLOG
+            chosen = [v for k, v in enumerate(pending) if mask >> k & 1]
+            new: set[State] = set()
+            good = True
+            for times, seen in belief:
+                lst = list(times)
+                for v in chosen:
+                    lst[v] = t
+                tup = tuple(lst)
+                if any(not ok_with(tup, v) for v in chosen):
+                    good = False
+                    break
+                new.add((tup, seen))
+            if not good:
+                continue
+            if all(all(x is not None for x in times) for times, _ in new):
+                return True
+            # waiting to t+1 must not pass a deadline of an unexecuted timepoint
+            if any(times[i] is not None and times[j] is None and times[i] + w < t + 1  # type: ignore[operator]
+                   for times, _ in new for i, j, w in cons):
+                continue
+            if nature(t + 1, frozenset(new)):
+                return True
+        return False
+
+    return agent(0, frozenset({((None,) * n, (False,) * n)}))
