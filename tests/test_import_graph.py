@@ -21,7 +21,7 @@ sharing a layer may not import each other. A new package must be given a layer h
 | 7 | ``detect`` | the motion detector, turning tracked positions into the dispatcher's observations |
 | 8 | ``sim``, ``ros2`` | the simulated workshop; the dispatcher as a ROS 2 node (independent) |
 | 9 | ``record`` | MCAP recordings of a dispatched, simulated or ROS 2 run |
-| 10 | ``console``, ``learn`` | the engineer's browser console (records its runs); bounds, worker types and delays learnt from recorded runs (independent) |
+| 10 | ``console``, ``learn`` | the browser console (records its runs); learning from recorded runs |
 | 11 | ``report`` | figures and tables of compiles and simulations |
 | 12 | ``cli`` | the commands |
 | 13 | ``__main__`` | ``python -m hrc`` |
