@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import copy
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Literal
@@ -47,7 +48,7 @@ from .messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation,
 from .native import NO_BOUND
 from .plan_set import EventKey, PlanEntry, PlanSet, load_plan_set, plan_set_from_compiled
 from .ranking import CLASS_ORDER, NO_FINISH, Ranker
-from .validation import History, agreeing, executed, seen_arrays, ticks
+from .validation import History, RouteIndex, RouteSig, agreeing, executed, seen_arrays, ticks
 
 __all__ = ["UNDO_SECONDS", "Dispatcher"]
 
@@ -76,6 +77,9 @@ class _State:
     seen: np.ndarray  # the history as the core reads it (`seen_arrays`), and now in ticks
     legs_seen: np.ndarray
     now: int
+    told: Mapping[tuple[int, int], RouteSig]  # (agent index, leg position) -> the route told (`RouteSig`)
+    lead: np.ndarray | None  # per candidate: 1 for a DC plan that gives up the followed person's part
+    deviation: Mapping[str, Any] | None  # this answer's: an observation later than the stated delay
 
 
 class Dispatcher:
@@ -91,12 +95,16 @@ class Dispatcher:
     """
 
     def __init__(self, plan_set: PlanSet, *, feasible_only: bool = False, use_preferences: bool = True,
-                 ranker: Ranker | None = None, threads: int | None = None) -> None:
+                 ranker: Ranker | None = None, threads: int | None = None,
+                 max_observation_delay: float | None = None) -> None:
         self.plan_set = plan_set
         self.feasible_only = feasible_only
         self.use_preferences = use_preferences
+        self.max_observation_delay = max_observation_delay
         self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
+        self.routes = RouteIndex(plan_set.form)  # shared by forks: a function of the plans alone
         self._robot = next((a.id for a in plan_set.task.agents if not a.is_human), "")
+        self._human_g = next((g for g, a in enumerate(plan_set.task.agents) if a.is_human), -1)
         self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
         history = History.start(plan_set.task)
         everything = np.arange(len(plan_set), dtype=np.int64)
@@ -151,7 +159,7 @@ class Dispatcher:
     def candidate_indices(self) -> np.ndarray:
         """The remaining plans' indices in the plan set, best first."""
         st = self._state
-        return st.plans[self.ranker.order(st.plans, st.cls, st.finish, st.idle)]
+        return st.plans[self.ranker.order(st.plans, st.cls, st.finish, st.idle, st.lead)]
 
     @property
     def remaining(self) -> np.ndarray:
@@ -188,7 +196,8 @@ class Dispatcher:
         """The remaining plans, ranked best first (one value per plan: for a large set, `best` and
         `Decision.candidates` say the same for less)."""
         st = self._state
-        return tuple(self._candidate(int(at)) for at in self.ranker.order(st.plans, st.cls, st.finish, st.idle))
+        return tuple(self._candidate(int(at)) for at in self.ranker.order(st.plans, st.cls, st.finish, st.idle,
+                                                                            st.lead))
 
     def human_options(self) -> tuple[HumanOption, ...]:
         """Leg events the human may report now that the task and some remaining plan allow, in task order
@@ -250,6 +259,8 @@ class Dispatcher:
         else:  # "back" brings back every plan that agrees with the history
             pool = np.arange(len(self.plan_set), dtype=np.int64) if obs.event == "back" else state.plans
             kept = agreeing(form, history, pool)
+            if obs.event == "back":
+                kept = self._on_routes(kept, history, state.told)
             if not len(kept) and history.away:
                 # no plan lets the robot finish alone from here (say it is on its way to a leg that needs
                 # the person's work first): "away" is a fact, not a request, and so is what the robot does
@@ -259,11 +270,63 @@ class Dispatcher:
         if not len(kept):
             raise DispatchError(f"no remaining plan allows {_describe(obs)} "
                                 f"({len(state.plans)} plans agreed with what was seen before)")
+        told = state.told
+        if obs.event in LEG_EVENTS:
+            told, changed = self._tell_route(state, history, obs)
+            if changed or kept is not state.plans:
+                kept = self._on_routes(kept, history, told)
         robot = self._robot
         ack = ack_note(state.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
+        deviation = self._late(obs)
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
-                                   state, _seen_after(state, history, obs), ack)
+                                   state, _seen_after(state, history, obs), ack, told, deviation)
         return self._state.decision
+
+    def _late(self, obs: Observation) -> Mapping[str, Any] | None:
+        """The deviation of an observation of the human that reached the dispatcher later than the stated
+        maximum delay (`max_observation_delay`): the guarantee of every class assumed no later sensing.
+        None otherwise."""
+        limit = self.max_observation_delay
+        if limit is None or obs.delay is None or obs.agent != self._state.history.human or obs.delay <= limit:
+            return None
+        return MappingProxyType({"late": {"event": f"{obs.agent}.{obs.action}.{obs.phase}.{obs.event}",
+                                          "delay": round(obs.delay, 3), "max": limit}})
+
+    def _tell_route(self, state: _State, history: History, obs: Observation
+                    ) -> tuple[Mapping[tuple[int, int], RouteSig], bool]:
+        """The routes of the legs under way with `obs` (see `hrc.dispatch.validation`): a leg seen for the
+        first time takes the route of the plan that was best when it began (what the agent was told), if
+        that plan gives the agent this leg there; and whether set validation must read them again (a new
+        route, or a stop at a waiting place seen)."""
+        agent = obs.agent or ""
+        g = self.task.agent_ids.index(agent)
+        k = history.legs[agent].index((obs.action, obs.phase))
+        told = state.told
+        if (g, k) in told or state.best < 0:
+            return told, obs.event == "park"
+        legs = self.plan_set.entry(state.best).legs.get(agent, ())
+        if k >= len(legs) or legs[k] != (obs.action, obs.phase):
+            return told, obs.event == "park"
+        sig = tuple(self.routes.routes(np.array([state.best]), g, k)[0].tolist())
+        return MappingProxyType({**told, (g, k): sig}), True
+
+    def _on_routes(self, kept: np.ndarray, history: History, told: Mapping[tuple[int, int], RouteSig]) -> np.ndarray:
+        """The plans of `kept` that drive or walk each leg seen along its route (`_tell_route`): the one
+        told, or with a stop at a waiting place where the agent was seen stopping although told otherwise.
+        A fact is never refused for it: if no plan is left, `kept` as it was."""
+        out = kept
+        for g, agent in enumerate(self.task.agent_ids):
+            for k, (action, phase) in enumerate(history.legs.get(agent, ())):
+                sig = told.get((g, k))
+                parked = (agent, action, phase, "park") in history.times
+                if sig is None and not parked:
+                    continue
+                routes = self.routes.routes(out, g, k)
+                if parked and (sig is None or sig[0] == 0):
+                    out = out[routes[:, 0] == 1]
+                else:
+                    out = out[np.all(routes == np.array(sig, dtype=np.int64), axis=1)]
+        return out if len(out) else kept
 
     def _undo(self, obs: Observation) -> Decision:
         state = self._state
@@ -285,12 +348,17 @@ class Dispatcher:
             history = history.add(o)
         history = history.add(Observation(obs.t, "tick"))
         kept = agreeing(self.plan_set.form, history, np.arange(len(self.plan_set), dtype=np.int64))
-        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.do_forms, state)
+        told = MappingProxyType({(g, k): sig for (g, k), sig in state.told.items()
+                                 if k < len(history.legs.get(self.task.agent_ids[g], ()))})
+        kept = self._on_routes(kept, history, told)
+        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.do_forms, state,
+                                   told=told)
         return self._state.decision
 
     def _settle(self, history: History, accepted: tuple[Observation, ...], effective: tuple[Observation, ...],
                 kept: np.ndarray, do_forms: Any, previous: _State | None,
-                core: tuple[np.ndarray, np.ndarray] | None = None, ack: Any = None) -> _State:
+                core: tuple[np.ndarray, np.ndarray] | None = None, ack: Any = None,
+                told: Mapping | None = None, deviation: Mapping[str, Any] | None = None) -> _State:
         """Rank `kept` under `history` (set ranking, `Ranker`), decide. A plan's evaluation is taken from
         the `previous` state when what enters it is the same (the seen events and now: a tick at the same
         time, an announced next action, away), else made again. `core`: the history as `seen_arrays`
@@ -313,9 +381,11 @@ class Dispatcher:
             feasible = cls != CLASS_ORDER.index("inconsistent")
             kept, cls, finish, idle = kept[feasible], cls[feasible], finish[feasible], idle[feasible]
         counts = dict(zip(CLASS_ORDER, np.bincount(cls, minlength=3).tolist(), strict=True))
-        at = self.ranker.best(kept, cls, finish, idle)
+        lead = None if deviation is not None else self._lead(kept, cls, previous)
+        at = self.ranker.best(kept, cls, finish, idle, lead)
         if at < 0:
-            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack)
+            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack,
+                                deviation=deviation)
             best = -1
         else:
             best = int(kept[at])
@@ -326,9 +396,28 @@ class Dispatcher:
                                        (seen, legs_seen))
             do_forms = MappingProxyType(do)
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
-                                False, human, ack)
+                                False, human, ack, deviation)
+        told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
-                      MappingProxyType(dict(do_forms)), seen, legs_seen, now)
+                      MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,
+                      deviation)
+
+    def _lead(self, kept: np.ndarray, cls: np.ndarray, previous: _State | None) -> np.ndarray | None:
+        """The plan being followed keeps its hold (docs/dispatch.md, "What the robot may assume"): the
+        person's part of the last best plan (their remaining actions in their order) is what they were
+        shown and may be doing; while some DC candidate keeps it, a DC plan that gives it up ranks after
+        every DC plan that keeps it (1 in the column `Ranker` reads after the class). None when no
+        candidate keeps it (the person chose otherwise), none of those is DC (the promise is lost: the
+        best plan as ranked), or there is nothing to choose."""
+        g = self._human_g
+        if previous is None or previous.best < 0 or g < 0 or not len(kept):
+            return None
+        seq = self.plan_set.form.seq
+        same = np.all(seq[kept, g] == seq[previous.best, g], axis=1)
+        dc = cls == 0
+        if not (same & dc).any() or not (dc & ~same).any():
+            return None
+        return (dc & ~same).astype(np.int8)
 
     def _steps(self, entry: PlanEntry, done: dict[str, int], history: History, plan_class: str,
                index: int, do: dict[int, Any], seen: tuple[np.ndarray, np.ndarray]

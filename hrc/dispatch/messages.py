@@ -34,7 +34,10 @@ _MAX_T = 1e9  # seconds; ~31 years: beyond it a time is a mistake, and ticks sta
 @dataclass(frozen=True, slots=True)
 class Observation:
     """Something seen at `t` seconds: a leg event of `agent` on `action`.`phase`, or a signal (then only
-    `agent` may be set: the human for away/back). `next`: the human's announced next action."""
+    `agent` may be set: the human for away/back). `next`: the human's announced next action. `delay`:
+    how many seconds after the event happened it was learnt (a sensing path that says so: a detector's
+    back-dated event, a late button), None when not said; an observation of the human later than the
+    dispatcher's stated maximum voids the guarantee (`Decision.deviation`)."""
 
     t: float
     event: str
@@ -42,6 +45,7 @@ class Observation:
     action: str | None = None
     phase: str | None = None
     next: str | None = None
+    delay: float | None = None
 
     @property
     def key(self) -> tuple[str, str, str, str]:
@@ -57,6 +61,8 @@ class Observation:
         out["event"] = self.event
         if self.next is not None:
             out["next"] = self.next
+        if self.delay is not None:
+            out["delay"] = self.delay
         return out
 
 
@@ -101,7 +107,10 @@ class Decision:
     departure or start in the best plan and the window in which it keeps the plan's promise (the paper's
     model lets the robot's strategy time them: the human waits when asked), or the robot event it has to
     wait for; None while the human is busy (a walk or a manipulation under way), away, or done.
-    `ack`: set when the message was a robot acknowledgement outside what it had been told (`ack_note`)."""
+    `ack`: set when the message was a robot acknowledgement outside what it had been told (`ack_note`).
+    `deviation`: set when the message voided the guarantee of every class: ``{"late": {"event", "delay",
+    "max"}}``, an observation of the human learnt later than the stated maximum delay (the run goes on with
+    the best remaining plan, as after an overrun)."""
 
     t: float
     plan: str | None
@@ -112,6 +121,7 @@ class Decision:
     stopped: bool = False
     human: RobotStep | WaitFor | None = None
     ack: Mapping[str, Any] | None = None
+    deviation: Mapping[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
@@ -121,6 +131,8 @@ class Decision:
                "human_away": self.human_away, "stopped": self.stopped}
         if self.ack is not None:
             out["ack"] = dict(self.ack)
+        if self.deviation is not None:
+            out["deviation"] = {k: dict(v) if isinstance(v, Mapping) else v for k, v in self.deviation.items()}
         return out
 
 
@@ -187,9 +199,9 @@ def observation_from_json(obj: Any) -> Observation:
     """
     if not isinstance(obj, dict):
         raise DispatchError(f"a message must be a JSON object, found {type(obj).__name__}")
-    unknown = sorted(set(obj) - {"t", "event", "agent", "action", "phase", "next"})
+    unknown = sorted(set(obj) - {"t", "event", "agent", "action", "phase", "next", "delay"})
     if unknown:
-        raise DispatchError(f"unknown key {unknown[0][:40]!r} (keys: t, event, agent, action, phase, next)")
+        raise DispatchError(f"unknown key {unknown[0][:40]!r} (keys: t, event, agent, action, phase, next, delay)")
     t = obj.get("t")
     if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t) or not 0 <= t <= _MAX_T:
         raise DispatchError("'t' must be a number of seconds from the task's start (0 to 1e9)")
@@ -203,4 +215,10 @@ def observation_from_json(obj: Any) -> Observation:
             raise DispatchError(f"a {event!r} message needs {', '.join(missing)}")
     elif action is not None or phase is not None or nxt is not None:
         raise DispatchError(f"a {event!r} message takes no action, phase or next")
-    return Observation(float(t), event, agent, action, phase, nxt)
+    delay = obj.get("delay")
+    if delay is not None:
+        if isinstance(delay, bool) or not isinstance(delay, int | float) or not math.isfinite(delay) or \
+                not 0 <= delay <= _MAX_T or event not in LEG_EVENTS:
+            raise DispatchError("'delay' must be the seconds (>= 0) between a leg event and when it was learnt")
+        delay = float(delay)
+    return Observation(float(t), event, agent, action, phase, nxt, delay)
