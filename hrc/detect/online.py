@@ -115,7 +115,9 @@ class DetectingDispatcher(Dispatcher):
                     if ev.event == "undo":  # a departure given for the wrong place, withdrawn
                         self.observe(Observation(at, "undo"))
                     else:
-                        self.observe(Observation(at, ev.event, human, ev.action, ev.phase))
+                        # learnt now, from the position measured at t: how late it is said (`delay`)
+                        self.observe(Observation(at, ev.event, human, ev.action, ev.phase,
+                                                 delay=round(max(0.0, t - ev.t), 3)))
                 except DispatchError as err:
                     what = ev.event if ev.event == "undo" else f"{ev.event} {ev.action}.{ev.phase}"
                     refused.append(f"{what}: {str(err).splitlines()[0]}")
