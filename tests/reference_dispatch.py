@@ -39,6 +39,7 @@ from hrc.dispatch import UNDO_SECONDS
 from hrc.dispatch.dispatcher import _rank
 from hrc.dispatch.messages import (
     LEG_EVENTS,
+    Ahead,
     Candidate,
     Decision,
     HumanOption,
@@ -200,9 +201,11 @@ class ReferenceDispatcher:
             return Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True)
         best = self.best = ranked[0]
         entry = self.plans[best]
-        robot, human = self._steps(entry, executed(entry, history), history, evals[best].plan_class, best)
+        done = executed(entry, history)
+        robot, human = self._steps(entry, done, history, evals[best].plan_class, best)
+        ahead = _ahead(entry, done, history) if human is None else None
         return Decision(history.now, entry.id, evals[best].plan_class, MappingProxyType(counts), robot,
-                        history.away, False, human)
+                        history.away, False, human, ahead=ahead)
 
     def _evaluate(self, i: int, history: History, now: int) -> Any:
         done = executed(self.plans[i], history)
@@ -394,3 +397,52 @@ def _next_events(entry: PlanEntry, agent: str, history: History) -> list[Observa
         return []
     action, phase = legs[len(seen)]
     return [Observation(t, e, agent, action, phase) for e in ("depart", "start")]
+
+
+def _ahead(entry: PlanEntry, done: dict[str, int], history: History) -> Ahead | None:
+    """The person's next own step after the event of theirs now due (nature's), and the robot's last
+    event not done whose distance from that step in the STN reading (requirement links both ways,
+    contingent links at their bounds) is at most 0: Bellman-Ford over the link objects, by name."""
+    human = history.human
+    if not human or history.away:
+        return None
+    stnu = entry.stnu
+    contingent = stnu.contingent_timepoints
+    pending = [(a, p, e, n) for a, p in entry.legs.get(human, ()) for e, n in entry.leg_points[(human, a, p)]
+               if n not in done]
+    if not pending or pending[0][3] not in contingent:
+        return None
+    step = next((x for x in pending if x[3] not in contingent), None)
+    if step is None:
+        return None
+    arcs = []  # (u, v, w): T(v) - T(u) <= w
+    for r in stnu.requirements:
+        if r.ub is not None:
+            arcs.append((r.source, r.target, r.ub))
+        if r.lb is not None:
+            arcs.append((r.target, r.source, -r.lb))
+    for c in stnu.contingents:
+        arcs += [(c.source, c.target, c.ub), (c.target, c.source, -c.lb)]
+    origin = stnu.timepoints[0]
+    arcs += [(x, origin, 0) for x in stnu.timepoints if x != origin]  # every timepoint at or after the origin
+    dist = {x: float("inf") for x in stnu.timepoints}
+    dist[step[3]] = 0.0
+    for _ in range(len(dist) + 1):
+        changed = False
+        new = dict(dist)
+        for u, v, w in arcs:
+            if dist[u] + w < new[v]:
+                new[v] = dist[u] + w
+                changed = True
+        dist = new
+        if not changed:
+            break
+    else:
+        return None
+    robot = next(a.id for a in history.task.agents if not a.is_human)
+    before = [n for a, p in entry.legs.get(robot, ()) for _, n in entry.leg_points[(robot, a, p)]
+              if n not in done and dist[n] <= 0]
+    wait = ".".join(entry.events[before[-1]]) if before else None
+    gap = round(-dist[before[-1]] / 1000, 3) + 0.0 if before else 0.0
+    return Ahead(f"{human}.{pending[0][0]}.{pending[0][1]}.{pending[0][2]}", f"{human}.{step[0]}.{step[1]}.{step[2]}",
+                 wait, gap)

@@ -44,7 +44,7 @@ from hrc.model import Task
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 from hrc.temporal.execution import residual_origin
 
-from .messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor, ack_note
+from .messages import LEG_EVENTS, Ahead, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor, ack_note
 from .native import NO_BOUND
 from .plan_set import EventKey, PlanEntry, PlanSet, load_plan_set, plan_set_from_compiled
 from .ranking import CLASS_ORDER, NO_FINISH, Ranker
@@ -395,12 +395,57 @@ class Dispatcher:
             robot, human = self._steps(entry, executed(entry, history), history, plan_class, best, do,
                                        (seen, legs_seen))
             do_forms = MappingProxyType(do)
+            ahead = self._ahead(entry, best, executed(entry, history), history) if human is None else None
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
-                                False, human, ack, deviation)
+                                False, human, ack, deviation, ahead)
         told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
                       MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,
                       deviation)
+
+    def _ahead(self, entry: PlanEntry, p: int, done: dict[str, int], history: History) -> Ahead | None:
+        """The person's instruction ahead (`Ahead`), while their next event in the plan is nature's (a walk
+        or a manipulation under way): their next own step after it, and the robot's last event not yet
+        done that the plan's network orders no later than that step (a distance ``T(x) - T(step) <= -gap <= 0``
+        in its STN reading: requirement links, contingent links at their bounds, by Bellman-Ford from
+        the step). None when the person is not under way, away, done, or the network has a negative cycle
+        (no schedule: nothing to promise)."""
+        human = history.human
+        if not human or history.away:
+            return None
+        contingent = entry.stnu.contingent_timepoints
+        pending = [(a, ph, e, n) for a, ph in entry.legs.get(human, ())
+                   for e, n in entry.leg_points[(human, a, ph)] if n not in done]
+        if not pending or pending[0][3] not in contingent:
+            return None
+        step = next((x for x in pending if x[3] not in contingent), None)
+        if step is None:
+            return None
+        arrays = self.plan_set.form.arrays(p)
+        at = self.plan_set.node_index(p)
+        u = np.concatenate([arrays.edges[:, 0], arrays.conts[:, 0], arrays.conts[:, 1]])
+        v = np.concatenate([arrays.edges[:, 1], arrays.conts[:, 1], arrays.conts[:, 0]])
+        w = np.concatenate([arrays.edges[:, 2], arrays.conts[:, 3], -arrays.conts[:, 2]]).astype(np.float64)
+        dist = np.full(arrays.n, np.inf)
+        dist[at[step[3]]] = 0.0
+        for _ in range(arrays.n + 1):
+            relaxed = dist.copy()
+            np.minimum.at(relaxed, v, dist[u] + w)
+            if np.array_equal(relaxed, dist):
+                break
+            dist = relaxed
+        else:
+            return None
+        robot = self._robot
+        order = [(k, e, n) for k, (a, ph) in enumerate(entry.legs.get(robot, ()))
+                 for e, (_, n) in enumerate(entry.leg_points[(robot, a, ph)]) if n not in done]
+        before = [n for _, _, n in order if dist[at[n]] <= 0]
+        wait, gap = None, 0.0
+        if before:
+            agent, action, phase, event = entry.events[before[-1]]
+            wait, gap = f"{agent}.{action}.{phase}.{event}", round(-float(dist[at[before[-1]]]) / 1000, 3) + 0.0
+        after = f"{human}.{pending[0][0]}.{pending[0][1]}.{pending[0][2]}"
+        return Ahead(after, f"{human}.{step[0]}.{step[1]}.{step[2]}", wait, gap)
 
     def _lead(self, kept: np.ndarray, cls: np.ndarray, previous: _State | None) -> np.ndarray | None:
         """The plan being followed keeps its hold (docs/dispatch.md, "What the robot may assume"): the

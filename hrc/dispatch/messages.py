@@ -19,8 +19,8 @@ from typing import Any
 
 from hrc.errors import DispatchError
 
-__all__ = ["EVENTS", "LEG_EVENTS", "SIGNALS", "Candidate", "Decision", "HumanOption", "Observation", "RobotStep",
-           "WaitFor", "ack_note", "observation_from_json"]
+__all__ = ["EVENTS", "LEG_EVENTS", "SIGNALS", "Ahead", "Candidate", "Decision", "HumanOption", "Observation",
+           "RobotStep", "WaitFor", "ack_note", "observation_from_json"]
 
 LEG_EVENTS = ("depart", "park", "unpark", "arrive", "start", "end")
 """An agent's events on one leg, in the order they happen (park/unpark only where the plan stops at a
@@ -99,6 +99,23 @@ class WaitFor:
 
 
 @dataclass(frozen=True, slots=True)
+class Ahead:
+    """The person's instruction for their next step, given while a walk or a manipulation of theirs is
+    under way (when `Decision.human` has nothing to say yet): after `after` (their event now due, e.g.
+    ``human.cube3.fetch.end``), their next step is `next` (e.g. ``human.cube3.put.depart``), not before
+    the robot's `wait_for` (e.g. ``robot.cube2.fetch.end``; None: nothing of the robot's to wait for) and
+    `gap` seconds after it (0 when there is nothing to wait for)."""
+
+    after: str
+    next: str
+    wait_for: str | None
+    gap: float = 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        return {"after": self.after, "next": self.next, "wait_for": self.wait_for, "gap": self.gap}
+
+
+@dataclass(frozen=True, slots=True)
 class Decision:
     """The dispatcher's answer at `t`: the best plan and its class, the number of candidate plans per
     class, and the robot's next step (None: nothing left for it, or `stopped`). `human_away`: the human
@@ -110,7 +127,8 @@ class Decision:
     `ack`: set when the message was a robot acknowledgement outside what it had been told (`ack_note`).
     `deviation`: set when the message voided the guarantee of every class: ``{"late": {"event", "delay",
     "max"}}``, an observation of the human learnt later than the stated maximum delay (the run goes on with
-    the best remaining plan, as after an overrun)."""
+    the best remaining plan, as after an overrun). `ahead`: the person's instruction for the step after
+    the one under way (`Ahead`), so that they know it before it is due."""
 
     t: float
     plan: str | None
@@ -122,6 +140,7 @@ class Decision:
     human: RobotStep | WaitFor | None = None
     ack: Mapping[str, Any] | None = None
     deviation: Mapping[str, Any] | None = None
+    ahead: Ahead | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
@@ -131,6 +150,8 @@ class Decision:
                "human_away": self.human_away, "stopped": self.stopped}
         if self.ack is not None:
             out["ack"] = dict(self.ack)
+        if self.ahead is not None:
+            out["ahead"] = self.ahead.to_json()
         if self.deviation is not None:
             out["deviation"] = {k: dict(v) if isinstance(v, Mapping) else v for k, v in self.deviation.items()}
         return out
