@@ -200,6 +200,33 @@ def test_a_late_observation_voids_the_guarantee_and_replays(workshop, tmp_path):
     assert other.returncode == 2 and "max-observation-delay" in other.stderr
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_an_event_estimated_just_before_a_hinted_bound_is_read_on_it(kitting_part, seed):
+    """A person who left when told, estimated 20 ms early by a sensor: with a tolerance of 50 ms the
+    dispatcher answers exactly as if they had been seen on the bound (the same bytes from then on); with
+    none, as told before (the early time stands)."""
+    plan_set = load_plan_set(kitting_part)
+    _, log = _follow(plan_set, seed)
+    hinted = None
+    for k in range(1, len(log)):
+        msg, before = json.loads(log[k][0]), json.loads(log[k - 1][1])
+        h = before.get("human") or {}
+        if msg.get("agent") == "human" and h.get("event") == msg["event"] and h.get("action") == msg["action"] \
+                and msg["t"] == h["earliest"] and h["earliest"] >= before["t"] + 0.05:
+            hinted = k
+            break
+    assert hinted is not None
+    lines = [line for line, _ in log]
+    early = json.loads(lines[hinted])
+    early["t"] = round(early["t"] - 0.02, 3)
+    moved = [*lines[:hinted], json.dumps(early), *lines[hinted + 1:]]
+    tolerant = Dispatcher(plan_set, threads=1, bound_tolerance=0.05)
+    assert [handle_line(tolerant, line) for line in moved] == [answer for _, answer in log]
+    strict = Dispatcher(plan_set, threads=1)
+    answers = [handle_line(strict, line) for line in moved[:hinted + 1]]
+    assert json.loads(answers[-1])["t"] == early["t"] and answers[-1] != log[hinted][1]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("task", ["kitting.yaml", "kitting_6picks.yaml"])
 def test_a_person_following_the_first_plan_keeps_its_promise_on_the_whole_task(tmp_path_factory, task):

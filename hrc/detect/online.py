@@ -73,6 +73,12 @@ class DetectingDispatcher(Dispatcher):
 
     def __init__(self, plan_set: PlanSet, *, params: DetectParams | None = None,
                  model: DetectorModel | None = None, **options: Any) -> None:
+        # an event estimated within two standard deviations of the position noise, in walking time, of a
+        # bound of the person's hint is read as on it (`Dispatcher._on_bound`)
+        human = next((a for a in plan_set.task.agents if a.is_human), None)
+        sigma = (params or (model.params if model is not None else DetectParams())).sigma
+        if human is not None:
+            options.setdefault("bound_tolerance", round(2 * sigma / human.speed, 3))
         super().__init__(plan_set, **options)
         self.model = model if model is not None and model.task is plan_set.task else \
             detector_model(plan_set.task, params)

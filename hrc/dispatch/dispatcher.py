@@ -92,12 +92,17 @@ class Dispatcher:
     (`_preferred`), at the cost of one small QP per decision. `threads`: how many threads set ranking may
     use on a large message (default: up to 4, as the machine has cores; 1 where processes share the cores,
     as the simulator's workers do). `ranker`: share the set ranking of another dispatcher on the same set.
+    `max_observation_delay` (s): the longest a person's event may reach the dispatcher after it happened
+    (`Observation.delay`); a later one voids the guarantee (`Decision.deviation`). `bound_tolerance` (s):
+    a person's event estimated within this of a bound of the hint they were given is read as on the
+    bound (`_on_bound`); 0 (buttons): never.
     """
 
     def __init__(self, plan_set: PlanSet, *, feasible_only: bool = False, use_preferences: bool = True,
                  ranker: Ranker | None = None, threads: int | None = None,
-                 max_observation_delay: float | None = None) -> None:
+                 max_observation_delay: float | None = None, bound_tolerance: float = 0.0) -> None:
         self.plan_set = plan_set
+        self.bound_tolerance = bound_tolerance
         self.feasible_only = feasible_only
         self.use_preferences = use_preferences
         self.max_observation_delay = max_observation_delay
@@ -252,6 +257,7 @@ class Dispatcher:
         state = self._state
         if obs.event == "undo":
             return self._undo(obs)
+        obs = self._on_bound(obs)
         history = state.history.add(obs)
         form = self.plan_set.form
         if obs.event == "tick" or (obs.event != "back" and _validated_by(state.history) == _validated_by(history)):
@@ -281,6 +287,26 @@ class Dispatcher:
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
                                    state, _seen_after(state, history, obs), ack, told, deviation)
         return self._state.decision
+
+    def _on_bound(self, obs: Observation) -> Observation:
+        """`obs` read on the bound of the hint the person was given for it when it was estimated within
+        `bound_tolerance` of it (before its earliest, or after its latest but not before now): a sensor's
+        estimate that close cannot tell the person from one who did as told, and reading it as a violation
+        turned DC plans inconsistent (issue 32: departures estimated 2-40 ms before a hinted earliest)."""
+        tol = self.bound_tolerance
+        state = self._state
+        hint = state.decision.human
+        if tol <= 0 or obs.event not in LEG_EVENTS or obs.agent != state.history.human or \
+                not isinstance(hint, RobotStep) or (hint.action, hint.phase, hint.event) != (obs.action, obs.phase,
+                                                                                                 obs.event):
+            return obs
+        from dataclasses import replace
+
+        if hint.earliest - tol <= obs.t < hint.earliest:
+            return replace(obs, t=hint.earliest)
+        if hint.latest is not None and hint.latest < obs.t <= hint.latest + tol and hint.latest >= state.history.now:
+            return replace(obs, t=hint.latest)
+        return obs
 
     def _late(self, obs: Observation) -> Mapping[str, Any] | None:
         """The deviation of an observation of the human that reached the dispatcher later than the stated
