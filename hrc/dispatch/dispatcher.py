@@ -111,6 +111,7 @@ class Dispatcher:
         self._robot = next((a.id for a in plan_set.task.agents if not a.is_human), "")
         self._human_g = next((g for g, a in enumerate(plan_set.task.agents) if a.is_human), -1)
         self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
+        self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
         history = History.start(plan_set.task)
         everything = np.arange(len(plan_set), dtype=np.int64)
         self._state = self._settle(history, (), (), everything, {}, None)
@@ -447,16 +448,25 @@ class Dispatcher:
         step = next((x for x in pending if x[3] not in contingent), None)
         if step is None:
             return None
-        arrays = self.plan_set.form.arrays(p)
+        arcs = self._arcs.get(p)
+        if arcs is None:  # shared by forks: a function of the plan alone; a few hundred plans at most
+            if len(self._arcs) >= 256:
+                self._arcs.clear()
+            a = self.plan_set.form.arrays(p)
+            u = np.concatenate([a.edges[:, 0], a.conts[:, 0], a.conts[:, 1]])
+            v = np.concatenate([a.edges[:, 1], a.conts[:, 1], a.conts[:, 0]])
+            w = np.concatenate([a.edges[:, 2], a.conts[:, 3], -a.conts[:, 2]]).astype(np.float64)
+            by = np.argsort(v, kind="stable")  # arcs grouped by their head: one reduceat per pass
+            heads, starts = np.unique(v[by], return_index=True)
+            arcs = self._arcs[p] = (a.n, u[by], w[by], heads, starts)
+        n, u, w, heads, starts = arcs
         at = self.plan_set.node_index(p)
-        u = np.concatenate([arrays.edges[:, 0], arrays.conts[:, 0], arrays.conts[:, 1]])
-        v = np.concatenate([arrays.edges[:, 1], arrays.conts[:, 1], arrays.conts[:, 0]])
-        w = np.concatenate([arrays.edges[:, 2], arrays.conts[:, 3], -arrays.conts[:, 2]]).astype(np.float64)
-        dist = np.full(arrays.n, np.inf)
+        dist = np.full(n, np.inf)
         dist[at[step[3]]] = 0.0
-        for _ in range(arrays.n + 1):
+        for _ in range(n + 1):
             relaxed = dist.copy()
-            np.minimum.at(relaxed, v, dist[u] + w)
+            if len(u):
+                relaxed[heads] = np.minimum(dist[heads], np.minimum.reduceat(dist[u] + w, starts))
             if np.array_equal(relaxed, dist):
                 break
             dist = relaxed
