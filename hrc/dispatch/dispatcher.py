@@ -24,6 +24,15 @@ under way with its agent. When the human leaves (``away``), the candidates are t
 action the human has not started to the robot (if there are none, the set stays as it was and the robot
 does its own part); ``back`` brings back every plan that agrees with the history.
 
+The plan being followed keeps its hold (`_lead`): while a DC candidate keeps the person's part of the
+last best plan (what they were shown), a DC plan that gives it up ranks after it, so a switch never rests
+on a choice the person has not made (the robot's strategy may assume only that the person follows the
+plan shown until they choose otherwise: docs/dispatch.md). Legs under way keep their route (`_tell_route`,
+`_on_routes`): the one told when the leg began, or a waiting place where the agent was seen stopping.
+While the person's walk or manipulation is under way, the answer carries their next instruction ahead
+(`_ahead`). A person's event estimated within `bound_tolerance` of their hint's bound is read on it
+(`_on_bound`); one learnt later than `max_observation_delay` voids the guarantee (`_late`).
+
 Nothing here reads a clock: time comes in with the messages, so a run replays from its log to the same
 decisions. A refused message raises `DispatchError` and leaves the dispatcher as it was.
 """
