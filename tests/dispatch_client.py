@@ -10,7 +10,14 @@ answers. A discrete-event loop in simulated time:
   order the task allows, retried when refused), walks and works for durations drawn inside the bounds
   of the current best plan's STNU (its contingent links), and leaves or starts either at once ("eager")
   or when the dispatcher's hint says so ("hinted", the paper's model: the human waits when asked);
-- optionally the human leaves (``away``) after finishing `away_after` actions and never comes back.
+- optionally the human leaves (``away``) after finishing `away_after` actions and never comes back;
+- `announce`: on the end of each action the human announces the next one of the plan they follow
+  (``"next"``), as the paper's detector does ("the currently performed and the predicted next action");
+- `robot_window`: "near" acts within 2 s of the window's opening, "anywhere" anywhere in it (a window
+  with no latest bound: within 3 s of its opening).
+
+The human's route is the one the best plan shows when they leave (its waiting place, if any: they stop
+there and go on when the hint says); that plan, `Run.told`, is what they were told.
 
 `Run.play` returns what happened; the tests check it against the task and the plans' STNUs.
 """
@@ -49,7 +56,8 @@ class Outcome:
 
 class Run:
     def __init__(self, plan_set: PlanSet, send: Callable[[str], str], seed: int, *, human_choice: str = "plan",
-                 timing: str = "hinted", follow: str | None = None, away_after: int | None = None) -> None:
+                 timing: str = "hinted", follow: str | None = None, away_after: int | None = None,
+                 announce: bool = False, robot_window: str = "near") -> None:
         self.ps = plan_set
         self.task = plan_set.task
         self.send = send
@@ -58,6 +66,8 @@ class Run:
         self.timing = timing
         self.follow = follow  # the plan whose order the human follows ("plan" choice)
         self.away_after = away_after
+        self.announce = announce
+        self.robot_window = robot_window
         self.by_id = _ById(plan_set)
         self.human = next(a.id for a in self.task.agents if a.is_human)
         self.robot = next(a.id for a in self.task.agents if not a.is_human)
@@ -199,7 +209,8 @@ class Run:
             lo = max(self.now, step["earliest"])
             hi = step["latest"] if step["latest"] is not None else lo + 3.0
             assert hi >= lo - 1e-9, f"window over before it is given: now {self.now}, {step}"
-            self.r_at = round(self.rng.uniform(lo, min(hi, lo + 2.0)), 3)
+            reach = hi if self.robot_window == "anywhere" else min(hi, lo + 2.0)
+            self.r_at = round(self.rng.uniform(lo, reach), 3)
             self.r_at = min(max(self.r_at, lo), hi)
             self.r_key = key
             self.out.windows.append((self.r_at, step["earliest"], step["latest"]))
@@ -226,6 +237,16 @@ class Run:
                 self.r_key = None
                 continue
             assert human is not None
+            msg = human[1]
+            if self.announce and msg.get("event") == "end" and self.human_choice == "plan":
+                phases = [p.id for p in self.task.action(msg["action"]).phases]
+                if msg["phase"] == phases[-1]:
+                    self.h_done_actions.append(msg["action"])
+                    nxt = self._next_action()
+                    self.h_done_actions.pop()
+                    if nxt is not None:
+                        msg = {**msg, "next": nxt}
+                        human = (human[0], msg)
             answer = self._say(human[1])
             if answer["ok"]:
                 self._human_did(human[1])

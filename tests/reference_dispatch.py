@@ -5,9 +5,13 @@ It reads an output folder the way the dispatcher read it before the dispatch for
 and every plan's GraphML file (or ``stnu.zip`` member), parsed into `STNU` values, independently of the
 form's arrays. Each message then runs the paper's cycle on those objects, one plan at a time:
 
-- set validation: `agrees` on every plan of the pool (the plans left, every plan on ``back``/``undo``);
+- set validation: `agrees` on every plan of the pool (the plans left, every plan on ``back``/``undo``),
+  then each leg seen on its route (`route_signature` of the plan's STNU): the route of the plan that was
+  best when the leg began, if that plan gives the agent the leg there; a stop at a waiting place where the
+  agent was seen stopping; all of it dropped if no plan is left;
 - set ranking: `reference_evaluate` (the residual network's DC check and earliest schedule) of every plan
-  left, sorted by `rank_key`;
+  left, sorted by class, then (while a DC plan keeps the person's sequence of the last best plan) DC
+  plans that keep it before DC plans that do not, then the rest of `rank_key`;
 - the decision: `real_time_state` (the residual network, the bypass DC check, full propagation in Python)
   for the best plan's next robot and human events, and APA's DO form compiled on the residual network
   through `plan_preference_value` (objects, `Fraction` conversions and all) where the task has preferences.
@@ -35,6 +39,7 @@ from hrc.dispatch import UNDO_SECONDS
 from hrc.dispatch.dispatcher import _rank
 from hrc.dispatch.messages import (
     LEG_EVENTS,
+    Ahead,
     Candidate,
     Decision,
     HumanOption,
@@ -45,7 +50,7 @@ from hrc.dispatch.messages import (
 )
 from hrc.dispatch.plan_set import PlanEntry, _Archive, plan_entry
 from hrc.dispatch.ranking import rank_key, reference_evaluate
-from hrc.dispatch.validation import History, agrees, executed, ticks
+from hrc.dispatch.validation import History, agrees, executed, route_signature, ticks
 from hrc.errors import DispatchError, HrcError
 from hrc.model import Plan
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state, residual_network
@@ -76,11 +81,15 @@ class ReferenceDispatcher:
     there, so `hrc.dispatch.protocol.handle_line` drives it too."""
 
     def __init__(self, task: Any, plans: Sequence[PlanEntry], rank_by: str, *, feasible_only: bool = False,
-                 use_preferences: bool = True, memo: dict | None = None, apa_entry: Any = None) -> None:
+                 use_preferences: bool = True, memo: dict | None = None, apa_entry: Any = None,
+                 max_observation_delay: float | None = None) -> None:
         self.task, self.plans, self.rank_by = task, list(plans), rank_by
         self.apa_entry = apa_entry or (lambda i: self.plans[i])
         self.memo = {} if memo is None else memo  # (plan, executed, now) -> evaluation: runs share their start
         self.feasible_only, self.use_preferences = feasible_only, use_preferences
+        self.max_observation_delay = max_observation_delay
+        self.told: dict[tuple[str, int], tuple[int, int, int]] = {}  # (agent, leg position) -> route told
+        self.best: int | None = None  # the plan of the last answer
         self.history = History.start(task)
         self.effective: tuple[Observation, ...] = ()
         self.accepted: tuple[Observation, ...] = ()  # every accepted message (the protocol's tick gap reads it)
@@ -101,6 +110,16 @@ class ReferenceDispatcher:
             kept = [i for i in pool if agrees(self.plans[i], history)]
             if not kept and history.away:
                 kept = [i for i in pool if agrees(self.plans[i], replace(history, away=False))]
+        told = dict(self.told)
+        if obs.event in LEG_EVENTS and kept:
+            agent = obs.agent or ""
+            k = history.legs[agent].index((obs.action, obs.phase))
+            if (agent, k) not in told and self.best is not None:
+                legs = self.plans[self.best].legs.get(agent, ())
+                if k < len(legs) and legs[k] == (obs.action, obs.phase):
+                    told[(agent, k)] = route_signature(self.plans[self.best], agent, obs.action, obs.phase)
+        if kept and obs.event in (*LEG_EVENTS, "back"):
+            kept = self._on_routes(kept, history, told)
         if not kept:
             what = obs.event if obs.action is None else \
                 f"{obs.agent} {obs.action}.{obs.phase} {obs.event}" + (f" (next {obs.next})" if obs.next else "")
@@ -110,8 +129,28 @@ class ReferenceDispatcher:
         ack = ack_note(self.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
         self.effective = (*self.effective, obs)
         self.accepted = (*self.accepted, obs)
-        self.decision = replace(self._settle(history, kept), ack=ack)
+        self.told = told
+        late = None
+        limit = self.max_observation_delay
+        if limit is not None and obs.delay is not None and obs.agent == history.human and obs.delay > limit:
+            late = MappingProxyType({"late": {"event": f"{obs.agent}.{obs.action}.{obs.phase}.{obs.event}",
+                                              "delay": round(obs.delay, 3), "max": limit}})
+        self.decision = replace(self._settle(history, kept, follow=late is None), ack=ack, deviation=late)
         return self.decision
+
+    def _on_routes(self, kept: list[int], history: History, told: dict) -> list[int]:
+        out = kept
+        for agent, legs in history.legs.items():
+            for k, (action, phase) in enumerate(legs):
+                sig = told.get((agent, k))
+                parked = (agent, action, phase, "park") in history.times
+                if sig is None and not parked:
+                    continue
+                if parked and (sig is None or sig[0] == 0):
+                    out = [i for i in out if route_signature(self.plans[i], agent, action, phase)[0] == 1]
+                else:
+                    out = [i for i in out if route_signature(self.plans[i], agent, action, phase) == sig]
+        return out if out else kept
 
     def _undo(self, obs: Observation) -> Decision:
         if obs.t < self.history.now:
@@ -131,28 +170,42 @@ class ReferenceDispatcher:
             history = history.add(o)
         history = history.add(Observation(obs.t, "tick"))
         kept = [i for i in range(len(self.plans)) if agrees(self.plans[i], history)]
+        self.told = {(a, k): sig for (a, k), sig in self.told.items() if k < len(history.legs.get(a, ()))}
+        kept = self._on_routes(kept, history, self.told)
         self.effective = effective
         self.accepted = (*self.accepted, obs)
         self.decision = self._settle(history, kept)
         return self.decision
 
-    def _settle(self, history: History, kept: list[int]) -> Decision:
+    def _settle(self, history: History, kept: list[int], follow: bool = True) -> Decision:
         now = ticks(history.now)
         evals = {i: self._evaluate(i, history, now) for i in kept}
         if self.feasible_only:
             kept = [i for i in kept if evals[i].plan_class != "inconsistent"]
-        ranked = sorted(kept, key=lambda i: rank_key(self.plans[i], evals[i]))
+        gives_up = {i: 0 for i in kept}
+        if follow and self.best is not None:  # the person's part of the plan followed keeps its hold
+            human = history.human
+            shown = self.plans[self.best].plan.sequence(human)
+            dc = [i for i in kept if evals[i].plan_class == "DC"]
+            same = {i for i in dc if self.plans[i].plan.sequence(human) == shown}
+            if same:
+                gives_up = {i: int(i in dc and i not in same) for i in kept}
+        ranked = sorted(kept, key=lambda i: (rank_key(self.plans[i], evals[i])[0], gives_up[i],
+                                             *rank_key(self.plans[i], evals[i])[1:]))
         counts = {"DC": 0, "consistent": 0, "inconsistent": 0}
         for i in ranked:
             counts[evals[i].plan_class] += 1
         self.history, self.ranked, self.evals = history, ranked, evals
         if not ranked:
+            self.best = None
             return Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True)
-        best = ranked[0]
+        best = self.best = ranked[0]
         entry = self.plans[best]
-        robot, human = self._steps(entry, executed(entry, history), history, evals[best].plan_class, best)
+        done = executed(entry, history)
+        robot, human = self._steps(entry, done, history, evals[best].plan_class, best)
+        ahead = _ahead(entry, done, history) if human is None else None
         return Decision(history.now, entry.id, evals[best].plan_class, MappingProxyType(counts), robot,
-                        history.away, False, human)
+                        history.away, False, human, ahead=ahead)
 
     def _evaluate(self, i: int, history: History, now: int) -> Any:
         done = executed(self.plans[i], history)
@@ -344,3 +397,52 @@ def _next_events(entry: PlanEntry, agent: str, history: History) -> list[Observa
         return []
     action, phase = legs[len(seen)]
     return [Observation(t, e, agent, action, phase) for e in ("depart", "start")]
+
+
+def _ahead(entry: PlanEntry, done: dict[str, int], history: History) -> Ahead | None:
+    """The person's next own step after the event of theirs now due (nature's), and the robot's last
+    event not done whose distance from that step in the STN reading (requirement links both ways,
+    contingent links at their bounds) is at most 0: Bellman-Ford over the link objects, by name."""
+    human = history.human
+    if not human or history.away:
+        return None
+    stnu = entry.stnu
+    contingent = stnu.contingent_timepoints
+    pending = [(a, p, e, n) for a, p in entry.legs.get(human, ()) for e, n in entry.leg_points[(human, a, p)]
+               if n not in done]
+    if not pending or pending[0][3] not in contingent:
+        return None
+    step = next((x for x in pending if x[3] not in contingent), None)
+    if step is None:
+        return None
+    arcs = []  # (u, v, w): T(v) - T(u) <= w
+    for r in stnu.requirements:
+        if r.ub is not None:
+            arcs.append((r.source, r.target, r.ub))
+        if r.lb is not None:
+            arcs.append((r.target, r.source, -r.lb))
+    for c in stnu.contingents:
+        arcs += [(c.source, c.target, c.ub), (c.target, c.source, -c.lb)]
+    origin = stnu.timepoints[0]
+    arcs += [(x, origin, 0) for x in stnu.timepoints if x != origin]  # every timepoint at or after the origin
+    dist = {x: float("inf") for x in stnu.timepoints}
+    dist[step[3]] = 0.0
+    for _ in range(len(dist) + 1):
+        changed = False
+        new = dict(dist)
+        for u, v, w in arcs:
+            if dist[u] + w < new[v]:
+                new[v] = dist[u] + w
+                changed = True
+        dist = new
+        if not changed:
+            break
+    else:
+        return None
+    robot = next(a.id for a in history.task.agents if not a.is_human)
+    before = [n for a, p in entry.legs.get(robot, ()) for _, n in entry.leg_points[(robot, a, p)]
+              if n not in done and dist[n] <= 0]
+    wait = ".".join(entry.events[before[-1]]) if before else None
+    gap = round(-dist[before[-1]] / 1000, 3) + 0.0 if before else 0.0
+    return Ahead(f"{human}.{pending[0][0]}.{pending[0][1]}.{pending[0][2]}", f"{human}.{step[0]}.{step[1]}.{step[2]}",
+                 wait, gap)

@@ -54,6 +54,7 @@ _SNAPSHOT = """() => { const c = window.hrcConsole, s = c.state;
           buttons: [...document.querySelectorAll('#buttons button.act')].map(b =>
             [b.dataset.action, b.dataset.phase, b.dataset.event, b.disabled]),
           robot: JSON.parse(document.getElementById('robot-step').dataset.decision || 'null'),
+          ahead: [...document.querySelectorAll('#doing .hint-line.ahead')].map(e => e.textContent),
           error: document.getElementById('error').hidden ? null : document.getElementById('error-text').textContent};
 }"""
 # Press the offered button `[action, phase, event]` if it is still on screen; what was pressed, or null.
@@ -150,6 +151,13 @@ def test_a_person_completes_the_workshop_pressing_only_the_offered_buttons(conso
     for snap in seen:
         if snap["seq"] > 0:
             assert snap["robot"] == decisions[snap["seq"]]["robot"], snap
+            # while a walk or a manipulation of the person's is under way, the instruction for the step
+            # after it is on the page (issue 32: the person is told in time), and only then
+            ahead = decisions[snap["seq"]].get("ahead")
+            assert len(snap["ahead"]) == (ahead is not None), snap
+            if ahead is not None:
+                assert ahead["next"].split(".")[-1] in snap["ahead"][0], snap
+    assert any(snap["ahead"] for snap in seen)
     # the page's log is the file's
     assert [e["out"] for e in page_log] == outs[-len(page_log):]
     # the buttons on screen were exactly the dispatcher's options at that point: replay the log's accepted

@@ -43,7 +43,8 @@ def open_dispatcher(args: argparse.Namespace, command: str) -> Any:
     from hrc.dispatch import Dispatcher
 
     options = dict(allow_partial=args.allow_partial, feasible_only=args.feasible_only,
-                   use_preferences=args.preferences)
+                   use_preferences=args.preferences,
+                   max_observation_delay=getattr(args, "max_observation_delay", None))
     if args.detect == "motion":
         from hrc.detect import DetectingDispatcher
 

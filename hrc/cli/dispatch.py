@@ -16,6 +16,7 @@ import argparse
 import sys
 from typing import Any
 
+from hrc.cli.argtypes import real
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
 from hrc.errors import HrcError
@@ -41,6 +42,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="drop plans that are neither DC nor consistent; stop when none is left")
     add_detect_options(p, "also take the person's tracked position ({\"t\", \"agent\": \"human\", \"event\": "
                           "\"position\", \"x\", \"y\"})")
+    p.add_argument("--max-observation-delay", metavar="S", type=real(0, 3600, unit="seconds"), default=None,
+                   help="the longest an observation of the person may reach the dispatcher after it happened "
+                        "(its \"delay\"); a later one voids the guarantee and the answer says so "
+                        "(\"deviation\"); default: none stated")
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
                    help="do not narrow the robot's windows to APA's optimal (DO) windows where the task has "
                         "preferences")

@@ -75,6 +75,12 @@ class DetectingDispatcher(Dispatcher):
 
     def __init__(self, plan_set: PlanSet, *, params: DetectParams | None = None,
                  model: DetectorModel | None = None, **options: Any) -> None:
+        # an event estimated within two standard deviations of the position noise, in walking time, of a
+        # bound of the person's hint is read as on it (`Dispatcher._on_bound`)
+        human = next((a for a in plan_set.task.agents if a.is_human), None)
+        sigma = (params or (model.params if model is not None else DetectParams())).sigma
+        if human is not None:
+            options.setdefault("bound_tolerance", round(2 * sigma / human.speed, 3))
         super().__init__(plan_set, **options)
         self.model = model if model is not None and model.task is plan_set.task else \
             detector_model(plan_set.task, params)
@@ -117,7 +123,9 @@ class DetectingDispatcher(Dispatcher):
                     if ev.event == "undo":  # a departure given for the wrong place, withdrawn
                         self.observe(Observation(at, "undo"))
                     else:
-                        self.observe(Observation(at, ev.event, human, ev.action, ev.phase))
+                        # learnt now, from the position measured at t: how late it is said (`delay`)
+                        self.observe(Observation(at, ev.event, human, ev.action, ev.phase,
+                                                 delay=round(max(0.0, t - ev.t), 3)))
                 except DispatchError as err:
                     what = ev.event if ev.event == "undo" else f"{ev.event} {ev.action}.{ev.phase}"
                     refused.append(f"{what}: {str(err).splitlines()[0]}")

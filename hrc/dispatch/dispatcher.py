@@ -24,6 +24,15 @@ under way with its agent. When the human leaves (``away``), the candidates are t
 action the human has not started to the robot (if there are none, the set stays as it was and the robot
 does its own part); ``back`` brings back every plan that agrees with the history.
 
+The plan being followed keeps its hold (`_lead`): while a DC candidate keeps the person's part of the
+last best plan (what they were shown), a DC plan that gives it up ranks after it, so a switch never rests
+on a choice the person has not made (the robot's strategy may assume only that the person follows the
+plan shown until they choose otherwise: docs/dispatch.md). Legs under way keep their route (`_tell_route`,
+`_on_routes`): the one told when the leg began, or a waiting place where the agent was seen stopping.
+While the person's walk or manipulation is under way, the answer carries their next instruction ahead
+(`_ahead`). A person's event estimated within `bound_tolerance` of their hint's bound is read on it
+(`_on_bound`); one learnt later than `max_observation_delay` voids the guarantee (`_late`).
+
 Nothing here reads a clock: time comes in with the messages, so a run replays from its log to the same
 decisions. A refused message raises `DispatchError` and leaves the dispatcher as it was.
 """
@@ -32,6 +41,7 @@ from __future__ import annotations
 
 import copy
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Literal
@@ -43,11 +53,11 @@ from hrc.model import Task
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 from hrc.temporal.execution import residual_origin
 
-from .messages import LEG_EVENTS, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor, ack_note
+from .messages import LEG_EVENTS, Ahead, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor, ack_note
 from .native import NO_BOUND
 from .plan_set import EventKey, PlanEntry, PlanSet, load_plan_set, plan_set_from_compiled
 from .ranking import CLASS_ORDER, NO_FINISH, Ranker
-from .validation import History, agreeing, executed, seen_arrays, ticks
+from .validation import History, RouteIndex, RouteSig, agreeing, executed, seen_arrays, ticks
 
 __all__ = ["UNDO_SECONDS", "Dispatcher"]
 
@@ -76,6 +86,9 @@ class _State:
     seen: np.ndarray  # the history as the core reads it (`seen_arrays`), and now in ticks
     legs_seen: np.ndarray
     now: int
+    told: Mapping[tuple[int, int], RouteSig]  # (agent index, leg position) -> the route told (`RouteSig`)
+    lead: np.ndarray | None  # per candidate: 1 for a DC plan that gives up the followed person's part
+    deviation: Mapping[str, Any] | None  # this answer's: an observation later than the stated delay
 
 
 class Dispatcher:
@@ -88,16 +101,26 @@ class Dispatcher:
     (`_preferred`), at the cost of one small QP per decision. `threads`: how many threads set ranking may
     use on a large message (default: up to 4, as the machine has cores; 1 where processes share the cores,
     as the simulator's workers do). `ranker`: share the set ranking of another dispatcher on the same set.
+    `max_observation_delay` (s): the longest a person's event may reach the dispatcher after it happened
+    (`Observation.delay`); a later one voids the guarantee (`Decision.deviation`). `bound_tolerance` (s):
+    a person's event estimated within this of a bound of the hint they were given is read as on the
+    bound (`_on_bound`); 0 (buttons): never.
     """
 
     def __init__(self, plan_set: PlanSet, *, feasible_only: bool = False, use_preferences: bool = True,
-                 ranker: Ranker | None = None, threads: int | None = None) -> None:
+                 ranker: Ranker | None = None, threads: int | None = None,
+                 max_observation_delay: float | None = None, bound_tolerance: float = 0.0) -> None:
         self.plan_set = plan_set
+        self.bound_tolerance = bound_tolerance
         self.feasible_only = feasible_only
         self.use_preferences = use_preferences
+        self.max_observation_delay = max_observation_delay
         self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
+        self.routes = RouteIndex(plan_set.form)  # shared by forks: a function of the plans alone
         self._robot = next((a.id for a in plan_set.task.agents if not a.is_human), "")
+        self._human_g = next((g for g, a in enumerate(plan_set.task.agents) if a.is_human), -1)
         self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
+        self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
         history = History.start(plan_set.task)
         everything = np.arange(len(plan_set), dtype=np.int64)
         self._state = self._settle(history, (), (), everything, {}, None)
@@ -151,7 +174,7 @@ class Dispatcher:
     def candidate_indices(self) -> np.ndarray:
         """The remaining plans' indices in the plan set, best first."""
         st = self._state
-        return st.plans[self.ranker.order(st.plans, st.cls, st.finish, st.idle)]
+        return st.plans[self.ranker.order(st.plans, st.cls, st.finish, st.idle, st.lead)]
 
     @property
     def remaining(self) -> np.ndarray:
@@ -188,7 +211,8 @@ class Dispatcher:
         """The remaining plans, ranked best first (one value per plan: for a large set, `best` and
         `Decision.candidates` say the same for less)."""
         st = self._state
-        return tuple(self._candidate(int(at)) for at in self.ranker.order(st.plans, st.cls, st.finish, st.idle))
+        return tuple(self._candidate(int(at)) for at in self.ranker.order(st.plans, st.cls, st.finish, st.idle,
+                                                                            st.lead))
 
     def human_options(self) -> tuple[HumanOption, ...]:
         """Leg events the human may report now that the task and some remaining plan allow, in task order
@@ -243,6 +267,7 @@ class Dispatcher:
         state = self._state
         if obs.event == "undo":
             return self._undo(obs)
+        obs = self._on_bound(obs)
         history = state.history.add(obs)
         form = self.plan_set.form
         if obs.event == "tick" or (obs.event != "back" and _validated_by(state.history) == _validated_by(history)):
@@ -250,6 +275,8 @@ class Dispatcher:
         else:  # "back" brings back every plan that agrees with the history
             pool = np.arange(len(self.plan_set), dtype=np.int64) if obs.event == "back" else state.plans
             kept = agreeing(form, history, pool)
+            if obs.event == "back":
+                kept = self._on_routes(kept, history, state.told)
             if not len(kept) and history.away:
                 # no plan lets the robot finish alone from here (say it is on its way to a leg that needs
                 # the person's work first): "away" is a fact, not a request, and so is what the robot does
@@ -259,11 +286,83 @@ class Dispatcher:
         if not len(kept):
             raise DispatchError(f"no remaining plan allows {_describe(obs)} "
                                 f"({len(state.plans)} plans agreed with what was seen before)")
+        told = state.told
+        if obs.event in LEG_EVENTS:
+            told, changed = self._tell_route(state, history, obs)
+            if changed or kept is not state.plans:
+                kept = self._on_routes(kept, history, told)
         robot = self._robot
         ack = ack_note(state.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
+        deviation = self._late(obs)
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
-                                   state, _seen_after(state, history, obs), ack)
+                                   state, _seen_after(state, history, obs), ack, told, deviation)
         return self._state.decision
+
+    def _on_bound(self, obs: Observation) -> Observation:
+        """`obs` read on the bound of the hint the person was given for it when it was estimated within
+        `bound_tolerance` of it (before its earliest, or after its latest but not before now): a sensor's
+        estimate that close cannot tell the person from one who did as told, and reading it as a violation
+        turned DC plans inconsistent (issue 32: departures estimated 2-40 ms before a hinted earliest)."""
+        tol = self.bound_tolerance
+        state = self._state
+        hint = state.decision.human
+        if tol <= 0 or obs.event not in LEG_EVENTS or obs.agent != state.history.human or \
+                not isinstance(hint, RobotStep) or (hint.action, hint.phase, hint.event) != (obs.action, obs.phase,
+                                                                                                 obs.event):
+            return obs
+        from dataclasses import replace
+
+        if hint.earliest - tol <= obs.t < hint.earliest:
+            return replace(obs, t=hint.earliest)
+        if hint.latest is not None and hint.latest < obs.t <= hint.latest + tol and hint.latest >= state.history.now:
+            return replace(obs, t=hint.latest)
+        return obs
+
+    def _late(self, obs: Observation) -> Mapping[str, Any] | None:
+        """The deviation of an observation of the human that reached the dispatcher later than the stated
+        maximum delay (`max_observation_delay`): the guarantee of every class assumed no later sensing.
+        None otherwise."""
+        limit = self.max_observation_delay
+        if limit is None or obs.delay is None or obs.agent != self._state.history.human or obs.delay <= limit:
+            return None
+        return MappingProxyType({"late": {"event": f"{obs.agent}.{obs.action}.{obs.phase}.{obs.event}",
+                                          "delay": round(obs.delay, 3), "max": limit}})
+
+    def _tell_route(self, state: _State, history: History, obs: Observation
+                    ) -> tuple[Mapping[tuple[int, int], RouteSig], bool]:
+        """The routes of the legs under way with `obs` (see `hrc.dispatch.validation`): a leg seen for the
+        first time takes the route of the plan that was best when it began (what the agent was told), if
+        that plan gives the agent this leg there; and whether set validation must read them again (a new
+        route, or a stop at a waiting place seen)."""
+        agent = obs.agent or ""
+        g = self.task.agent_ids.index(agent)
+        k = history.legs[agent].index((obs.action, obs.phase))
+        told = state.told
+        if (g, k) in told or state.best < 0:
+            return told, obs.event == "park"
+        legs = self.plan_set.entry(state.best).legs.get(agent, ())
+        if k >= len(legs) or legs[k] != (obs.action, obs.phase):
+            return told, obs.event == "park"
+        sig = tuple(self.routes.routes(np.array([state.best]), g, k)[0].tolist())
+        return MappingProxyType({**told, (g, k): sig}), True
+
+    def _on_routes(self, kept: np.ndarray, history: History, told: Mapping[tuple[int, int], RouteSig]) -> np.ndarray:
+        """The plans of `kept` that drive or walk each leg seen along its route (`_tell_route`): the one
+        told, or with a stop at a waiting place where the agent was seen stopping although told otherwise.
+        A fact is never refused for it: if no plan is left, `kept` as it was."""
+        out = kept
+        for g, agent in enumerate(self.task.agent_ids):
+            for k, (action, phase) in enumerate(history.legs.get(agent, ())):
+                sig = told.get((g, k))
+                parked = (agent, action, phase, "park") in history.times
+                if sig is None and not parked:
+                    continue
+                routes = self.routes.routes(out, g, k)
+                if parked and (sig is None or sig[0] == 0):
+                    out = out[routes[:, 0] == 1]
+                else:
+                    out = out[np.all(routes == np.array(sig, dtype=np.int64), axis=1)]
+        return out if len(out) else kept
 
     def _undo(self, obs: Observation) -> Decision:
         state = self._state
@@ -285,12 +384,17 @@ class Dispatcher:
             history = history.add(o)
         history = history.add(Observation(obs.t, "tick"))
         kept = agreeing(self.plan_set.form, history, np.arange(len(self.plan_set), dtype=np.int64))
-        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.do_forms, state)
+        told = MappingProxyType({(g, k): sig for (g, k), sig in state.told.items()
+                                 if k < len(history.legs.get(self.task.agent_ids[g], ()))})
+        kept = self._on_routes(kept, history, told)
+        self._state = self._settle(history, (*state.accepted, obs), effective, kept, state.do_forms, state,
+                                   told=told)
         return self._state.decision
 
     def _settle(self, history: History, accepted: tuple[Observation, ...], effective: tuple[Observation, ...],
                 kept: np.ndarray, do_forms: Any, previous: _State | None,
-                core: tuple[np.ndarray, np.ndarray] | None = None, ack: Any = None) -> _State:
+                core: tuple[np.ndarray, np.ndarray] | None = None, ack: Any = None,
+                told: Mapping | None = None, deviation: Mapping[str, Any] | None = None) -> _State:
         """Rank `kept` under `history` (set ranking, `Ranker`), decide. A plan's evaluation is taken from
         the `previous` state when what enters it is the same (the seen events and now: a tick at the same
         time, an announced next action, away), else made again. `core`: the history as `seen_arrays`
@@ -313,9 +417,11 @@ class Dispatcher:
             feasible = cls != CLASS_ORDER.index("inconsistent")
             kept, cls, finish, idle = kept[feasible], cls[feasible], finish[feasible], idle[feasible]
         counts = dict(zip(CLASS_ORDER, np.bincount(cls, minlength=3).tolist(), strict=True))
-        at = self.ranker.best(kept, cls, finish, idle)
+        lead = None if deviation is not None else self._lead(kept, cls, previous)
+        at = self.ranker.best(kept, cls, finish, idle, lead)
         if at < 0:
-            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack)
+            decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack,
+                                deviation=deviation)
             best = -1
         else:
             best = int(kept[at])
@@ -325,10 +431,83 @@ class Dispatcher:
             robot, human = self._steps(entry, executed(entry, history), history, plan_class, best, do,
                                        (seen, legs_seen))
             do_forms = MappingProxyType(do)
+            ahead = self._ahead(entry, best, executed(entry, history), history) if human is None else None
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
-                                False, human, ack)
+                                False, human, ack, deviation, ahead)
+        told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
-                      MappingProxyType(dict(do_forms)), seen, legs_seen, now)
+                      MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,
+                      deviation)
+
+    def _ahead(self, entry: PlanEntry, p: int, done: dict[str, int], history: History) -> Ahead | None:
+        """The person's instruction ahead (`Ahead`), while their next event in the plan is nature's (a walk
+        or a manipulation under way): their next own step after it, and the robot's last event not yet
+        done that the plan's network orders no later than that step (a distance ``T(x) - T(step) <= -gap <= 0``
+        in its STN reading: requirement links, contingent links at their bounds, by Bellman-Ford from
+        the step). None when the person is not under way, away, done, or the network has a negative cycle
+        (no schedule: nothing to promise)."""
+        human = history.human
+        if not human or history.away:
+            return None
+        contingent = entry.stnu.contingent_timepoints
+        pending = [(a, ph, e, n) for a, ph in entry.legs.get(human, ())
+                   for e, n in entry.leg_points[(human, a, ph)] if n not in done]
+        if not pending or pending[0][3] not in contingent:
+            return None
+        step = next((x for x in pending if x[3] not in contingent), None)
+        if step is None:
+            return None
+        arcs = self._arcs.get(p)
+        if arcs is None:  # shared by forks: a function of the plan alone; a few hundred plans at most
+            if len(self._arcs) >= 256:
+                self._arcs.clear()
+            a = self.plan_set.form.arrays(p)
+            u = np.concatenate([a.edges[:, 0], a.conts[:, 0], a.conts[:, 1]])
+            v = np.concatenate([a.edges[:, 1], a.conts[:, 1], a.conts[:, 0]])
+            w = np.concatenate([a.edges[:, 2], a.conts[:, 3], -a.conts[:, 2]]).astype(np.float64)
+            by = np.argsort(v, kind="stable")  # arcs grouped by their head: one reduceat per pass
+            heads, starts = np.unique(v[by], return_index=True)
+            arcs = self._arcs[p] = (a.n, u[by], w[by], heads, starts)
+        n, u, w, heads, starts = arcs
+        at = self.plan_set.node_index(p)
+        dist = np.full(n, np.inf)
+        dist[at[step[3]]] = 0.0
+        for _ in range(n + 1):
+            relaxed = dist.copy()
+            if len(u):
+                relaxed[heads] = np.minimum(dist[heads], np.minimum.reduceat(dist[u] + w, starts))
+            if np.array_equal(relaxed, dist):
+                break
+            dist = relaxed
+        else:
+            return None
+        robot = self._robot
+        order = [(k, e, n) for k, (a, ph) in enumerate(entry.legs.get(robot, ()))
+                 for e, (_, n) in enumerate(entry.leg_points[(robot, a, ph)]) if n not in done]
+        before = [n for _, _, n in order if dist[at[n]] <= 0]
+        wait, gap = None, 0.0
+        if before:
+            agent, action, phase, event = entry.events[before[-1]]
+            wait, gap = f"{agent}.{action}.{phase}.{event}", round(-float(dist[at[before[-1]]]) / 1000, 3) + 0.0
+        after = f"{human}.{pending[0][0]}.{pending[0][1]}.{pending[0][2]}"
+        return Ahead(after, f"{human}.{step[0]}.{step[1]}.{step[2]}", wait, gap)
+
+    def _lead(self, kept: np.ndarray, cls: np.ndarray, previous: _State | None) -> np.ndarray | None:
+        """The plan being followed keeps its hold (docs/dispatch.md, "What the robot may assume"): the
+        person's part of the last best plan (their remaining actions in their order) is what they were
+        shown and may be doing; while some DC candidate keeps it, a DC plan that gives it up ranks after
+        every DC plan that keeps it (1 in the column `Ranker` reads after the class). None when no
+        candidate keeps it (the person chose otherwise), none of those is DC (the promise is lost: the
+        best plan as ranked), or there is nothing to choose."""
+        g = self._human_g
+        if previous is None or previous.best < 0 or g < 0 or not len(kept):
+            return None
+        seq = self.plan_set.form.seq
+        same = np.all(seq[kept, g] == seq[previous.best, g], axis=1)
+        dc = cls == 0
+        if not (same & dc).any() or not (dc & ~same).any():
+            return None
+        return (dc & ~same).astype(np.int8)
 
     def _steps(self, entry: PlanEntry, done: dict[str, int], history: History, plan_class: str,
                index: int, do: dict[int, Any], seen: tuple[np.ndarray, np.ndarray]

@@ -18,8 +18,8 @@ from typing import Any
 
 from hrc.errors import DispatchError
 
-__all__ = ["EVENTS", "LEG_EVENTS", "SIGNALS", "Candidate", "Decision", "HumanOption", "Observation", "RobotStep",
-           "WaitFor", "ack_note", "observation_from_json"]
+__all__ = ["EVENTS", "LEG_EVENTS", "SIGNALS", "Ahead", "Candidate", "Decision", "HumanOption", "Observation",
+           "RobotStep", "WaitFor", "ack_note", "observation_from_json"]
 
 LEG_EVENTS = ("depart", "park", "unpark", "arrive", "start", "end")
 """An agent's events on one leg, in the order they happen (park/unpark only where the plan stops at a
@@ -33,7 +33,10 @@ _MAX_T = 1e9  # seconds; ~31 years: beyond it a time is a mistake, and ticks sta
 @dataclass(frozen=True, slots=True)
 class Observation:
     """Something seen at `t` seconds: a leg event of `agent` on `action`.`phase`, or a signal (then only
-    `agent` may be set: the human for away/back). `next`: the human's announced next action."""
+    `agent` may be set: the human for away/back). `next`: the human's announced next action. `delay`:
+    how many seconds after the event happened it was learnt (a sensing path that says so: a detector's
+    back-dated event, a late button), None when not said; an observation of the human later than the
+    dispatcher's stated maximum voids the guarantee (`Decision.deviation`)."""
 
     t: float
     event: str
@@ -41,6 +44,7 @@ class Observation:
     action: str | None = None
     phase: str | None = None
     next: str | None = None
+    delay: float | None = None
 
     @property
     def key(self) -> tuple[str, str, str, str]:
@@ -56,6 +60,8 @@ class Observation:
         out["event"] = self.event
         if self.next is not None:
             out["next"] = self.next
+        if self.delay is not None:
+            out["delay"] = self.delay
         return out
 
 
@@ -92,6 +98,23 @@ class WaitFor:
 
 
 @dataclass(frozen=True, slots=True)
+class Ahead:
+    """The person's instruction for their next step, given while a walk or a manipulation of theirs is
+    under way (when `Decision.human` has nothing to say yet): after `after` (their event now due, e.g.
+    ``human.cube3.fetch.end``), their next step is `next` (e.g. ``human.cube3.put.depart``), not before
+    the robot's `wait_for` (e.g. ``robot.cube2.fetch.end``; None: nothing of the robot's to wait for) and
+    `gap` seconds after it (0 when there is nothing to wait for)."""
+
+    after: str
+    next: str
+    wait_for: str | None
+    gap: float = 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        return {"after": self.after, "next": self.next, "wait_for": self.wait_for, "gap": self.gap}
+
+
+@dataclass(frozen=True, slots=True)
 class Decision:
     """The dispatcher's answer at `t`: the best plan and its class, the number of candidate plans per
     class, and the robot's next step (None: nothing left for it, or `stopped`). `human_away`: the human
@@ -100,7 +123,11 @@ class Decision:
     departure or start in the best plan and the window in which it keeps the plan's promise (the paper's
     model lets the robot's strategy time them: the human waits when asked), or the robot event it has to
     wait for; None while the human is busy (a walk or a manipulation under way), away, or done.
-    `ack`: set when the message was a robot acknowledgement outside what it had been told (`ack_note`)."""
+    `ack`: set when the message was a robot acknowledgement outside what it had been told (`ack_note`).
+    `deviation`: set when the message voided the guarantee of every class: ``{"late": {"event", "delay",
+    "max"}}``, an observation of the human learnt later than the stated maximum delay (the run goes on with
+    the best remaining plan, as after an overrun). `ahead`: the person's instruction for the step after
+    the one under way (`Ahead`), so that they know it before it is due."""
 
     t: float
     plan: str | None
@@ -111,6 +138,8 @@ class Decision:
     stopped: bool = False
     human: RobotStep | WaitFor | None = None
     ack: Mapping[str, Any] | None = None
+    deviation: Mapping[str, Any] | None = None
+    ahead: Ahead | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
@@ -120,6 +149,10 @@ class Decision:
                "human_away": self.human_away, "stopped": self.stopped}
         if self.ack is not None:
             out["ack"] = dict(self.ack)
+        if self.ahead is not None:
+            out["ahead"] = self.ahead.to_json()
+        if self.deviation is not None:
+            out["deviation"] = {k: dict(v) if isinstance(v, Mapping) else v for k, v in self.deviation.items()}
         return out
 
 
@@ -186,9 +219,9 @@ def observation_from_json(obj: Any) -> Observation:
     """
     if not isinstance(obj, dict):
         raise DispatchError(f"a message must be a JSON object, found {type(obj).__name__}")
-    unknown = sorted(set(obj) - {"t", "event", "agent", "action", "phase", "next"})
+    unknown = sorted(set(obj) - {"t", "event", "agent", "action", "phase", "next", "delay"})
     if unknown:
-        raise DispatchError(f"unknown key {unknown[0][:40]!r} (keys: t, event, agent, action, phase, next)")
+        raise DispatchError(f"unknown key {unknown[0][:40]!r} (keys: t, event, agent, action, phase, next, delay)")
     t = obj.get("t")
     # compared, not converted: an integer of 310 digits overflows float() and math.isfinite (issue 34);
     # NaN fails every comparison, the infinities fail the bound
@@ -204,4 +237,10 @@ def observation_from_json(obj: Any) -> Observation:
             raise DispatchError(f"a {event!r} message needs {', '.join(missing)}")
     elif action is not None or phase is not None or nxt is not None:
         raise DispatchError(f"a {event!r} message takes no action, phase or next")
-    return Observation(float(t), event, agent, action, phase, nxt)
+    delay = obj.get("delay")
+    if delay is not None:
+        if isinstance(delay, bool) or not isinstance(delay, int | float) or not math.isfinite(delay) or \
+                not 0 <= delay <= _MAX_T or event not in LEG_EVENTS:
+            raise DispatchError("'delay' must be the seconds (>= 0) between a leg event and when it was learnt")
+        delay = float(delay)
+    return Observation(float(t), event, agent, action, phase, nxt, delay)

@@ -151,6 +151,8 @@ def log_header(dispatcher: Dispatcher, version: int) -> dict[str, Any]:
     detect = _detect(dispatcher)
     if detect is not None:  # a run with a detector in front replays only with the same detector
         header["detect"] = detect
+    if dispatcher.max_observation_delay is not None:  # and one with a stated delay only with the same
+        header["max_observation_delay"] = dispatcher.max_observation_delay
     return header
 
 
@@ -169,6 +171,9 @@ def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> No
         raise HrcError(f"{path}: the log was written with other detector settings (the log: "
                        f"{contents.header.get('detect') or 'buttons'}; now: {_detect(dispatcher) or 'buttons'}): "
                        "give the same --detect and --sensor-sigma")
+    if contents.header.get("max_observation_delay") != dispatcher.max_observation_delay:
+        raise HrcError(f"{path}: the log was written with another --max-observation-delay (the log: "
+                       f"{contents.header.get('max_observation_delay')}; now: {dispatcher.max_observation_delay})")
 
 
 def replay(dispatcher: Dispatcher, contents: LogContents, path: str = "log") -> Iterator[tuple[str, str]]:

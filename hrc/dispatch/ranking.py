@@ -10,7 +10,9 @@ bound, "earliest" at their lower bound, "nominal" at the midpoint), falling back
 no schedule keeps every bound (a plan that broke a deadline still has a finish time: finishing beats
 refusing); its *idle time* is the time both agents stand still in that schedule.
 
-Plans rank by class (DC, consistent, inconsistent), then remaining makespan, then idle time, then APA
+Plans rank by class (DC, consistent, inconsistent), then, among DC plans, those that keep the person's
+part of the plan being followed first (`hrc.dispatch.dispatcher`: a switch never rests on a choice the
+person has not made while the plan they follow is DC), then remaining makespan, then idle time, then APA
 preference value (higher first; the compile's value, `hrc.compile.preferences`), then plan id.
 
 A plan for which the compile found no motion pattern at all (`PlanEntry.blocked`: the two would block
@@ -222,24 +224,28 @@ class Ranker:
         return net.schedule(net.executed(seen, legs_seen), now, self.plan_set.rank_by)
 
     def _columns(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray,
-                 idle: np.ndarray) -> list[np.ndarray]:
-        """The rank key's columns (`rank_key`), most significant first."""
+                 idle: np.ndarray, lead: np.ndarray | None = None) -> list[np.ndarray]:
+        """The rank key's columns (`rank_key`), most significant first; `lead` (after the class): 1 for a
+        plan that gives up the person's part of the plan being followed (`hrc.dispatch.dispatcher`)."""
         fin = np.where(finish == NO_FINISH, np.iinfo(np.int64).max, finish)
-        return [cls.astype(np.int64), self.blocked[plans], fin, idle, self.pref_key[plans], self.id_rank[plans]]
+        head = [cls.astype(np.int64)] + ([] if lead is None else [lead.astype(np.int64)])
+        return [*head, self.blocked[plans], fin, idle, self.pref_key[plans], self.id_rank[plans]]
 
-    def best(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray, idle: np.ndarray) -> int:
+    def best(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray, idle: np.ndarray,
+             lead: np.ndarray | None = None) -> int:
         """The position in `plans` of the best plan by `rank_key` (-1 if `plans` is empty): successive
         minima over the key's columns, O(len(plans))."""
         if not len(plans):
             return -1
         at = np.arange(len(plans))
-        for column in self._columns(plans, cls, finish, idle):
+        for column in self._columns(plans, cls, finish, idle, lead):
             values = column[at]
             at = at[values == values.min()]
             if len(at) == 1:
                 break
         return int(at[0])
 
-    def order(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray, idle: np.ndarray) -> np.ndarray:
+    def order(self, plans: np.ndarray, cls: np.ndarray, finish: np.ndarray, idle: np.ndarray,
+              lead: np.ndarray | None = None) -> np.ndarray:
         """Positions in `plans`, best first by `rank_key`."""
-        return np.lexsort(list(reversed(self._columns(plans, cls, finish, idle))))
+        return np.lexsort(list(reversed(self._columns(plans, cls, finish, idle, lead))))

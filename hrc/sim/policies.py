@@ -151,9 +151,7 @@ class DispatchedController(Controller):
         self.detect_refused: list[str] = []
         self.withdrawn = 0  # departures the detector gave and withdrew (undo)
         self.known: list[Happening] = []  # the person's own events, when a motion detector stands between
-        self._shadow: tuple[Any, int, Any] = (None, -1, None)  # (decision, len(known), dispatcher the person reads)
         self._times: dict | None = None
-        self._shadow_times: dict | None = None
         self._ordered: tuple[Any, Order | None] = (None, None)
         dec = dispatcher.decision
         self.first_plan = self.plan_id = dec.plan
@@ -229,34 +227,6 @@ class DispatchedController(Controller):
     def current(self) -> CompiledPlan | None:
         return self.by_id.get(self.plan_id) if self.plan_id is not None else None
 
-    def _guide(self) -> Any:
-        """The dispatcher whose plan the person follows: this one, or, when a motion detector has not yet
-        given some of the person's own events (`known`), a copy told them: the person knows they have
-        finished or arrived, and does what the plan would say if the dispatcher knew it too (they do not
-        wait for the detector to notice)."""
-        if not self.known:
-            return self.d
-        decision, n, shadow = self._shadow
-        if decision is self.d.decision and n == len(self.known):
-            return shadow
-        from hrc.dispatch import Observation
-        from hrc.errors import DispatchError
-
-        seen = self.d.seen.times
-        shadow = self.d
-        for h in self.known:
-            if (h.agent, h.action, h.phase, h.event) in seen:
-                continue
-            if shadow is self.d:
-                shadow = self.d.fork()
-            try:
-                shadow.observe(Observation(round(max(h.t, shadow.now), 3), h.event, h.agent, h.action, h.phase))
-            except DispatchError:
-                continue
-        self._shadow = (self.d.decision, len(self.known), shadow)
-        self._shadow_times = None
-        return shadow
-
     def human_next(self, started: Mapping[str, str]) -> str | None:
         hint = self.d.decision.human  # what to do next: what the console shows (the when: `guide_time`)
         if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
@@ -268,29 +238,32 @@ class DispatchedController(Controller):
         return next((a for a in cp.plan.sequence(_human(self.cps.task)) if a not in started), None)
 
     def guide_time(self, action: str, phase: str, event: str) -> float | None:
-        """The hint's earliest time when it is about this event (`Decision.human`), inf when the hint says
-        to wait for a robot event, else the best plan's planned time (`Dispatcher.planned_times`)."""
+        """When the person does this event, from the answers they were given alone (never the true events:
+        a real person reads the console): the hint's earliest when it is about this event, inf when it
+        says to wait for a robot event (`Decision.human`); when the answer's instruction ahead names it
+        (`Decision.ahead`: given while their walk or manipulation was under way, so that after it they need
+        not wait for the dispatcher to learn that it ended), `gap` seconds after the robot's event it
+        names once an answer has acknowledged that event (inf before), at once when it names none; else
+        the best plan's planned time (`Dispatcher.planned_times`, the console's chart)."""
         if self.plan_id is None:
             return None
-        d = self._guide()
-        hint = d.decision.human
+        decision = self.d.decision
+        hint = decision.human
         if hint is not None:
             if not hasattr(hint, "earliest"):
                 return math.inf  # WaitFor: the person waits for the robot's event
             if (hint.action, hint.phase, hint.event) == (action, phase, event):
                 return float(hint.earliest)
-        if d is not self.d:  # the plan the console shows, timed as if the dispatcher knew what the person knows
-            if self._shadow_times is None:
-                try:
-                    self._shadow_times = dict(d.planned_times(self.plan_id))
-                except KeyError:
-                    self._shadow_times = dict(d.planned_times())
-            times = self._shadow_times
-        else:
-            if self._times is None:
-                self._times = dict(self.d.planned_times())
-            times = self._times
-        t = times.get((_human(self.cps.task), action, phase, event))
+        human = _human(self.cps.task)
+        ahead = getattr(decision, "ahead", None)
+        if hint is None and ahead is not None and ahead.next == f"{human}.{action}.{phase}.{event}":
+            if ahead.wait_for is None:
+                return None
+            seen = self.d.seen.times.get(tuple(ahead.wait_for.split(".")))
+            return math.inf if seen is None else float(seen) + float(ahead.gap)
+        if self._times is None:
+            self._times = dict(self.d.planned_times())
+        t = self._times.get((human, action, phase, event))
         return None if t is None or not math.isfinite(t) else float(t)
 
     def route(self, agent: str, action: str, phase: str) -> SimRoute | None:

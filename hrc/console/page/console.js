@@ -157,6 +157,14 @@
     if (h && h.wait_for) doing.append(el("div", { class: "hint-line wait" }, "Please wait for the " + h.wait_for.replace(/\./g, " ")));
     else if (h && h.action) doing.append(el("div", { class: "hint-line" }, "Suggested: " + optionLabel(h).join(" · ") +
       (h.latest !== null ? " (by " + fmt(h.latest) + " s)" : "")));
+    const ahead = d.ahead;  // while a walk or a manipulation is under way: the instruction for the step after it
+    if (!h && ahead) {
+      const words = (name) => name.split(".").slice(1).reverse().join(" ");
+      doing.append(el("div", { class: "hint-line ahead" }, "Next, after " + words(ahead.after) + ": " +
+        (ahead.wait_for ? "wait for the " + ahead.wait_for.replace(/\./g, " ") +
+          (ahead.gap > 0 ? " and " + fmt(ahead.gap) + " s more" : "") + " before you " + words(ahead.next)
+          : words(ahead.next))));
+    }
     drawButtons();
     // the robot
     const r = d.robot;
