@@ -35,7 +35,7 @@ from mcap_ros2.writer import Writer
 from hrc.model import Task
 from hrc.record import scene
 
-__all__ = ["DEFINITIONS", "Ros2Out"]
+__all__ = ["DEFINITIONS", "Ros2Out", "agents_markers", "map_markers", "pose_stamped", "routes_markers"]
 
 _SEP = "=" * 80
 _TIME = "int32 sec\nuint32 nanosec"
