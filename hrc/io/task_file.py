@@ -18,6 +18,7 @@ import yaml
 from hrc.errors import TaskFileError
 from hrc.io.atomic import write_text_atomic
 from hrc.io.map_file import clearance, load_workspace
+from hrc.io.safety_section import read_safety, safety_to_dict
 from hrc.io.yamldoc import Doc, read_yaml
 from hrc.model import (
     DEFAULT_TRAVEL_SLACK,
@@ -46,7 +47,8 @@ MIN_SPEED = 0.01
 MAX_TRAVEL_SLACK = 100.0
 
 _TOP_REQUIRED = ("name", "map", "agents", "actions")
-_TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "preference_sets", "safety_margin")
+_TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "preference_sets", "safety_margin",
+                 "safety")
 _COEFFS = {PreferenceKind.CONSTANT: 1, PreferenceKind.LINEAR: 2, PreferenceKind.QUADRATIC: 3}
 
 
@@ -89,10 +91,12 @@ def load_task(path: str | os.PathLike[str]) -> Task:
         items = doc.sequence(raw_set, ("preference_sets", set_name), min_len=1)
         sets.append((set_name, tuple(_preference(doc, raw, ("preference_sets", set_name, i), by_id)
                                      for i, raw in enumerate(items))))
+    robot = next(a for a in agents if not a.is_human)
+    safety = read_safety(doc, top["safety"], robot) if top.get("safety") is not None else None
     return Task(name=name, agents=tuple(agents), actions=tuple(actions), precedence=tuple(precedence),
                 constraints=tuple(constraints), deadline=deadline, preferences=tuple(preferences),
                 map_path=map_path, workspace=workspace, safety_margin=margin, preference_sets=tuple(sets),
-                source=doc.file)
+                source=doc.file, safety=safety)
 
 
 def _agents(doc: Doc, raw: Any, ws: Workspace, margin: float) -> list[Agent]:
@@ -317,6 +321,8 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
     out["preferences"] = [_preference_dict(p) for p in task.preferences]
     if task.preference_sets:  # written only when present: older files round-trip unchanged
         out["preference_sets"] = {name: [_preference_dict(p) for p in prefs] for name, prefs in task.preference_sets}
+    if task.safety is not None:  # likewise
+        out["safety"] = safety_to_dict(task.safety)
     return out
 
 

@@ -59,6 +59,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from hrc.model import Agent, Plan, Task
+from hrc.motion import separation
 from hrc.motion.motions import Route, Routes
 from hrc.motion.paths import Path, PathLibrary
 from hrc.plans import Leg, agent_legs
@@ -264,7 +265,8 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
     """
     human = next(a for a in task.agents if a.is_human)
     robot = next(a for a in task.agents if not a.is_human)
-    reach = human.radius + robot.radius + task.safety_margin
+    # the robot driving keeps the protective separation at its speed, standing at speed 0 (`separation`)
+    reach = (separation.reach(task, robot.speed), separation.reach(task, 0.0))
     routes = routes or {}
     locs = paths.locations
 
@@ -343,9 +345,10 @@ _PAIR_CACHE = 200_000  # occupancy pairs kept per process (a few tens of MB at m
 _OCCUPANCY_CACHE = 10_000  # agents' itineraries kept per process (about 7.5 kB each: 75 MB at most)
 
 
-def _pair(r: Occupancy, h: Occupancy, route, locs, reach: float, vr: float, vh: float,  # noqa: ANN001
-          paths: PathLibrary) -> list[Conflict]:
+def _pair(r: Occupancy, h: Occupancy, route, locs, reaches: tuple[float, float], vr: float,  # noqa: ANN001
+          vh: float, paths: PathLibrary) -> list[Conflict]:
     out: list[Conflict] = []
+    reach = reaches[0] if r.kind == "travel" else reaches[1]
     r_clear, h_clear = _clearing(r, reach, vr), _clearing(h, reach, vh)
     if r.kind == "travel" and h.kind == "travel":
         rp, hp = route(r), route(h)

@@ -1,0 +1,154 @@
+"""The protective separation distance (ISO/TS 15066, 5.5.4) and the task's `safety:` section.
+
+The numbers are worked by hand from the standard's equation 1 with constant speeds (the module's
+docstring); bad sections end `hrc show` with one line naming the key and exit status 2.
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import MIN_MAP, MIN_TASK, WORKSHOP_TASK, dump
+
+from hrc.cli import main
+from hrc.errors import TaskFileError
+from hrc.io.task_file import dump_task, load_task
+from hrc.model import Safety
+from hrc.motion import separation
+from hrc.motion.separation import protective_separation, robot_speed_limit, stopping
+
+SAFETY: dict[str, Any] = {"reaction_time": "0.1 s", "stopping": {"deceleration": "1.0 m/s^2"},
+                          "intrusion": "0.2 m", "sensor_uncertainty": "50 mm", "robot_uncertainty": "2 cm"}
+
+
+@pytest.mark.parametrize(("v", "s_h", "s_r", "s_s"), [
+    # S_h = 1.6 (0.1 + v / 1), S_r = 0.1 v, S_s = v^2 / 2
+    (0.0, 0.16, 0.0, 0.0),
+    (0.3, 0.64, 0.03, 0.045),
+    (0.6, 1.12, 0.06, 0.18),
+    (1.0, 1.76, 0.1, 0.5),
+])
+def test_terms_at_constant_deceleration(v: float, s_h: float, s_r: float, s_s: float) -> None:
+    safety = Safety(reaction_time=0.1, deceleration=1.0, intrusion=0.2, sensor_uncertainty=0.05,
+                    robot_uncertainty=0.02)
+    t = protective_separation(safety, v)
+    assert (t.human, t.robot, t.stopping) == pytest.approx((s_h, s_r, s_s), abs=1e-12)
+    assert (t.intrusion, t.sensor, t.robot_position) == (0.2, 0.05, 0.02)
+    assert t.total == pytest.approx(s_h + s_r + s_s + 0.27, abs=1e-12)
+
+
+def test_measured_stops_interpolate_and_stop_at_the_fastest() -> None:
+    safety = Safety(reaction_time=0.2, stops=((0.4, 0.5, 0.1), (0.8, 0.8, 0.35)), human_speed=2.0)
+    assert stopping(safety, 0.2) == pytest.approx((0.25, 0.05))  # halfway to the first stop, from (0, 0, 0)
+    assert stopping(safety, 0.6) == pytest.approx((0.65, 0.225))  # halfway between the two
+    assert stopping(safety, 0.8) == pytest.approx((0.8, 0.35))
+    # S_p(0.6) = 2.0 (0.2 + 0.65) + 0.6 * 0.2 + 0.225
+    assert protective_separation(safety, 0.6).total == pytest.approx(1.7 + 0.12 + 0.225)
+    with pytest.raises(ValueError, match="beyond the fastest measured stop"):
+        stopping(safety, 0.81)
+
+
+def test_speed_limit_is_the_fastest_speed_that_fits() -> None:
+    safety = Safety(reaction_time=0.1, deceleration=1.0)
+    assert robot_speed_limit(safety, 5.0, 0.6) == 0.6
+    assert robot_speed_limit(safety, 0.1, 0.6) == 0.0  # S_p(0) = 0.16
+    # S_p(v) = 0.16 + 1.7 v + 0.5 v^2 = 1.0 at v = -1.7 + sqrt(1.7^2 + 2 * 0.84)
+    v = robot_speed_limit(safety, 1.0, 0.6)
+    assert v == pytest.approx(-1.7 + (1.7**2 + 1.68) ** 0.5, abs=2e-6)
+    assert protective_separation(safety, v).total <= 1.0
+
+
+def _write(tmp_path: Path, safety: Any) -> Path:
+    task = copy.deepcopy(MIN_TASK)
+    task["safety"] = safety
+    (tmp_path / "map.yaml").write_text(dump(MIN_MAP), encoding="utf-8")
+    path = tmp_path / "task.yaml"
+    path.write_text(dump(task), encoding="utf-8")
+    return path
+
+
+def test_section_read_round_trips_and_reach(tmp_path: Path) -> None:
+    task = load_task(_write(tmp_path, SAFETY))
+    assert task.safety == Safety(reaction_time=0.1, deceleration=1.0, intrusion=0.2, sensor_uncertainty=0.05,
+                                 robot_uncertainty=0.02)
+    dump_task(task, tmp_path / "again.yaml")
+    assert load_task(tmp_path / "again.yaml") == task
+    # reach = r_h + r_r + S_p(v): 0.65 + (1.12 + 0.06 + 0.18 + 0.27) at 0.6 m/s, 0.65 + 0.16 + 0.27 standing
+    assert separation.reach(task, 0.6) == pytest.approx(0.65 + 1.63)
+    assert separation.reach(task, 0.0) == pytest.approx(0.65 + 0.43)
+
+
+def test_without_safety_the_margin_stays() -> None:
+    task = load_task(WORKSHOP_TASK)
+    assert task.safety is None
+    human, robot = task.agent("human"), task.agent("robot")
+    assert separation.reach(task, robot.speed) == human.radius + robot.radius + task.safety_margin
+    assert separation.reach(task, 0.0) == human.radius + robot.radius + task.safety_margin
+
+
+def _with(key: str, value: Any) -> dict[str, Any]:
+    out = copy.deepcopy(SAFETY)
+    *parents, last = key.split(".")
+    node: Any = out
+    for p in parents:
+        node = node[int(p) if p.isdigit() else p]
+    if value is _DROP:
+        del node[last]
+    else:
+        node[int(last) if last.isdigit() else last] = value
+    return out
+
+
+_DROP = object()
+_STOPS = [{"speed": "0.3 m/s", "time": "0.3 s", "distance": "0.06 m"},
+          {"speed": "0.6 m/s", "time": "0.5 s", "distance": "0.2 m"}]
+
+
+def _stops(i: int, key: str, value: str) -> dict[str, Any]:
+    stops = copy.deepcopy(_STOPS)
+    stops[i][key] = value
+    return _with("stopping", stops)
+
+
+BAD = [
+    ("negative-time", _with("reaction_time", "-0.1 s"), "safety.reaction_time", "non-negative"),
+    ("unit-missing", _with("reaction_time", 0.1), "safety.reaction_time", "the unit is missing"),
+    ("unit-missing-text", _with("intrusion", "0.2"), "safety.intrusion", "the unit is missing"),
+    ("wrong-unit", _with("intrusion", "0.2 s"), "safety.intrusion", "expected a length in m, cm, mm"),
+    ("not-a-number", _with("intrusion", "far m"), "safety.intrusion", "expected a length with its unit"),
+    ("unknown-key", _with("colour", "red"), "safety.colour", "unknown key"),
+    ("missing-stopping", _with("stopping", _DROP), "safety.stopping", "missing"),
+    ("zero-deceleration", _with("stopping.deceleration", "0 m/s^2"), "safety.stopping.deceleration", "positive"),
+    ("zero-approach", _with("human_speed", "0 m/s"), "safety.human_speed", "positive"),
+    ("distance-falls", _stops(1, "distance", "0.05 m"), "safety.stopping[1].distance",
+     "stopping distance falls as the speed rises"),
+    ("time-falls", _stops(1, "time", "0.2 s"), "safety.stopping[1].time", "stopping time falls"),
+    ("speed-not-rising", _stops(1, "speed", "0.3 m/s"), "safety.stopping[1].speed", "rising speed"),
+    ("stops-too-slow", _with("stopping", _STOPS[:1]), "safety.stopping", "fastest measured stop is at 0.3 m/s"),
+    ("reduced-not-slower", _with("reduced_speed", "0.6 m/s"), "safety.reduced_speed", "below the robot's speed"),
+    ("huge-time", _with("reaction_time", "1e9 s"), "safety.reaction_time", "at most 60 s"),
+]
+
+
+@pytest.mark.parametrize(("safety", "key", "fragment"), [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_section_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str], safety: Any, key: str,
+                                     fragment: str) -> None:
+    path = _write(tmp_path, safety)
+    with pytest.raises(TaskFileError):
+        load_task(path)
+    assert main(["show", str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert re.fullmatch(rf"error: {re.escape(str(path))}:\d+: {re.escape(key)}: [^\n]*{re.escape(fragment)}[^\n]*\n",
+                        err), err
+
+
+def test_measured_stops_read(tmp_path: Path) -> None:
+    task = load_task(_write(tmp_path, _with("stopping", _STOPS)))
+    assert task.safety is not None
+    assert task.safety.stops == ((0.3, 0.3, 0.06), (0.6, 0.5, 0.2))
+    assert task.safety.deceleration is None
