@@ -152,3 +152,49 @@ def test_measured_stops_read(tmp_path: Path) -> None:
     assert task.safety is not None
     assert task.safety.stops == ((0.3, 0.3, 0.06), (0.6, 0.5, 0.2))
     assert task.safety.deceleration is None
+
+
+CORRIDOR = Path(__file__).parent / "data" / "separation" / "crossing_iso.yaml"
+
+
+def test_corridor_crossing_separation_turns_dc_into_consistent() -> None:
+    """One corridor (y < 1.8 m) and one side passage crossing into it at x = 5 m (tests/data/separation).
+
+    The person walks the corridor from H (0.5, 0.9) to B (5, 0.9), 4.5 m at 1.2 m/s: [3.75, 4.6875] s,
+    then works [1, 5] s; the robot drives down the passage from R (5, 5.5) to X (5, 2.4), 3.1 m at 0.6 m/s:
+    5.1667 s, then works 1 s. Deadline 9.8 s. X is 1.5 m from B and from the corridor's centre line.
+
+    - 0.1 m margin: reach 0.75 m < 1.5 m, no conflict: makespan [max(4.75, 6.17), max(9.69, 6.17)] = [6.17,
+      9.69] s, DC.
+    - ISO/TS 15066 (T_r 0.1 s, 1 m/s^2): S_p(0.6) = 1.6 (0.1 + 0.6) + 0.06 + 0.18 = 1.36 m, reach 2.01 m
+      driving; S_p(0) = 0.16 m, reach 0.81 m standing (so the robot at X and the person at B do not
+      conflict, nor does the person walking past X). The robot's drive enters reach of B at s = 3.1 - 0.51 m.
+      Robot first: the person arrives at B after the robot is at X (5.167 s after it leaves), and leaves
+      H no earlier than 5.167 - 3.162 / 1.2 = 2.532 s after it (3.162 m: where the corridor comes within
+      2.01 m of X), plus the sampling's 25 ms: the person's worst case 2.557 + 4.6875 + 5 = 12.24 s > 9.8.
+      Person first: the robot may enter after the person has finished at B and walked 2.01 m away, so its
+      end is at least 9.69 + 2.01 / 1.2 - 2.59 / 0.6 + 5.167 + 1 > 9.8 in the worst case. Either order
+      fits the deadline when the person is quick: consistent, not DC.
+    """
+    from dataclasses import replace
+
+    from hrc.compile.classify import PlanClass
+    from hrc.compile.motion_pattern import choose_pattern
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+
+    iso = load_task(CORRIDOR)
+    margin = replace(iso, safety=None)
+    (plan,) = list(generate_plans(iso))
+    paths = plan_paths(iso, seed=0)
+    before = choose_pattern(margin, plan, paths)
+    assert before.classification.plan_class is PlanClass.DC
+    assert before.pattern.orders == ()
+    assert before.classification.makespan == pytest.approx((5.1667 + 1, 4.6875 + 5), abs=2e-3)
+    after = choose_pattern(iso, plan, paths)
+    assert after.classification.plan_class is PlanClass.CONSISTENT
+    gaps = sorted((o.first, o.separation.gap) for o in after.pattern.orders)
+    assert gaps == [("robot", pytest.approx(2.532 + 0.025, abs=0.02)), ("robot", pytest.approx(3.1 / 0.6, abs=1e-6))]
+    early, worst = after.classification.makespan
+    assert early == pytest.approx(2.557 + 3.75 + 1, abs=0.02)
+    assert worst == pytest.approx(2.557 + 4.6875 + 5, abs=0.02)
