@@ -198,3 +198,56 @@ def test_corridor_crossing_separation_turns_dc_into_consistent() -> None:
     early, worst = after.classification.makespan
     assert early == pytest.approx(2.557 + 3.75 + 1, abs=0.02)
     assert worst == pytest.approx(2.557 + 4.6875 + 5, abs=0.02)
+
+
+def test_reduced_speed_zone_makes_the_crossing_dc() -> None:
+    """The corridor crossing with a deadline of 12 s: both orders still break it in the person's worst
+    case (12.24 s robot first; person first the robot ends at 9.69 + 1.675 - 4.317 + 5.167 + 1 = 13.2 s),
+    so the plan is consistent. Allowed a reduced speed of 0.3 m/s, the robot's protective separation falls
+    to 1.6 (0.1 + 0.3) + 0.03 + 0.045 = 0.715 m, reach 1.365 m < 1.5 m: no conflict left, and its slower
+    drive (3.1 / 0.3 = 10.33 s, then 1 s of work) fits: DC, makespan 11.33 s both ways."""
+    from dataclasses import replace
+
+    from hrc.compile.classify import PlanClass
+    from hrc.compile.motion_pattern import choose_pattern
+    from hrc.motion import plan_paths
+    from hrc.plans import generate_plans
+
+    iso = replace(load_task(CORRIDOR), deadline=12.0)
+    assert iso.safety is not None
+    (plan,) = list(generate_plans(iso))
+    paths = plan_paths(iso, seed=0)
+    assert choose_pattern(iso, plan, paths).classification.plan_class is PlanClass.CONSISTENT
+    slow = replace(iso, safety=replace(iso.safety, reduced_speed=0.3))
+    choice = choose_pattern(slow, plan, paths)
+    assert choice.classification.plan_class is PlanClass.DC
+    assert choice.pattern.orders == ()
+    (robot_leg,) = [m for m in choice.pattern.motions if m.agent == "robot"]
+    assert robot_leg.speed == 0.3
+    assert robot_leg.time == pytest.approx(3.1 / 0.3, abs=1e-3)
+    assert choice.classification.makespan == pytest.approx((3.1 / 0.3 + 1, 3.1 / 0.3 + 1), abs=2e-3)
+
+
+def test_report_says_the_model_and_what_the_separation_costs(tmp_path: Path) -> None:
+    """`hrc compile` of the crossing: the report names the model term by term and shows the plan's class
+    going from DC (margin) to consistent (separation), with the worst case 9.7 -> 12.3 s; a task without
+    safety: says it kept the margin, and its compiled.json has no trace of the new model."""
+    out = tmp_path / "iso"
+    assert main(["compile", str(CORRIDOR), "--out", str(out), "-q", "--jobs", "1"]) == 0
+    md = (out / "report.md").read_text(encoding="utf-8")
+    assert ("S_p = S_h 1.120 + S_r 0.060 + S_s 0.180 + C 0 + Z_d 0 + Z_r 0 = 1.360 m, standing 0.160 m; "
+            "no reduced-speed zone") in md
+    assert "plans per class with the margin: DC 1, consistent 0, inconsistent 0." in md
+    row = next(line for line in md.splitlines() if line.startswith("| 1 | `0a7c3d0747`"))
+    assert row == ("| 1 | `0a7c3d0747` | DC \u2192 consistent | 9.7 "
+                   "\u2192 12.3 | +2.6 | 0 \u2192 0 | 0 \u2192 2 | 0 |")
+    assert "What the protective separation costs" in (out / "report.html").read_text(encoding="utf-8")
+    plain = tmp_path / "plain"
+    margin_task = tmp_path / "margin.yaml"
+    margin_task.write_text(CORRIDOR.read_text().split("safety:")[0], encoding="utf-8")
+    (tmp_path / "corridor.yaml").write_text((CORRIDOR.parent / "corridor.yaml").read_text(), encoding="utf-8")
+    assert main(["compile", str(margin_task), "--out", str(plain), "-q", "--jobs", "1"]) == 0
+    md = (plain / "report.md").read_text(encoding="utf-8")
+    assert "the fixed safety margin, 0.1 m between the two discs (the task has no safety: section)" in md
+    assert "What the protective separation costs" not in md
+    assert "safety\"" not in (plain / "compiled.json").read_text(encoding="utf-8")

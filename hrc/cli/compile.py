@@ -328,7 +328,7 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
             if not args.no_report and not result.partial:
                 from hrc.report import write_report
 
-                write_report(result.plan_set, stage)
+                write_report(result.plan_set, stage, _margin_compile(task, args.seed, jobs, args.executor, options))
     except Abandoned as kept:  # the staging folder is gone with nothing written into it
         print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
               "(a partial output replaces only a new or empty folder)", file=sys.stderr)
@@ -361,3 +361,15 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
               + ("" if args.no_report else f", {out}/report.md, {out}/report.html"))
     return 0
 
+
+
+def _margin_compile(task: Any, seed: int, jobs: int | None, executor: str | None, options: Any) -> Any:
+    """`task` compiled again with its fixed safety margin in place of its protective separation, for the
+    report's cost of the separation per plan (None for a task without `safety:`: nothing to compare)."""
+    if task.safety is None:
+        return None
+    from dataclasses import replace
+
+    from hrc.compile.compiler import compile_task
+
+    return compile_task(replace(task, safety=None), seed=seed, jobs=jobs, executor=executor, options=options)

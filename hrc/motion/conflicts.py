@@ -205,7 +205,7 @@ _Component = tuple[float, float, tuple[float, float], tuple[tuple[float, float],
 
 
 def _travel_travel(paths: PathLibrary, rp: Path, hp: Path, reach: float, vr: float, vh: float) -> list[_Component]:
-    key = ("tt", rp.agent, rp.origin, rp.target, rp.via, hp.agent, hp.origin, hp.target, hp.via, reach)
+    key = ("tt", rp.agent, rp.origin, rp.target, rp.via, hp.agent, hp.origin, hp.target, hp.via, reach, vr, vh)
     cached = paths.samples.get(key)
     if cached is not None:
         return cached
@@ -278,6 +278,13 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
             return chosen.path
         return paths.get(occ.agent, occ.origin, occ.location)
 
+    def speed(occ: Occupancy) -> float:
+        """The speed of a travel: a reduced one chosen for its leg (`Route.speed`), else the agent's."""
+        chosen: Route | None = routes.get((occ.agent, occ.leg))
+        if chosen is not None and chosen.speed:
+            return chosen.speed
+        return robot.speed if occ.agent == robot.id else human.speed
+
     def signature(occ: Occupancy) -> tuple:
         """What `_pair` reads of an occupancy, as a flat tuple (hashed in C, unlike the dataclass)."""
         b, f = occ.begin, occ.finish
@@ -285,7 +292,7 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
                f.leg, f.what)
         if occ.kind != "travel":
             return sig
-        return (*sig, *_path_key(route(occ)))
+        return (*sig, *_path_key(route(occ)), speed(occ))
 
     # the conflicts of an occupancy pair depend on the two occupancies and their routes only, and the
     # same pairs recur across the plans of a task: kept per process, like the geometry they come from
@@ -325,7 +332,9 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
         for h, hk in h_occ:
             found = cache.get(rk | hk)
             if found is None:
-                found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
+                vr = speed(r) if r.kind == "travel" else robot.speed
+                reaches = reach if vr == robot.speed else (separation.reach(task, vr), reach[1])
+                found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reaches, vr, human.speed, paths))
             out.extend(found)
     return tuple(out)
 
@@ -338,7 +347,7 @@ def _path_key(p: Path) -> tuple[str, str, str, float]:
 def _route_key(route: Route) -> tuple:
     """A route choice by its paths' `_path_key` and its waiting place."""
     q = route.onward
-    return (*_path_key(route.path), route.park, None if q is None else _path_key(q))
+    return (*_path_key(route.path), route.park, None if q is None else _path_key(q), route.speed)
 
 
 _PAIR_CACHE = 200_000  # occupancy pairs kept per process (a few tens of MB at most)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from hrc.compile.temporal_net_creator import ref_timepoint
 from hrc.plans import agent_legs
+from hrc.report.separation import SeparationCost, model_words, separation_costs
 
 if TYPE_CHECKING:
     from hrc.compile.classify import Classification
@@ -132,6 +133,8 @@ class ReportData:
     preferences: bool = False  # the task has preferences: the table shows each plan's value
     total: int = 0  # plans compiled; more than the rows when the table holds only the best (a large set)
     stats: tuple[ClassStats, ...] = ()  # makespans per class over all plans (only then)
+    separation: tuple[SeparationCost, ...] = ()  # per plan, against the fixed margin (a task with safety:)
+    margin_counts: tuple[tuple[str, int], ...] = ()  # class -> plans with the fixed margin (likewise)
 
     @property
     def truncated(self) -> bool:
@@ -263,8 +266,9 @@ def _stnu_link(cps: CompiledPlanSet, plan_id: str) -> str:
     return {"graphml": f"stnu/{plan_id}.graphml", "archive": "stnu.zip", "none": ""}[cps.stnu_files]
 
 
-def build_report_data(cps: CompiledPlanSet) -> ReportData:
-    """Collect what the reports show (see the module docstring)."""
+def build_report_data(cps: CompiledPlanSet, margin: CompiledPlanSet | None = None) -> ReportData:
+    """Collect what the reports show (see the module docstring); `margin`: the same task compiled with the
+    fixed safety margin in place of its protective separation (`hrc.report.separation`)."""
     task = cps.task
     letters = agent_letters(task.agent_ids)
     featured = featured_plans(cps)
@@ -295,13 +299,16 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         options=(("human waits", "yes (the robot's strategy times the human's steps)" if cps.options.human_waits
                   else "no (the human never waits for the robot's sake)"),
                  ("rank within a class by", f"{cps.options.rank_by} makespan"
-                  + (" to the second, then the preference value" if task.preferences else "")))
+                  + (" to the second, then the preference value" if task.preferences else "")),
+                 ("separation", model_words(task)))
         + (() if cps.summary is None or cps.summary.best is None else
            (("plans kept", f"the best {cps.summary.best[0]} of each allocation: {cps.total:,} of the "
                            f"{cps.summary.best[1]:,} plans compiled (--best-per-allocation)"),)),
         preferences=bool(task.preferences),
         total=cps.total,
         stats=cps.summary.stats if cps.summary is not None and cps.total > len(rows) else (),
+        separation=() if margin is None else separation_costs(cps, margin),
+        margin_counts=() if margin is None else tuple(margin.counts().items()),
     )
 
 

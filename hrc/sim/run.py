@@ -321,7 +321,7 @@ class _Run(Standoffs):
         agent.route, agent.parked, agent.mode, agent.moved = route, False, "travel", 0.0
         length = sum(math.dist(p, q) for p, q in zip(route.points, route.points[1:], strict=False))
         agent.predicted = length / agent.mover.agent.speed
-        agent.mover.set_route(route.points, speed, route.park_s)
+        agent.mover.set_route(route.points, route.speed or speed, route.park_s)
         agent.loc = None
         self.emit(agent, "depart", action, phase)
         self._arrival_check(agent)
