@@ -251,3 +251,80 @@ def test_report_says_the_model_and_what_the_separation_costs(tmp_path: Path) -> 
     assert "the fixed safety margin, 0.1 m between the two discs (the task has no safety: section)" in md
     assert "What the protective separation costs" not in md
     assert "safety\"" not in (plain / "compiled.json").read_text(encoding="utf-8")
+
+
+def _floor(v: float, reduced: float | None = None):  # noqa: ANN202
+    """The corridor's floor with the person standing at (1, 0.9) and the robot at (9, 0.9) driving at `v`
+    straight at them (to (1.7, 0.9), nearer than any protective separation lets it)."""
+    from dataclasses import replace
+
+    from hrc.sim.floor import Floor
+
+    task = load_task(CORRIDOR)
+    assert task.safety is not None
+    task = replace(task, safety=replace(task.safety, reduced_speed=reduced))
+    floor = Floor(task)
+    floor.place(floor.human, (1.0, 0.9))
+    floor.place(floor.robot, (9.0, 0.9))
+    floor.robot.set_route(((9.0, 0.9), (1.7, 0.9)), v)
+    return task, floor
+
+
+def _drive(floor, until: float) -> list[tuple[float, float]]:  # noqa: ANN001
+    """Advance `floor` to time `until` (s) in its own steps; the robot's x after each step, with the time."""
+    t, xs = 0.0, []
+    while t < until - 1e-9:
+        h = min(floor.safe_step(), until - t)
+        floor.advance(h)
+        t += h
+        xs.append((t, floor.robot.xy[0]))
+    return xs
+
+
+@pytest.mark.parametrize("v", [0.2, 0.4, 0.6, 0.9])
+def test_controller_stops_where_the_standard_says(v: float) -> None:
+    """A straight approach at `v` to a standing person: the robot drives at `v` all the way (no earlier
+    slowing) and makes one protective stop with the free distance exactly S_p(v) = 1.6 (0.1 + v) + 0.1 v
+    + v^2 / 2 (T_r 0.1 s, 1 m/s^2), i.e. its centre at x = 1 + 0.65 + S_p(v); it stays stopped while the
+    person stands, and no step ever ends closer than S_p at the speed it drove."""
+    task, floor = _floor(v)
+    s_p = 1.6 * (0.1 + v) + 0.1 * v + v * v / 2
+    stop_x = 1.0 + 0.65 + s_p
+    xs = _drive(floor, (9.0 - stop_x) / v + 3.0)
+    assert floor.robot.xy[0] == pytest.approx(stop_x, abs=1e-9)
+    assert floor.free() == pytest.approx(s_p, abs=1e-9)
+    arrived = next(t for t, x in xs if abs(x - stop_x) < 1e-9)
+    assert arrived == pytest.approx((9.0 - stop_x) / v, abs=0.5 + 1e-9)  # within the step that reached it
+    for t, x in xs:  # never behind the constant-speed schedule (no slowing before the stop)
+        assert x <= max(stop_x, 9.0 - v * t) + 1e-9
+    m = floor.ssm.measures()
+    assert (m.protective_stops, m.breaches) == (1, 0)
+    assert m.stop_time == pytest.approx(3.0, abs=0.5)
+    assert m.min_free_robot_approaching == pytest.approx(s_p, abs=1e-9)
+
+
+def test_controller_slows_in_the_reduced_speed_zone_then_stops_and_resumes() -> None:
+    """At 0.6 m/s with a reduced speed of 0.3 m/s allowed: full speed until the free distance is S_p(0.6) =
+    1.36 m, then 0.3 m/s until S_p(0.3) = 0.715 m, where it stops. The person steps 1 m back: the robot
+    resumes (at full speed, then reduced) and stops again 0.715 m from them; the person then walks up to
+    the stopped robot, and stops 2 cm short of it (`hrc.sim.floor.CONTACT`), which is counted apart."""
+    task, floor = _floor(0.6, reduced=0.3)
+    _drive(floor, 15.0)
+    assert floor.free() == pytest.approx(0.715, abs=1e-9)
+    m = floor.ssm.measures()
+    assert m.protective_stops == 1
+    # slowed for (1.36 - 0.715) / 0.3 s at half speed: half of that time lost
+    assert m.slow_time == pytest.approx((1.36 - 0.715) / 0.3 / 2, abs=0.02)
+    floor.human.set_route(((1.0, 0.9), (0.5, 0.9)), 1.2)
+    _drive(floor, 10.0)
+    assert floor.free() == pytest.approx(0.715, abs=1e-9)
+    assert floor.robot.xy[0] == pytest.approx(0.5 + 0.65 + 0.715, abs=1e-9)
+    assert floor.ssm.measures().protective_stops == 2
+    assert floor.ssm.measures().min_free_person_approaching is None
+    x = floor.robot.xy[0]
+    floor.human.set_route(((0.5, 0.9), (3.0, 0.9)), 1.2)
+    _drive(floor, 5.0)
+    m = floor.ssm.measures()
+    assert m.min_free_person_approaching == pytest.approx(0.02, abs=1e-6)
+    assert m.breaches == 0
+    assert floor.robot.xy[0] >= x - 1e-9  # it does not drive into them; it may back off
