@@ -328,3 +328,29 @@ def test_controller_slows_in_the_reduced_speed_zone_then_stops_and_resumes() -> 
     assert m.min_free_person_approaching == pytest.approx(0.02, abs=1e-6)
     assert m.breaches == 0
     assert floor.robot.xy[0] >= x - 1e-9  # it does not drive into them; it may back off
+
+
+def test_robot_steps_carry_the_limits_their_plan_assumed() -> None:
+    """Each robot step of the crossing's answers says the limits its plan assumed: 0.6 m/s, S_p 1.36 m
+    driving and 0.16 m standing (and the reduced speed's 0.715 m when allowed); the same task without
+    safety: answers without the field, as before."""
+    from dataclasses import replace
+
+    from hrc.compile.compiler import compile_task
+    from hrc.dispatch import Dispatcher
+    from hrc.dispatch.messages import Observation, RobotStep
+
+    iso = load_task(CORRIDOR)
+    assert iso.safety is not None
+    slow = replace(iso, safety=replace(iso.safety, reduced_speed=0.3))
+    d = Dispatcher.from_compiled(compile_task(slow, jobs=1))
+    step = d.decision.robot
+    assert isinstance(step, RobotStep)
+    assert step.to_json()["separation"] == {"speed": 0.6, "separation": 1.36, "standing": 0.16, "reduced_speed": 0.3,
+                                            "reduced_separation": 0.715}
+    after = d.observe(Observation(0.0, "depart", "robot", "cross", "work")).robot
+    if isinstance(after, RobotStep):
+        assert after.separation == step.separation
+    plain = Dispatcher.from_compiled(compile_task(replace(iso, safety=None), jobs=1))
+    assert isinstance(plain.decision.robot, RobotStep)
+    assert "separation" not in plain.decision.to_json()["robot"]

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import copy
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Any, Literal
 
@@ -40,6 +40,7 @@ import numpy as np
 
 from hrc.errors import DispatchError, HrcError
 from hrc.model import Task
+from hrc.motion.separation import limits
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 from hrc.temporal.execution import residual_origin
 
@@ -98,6 +99,8 @@ class Dispatcher:
         self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
         self._robot = next((a.id for a in plan_set.task.agents if not a.is_human), "")
         self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
+        found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
+        self._limits = None if found is None else MappingProxyType(found)
         history = History.start(plan_set.task)
         everything = np.arange(len(plan_set), dtype=np.int64)
         self._state = self._settle(history, (), (), everything, {}, None)
@@ -325,6 +328,8 @@ class Dispatcher:
             robot, human = self._steps(entry, executed(entry, history), history, plan_class, best, do,
                                        (seen, legs_seen))
             do_forms = MappingProxyType(do)
+            if self._limits is not None and isinstance(robot, RobotStep):
+                robot = replace(robot, separation=self._limits)
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
                                 False, human, ack)
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,

@@ -63,17 +63,23 @@ class Observation:
 @dataclass(frozen=True, slots=True)
 class RobotStep:
     """Do `event` of `action`.`phase` at a time in ``[earliest, latest]`` (seconds; latest None: no bound).
-    (Also the shape of the human's hint in `Decision.human`.)"""
+    (Also the shape of the human's hint in `Decision.human`.) `separation`: the speed and separation
+    limits the plan assumed of the robot's safety controller (`hrc.motion.separation.limits`; a task
+    with `safety:` only)."""
 
     action: str
     phase: str
     event: str
     earliest: float
     latest: float | None
+    separation: Mapping[str, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {"action": self.action, "phase": self.phase, "event": self.event, "earliest": self.earliest,
-                "latest": self.latest}
+        out = {"action": self.action, "phase": self.phase, "event": self.event, "earliest": self.earliest,
+               "latest": self.latest}
+        if self.separation is not None:
+            out["separation"] = dict(self.separation)
+        return out
 
 
 @dataclass(frozen=True, slots=True)

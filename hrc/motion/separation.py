@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 from hrc.model import Safety, Task
 
-__all__ = ["SeparationTerms", "protective_separation", "reach", "robot_speed_limit", "stopping"]
+__all__ = ["SeparationTerms", "limits", "protective_separation", "reach", "robot_speed_limit", "stopping"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +94,22 @@ def reach(task: Task, speed: float) -> float:
     if task.safety is None:
         return human.radius + robot.radius + task.safety_margin  # as it always was, to the last bit
     return human.radius + robot.radius + protective_separation(task.safety, speed).total
+
+
+def limits(task: Task) -> dict[str, float] | None:
+    """What a plan of `task` assumed of the robot's safety controller, for the robot to be told with each
+    step (`hrc.dispatch`): its top ``speed`` (m/s) and the protective ``separation`` at it, the separation
+    ``standing`` (m), and the ``reduced_speed`` and its ``reduced_separation`` when the task allows a
+    reduced-speed zone; None for a task without `safety` (its answers stay as they were)."""
+    if task.safety is None:
+        return None
+    robot = next(a for a in task.agents if not a.is_human)
+    out = {"speed": robot.speed, "separation": round(protective_separation(task.safety, robot.speed).total, 6),
+           "standing": round(protective_separation(task.safety, 0.0).total, 6)}
+    slow = task.safety.reduced_speed
+    if slow is not None:
+        out |= {"reduced_speed": slow, "reduced_separation": round(protective_separation(task.safety, slow).total, 6)}
+    return out
 
 
 def robot_speed_limit(safety: Safety, free: float, top: float) -> float:
