@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 from hrc.model import Safety, Task
 
-__all__ = ["SeparationTerms", "limits", "protective_separation", "reach", "robot_speed_limit", "stopping"]
+__all__ = ["SeparationTerms", "describe", "limits", "protective_separation", "reach", "robot_speed_limit", "stopping"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +94,24 @@ def reach(task: Task, speed: float) -> float:
     if task.safety is None:
         return human.radius + robot.radius + task.safety_margin  # as it always was, to the last bit
     return human.radius + robot.radius + protective_separation(task.safety, speed).total
+
+
+def describe(task: Task) -> str:
+    """Which co-worker model `task` gives motion acquisition, in one line (the reports, `hrc show`)."""
+    robot = next(a for a in task.agents if not a.is_human)
+    if task.safety is None:
+        return (f"the fixed safety margin, {task.safety_margin:g} m between the two discs (the task has no "
+                "safety: section)")
+    moving, standing = protective_separation(task.safety, robot.speed), protective_separation(task.safety, 0.0)
+    terms = (f"S_h {moving.human:.3f} + S_r {moving.robot:.3f} + S_s {moving.stopping:.3f} + C {moving.intrusion:g} "
+             f"+ Z_d {moving.sensor:g} + Z_r {moving.robot_position:g}")
+    slow = task.safety.reduced_speed
+    zone = "; no reduced-speed zone"
+    if slow:
+        zone = (f"; a reduced-speed zone at {slow:g} m/s allowed: "
+                f"S_p {protective_separation(task.safety, slow).total:.3f} m")
+    return (f"the protective separation of ISO/TS 15066 (speed and separation monitoring): at the robot's "
+            f"{robot.speed:g} m/s S_p = {terms} = {moving.total:.3f} m, standing {standing.total:.3f} m{zone}")
 
 
 def limits(task: Task) -> dict[str, float] | None:

@@ -11,13 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from hrc.motion.separation import protective_separation
-
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlanSet
-    from hrc.model import Task
 
-__all__ = ["COST_HEADER", "SeparationCost", "cost_cells", "model_words", "separation_costs"]
+__all__ = ["COST_HEADER", "SeparationCost", "cost_cells", "separation_costs"]
 
 COST_HEADER = ("Rank", "Plan", "Class (margin \u2192 S_p)", "Worst makespan (s)", "Change (s)", "Detours",
                "Passing orders", "Reduced-speed legs")
@@ -38,24 +35,6 @@ class SeparationCost:
     passing_before: int
     passing_after: int
     slow_legs: int
-
-
-def model_words(task: Task) -> str:
-    """Which co-worker model the compile used, in one line (both reports' option list)."""
-    robot = next(a for a in task.agents if not a.is_human)
-    if task.safety is None:
-        return (f"the fixed safety margin, {task.safety_margin:g} m between the two discs (the task has no "
-                "safety: section)")
-    moving, standing = protective_separation(task.safety, robot.speed), protective_separation(task.safety, 0.0)
-    terms = (f"S_h {moving.human:.3f} + S_r {moving.robot:.3f} + S_s {moving.stopping:.3f} + C {moving.intrusion:g} "
-             f"+ Z_d {moving.sensor:g} + Z_r {moving.robot_position:g}")
-    slow = task.safety.reduced_speed
-    zone = "; no reduced-speed zone"
-    if slow:
-        zone = (f"; a reduced-speed zone at {slow:g} m/s allowed: "
-                f"S_p {protective_separation(task.safety, slow).total:.3f} m")
-    return (f"the protective separation of ISO/TS 15066 (speed and separation monitoring): at the robot's "
-            f"{robot.speed:g} m/s S_p = {terms} = {moving.total:.3f} m, standing {standing.total:.3f} m{zone}")
 
 
 def separation_costs(iso: CompiledPlanSet, margin: CompiledPlanSet) -> tuple[SeparationCost, ...]:

@@ -11,8 +11,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from hrc.compile.temporal_net_creator import ref_timepoint
+from hrc.motion.separation import describe as model_words
 from hrc.plans import agent_legs
-from hrc.report.separation import SeparationCost, model_words, separation_costs
+from hrc.report.separation import SeparationCost, separation_costs
 
 if TYPE_CHECKING:
     from hrc.compile.classify import Classification
