@@ -17,11 +17,12 @@ This module turns that into constraints the temporal net can carry, for every hu
    time, so the human is at arc length `u` some time within ``[T(depart) + u / v_h,
    T(arrive) - (L - u) / v_h]`` and nothing more is assumed.
 3. **Conflict set.** Two discs overlap when their centres are closer than
-   ``reach = r_human + r_robot + safety_margin``. For a robot travel and a human travel the conflict set
-   is ``C = {(s, u): |P_r(s) - P_h(u)| < reach}``; for a travel and a stay, the arc lengths of the travel
-   within reach of the location; two stays conflict when their locations are within reach. Each connected
-   component of C is one `Conflict`, since the two can pass each other in a different order at each place
-   where their routes meet.
+   ``reach = r_human + r_robot + safety_margin`` (with the task's `safety`, ``r_human + r_robot + S_p(v)``,
+   the protective separation at the robot's speed there, `hrc.motion.separation`). For a robot travel and a
+   human travel the conflict set is ``C = {(s, u): |P_r(s) - P_h(u)| < reach}``; for a travel and a stay,
+   the arc lengths of the travel within reach of the location; two stays conflict when their locations are
+   within reach. Each connected component of C is one `Conflict`, since the two can pass each other in a
+   different order at each place where their routes meet.
 4. **Two separations per conflict.** A schedule keeps the discs apart at a component iff one agent is
    through it before the other gets there. With the motion model this is one difference constraint on
    the agents' timepoints, `Separation` ``T(later) - T(earlier) >= gap``:
