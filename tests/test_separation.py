@@ -354,3 +354,25 @@ def test_robot_steps_carry_the_limits_their_plan_assumed() -> None:
     plain = Dispatcher.from_compiled(compile_task(replace(iso, safety=None), jobs=1))
     assert isinstance(plain.decision.robot, RobotStep)
     assert "separation" not in plain.decision.to_json()["robot"]
+
+
+def test_simulation_under_the_controller_reports_its_measures() -> None:
+    """The crossing simulated under speed and separation monitoring: every run carries the controller's
+    counts, the robot never drives closer than S_p at its speed, the DC plans are measured against their
+    compiled worst case, and hrc is compared with motion-blind on the same seeds."""
+    import json
+
+    from hrc.sim.montecarlo import simulate, simulation_json
+
+    task = load_task(CORRIDOR)
+    sim = simulate(task, 3, 0, ("hrc", "motion-blind"), jobs=1)
+    doc = json.loads(simulation_json(sim))
+    for name in ("hrc", "motion-blind"):
+        ssm = doc["policies"][name]["aggregate"]["ssm"]
+        assert ssm["runs_closer_than_separation"] == 0
+        assert all("ssm" in run for run in doc["policies"][name]["runs"])
+        robot = ssm["min_free_robot_approaching"]
+        assert robot is None or robot >= 0.16 - 1e-9  # S_p(0): it never drives nearer
+    assert set(doc["separation"]["policies"]) == {"hrc", "motion-blind"}
+    assert doc["separation"]["policies"]["hrc"]["over_compiled_worst_case"] == 0
+    assert "hrc_vs_motion_blind" in doc["separation"]
