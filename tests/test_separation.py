@@ -376,3 +376,38 @@ def test_simulation_under_the_controller_reports_its_measures() -> None:
     assert set(doc["separation"]["policies"]) == {"hrc", "motion-blind"}
     assert doc["separation"]["policies"]["hrc"]["over_compiled_worst_case"] == 0
     assert "hrc_vs_motion_blind" in doc["separation"]
+
+
+@pytest.mark.slow  # a node process and DDS discovery: tens of seconds
+def test_ros2_node_publishes_the_drive_limits(tmp_path: Path) -> None:
+    """hrc ros2 on the crossing: with the robot's first drive it publishes on robot/separation what the
+    plan assumed (0.6 m/s, S_p 1.36 m driving, 0.16 m standing), the drive's own speed and separation."""
+    import json
+
+    from conftest import compiled_folder
+    from ros2_client import Client, NodeProcess, ros_env
+
+    folder = compiled_folder(tmp_path / "out", CORRIDOR)
+    env = ros_env(tmp_path)
+    node = NodeProcess(folder, env, "--log", str(tmp_path / "ros.log"))
+    client = None
+    try:
+        client = Client(env)
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        got: list[str] = []
+        latest = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        client.node.create_subscription(client.String, "robot/separation", lambda m: got.append(m.data), latest)
+        client.wait_matched()
+        answer = json.loads(client.send('{"t": 0, "event": "tick"}'))
+        assert answer["robot"]["event"] == "depart"
+        client.spin_until(lambda: got, 20, "a message on robot/separation")
+        msg = json.loads(got[-1])
+        assert msg == {"t": 0.0, "action": "cross", "phase": "work", "event": "depart", "speed": 0.6,
+                       "separation": 1.36, "standing": 0.16, "drive_speed": 0.6, "drive_separation": 1.36}
+    finally:
+        if client is not None:
+            client.close()
+        node.stop()
+        node.kill()
