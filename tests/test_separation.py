@@ -19,7 +19,7 @@ from hrc.errors import TaskFileError
 from hrc.io.task_file import dump_task, load_task
 from hrc.model import Safety
 from hrc.motion import separation
-from hrc.motion.separation import protective_separation, robot_speed_limit, stopping
+from hrc.motion.separation import protective_separation, stopping
 
 SAFETY: dict[str, Any] = {"reaction_time": "0.1 s", "stopping": {"deceleration": "1.0 m/s^2"},
                           "intrusion": "0.2 m", "sensor_uncertainty": "50 mm", "robot_uncertainty": "2 cm"}
@@ -50,16 +50,6 @@ def test_measured_stops_interpolate_and_stop_at_the_fastest() -> None:
     assert protective_separation(safety, 0.6).total == pytest.approx(1.7 + 0.12 + 0.225)
     with pytest.raises(ValueError, match="beyond the fastest measured stop"):
         stopping(safety, 0.81)
-
-
-def test_speed_limit_is_the_fastest_speed_that_fits() -> None:
-    safety = Safety(reaction_time=0.1, deceleration=1.0)
-    assert robot_speed_limit(safety, 5.0, 0.6) == 0.6
-    assert robot_speed_limit(safety, 0.1, 0.6) == 0.0  # S_p(0) = 0.16
-    # S_p(v) = 0.16 + 1.7 v + 0.5 v^2 = 1.0 at v = -1.7 + sqrt(1.7^2 + 2 * 0.84)
-    v = robot_speed_limit(safety, 1.0, 0.6)
-    assert v == pytest.approx(-1.7 + (1.7**2 + 1.68) ** 0.5, abs=2e-6)
-    assert protective_separation(safety, v).total <= 1.0
 
 
 def _write(tmp_path: Path, safety: Any) -> Path:

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 from hrc.model import Safety, Task
 
-__all__ = ["SeparationTerms", "describe", "limits", "protective_separation", "reach", "robot_speed_limit", "stopping"]
+__all__ = ["SeparationTerms", "describe", "limits", "protective_separation", "reach", "stopping"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,20 +129,3 @@ def limits(task: Task) -> dict[str, float] | None:
         out |= {"reduced_speed": slow, "reduced_separation": round(protective_separation(task.safety, slow).total, 6)}
     return out
 
-
-def robot_speed_limit(safety: Safety, free: float, top: float) -> float:
-    """The fastest robot speed (m/s, at most `top`) whose protective separation fits in the free distance
-    `free` (m): what an SSM controller lets the robot drive at, 0 when even a standing robot is too close.
-    S_p rises with speed (every term does), so a bisection to 1e-6 m/s finds it. O(log(top / 1e-6))."""
-    if protective_separation(safety, top).total <= free:
-        return top
-    if protective_separation(safety, 0.0).total > free:
-        return 0.0
-    lo, hi = 0.0, top
-    while hi - lo > 1e-6:
-        mid = (lo + hi) / 2
-        if protective_separation(safety, mid).total <= free:
-            lo = mid
-        else:
-            hi = mid
-    return lo
