@@ -32,6 +32,7 @@ __all__ = [
     "Preference",
     "PreferenceKind",
     "SENSING_PATHS",
+    "Safety",
     "Sensing",
     "Task",
     "TemporalConstraint",
@@ -259,6 +260,28 @@ class Sensing:
 
 
 @dataclass(frozen=True, slots=True)
+class Safety:
+    """Speed and separation monitoring (ISO/TS 15066:2016, 5.5.4): what the protective separation distance
+    of `hrc.motion.separation` is made of. Seconds, metres, m/s, m/s^2.
+
+    `reaction_time` T_r (sensing to the stop command); the robot's stopping either at a constant
+    `deceleration` or as measured `stops` ``(speed, time, distance)`` rising with speed (ISO 10218-1,
+    annex B); `human_speed` v_h (ISO 13855: 1.6 m/s); `intrusion` C; `sensor_uncertainty` Z_d and
+    `robot_uncertainty` Z_r; `reduced_speed` the robot's speed in a reduced-speed zone near the person,
+    None when the task allows none.
+    """
+
+    reaction_time: float
+    deceleration: float | None = None
+    stops: tuple[tuple[float, float, float], ...] = ()
+    human_speed: float = 1.6
+    intrusion: float = 0.0
+    sensor_uncertainty: float = 0.0
+    robot_uncertainty: float = 0.0
+    reduced_speed: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class Task:
     """A collaborative task on a workspace.
 
@@ -267,6 +290,8 @@ class Task:
     `safety_margin` (m) is added to every agent's radius for clearance from obstacles and the co-worker.
     `preference_sets` are named extra preferences, one set per *worker type* (APA, section VI: group A
     places all fasteners then torques, group B torques each in turn); `preferences` hold for everyone.
+    `safety`: speed and separation monitoring, whose protective separation replaces `safety_margin` between
+    the co-workers (`hrc.motion.separation`); None keeps the margin.
     """
 
     name: str
@@ -282,6 +307,7 @@ class Task:
     preference_sets: tuple[tuple[str, tuple[Preference, ...]], ...] = ()
     source: str = field(default="", compare=False)
     sensing: Sensing | None = None  # how the human's events reach the robot; None: at once (DC)
+    safety: Safety | None = None
 
     def preference_set(self, name: str) -> tuple[Preference, ...]:
         """The named set's preferences (raises `KeyError` for an unknown name)."""

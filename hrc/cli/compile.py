@@ -383,7 +383,7 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                 from hrc.report import write_report
 
                 t1, c1 = time.perf_counter(), time.process_time()
-                write_report(result.plan_set, stage)
+                write_report(result.plan_set, stage, _margin_compile(task, args.seed, jobs, args.executor, options))
                 stages.append(("report (figures, tables)", time.perf_counter() - t1, time.process_time() - c1))
     except Abandoned as kept:  # the staging folder is gone with nothing written into it
         print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "
@@ -419,3 +419,15 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
         print(_times(start_cpu, stages), file=sys.stderr, flush=True)
     return 0
 
+
+
+def _margin_compile(task: Any, seed: int, jobs: int | None, executor: str | None, options: Any) -> Any:
+    """`task` compiled again with its fixed safety margin in place of its protective separation, for the
+    report's cost of the separation per plan (None for a task without `safety:`: nothing to compare)."""
+    if task.safety is None:
+        return None
+    from dataclasses import replace
+
+    from hrc.compile.compiler import compile_task
+
+    return compile_task(replace(task, safety=None), seed=seed, jobs=jobs, executor=executor, options=options)

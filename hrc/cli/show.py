@@ -11,6 +11,7 @@ from hrc.compile.estimate import DEFAULT_MAX_PLANS, FIXED_SECONDS, estimate, fmt
 from hrc.compile.executors import default_jobs
 from hrc.io.task_file import load_task
 from hrc.model import Task
+from hrc.motion.separation import describe as model_words
 from hrc.plans import allocation_count, identical_actions, symmetry_factor
 
 __all__ = ["add_parser", "run", "task_summary"]
@@ -60,13 +61,15 @@ def task_summary(task: Task) -> dict[str, Any]:
                      "max_plans_default": DEFAULT_MAX_PLANS},
         "identical_actions": [list(g) for g in identical_actions(task)],
         "symmetry_factor": symmetry_factor(task),
-    }
+    } | ({} if task.safety is None else {"separation": model_words(task)})  # a task with safety: only
 
 
 def _text(s: dict[str, Any]) -> str:
     lines = [f"task {s['task']}  ({s['file']})"]
     deadline = "none" if s["deadline"] is None else f"{s['deadline']:g} s"
     lines.append(f"  makespan deadline: {deadline}; safety margin: {s['safety_margin']:g} m")
+    if "separation" in s:
+        lines.append(f"  between the co-workers: {s['separation']}")
     lines.append("agents:")
     for a in s["agents"]:
         pace = f", travel up to x{a['travel_slack']:g}" if a["kind"] == "human" else ""

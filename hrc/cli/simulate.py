@@ -163,6 +163,33 @@ def format_detection(sim: Any) -> str:
     return "\n".join(lines)
 
 
+def format_ssm(sim: Any) -> str:
+    """Under speed and separation monitoring: its counts per policy, the DC plans against their compiled
+    worst case, and the motion-aware policy against the motion-blind one (`separation_summary`)."""
+    from hrc.sim.metrics import aggregate
+    from hrc.sim.montecarlo import separation_summary
+
+    summary = separation_summary(sim)
+    lines = ["speed and separation monitoring (ISO/TS 15066): protective stops per run median / mean, their "
+             "time and the slowing's (mean), runs closer than S_p, closest robot driving / person walking up"]
+    for name in sim.policies:
+        m = aggregate(sim.results[name])["ssm"]
+        p = summary["policies"][name]
+        lines.append(f"  {name}: stops {m['protective_stops_median']:g} / {m['protective_stops_mean']:.2f} "
+                     f"({m['runs_with_stops']} runs), {m['stop_time_mean']:.1f} s + {m['slow_time_mean']:.1f} s, "
+                     f"closer than S_p in {m['runs_closer_than_separation']} runs, closest "
+                     f"{m['min_free_robot_approaching']} / {m['min_free_person_approaching']} m; "
+                     f"DC first plan kept in {p['dc_first_plan_kept']} runs, over its compiled worst case in "
+                     f"{p['over_compiled_worst_case']}")
+    h = summary.get("hrc_vs_motion_blind")
+    if h is not None:
+        lo, hi = h["faster_ci95"]
+        lines.append(f"  hrc vs motion-blind: mean makespan {h['mean_makespan'][0]} / {h['mean_makespan'][1]} s over "
+                     f"{h['runs']} runs both finished: {100 * h['faster']:.1f} % faster (95 % CI {100 * lo:.1f} to "
+                     f"{100 * hi:.1f} %)")
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
     from hrc.sim.human import HumanModel, scaled_truth
     from hrc.sim.montecarlo import simulate, simulation_json
@@ -225,6 +252,8 @@ def run(args: argparse.Namespace) -> int:
         print(format_table(sim))
         if sim.baseline is not None:
             print(format_detection(sim))
+        if task.safety is not None:
+            print(format_ssm(sim))
         print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/")
               + ("" if sim.logs is None else f", {out}/runs/ (one dispatcher log per run)"))
     if args.record is not None:

@@ -724,7 +724,10 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
       leg's first way round together;
     - waiting places: where an agent would wait in the co-worker's way (a stay that meets the other), a
       stop at its own start instead, on each leg that leaves that stay (the human's only when the robot
-      may time the human's steps, ``human_waits``); then every such leg of that agent together.
+      may time the human's steps, ``human_waits``); then every such leg of that agent together;
+    - a reduced-speed zone, where the task's `safety` allows one: each robot travel that meets the human
+      driven at the reduced speed (a smaller protective separation, so fewer and shorter conflicts, for
+      a longer drive: ISO/TS 15066, 5.5.4), then every such leg together.
     """
     robot = next(a for a in task.agents if not a.is_human)
     shortest = shortest or _Routing(task, plan, paths, {}, human_waits)
@@ -752,6 +755,14 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
                 firsts.setdefault((robot.id, leg), Route(path))
     if len(firsts) > 1:
         trials.append(firsts)
+    reduced = task.safety.reduced_speed if task.safety is not None else None
+    if reduced:
+        slow: Routes = {(robot.id, leg): Route(paths.get(robot.id, m.origin, m.target), speed=reduced)
+                        for leg in sorted(places)
+                        for m in motions if m.agent == robot.id and m.leg == leg}
+        trials.extend({key: route} for key, route in slow.items())
+        if len(slow) > 1:
+            trials.append(slow)
     # waiting places
     every_park: Routes = {}
     for agent in task.agents:
@@ -801,10 +812,14 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
         bounded = [(_bound(task, routing, rank_by, best_key), i, routing) for i, routing in enumerate(trials)
                    if not _beyond(routing, rank_by, best_key)]  # those would sort after every one tried
         bounded.sort(key=lambda b: (b[0], b[1]))  # the most promising first
-        for tried, (bound, _, routing) in enumerate(bounded):
+        tried = 0
+        for bound, _, routing in bounded:
             if bound >= best_key:
                 break  # neither this nor any later one can beat what we have
-            if tried >= TRIAL_CAP and best is not None:  # the cap bounds the search for a better pattern;
+            if any(r.speed for r in routing.routes.values()):
+                tried -= 1  # a reduced-speed trial does not take a detour's or a waiting place's turn
+            tried += 1
+            if tried > TRIAL_CAP and best is not None:  # the cap bounds the search for a better pattern;
                 exhaustive = False                      # while there is none at all, every route is tried
                 break
             more, full = _search(task, plan, routing, rank_by, bound, best_key if best is not None else None)

@@ -228,7 +228,7 @@ def _motion_dict(m: Motion, leg: Leg) -> dict[str, Any]:
         "free_time": _s(m.free_time), "time": _s(m.time),
         "detour": {"round": m.via, "points": [_xy(p) for p in m.points]} if m.via else None,
         "park": {"at": m.park, "time": _s(m.park_time)} if m.park else None,
-    }
+    } | ({"speed": m.speed} if m.speed else {})  # a reduced speed only: files without one stay as they were
 
 
 def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n_passing: int,

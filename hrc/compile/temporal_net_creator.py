@@ -252,7 +252,7 @@ class _Skeleton:
         `motion`."""
         agent, leg, leg_key, _ = self.legs[i]
         ops = self._ops
-        key = (*leg_key, motion.time, motion.via, motion.park, motion.park_time)
+        key = (*leg_key, motion.time, motion.via, motion.park, motion.park_time, motion.speed)
         found = ops.get(key)
         if found is None:
             found = ops[key] = _travel_ops(agent, leg, leg_key[6], self.human_waits, motion)
@@ -323,7 +323,8 @@ def _travel_ops(agent: Agent, leg: Leg, prev_end: str, human_waits: bool,
     if motion.time <= 0:
         ops.append(_req(dep, arr, 0, 0, "order", f"{agent.id} is already at {leg.location}"))
     else:
-        ops.append(_travel(agent, dep, arr, motion.time, route + (f" round {motion.via}" if motion.via else "")))
+        ops.append(_travel(agent, dep, arr, motion.time, route + (f" round {motion.via}" if motion.via else "")
+                           + (f" at a reduced {motion.speed:g} m/s" if motion.speed else "")))
     return [dep, arr, st, en], ops
 
 

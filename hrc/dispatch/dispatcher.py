@@ -42,7 +42,7 @@ from __future__ import annotations
 import copy
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Any, Literal
 
@@ -50,6 +50,7 @@ import numpy as np
 
 from hrc.errors import DispatchError, HrcError
 from hrc.model import Task
+from hrc.motion.separation import limits
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 from hrc.temporal.execution import residual_origin
 
@@ -121,6 +122,8 @@ class Dispatcher:
         self._human_g = next((g for g, a in enumerate(plan_set.task.agents) if a.is_human), -1)
         self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
         self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
+        found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
+        self._limits = None if found is None else MappingProxyType(found)
         history = History.start(plan_set.task)
         everything = np.arange(len(plan_set), dtype=np.int64)
         self._state = self._settle(history, (), (), everything, {}, None)
@@ -432,6 +435,8 @@ class Dispatcher:
                                        (seen, legs_seen))
             do_forms = MappingProxyType(do)
             ahead = self._ahead(entry, best, executed(entry, history), history) if human is None else None
+            if self._limits is not None and isinstance(robot, RobotStep):
+                robot = replace(robot, separation=self._limits)
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
                                 False, human, ack, deviation, ahead)
         told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told

@@ -68,17 +68,23 @@ class Observation:
 @dataclass(frozen=True, slots=True)
 class RobotStep:
     """Do `event` of `action`.`phase` at a time in ``[earliest, latest]`` (seconds; latest None: no bound).
-    (Also the shape of the human's hint in `Decision.human`.)"""
+    (Also the shape of the human's hint in `Decision.human`.) `separation`: the speed and separation
+    limits the plan assumed of the robot's safety controller (`hrc.motion.separation.limits`; a task
+    with `safety:` only)."""
 
     action: str
     phase: str
     event: str
     earliest: float
     latest: float | None
+    separation: Mapping[str, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {"action": self.action, "phase": self.phase, "event": self.event, "earliest": self.earliest,
-                "latest": self.latest}
+        out = {"action": self.action, "phase": self.phase, "event": self.event, "earliest": self.earliest,
+               "latest": self.latest}
+        if self.separation is not None:
+            out["separation"] = dict(self.separation)
+        return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -239,8 +245,9 @@ def observation_from_json(obj: Any) -> Observation:
         raise DispatchError(f"a {event!r} message takes no action, phase or next")
     delay = obj.get("delay")
     if delay is not None:
-        if isinstance(delay, bool) or not isinstance(delay, int | float) or not math.isfinite(delay) or \
-                not 0 <= delay <= _MAX_T or event not in LEG_EVENTS:
+        # compared, never converted: NaN fails the comparison, and no integer can overflow (issue 34)
+        if isinstance(delay, bool) or not isinstance(delay, int | float) or not 0 <= delay <= _MAX_T or \
+                event not in LEG_EVENTS:
             raise DispatchError("'delay' must be the seconds (>= 0) between a leg event and when it was learnt")
         delay = float(delay)
     return Observation(float(t), event, agent, action, phase, nxt, delay)

@@ -61,7 +61,8 @@ def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable
 
 class PlanRoutes:
     """Each plan's routes, one polyline per agent leg: ``routes(plan_id) -> {agent: [leg, ...]}``, a leg
-    being ``{"action", "phase", "from", "to", "points": [[x, y], ...], "detour": str | None}``.
+    being ``{"action", "phase", "from", "to", "points": [[x, y], ...], "detour": str | None}`` (and
+    ``"speed"`` for a leg the robot drives at a reduced speed).
 
     `motions` gives a plan's ``motions`` from ``compiled.json`` by its id (None: no such plan;
     `plan_motions` reads one line of the file); `paths` the free-space paths for its
@@ -95,6 +96,7 @@ class PlanRoutes:
                 out.setdefault(m["agent"], []).append({
                     "action": m["action"], "phase": m["phase"], "from": m["from"], "to": m["to"],
                     "points": points, "detour": m["detour"]["round"] if m["detour"] else None,
-                    "park": m["park"]["at"] if m["park"] else None})
+                    "park": m["park"]["at"] if m["park"] else None}
+                    | ({"speed": m["speed"]} if m.get("speed") else {}))  # a reduced-speed leg only
             self._cache[plan_id] = out
         return self._cache[plan_id]

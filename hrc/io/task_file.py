@@ -20,6 +20,7 @@ import yaml
 from hrc.errors import TaskFileError
 from hrc.io.atomic import write_text_atomic
 from hrc.io.map_file import clearance, load_workspace, workspace_to_dict
+from hrc.io.safety_section import read_safety, safety_to_dict
 from hrc.io.yamldoc import Doc, read_yaml
 from hrc.model import (
     DEFAULT_TRAVEL_SLACK,
@@ -51,7 +52,7 @@ MAX_TRAVEL_SLACK = 100.0
 
 _TOP_REQUIRED = ("name", "map", "agents", "actions")
 _TOP_OPTIONAL = ("precedence", "constraints", "deadline", "preferences", "preference_sets", "safety_margin",
-                 "sensing")
+                 "sensing", "safety")
 _COEFFS = {PreferenceKind.CONSTANT: 1, PreferenceKind.LINEAR: 2, PreferenceKind.QUADRATIC: 3}
 
 
@@ -94,11 +95,13 @@ def load_task(path: str | os.PathLike[str]) -> Task:
         items = doc.sequence(raw_set, ("preference_sets", set_name), min_len=1)
         sets.append((set_name, tuple(_preference(doc, raw, ("preference_sets", set_name, i), by_id)
                                      for i, raw in enumerate(items))))
+    robot = next(a for a in agents if not a.is_human)
+    safety = read_safety(doc, top["safety"], robot) if top.get("safety") is not None else None
     sensing = _sensing(doc, top["sensing"]) if top.get("sensing") is not None else None
     return Task(name=name, agents=tuple(agents), actions=tuple(actions), precedence=tuple(precedence),
                 constraints=tuple(constraints), deadline=deadline, preferences=tuple(preferences),
                 map_path=map_path, workspace=workspace, safety_margin=margin, preference_sets=tuple(sets),
-                source=doc.file, sensing=sensing)
+                source=doc.file, sensing=sensing, safety=safety)
 
 
 def _sensing(doc: Doc, raw: Any) -> Sensing:
@@ -348,6 +351,8 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
     if task.sensing is not None:  # likewise
         lo, hi = task.sensing.delay
         out["sensing"] = {"path": task.sensing.path, "delay": [lo, math.inf if hi is None else hi]}
+    if task.safety is not None:  # likewise
+        out["safety"] = safety_to_dict(task.safety)
     return out
 
 

@@ -17,11 +17,12 @@ This module turns that into constraints the temporal net can carry, for every hu
    time, so the human is at arc length `u` some time within ``[T(depart) + u / v_h,
    T(arrive) - (L - u) / v_h]`` and nothing more is assumed.
 3. **Conflict set.** Two discs overlap when their centres are closer than
-   ``reach = r_human + r_robot + safety_margin``. For a robot travel and a human travel the conflict set
-   is ``C = {(s, u): |P_r(s) - P_h(u)| < reach}``; for a travel and a stay, the arc lengths of the travel
-   within reach of the location; two stays conflict when their locations are within reach. Each connected
-   component of C is one `Conflict`, since the two can pass each other in a different order at each place
-   where their routes meet.
+   ``reach = r_human + r_robot + safety_margin`` (with the task's `safety`, ``r_human + r_robot + S_p(v)``,
+   the protective separation at the robot's speed there, `hrc.motion.separation`). For a robot travel and a
+   human travel the conflict set is ``C = {(s, u): |P_r(s) - P_h(u)| < reach}``; for a travel and a stay,
+   the arc lengths of the travel within reach of the location; two stays conflict when their locations are
+   within reach. Each connected component of C is one `Conflict`, since the two can pass each other in a
+   different order at each place where their routes meet.
 4. **Two separations per conflict.** A schedule keeps the discs apart at a component iff one agent is
    through it before the other gets there. With the motion model this is one difference constraint on
    the agents' timepoints, `Separation` ``T(later) - T(earlier) >= gap``:
@@ -59,6 +60,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from hrc.model import Agent, Plan, Task
+from hrc.motion import separation
 from hrc.motion.motions import Route, Routes
 from hrc.motion.paths import Path, PathLibrary
 from hrc.plans import Leg, agent_legs
@@ -204,7 +206,7 @@ _Component = tuple[float, float, tuple[float, float], tuple[tuple[float, float],
 
 
 def _travel_travel(paths: PathLibrary, rp: Path, hp: Path, reach: float, vr: float, vh: float) -> list[_Component]:
-    key = ("tt", rp.agent, rp.origin, rp.target, rp.via, hp.agent, hp.origin, hp.target, hp.via, reach)
+    key = ("tt", rp.agent, rp.origin, rp.target, rp.via, hp.agent, hp.origin, hp.target, hp.via, reach, vr, vh)
     cached = paths.samples.get(key)
     if cached is not None:
         return cached
@@ -264,7 +266,8 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
     """
     human = next(a for a in task.agents if a.is_human)
     robot = next(a for a in task.agents if not a.is_human)
-    reach = human.radius + robot.radius + task.safety_margin
+    # the robot driving keeps the protective separation at its speed, standing at speed 0 (`separation`)
+    reach = (separation.reach(task, robot.speed), separation.reach(task, 0.0))
     routes = routes or {}
     locs = paths.locations
 
@@ -276,6 +279,13 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
             return chosen.path
         return paths.get(occ.agent, occ.origin, occ.location)
 
+    def speed(occ: Occupancy) -> float:
+        """The speed of a travel: a reduced one chosen for its leg (`Route.speed`), else the agent's."""
+        chosen: Route | None = routes.get((occ.agent, occ.leg))
+        if chosen is not None and chosen.speed:
+            return chosen.speed
+        return robot.speed if occ.agent == robot.id else human.speed
+
     def signature(occ: Occupancy) -> tuple:
         """What `_pair` reads of an occupancy, as a flat tuple (hashed in C, unlike the dataclass)."""
         b, f = occ.begin, occ.finish
@@ -283,7 +293,7 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
                f.leg, f.what)
         if occ.kind != "travel":
             return sig
-        return (*sig, *_path_key(route(occ)))
+        return (*sig, *_path_key(route(occ)), speed(occ))
 
     # the conflicts of an occupancy pair depend on the two occupancies and their routes only, and the
     # same pairs recur across the plans of a task: kept per process, like the geometry they come from
@@ -323,7 +333,9 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
         for h, hk in h_occ:
             found = cache.get(rk | hk)
             if found is None:
-                found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reach, robot.speed, human.speed, paths))
+                vr = speed(r) if r.kind == "travel" else robot.speed
+                reaches = reach if vr == robot.speed else (separation.reach(task, vr), reach[1])
+                found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reaches, vr, human.speed, paths))
             out.extend(found)
     return tuple(out)
 
@@ -336,16 +348,17 @@ def _path_key(p: Path) -> tuple[str, str, str, float]:
 def _route_key(route: Route) -> tuple:
     """A route choice by its paths' `_path_key` and its waiting place."""
     q = route.onward
-    return (*_path_key(route.path), route.park, None if q is None else _path_key(q))
+    return (*_path_key(route.path), route.park, None if q is None else _path_key(q), route.speed)
 
 
 _PAIR_CACHE = 200_000  # occupancy pairs kept per process (a few tens of MB at most)
 _OCCUPANCY_CACHE = 10_000  # agents' itineraries kept per process (about 7.5 kB each: 75 MB at most)
 
 
-def _pair(r: Occupancy, h: Occupancy, route, locs, reach: float, vr: float, vh: float,  # noqa: ANN001
-          paths: PathLibrary) -> list[Conflict]:
+def _pair(r: Occupancy, h: Occupancy, route, locs, reaches: tuple[float, float], vr: float,  # noqa: ANN001
+          vh: float, paths: PathLibrary) -> list[Conflict]:
     out: list[Conflict] = []
+    reach = reaches[0] if r.kind == "travel" else reaches[1]
     r_clear, h_clear = _clearing(r, reach, vr), _clearing(h, reach, vh)
     if r.kind == "travel" and h.kind == "travel":
         rp, hp = route(r), route(h)

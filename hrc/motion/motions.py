@@ -24,14 +24,18 @@ Point = tuple[float, float]
 @dataclass(frozen=True, slots=True)
 class Route:
     """How an agent travels one leg: along `path`, or along `path` to the waiting place `park`, then,
-    after waiting there as long as the plan needs, along `onward` to the leg's target."""
+    after waiting there as long as the plan needs, along `onward` to the leg's target; at `speed` (m/s)
+    when set (the robot in a reduced-speed zone, `hrc.motion.separation`), else at the agent's own."""
 
     path: Path
     park: str = ""
     onward: Path | None = None
+    speed: float = 0.0
 
     @property
     def time(self) -> float:
+        if self.speed:
+            return (self.path.length + (self.onward.length if self.onward is not None else 0.0)) / self.speed
         return self.path.duration + (self.onward.duration if self.onward is not None else 0.0)
 
     @property
@@ -46,7 +50,8 @@ class Motion:
 
     `free_time` is the time along the shortest route; `time` the moving time along the route taken
     (`points`), longer for a detour, whose `via` says what it goes round (empty for the shortest route),
-    or for a stop at the waiting place `park`, reached after `park_time` of the moving time.
+    or for a stop at the waiting place `park`, reached after `park_time` of the moving time; `speed` is
+    the reduced speed the robot drives it at (m/s; 0: its own speed).
     """
 
     agent: str
@@ -59,6 +64,7 @@ class Motion:
     points: tuple[Point, ...] = ()
     park: str = ""
     park_time: float = 0.0
+    speed: float = 0.0
 
     @property
     def detour(self) -> bool:
@@ -95,5 +101,8 @@ def plan_motions(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | No
 def _motion(agent: str, index: int, origin: str, target: str, paths: PathLibrary, route: Route | None) -> Motion:
     free = paths.get(agent, origin, target)
     route = route or Route(free)
+    park_time = 0.0
+    if route.park:
+        park_time = route.path.length / route.speed if route.speed else route.path.duration
     return Motion(agent, index, origin, target, free.duration, route.time, route.path.via, route.points, route.park,
-                  route.path.duration if route.park else 0.0)
+                  park_time, route.speed)

@@ -83,10 +83,11 @@ def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
     return dict(sorted(written.items()))
 
 
-def write_report(cps: CompiledPlanSet, out_dir: Path) -> None:
-    """Write ``report.md``, ``report.html`` and ``figures/`` into `out_dir` (the caller's staging folder)."""
+def write_report(cps: CompiledPlanSet, out_dir: Path, margin: CompiledPlanSet | None = None) -> None:
+    """Write ``report.md``, ``report.html`` and ``figures/`` into `out_dir` (the caller's staging folder);
+    `margin`: the task compiled with its fixed margin, to show what the protective separation costs."""
     out_dir = Path(out_dir)
-    data = build_report_data(cps)
+    data = build_report_data(cps, margin)
     figures = write_figures(cps, out_dir)
     for name, render in FORMATS.items():
         (out_dir / name).write_text(render(data, figures), encoding="utf-8")

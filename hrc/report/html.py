@@ -9,6 +9,7 @@ from __future__ import annotations
 from html import escape
 
 from hrc.report.figures import CLASS_COLORS
+from hrc.report.separation import COST_HEADER, cost_cells
 from hrc.report.summary import (
     CLASS_MEANING,
     INLINE_LINKS,
@@ -183,6 +184,16 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
         if "makespans" in figures:
             out.append(f'<img src="{e(figures["makespans"])}" alt="Worst-case makespans of all plans per class">')
 
+    if data.separation:
+        out += ['<h2 id="separation">What the protective separation costs</h2>',
+                '<p class="small">Each plan compiled with the fixed safety margin and with the protective separation '
+                "(ISO/TS 15066); plans per class with the margin: "
+                + e(", ".join(f"{c} {n}" for c, n in data.margin_counts)) + ".</p>",
+                '<div class="table-wrap"><table>', "<thead><tr>" + "".join(f"<th>{e(h)}</th>" for h in COST_HEADER)
+                + "</tr></thead>", "<tbody>"]
+        out += ["<tr>" + "".join(f"<td>{e(c.strip('`'))}</td>" for c in cost_cells(r)) + "</tr>"
+                for r in data.separation]
+        out += ["</tbody>", "</table></div>"]
     rows = {r.plan_id: r for r in data.rows}
     notes = dict(data.notes)
     explanations = dict(data.explanations)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from hrc.report.separation import COST_HEADER, cost_cells
 from hrc.report.summary import (
     CLASS_MEANING,
     INLINE_LINKS,
@@ -113,6 +114,14 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
         if "makespans" in figures:
             out += [f"![Worst-case makespans of all plans per class]({figures['makespans']})", ""]
 
+    if data.separation:
+        out += ["## What the protective separation costs", "",
+                "Each plan compiled with the fixed safety margin and with the protective separation (ISO/TS "
+                "15066); plans per class with the margin: " + ", ".join(f"{c} {n}" for c, n in data.margin_counts)
+                + ".", "", "| " + " | ".join(COST_HEADER) + " |",
+                "|" + "|".join("---:" if h == "Rank" else "---" for h in COST_HEADER) + "|"]
+        out += ["| " + " | ".join(_cell(c) for c in cost_cells(r)) + " |" for r in data.separation]
+        out.append("")
     rows = {r.plan_id: r for r in data.rows}
     notes = dict(data.notes)
     explanations = dict(data.explanations)

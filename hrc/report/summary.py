@@ -11,7 +11,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from hrc.compile.temporal_net_creator import ref_timepoint
+from hrc.motion.separation import describe as model_words
 from hrc.plans import agent_legs
+from hrc.report.separation import SeparationCost, separation_costs
 
 if TYPE_CHECKING:
     from hrc.compile.classify import Classification
@@ -134,6 +136,8 @@ class ReportData:
     stats: tuple[ClassStats, ...] = ()  # makespans per class over all plans (only then)
     sensing: tuple[str, ...] = ()  # what the classes assume of how human events reach the robot, in sentences
     sensing_moves: tuple[tuple[int, str, str, str, str], ...] = ()  # (rank, plan, at delay 0, now, why)
+    separation: tuple[SeparationCost, ...] = ()  # per plan, against the fixed margin (a task with safety:)
+    margin_counts: tuple[tuple[str, int], ...] = ()  # class -> plans with the fixed margin (likewise)
 
     @property
     def truncated(self) -> bool:
@@ -265,8 +269,9 @@ def _stnu_link(cps: CompiledPlanSet, plan_id: str) -> str:
     return {"graphml": f"stnu/{plan_id}.graphml", "archive": "stnu.zip", "none": ""}[cps.stnu_files]
 
 
-def build_report_data(cps: CompiledPlanSet) -> ReportData:
-    """Collect what the reports show (see the module docstring)."""
+def build_report_data(cps: CompiledPlanSet, margin: CompiledPlanSet | None = None) -> ReportData:
+    """Collect what the reports show (see the module docstring); `margin`: the same task compiled with the
+    fixed safety margin in place of its protective separation (`hrc.report.separation`)."""
     task = cps.task
     letters = agent_letters(task.agent_ids)
     featured = featured_plans(cps)
@@ -297,7 +302,8 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         options=(("human waits", "yes (the robot's strategy times the human's steps)" if cps.options.human_waits
                   else "no (the human never waits for the robot's sake)"),
                  ("rank within a class by", f"{cps.options.rank_by} makespan"
-                  + (" to the second, then the preference value" if task.preferences else "")))
+                  + (" to the second, then the preference value" if task.preferences else "")),
+                 ("separation", model_words(task)))
         + (() if cps.summary is None or cps.summary.best is None else
            (("plans kept", f"the best {cps.summary.best[0]} of each allocation: {cps.total:,} of the "
                            f"{cps.summary.best[1]:,} plans compiled (--best-per-allocation)"),)),
@@ -308,6 +314,8 @@ def build_report_data(cps: CompiledPlanSet) -> ReportData:
         sensing_moves=tuple((cp.rank, cp.plan.id, cp.classification.class_at_delay_0.value, cp.plan_class.value,
                              cp.classification.explanation) for cp in cps.plans
                             if cp.classification.class_at_delay_0 not in (None, cp.plan_class)),
+        separation=() if margin is None else separation_costs(cps, margin),
+        margin_counts=() if margin is None else tuple(margin.counts().items()),
     )
 
 

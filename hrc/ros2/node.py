@@ -52,7 +52,7 @@ from hrc.dispatch.durable import LoggedDispatcher
 from hrc.dispatch.limits import MAX_LINE
 from hrc.model import Task
 from hrc.ros2.drive import Drive, MapFrame, next_drive
-from hrc.ros2.topics import ANSWERS, GOAL, NODE_NAME, OBSERVATIONS, POSE, ROBOT_ACKS, ROUTE, Qos
+from hrc.ros2.topics import ANSWERS, GOAL, NODE_NAME, OBSERVATIONS, POSE, ROBOT_ACKS, ROUTE, SEPARATION, Qos
 
 __all__ = ["POSITION", "DispatcherNode", "Stopped", "qos_profile", "serve"]
 
@@ -99,6 +99,8 @@ class DispatcherNode:
         self.answers = node.create_publisher(String, ANSWERS.name, qos_profile(ANSWERS.qos))
         self.goal = node.create_publisher(PoseStamped, GOAL.name, qos_profile(GOAL.qos))
         self.route = node.create_publisher(PoseArray, ROUTE.name, qos_profile(ROUTE.qos))
+        self.separation = None if self.task.safety is None else \
+            node.create_publisher(String, SEPARATION.name, qos_profile(SEPARATION.qos))
         for topic in (OBSERVATIONS, ROBOT_ACKS):
             node.create_subscription(String, topic.name, self._supervised(self._on_line), qos_profile(topic.qos))
         node.create_subscription(PoseStamped, POSE.name, self._supervised(self._on_pose), qos_profile(POSE.qos))
@@ -182,6 +184,21 @@ class DispatcherNode:
         if drive is not None and drive.leg != self.last_leg:
             self.last_leg = drive.leg
             self._drive(drive, float(out["t"]))
+            self._limits(out, legs, drive)
+
+    def _limits(self, out: dict[str, Any], legs: Any, drive: Drive) -> None:
+        """The limits the drive's plan assumed (`SEPARATION`), for a task with safety: only."""
+        step = out.get("robot") or {}
+        limits = step.get("separation")
+        if self.separation is None or not isinstance(limits, dict):
+            return
+        robot = next(a.id for a in self.task.agents if not a.is_human)
+        leg = next((lg for lg in (legs or {}).get(robot, ()) if (lg["action"], lg["phase"]) == drive.leg[:2]), None)
+        slow = leg.get("speed") if leg is not None else None
+        msg = {"t": out["t"], "action": drive.action, "phase": drive.phase, "event": drive.event, **limits,
+               "drive_speed": slow or limits["speed"],
+               "drive_separation": limits.get("reduced_separation") if slow else limits["separation"]}
+        self.separation.publish(String(data=json.dumps(msg)))
 
     def _stamp(self, t: float) -> Any:
         if self.sim_time:

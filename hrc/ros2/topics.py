@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 __all__ = ["ANSWERS", "DEFAULT_NAMESPACE", "GOAL", "INPUT", "LATEST", "NODE_NAME", "OBSERVATIONS", "POSE", "Qos",
-           "ROBOT_ACKS", "ROUTE", "TOPICS", "Topic"]
+           "ROBOT_ACKS", "ROUTE", "SEPARATION", "TOPICS", "Topic"]
 
 NODE_NAME = "hrc_dispatcher"
 DEFAULT_NAMESPACE = "/hrc"
@@ -60,4 +60,8 @@ GOAL = Topic("robot/goal", "geometry_msgs/msg/PoseStamped", "out", LATEST,
              "the destination of the robot's next drive, in the map frame (a NavigateToPose goal)")
 ROUTE = Topic("robot/route", "geometry_msgs/msg/PoseArray", "out", LATEST,
               "the points of that drive's planned route (its detour, if any), for NavigateThroughPoses")
-TOPICS = (OBSERVATIONS, ROBOT_ACKS, POSE, ANSWERS, GOAL, ROUTE)
+SEPARATION = Topic("robot/separation", "std_msgs/msg/String", "out", LATEST,
+                   "with each drive, the speed and separation limits its plan assumed of the robot's safety "
+                   "controller (JSON: the step's ``separation`` and the drive's ``drive_speed`` and "
+                   "``drive_separation``); only for a task with safety:")
+TOPICS = (OBSERVATIONS, ROBOT_ACKS, POSE, ANSWERS, GOAL, ROUTE, SEPARATION)

@@ -16,6 +16,10 @@ length) and how far along it is; `Floor.advance(h)` moves both for `h` seconds:
   closer than the margin, the robot backs off along the route it came (never past the leg's origin).
   The default ``slowdown`` is 0: the robot stops right at the margin, exactly the model motion
   acquisition assumes (`hrc.motion.conflicts`: discs closer than ``r_h + r_r + margin`` meet).
+- **under speed and separation monitoring** (a task with `safety:`), the robot obeys `hrc.sim.ssm`
+  instead: driving towards the person no faster than the protective separation allows (slowing,
+  stopping, resuming by itself), never closer than ``S_p(0)`` when it drives, backing off as above when
+  the person keeps coming closer than that; `ssm` counts its protective stops and the closest approaches.
 
 A route that ends where it starts (the next phase at the same place) is over at once (`moving` False).
 
@@ -37,7 +41,9 @@ from dataclasses import dataclass, field
 import pymunk
 
 from hrc.model import Agent, Task
+from hrc.motion.separation import protective_separation
 from hrc.motion.world import World
+from hrc.sim.ssm import SsmTally, ssm_speed
 
 __all__ = ["CONTACT", "MAX_STEP", "MIN_STEP", "Floor", "Mover"]
 
@@ -126,6 +132,10 @@ class Floor:
         self.min_free = math.inf
         self.overlaps = 0
         self._pair_filter = pymunk.ShapeFilter()
+        self.ssm = None if task.safety is None else SsmTally(task.safety)
+        if task.safety is not None:  # the robot keeps S_p(0) at least; driving, the band up to S_p at its speed
+            self.margin = protective_separation(task.safety, 0.0).total
+            self._band = protective_separation(task.safety, self.robot.agent.speed).total - self.margin
 
     def _mover(self, agent: Agent) -> Mover:
         xy = self.task.workspace.location(agent.start).xy
@@ -158,9 +168,9 @@ class Floor:
         few steps, not hundreds) - unless the robot slows down near the person (`slowdown` > 0), which
         is a rule of the gap at each step's start and so is sampled as when both move."""
         hm, rm = self.human, self.robot
-        if not (hm.present and hm.moving and rm.moving) and self.slowdown == 0:
+        if not (hm.present and hm.moving and rm.moving) and self.slowdown == 0 and self.ssm is None:
             return MAX_STEP
-        gap = self.free() - self.margin - self.slowdown
+        gap = self.free() - self.margin - (self.slowdown if self.ssm is None else self._band)
         closing = hm.agent.speed + rm.agent.speed
         return max(MIN_STEP, min(MAX_STEP, gap / closing / 2)) if math.isfinite(gap) else MAX_STEP
 
@@ -170,8 +180,11 @@ class Floor:
         radii = self._radii
         if hm.present and hm.moving:
             want = min(hm.speed * h, hm.remaining)
-            floor = min(CONTACT, self.free()) - 1e-12  # the free distance the person keeps (`free`, inlined)
+            free_before = self.free()
+            floor = min(CONTACT, free_before) - 1e-12  # the free distance the person keeps (`free`, inlined)
             got = self._walk(hm, want, rm.xy, radii + floor)
+            if self.ssm is not None:
+                self.ssm.person_step(not rm.moving or self.ssm.stopped, free_before, self.free())
             hm.travelled += h
             if want > 0 and got < want - 1e-9:
                 hm.held += h * (1 - got / want)
@@ -181,10 +194,19 @@ class Floor:
             before = self.free()
             ahead = rm.at(rm.s + min(want, 1e-3) if want > 0 else rm.s)
             closing = self.free(hm.xy, ahead) < before
-            if closing and before < self.margin + self.slowdown and self.slowdown > 0:
-                want *= max(0.0, min(1.0, (before - self.margin) / self.slowdown))
+            allowed = rm.speed
             limit = min(self.margin, before)
+            if self.ssm is not None:
+                if closing:  # at the speed the rule allows, up to exactly S_p of that speed
+                    allowed = ssm_speed(self.ssm.safety, before, rm.speed)
+                    want = min(want, allowed * h)
+                    if allowed > 0:
+                        limit = protective_separation(self.ssm.safety, allowed).total
+            elif closing and before < self.margin + self.slowdown and self.slowdown > 0:
+                want *= max(0.0, min(1.0, (before - self.margin) / self.slowdown))
             got = self._walk(rm, want, hm.xy if hm.present else None, radii + limit - 1e-12)
+            if self.ssm is not None:
+                self.ssm.robot_step(h, rm.speed, allowed, closing, max(0.0, got), self.free())
             if got <= 1e-12 and closing and before < self.margin and rm.s > 0:
                 self._back_off(rm, rm.speed * h / 2)  # the person keeps coming: make room
             rm.travelled += h

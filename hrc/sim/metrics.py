@@ -77,7 +77,29 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         "first_plan_dc_kept": len(dc_kept),
         "first_plan_dc_kept_all_constraints": sum(1 for r in dc_kept if not r.first_broken),
         **_detection(runs),
+        **_ssm(runs),
     }
+
+
+def _ssm(runs: Sequence[RunResult]) -> dict:
+    """Speed and separation monitoring's measures (`hrc.sim.ssm`), for a task with `safety:` only: protective
+    stops per run (median, mean), the seconds they and the slowing cost (mean), the runs in which the robot
+    drove closer than the protective separation at its speed (0 expected), and the smallest free distance
+    while the robot drove towards the person and while the person walked up to the standing robot."""
+    found = [r.ssm for r in runs if r.ssm is not None]
+    if not found:
+        return {}
+    stops = [m.protective_stops for m in found]
+    robot = [m.min_free_robot_approaching for m in found if m.min_free_robot_approaching is not None]
+    person = [m.min_free_person_approaching for m in found if m.min_free_person_approaching is not None]
+    return {"ssm": {
+        "protective_stops_median": _pct(stops, 50), "protective_stops_mean": _r(float(np.mean(stops))),
+        "runs_with_stops": sum(1 for n in stops if n),
+        "stop_time_mean": _r(float(np.mean([m.stop_time for m in found]))),
+        "slow_time_mean": _r(float(np.mean([m.slow_time for m in found]))),
+        "runs_closer_than_separation": sum(1 for m in found if m.breaches),
+        "min_free_robot_approaching": _r(min(robot)) if robot else None,
+        "min_free_person_approaching": _r(min(person)) if person else None}}
 
 
 def _detection(runs: Sequence[RunResult]) -> dict:

@@ -78,11 +78,13 @@ class Order:
 @dataclass(frozen=True, slots=True)
 class SimRoute:
     """A leg's route on the floor: `points` from the leg's origin to its location, and the arc length at
-    which the agent stops at the waiting place `park` (None: no stop)."""
+    which the agent stops at the waiting place `park` (None: no stop); `speed` a reduced speed the plan
+    drives it at (0: the agent's own)."""
 
     points: tuple[tuple[float, float], ...]
     park: str = ""
     park_s: float | None = None
+    speed: float = 0.0
 
 
 def leg_route(task: Task, cp: CompiledPlan, real: PathLibrary, agent: str, action: str, phase: str,
@@ -98,9 +100,9 @@ def leg_route(task: Task, cp: CompiledPlan, real: PathLibrary, agent: str, actio
     if not motion.points:
         return SimRoute(real.get(agent, leg.origin, leg.location).points)
     if motion.park:
-        speed = task.agent(agent).speed
-        return SimRoute(motion.points, motion.park, motion.park_time * speed)
-    return SimRoute(motion.points)
+        speed = motion.speed or task.agent(agent).speed
+        return SimRoute(motion.points, motion.park, motion.park_time * speed, motion.speed)
+    return SimRoute(motion.points, speed=motion.speed)
 
 
 class Controller:

@@ -58,6 +58,7 @@ from hrc.sim.policies import (
     SimRoute,
 )
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
+from hrc.sim.ssm import SsmMeasures
 from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, AgentState, Standoffs
 
 __all__ = ["RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
@@ -161,6 +162,7 @@ class RunResult:
     overruns: int
     absent: float
     detection: Detection | None = None
+    ssm: SsmMeasures | None = None  # speed and separation monitoring's counts (a task with safety:)
     latencies: tuple[float, ...] = field(default=(), compare=False)
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
@@ -181,7 +183,8 @@ class RunResult:
                 "refused": list(self.refused), "late_robot_events": self.late,
                 "robot_travel_excess": r(self.robot_travel_excess), "human_sequence": list(self.human_sequence),
                 "robot_sequence": list(self.robot_sequence), "overruns": self.overruns, "absent": r(self.absent),
-                **({} if self.detection is None else {"detection": self.detection.to_json()})}
+                **({} if self.detection is None else {"detection": self.detection.to_json()}),
+                **({} if self.ssm is None else {"ssm": self.ssm.to_json()})}
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -321,7 +324,7 @@ class _Run(Standoffs):
         agent.route, agent.parked, agent.mode, agent.moved = route, False, "travel", 0.0
         length = sum(math.dist(p, q) for p, q in zip(route.points, route.points[1:], strict=False))
         agent.predicted = length / agent.mover.agent.speed
-        agent.mover.set_route(route.points, speed, route.park_s)
+        agent.mover.set_route(route.points, route.speed or speed, route.park_s)
         agent.loc = None
         self.emit(agent, "depart", action, phase)
         self._arrival_check(agent)
@@ -725,6 +728,7 @@ class _Run(Standoffs):
             robot_travel_excess=self.excess, human_sequence=human_seq, robot_sequence=robot_seq,
             overruns=sum(1 for k in self.draws.overrun if times.get(f"{self.h.id}.{k[1]}.{k[0]}.end") is not None),
             absent=self.absent, detection=self._detection(), latencies=tuple(ctl.latencies),
+            ssm=None if self.floor.ssm is None else self.floor.ssm.measures(),
             happenings=tuple(self.happenings) if self.record else (), frames=tuple(self.frames))
 
     def _detection(self) -> Detection | None:

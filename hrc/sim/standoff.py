@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hrc.model import Task
+from hrc.motion import separation
 from hrc.sim.floor import Mover
 from hrc.sim.giveway import Disc, Ways, polyline_length, samples
 from hrc.sim.policies import Controller, Order, SimRoute
@@ -136,6 +137,13 @@ class Standoffs:
     def guide(self, action: str, phase: str, event: str) -> float:
         raise NotImplementedError
 
+    def _reach(self) -> float:
+        """The centre distance the two keep when one makes room or goes round the other: the radii and the
+        margin, or, under speed and separation monitoring, the protective separation at the robot's speed
+        (a spot nearer its way would leave the robot stopped by its own controller: `hrc.sim.ssm`)."""
+        robot = next(a for a in self.task.agents if not a.is_human)
+        return separation.reach(self.task, robot.speed)
+
     def _clearance(self, a: AgentState) -> float:
         return a.mover.agent.radius + self.task.safety_margin
 
@@ -187,7 +195,7 @@ class Standoffs:
         """`g` goes to the nearest spot off `o`'s way (`hrc.sim.giveway.Ways.spot`); False if there is none."""
         if g.mode in ("work", "away", "gone"):
             return False
-        reach = g.mover.agent.radius + o.mover.agent.radius + self.task.safety_margin
+        reach = self._reach()
         way, disc = self._way(o), Disc(o.mover.xy, reach)
         spot = self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + CLEAR) \
             or self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + AWAY)  # a tight place
@@ -204,7 +212,7 @@ class Standoffs:
     def _walk_round(self, x: AgentState, y: AgentState, extra: float) -> bool:
         """`x` goes round the standing `y` to where it is going, if the way round is at most `extra` metres
         longer than the way it is held up on."""
-        reach = x.mover.agent.radius + y.mover.agent.radius + self.task.safety_margin
+        reach = self._reach()
         m = x.mover
         if x.mode == "aside_wait" and x.aside is not None:
             start, goal, ahead = m.xy, x.aside.target, polyline_length(x.next_way or (m.xy,))
@@ -235,7 +243,7 @@ class Standoffs:
         mine = samples(a.next_way)
         o = other.mover
         if o.present:
-            reach = a.mover.agent.radius + o.agent.radius + self.task.safety_margin
+            reach = self._reach()
             near = float(np.min(np.hypot(mine[:, 0] - o.xy[0], mine[:, 1] - o.xy[1])))
             waits = other.mode == "aside_wait" and other.next_way is not None
             first = waits and self._first(other, a)  # the co-worker waits to go too, and goes first
