@@ -1,0 +1,160 @@
+"""The search compile (issue 35): its best plans are the exhaustive compile's, its bounds are sound, its tree
+holds every plan once, and what it writes is dispatched as any compile.
+
+Truth here is the exhaustive compile (`compile_task`, every plan, ranked by `rank_key`) and each plan's own
+compiled key: the search must agree on its first K ranks when it says it closed, and no node's bound may
+exceed the key of any plan below it (checked over the whole tree, on random variants of the workshop).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hrc.compile.bounds import NodeBounds
+from hrc.compile.compiler import compile_plan, compile_task, rank_key
+from hrc.compile.search import compile_search
+from hrc.io.task_file import load_task
+from hrc.model import Interval, Phase
+from hrc.motion import plan_paths
+from hrc.plans import generate_plans, identical_actions, is_canonical
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def workshop():
+    task = load_task(ROOT / "tasks" / "cube_stacking.yaml")
+    return task, plan_paths(task, seed=0)
+
+
+def _leaves(nb: NodeBounds, node, below: dict, path: list) -> None:  # noqa: ANN001
+    """Every leaf under `node` (the whole tree, nothing pruned), with the nodes on its way."""
+    if nb.is_leaf(node):
+        below.setdefault(node, []).extend(path)
+        return
+    b = nb.bound(node)
+    if b is None:
+        return
+    for child in nb.children(node, b.ends):
+        _leaves(nb, child, below, [*path, node])
+
+
+def _plan_of(task, node):  # noqa: ANN001
+    from hrc.compile.search import _plan
+
+    return _plan(task, node)
+
+
+def _check_bounds(task, paths) -> None:  # noqa: ANN001
+    nb = NodeBounds(task, paths)
+    below: dict = {}
+    _leaves(nb, nb.root(), below, [])
+    groups = identical_actions(task)
+    canonical = [p for p in generate_plans(task) if not groups or is_canonical(task, p, groups)]
+    found = [_plan_of(task, leaf) for leaf in below]
+    # the tree holds every canonical plan exactly once, and nothing else
+    assert sorted(p.id for p in found) == sorted(p.id for p in canonical)
+    for leaf, path in below.items():
+        key = rank_key(compile_plan(task, _plan_of(task, leaf), paths, graphml=False))[:4]
+        for node in [*path, leaf]:
+            b = nb.bound(node)
+            assert b is not None and b.key <= key, (node, b, key)
+
+
+@st.composite
+def variants(draw, task):  # noqa: ANN001, ANN201
+    def bounds(lo: int, hi: int) -> Interval:
+        a = draw(st.integers(lo, hi))
+        return Interval(float(a), float(a + draw(st.integers(0, 4))))
+
+    actions = []
+    for action in task.actions:
+        phases = tuple(Phase(p.id, p.location, (("human", bounds(1, 5)), ("robot", bounds(2, 8))))
+                       for p in action.phases)
+        actions.append(replace(action, phases=phases))
+    return replace(task, actions=tuple(actions), deadline=float(draw(st.integers(30, 140))))
+
+
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                HealthCheck.too_slow])
+@given(data=st.data())
+def test_bounds_never_exceed_any_plan_below_on_random_variants(workshop, data):
+    base, paths = workshop
+    _check_bounds(data.draw(variants(base)), paths)
+
+
+def test_bounds_hold_on_the_workshop(workshop):
+    _check_bounds(*workshop)
+
+
+def _search_agrees(task_file: Path, k: int, tmp_path: Path, seconds: float = 600.0) -> None:
+    task = load_task(task_file)
+    exhaustive = compile_task(task, seed=0, jobs=2)
+    result = compile_search(task, tmp_path / "search", k, seconds=seconds, cover=0)
+    assert result.outcome.closed
+    head = json.loads((tmp_path / "search" / "compiled.json").read_text())
+    assert head["search"]["closed"] is True and head["search"]["guarantee"].startswith("optimal")
+    ranked = [p["id"] for p in head["plans"]][:k]
+    assert ranked == [cp.plan.id for cp in exhaustive.plans[:k]]
+    best = exhaustive.plans[0]
+    assert result.plan_set.plans[0].plan.id == best.plan.id
+    assert result.outcome.found < len(exhaustive.plans)  # it did skip families
+
+
+def test_search_finds_the_exhaustive_best_on_the_workshop(tmp_path):
+    _search_agrees(ROOT / "tasks" / "cube_stacking.yaml", 5, tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["kitting", "kitting_6picks"])
+def test_search_finds_the_exhaustive_best_on_kitting(tmp_path, name):
+    _search_agrees(ROOT / "tasks" / f"{name}.yaml", 10, tmp_path)
+
+
+@pytest.mark.slow
+def test_search_finds_the_exhaustive_best_on_kitting_7picks(tmp_path):
+    _search_agrees(ROOT / "tasks" / "kitting_7picks.yaml", 10, tmp_path)
+
+
+def test_search_output_is_dispatched_and_covers_the_first_choices(tmp_path):
+    from hrc.cli import main
+
+    out = tmp_path / "out"
+    assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--no-report", "-q",
+                 "--plans", "best:3", "--cover", "1"]) == 0
+    head = json.loads((out / "compiled.json").read_text())
+    search = head["search"]
+    assert search["k"] == 3 and search["coverage"]["depth"] == 1
+    task = load_task(ROOT / "tasks" / "cube_stacking.yaml")
+    human_may = [a.id for a in task.actions if "human" in a.agents]
+    firsts = {p["sequences"]["human"][0] for p in head["plans"] if p["sequences"]["human"]}
+    # every action the person may start with has a plan, unless no valid plan lets them
+    assert search["coverage"]["covered"] == len(firsts & set(human_may))
+    assert search["coverage"]["covered"] + search["coverage"]["impossible"] == len(human_may)
+    # the dispatcher takes it: the first answer names a plan of the output
+    lines = '{"t": 0, "event": "tick"}\n'
+    run = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(out)], input=lines, capture_output=True,
+                         text=True, timeout=120, cwd=ROOT)
+    assert run.returncode == 0, run.stderr
+    answer = json.loads(run.stdout.splitlines()[0])
+    assert answer["ok"] is True and answer["plan"] in {p["id"] for p in head["plans"]}
+
+
+def test_plans_option_says_what_is_wrong(tmp_path, capsys):
+    from hrc.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(tmp_path / "o"), "--plans", "best:0"])
+    assert exit_.value.code == 2
+    assert "best:K" in capsys.readouterr().err
+    assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(tmp_path / "o"),
+                 "--plans", "best:2", "--symmetry"]) == 2
+    assert "--symmetry: not with the search compile" in capsys.readouterr().err
