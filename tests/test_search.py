@@ -83,7 +83,7 @@ def variants(draw, task):  # noqa: ANN001, ANN201
     return replace(task, actions=tuple(actions), deadline=float(draw(st.integers(30, 140))))
 
 
-@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                 HealthCheck.too_slow])
 @given(data=st.data())
 def test_bounds_never_exceed_any_plan_below_on_random_variants(workshop, data):
@@ -95,57 +95,68 @@ def test_bounds_hold_on_the_workshop(workshop):
     _check_bounds(*workshop)
 
 
-def _search_agrees(task_file: Path, k: int, tmp_path: Path, seconds: float = 600.0) -> None:
+def _search_agrees(task_file: Path, k: int, out: Path, exhaustive=None) -> None:  # noqa: ANN001
+    """The search's output in `out` (made here unless given) closed, and its first `k` ranks are the
+    exhaustive compile's, plan for plan."""
     task = load_task(task_file)
-    exhaustive = compile_task(task, seed=0, jobs=2)
-    result = compile_search(task, tmp_path / "search", k, seconds=seconds, cover=0)
-    assert result.outcome.closed
-    head = json.loads((tmp_path / "search" / "compiled.json").read_text())
+    if not (out / "compiled.json").is_file():
+        result = compile_search(task, out, k, seconds=3600.0, cover=0)
+        assert result.outcome.closed
+    exhaustive = exhaustive or compile_task(task, seed=0, jobs=2)
+    head = json.loads((out / "compiled.json").read_text())
     assert head["search"]["closed"] is True and head["search"]["guarantee"].startswith("optimal")
-    ranked = [p["id"] for p in head["plans"]][:k]
-    assert ranked == [cp.plan.id for cp in exhaustive.plans[:k]]
-    best = exhaustive.plans[0]
-    assert result.plan_set.plans[0].plan.id == best.plan.id
-    assert result.outcome.found < len(exhaustive.plans)  # it did skip families
+    assert [p["id"] for p in head["plans"]][:k] == [cp.plan.id for cp in exhaustive.plans[:k]]
+    assert head["search"]["plans_compiled"] < len(exhaustive.plans)  # it did skip families
 
 
-def test_search_finds_the_exhaustive_best_on_the_workshop(tmp_path):
-    _search_agrees(ROOT / "tasks" / "cube_stacking.yaml", 5, tmp_path)
+@pytest.fixture(scope="module")
+def searched(tmp_path_factory):
+    """The workshop searched as ``hrc compile --plans best:5 --cover 1`` writes it."""
+    from hrc.cli import main
+
+    out = tmp_path_factory.mktemp("search") / "out"
+    assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--no-report", "-q",
+                 "--plans", "best:5", "--cover", "1"]) == 0
+    return out
+
+
+def test_search_finds_the_exhaustive_best_on_the_workshop(searched):
+    _search_agrees(ROOT / "tasks" / "cube_stacking.yaml", 5, searched,
+                   compile_task(load_task(ROOT / "tasks" / "cube_stacking.yaml"), seed=0, jobs=1))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["kitting", "kitting_6picks"])
 def test_search_finds_the_exhaustive_best_on_kitting(tmp_path, name):
-    _search_agrees(ROOT / "tasks" / f"{name}.yaml", 10, tmp_path)
+    _search_agrees(ROOT / "tasks" / f"{name}.yaml", 10, tmp_path / "out")
 
 
 @pytest.mark.slow
 def test_search_finds_the_exhaustive_best_on_kitting_7picks(tmp_path):
-    _search_agrees(ROOT / "tasks" / "kitting_7picks.yaml", 10, tmp_path)
+    _search_agrees(ROOT / "tasks" / "kitting_7picks.yaml", 10, tmp_path / "out")
 
 
-def test_search_output_is_dispatched_and_covers_the_first_choices(tmp_path):
-    from hrc.cli import main
-
-    out = tmp_path / "out"
-    assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--no-report", "-q",
-                 "--plans", "best:3", "--cover", "1"]) == 0
-    head = json.loads((out / "compiled.json").read_text())
+def test_search_output_is_dispatched_and_covers_the_first_choices(searched):
+    head = json.loads((searched / "compiled.json").read_text())
     search = head["search"]
-    assert search["k"] == 3 and search["coverage"]["depth"] == 1
+    assert search["k"] == 5 and search["coverage"]["depth"] == 1
     task = load_task(ROOT / "tasks" / "cube_stacking.yaml")
     human_may = [a.id for a in task.actions if "human" in a.agents]
     firsts = {p["sequences"]["human"][0] for p in head["plans"] if p["sequences"]["human"]}
     # every action the person may start with has a plan, unless no valid plan lets them
     assert search["coverage"]["covered"] == len(firsts & set(human_may))
     assert search["coverage"]["covered"] + search["coverage"]["impossible"] == len(human_may)
-    # the dispatcher takes it: the first answer names a plan of the output
-    lines = '{"t": 0, "event": "tick"}\n'
-    run = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(out)], input=lines, capture_output=True,
+    # the dispatcher takes it: it answers with a plan of the output, and follows the person's first step
+    first = head["plans"][0]["sequences"]["human"][0]
+    phase = task.action(first).phases[0].id
+    lines = ('{"t": 0, "event": "tick"}\n'
+             f'{{"t": 0.5, "agent": "human", "action": "{first}", "phase": "{phase}", "event": "depart"}}\n')
+    run = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(searched)], input=lines, capture_output=True,
                          text=True, timeout=120, cwd=ROOT)
     assert run.returncode == 0, run.stderr
-    answer = json.loads(run.stdout.splitlines()[0])
-    assert answer["ok"] is True and answer["plan"] in {p["id"] for p in head["plans"]}
+    answers = [json.loads(line) for line in run.stdout.splitlines()]
+    ids = {p["id"] for p in head["plans"]}
+    assert len(answers) == 2 and all(a["ok"] and a["plan"] in ids for a in answers)
 
 
 def test_plans_option_says_what_is_wrong(tmp_path, capsys):
@@ -158,3 +169,16 @@ def test_plans_option_says_what_is_wrong(tmp_path, capsys):
     assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(tmp_path / "o"),
                  "--plans", "best:2", "--symmetry"]) == 2
     assert "--symmetry: not with the search compile" in capsys.readouterr().err
+
+
+def test_beyond_max_plans_it_searches_and_says_so(tmp_path, capsys):
+    from hrc.cli import main
+
+    out = tmp_path / "out"
+    assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--no-report",
+                 "--max-plans", "31", "--cover", "0"]) == 0
+    captured = capsys.readouterr()
+    assert "32 plans, more than --max-plans 31: searching for the best 50 instead" in captured.err
+    assert "optimal" in captured.out  # 50 > 32: every plan compiled, so the search closed
+    head = json.loads((out / "compiled.json").read_text())
+    assert head["search"]["closed"] is True and head["search"]["plans_compiled"] == 32

@@ -267,7 +267,8 @@ def _search(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, o
             print(f"the person's choices (first {o.cover_depth}): {o.covered} of {o.choices} have a plan, "
                   f"{o.impossible} no valid plan allows, {o.given_up} given up (time or the dive's limit)")
         stnu = {"graphml": f"{out}/stnu/", "archive": f"{out}/stnu.zip", "none": "no STNU files"}[args.stnu]
-        print(f"wrote {out}/compiled.json, {stnu}" + ("" if args.no_report else f", {out}/report.md, {out}/report.html"))
+        report = "" if args.no_report else f", {out}/report.md, {out}/report.html"
+        print(f"wrote {out}/compiled.json, {stnu}{report}")
     return 0
 
 

@@ -176,29 +176,29 @@ class NodeBounds:
         self.way_in = [[[0] * self.n for _ in range(self.m)] for _ in range(2)]
         for r in range(2):
             for ag, agent in enumerate(task.agents):
-                ends = {agent.start} | {self.phases[j][-1] for j in range(self.n) if ag in self.may[j]}
+                places = {agent.start} | {self.phases[j][-1] for j in range(self.n) if ag in self.may[j]}
                 for i in range(self.n):
                     if ag not in self.may[i]:
                         continue
                     steps = sum(d[ag] or 0 for d in self.dur[r][i])
-                    inside = sum(self.travel[r][ag][(x, y)] for x, y in zip(self.phases[i], self.phases[i][1:]))
+                    inside = sum(self.travel[r][ag][(x, y)] for x, y in itertools.pairwise(self.phases[i]))
                     self.work[r][ag][i] = steps + inside
                     first = self.phases[i][0]
-                    self.way_in[r][ag][i] = min(self.travel[r][ag][(e, first)] for e in ends)
-        prec = [[] for _ in range(self.n)]  # per action: (its phase k, before action j, before phase l)
+                    self.way_in[r][ag][i] = min(self.travel[r][ag][(e, first)] for e in places)
+        prec: list[list[tuple[int, int, int]]] = [[] for _ in range(self.n)]  # (phase k, before j, its phase)
         for pr in task.precedence:
             i, j = self.index[pr.after.action], self.index[pr.before.action]
             k = [p.id for p in task.actions[i].phases].index(pr.after.phase)
-            ph = [p.id for p in task.actions[j].phases].index(pr.before.phase)
-            prec[i].append((k, j, ph))
+            q = [p.id for p in task.actions[j].phases].index(pr.before.phase)
+            prec[i].append((k, j, q))
         self.prec = prec
         self.before = must_precede(task)
         self.before_idx = {(self.index[a], self.index[b]) for a, b in self.before}
         self.preds = [frozenset(j for j in range(self.n) if (j, i) in self.before_idx) for i in range(self.n)]
         self.groups = [tuple(self.index[a] for a in g) for g in identical_actions(task)]
-        self.group_prev = {}  # action -> the action before it in its group of identical actions
+        self.group_prev: dict[int, int] = {}  # action -> the action before it in its group of identical actions
         for g in self.groups:
-            for x, y in zip(g, g[1:]):
+            for x, y in itertools.pairwise(g):
                 self.group_prev[y] = x
 
     def root(self) -> Node:

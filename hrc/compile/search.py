@@ -46,7 +46,7 @@ from __future__ import annotations
 import heapq
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hrc.compile.bounds import Bound, Node, NodeBounds
@@ -170,18 +170,18 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, seconds: float,
     groups = identical_actions(task)
     root = bounds.root()
     rb = bounds.bound(root)
-    heap: list[tuple[tuple, int, int, Node]] = []
+    heap: list[tuple[tuple, int, int, Node, Bound]] = []
     counter = 0
     nodes = 0
     if rb is not None:
-        heap.append((rb.key, 0, counter, root))
+        heap.append((rb.key, 0, counter, root, rb))
     closed = False
     open_bound = None
     while heap:
         if stop is not None:
             stop()
         kth = state.keys[k - 1] if len(state.keys) >= k else None
-        key, depth, _, node = heap[0]
+        key, depth, _, node, b = heap[0]
         if kth is not None and key > kth:
             closed = True
             open_bound = key
@@ -190,9 +190,10 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, seconds: float,
             open_bound = key
             break
         heapq.heappop(heap)
-        # while fewer than k plans are known, dive: follow the best child down to a leaf, the other
-        # children into the queue (best-first with diving, as MIP solvers do: a large tree's frontier is
-        # too wide for pure best-first to reach a leaf soon); then best first, which proves
+        # dive: from the best open node, follow the best child down to a leaf, the other children into the
+        # queue (best-first with diving, as MIP solvers do: a large tree's frontier is too wide for pure
+        # best-first to reach a leaf soon). A leaf reached has a bound no worse than the K-th plan so far,
+        # so a closed search would have had to compile it anyway (or prove it worse later)
         while True:
             if bounds.is_leaf(node):
                 plan = _plan(task, node)
@@ -202,9 +203,7 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, seconds: float,
                     progress("search", len(state.ids), k)
                 break
             nodes += 1
-            b = bounds.bound(node)
-            assert b is not None
-            kids = []
+            kids: list[tuple[tuple, int, int, Node, Bound]] = []
             for child in bounds.children(node, b.ends):
                 cb = bounds.bound(child)
                 if cb is None:
@@ -213,16 +212,14 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, seconds: float,
                 if kth is not None and ckey > kth:
                     continue
                 counter += 1
-                kids.append((ckey, depth - 1, counter, child))
+                kids.append((ckey, depth - 1, counter, child, cb))
             if not kids:
                 break
             kids.sort()
-            diving = len(state.keys) < k
-            for entry in kids[1:] if diving else kids:
+            for entry in kids[1:]:
                 heapq.heappush(heap, entry)
-            if not diving:
-                break
-            key, depth, _, node = kids[0]
+            key, depth, _, node, b = kids[0]
+            kth = state.keys[k - 1] if len(state.keys) >= k else None
     if not heap:
         closed, open_bound = True, None
     kth = state.keys[k - 1] if len(state.keys) >= k else None
@@ -255,25 +252,24 @@ def _dive(task: Task, bounds: NodeBounds, cover: tuple[int, ...], budget: int) -
     `cover`: the leaf; None when no valid plan does (the tree is exhausted); False when `budget` nodes
     were expanded first."""
     agent = task.agent_ids.index(_person(task) or task.agent_ids[0])
-    stack = [bounds.root()]
+    root = bounds.root()
+    rb = bounds.bound(root)
+    stack = [] if rb is None else [(root, rb)]
     expanded = 0
     while stack:
-        node = stack.pop()
+        node, b = stack.pop()
         if bounds.is_leaf(node):
             return node
         expanded += 1
         if expanded > budget:
             return False
-        b = bounds.bound(node)
-        if b is None:
-            continue
-        kids = []
+        kids: list[tuple[tuple, int, int, Node, Bound]] = []
         for child in bounds.children(node, b.ends, (agent, cover)):
             cb = bounds.bound(child)
             if cb is not None:
-                kids.append((cb.key, cb.lo, len(kids), child))
+                kids.append((cb.key, cb.lo, len(kids), child, cb))
         kids.sort(reverse=True)  # the best popped first
-        stack.extend(child for *_, child in kids)
+        stack.extend((child, cb) for *_, child, cb in kids)
     return None
 
 
@@ -361,4 +357,4 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
     except BaseException:
         sink.abandon()
         raise
-    return SearchResult(sink.finish(seed, paths, options), outcome)
+    return SearchResult(replace(sink.finish(seed, paths, options), search=outcome.guarantee()), outcome)
