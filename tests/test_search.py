@@ -100,7 +100,7 @@ def _search_agrees(task_file: Path, k: int, out: Path, exhaustive=None) -> None:
     exhaustive compile's, plan for plan."""
     task = load_task(task_file)
     if not (out / "compiled.json").is_file():
-        result = compile_search(task, out, k, seconds=3600.0, cover=0)
+        result = compile_search(task, out, k, families=10**6, cover=0)
         assert result.outcome.closed
     exhaustive = exhaustive or compile_task(task, seed=0, jobs=2)
     head = json.loads((out / "compiled.json").read_text())
@@ -116,7 +116,7 @@ def searched(tmp_path_factory):
 
     out = tmp_path_factory.mktemp("search") / "out"
     assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--no-report", "-q",
-                 "--plans", "best:5", "--cover", "1"]) == 0
+                 "--plans", "best:5", "--cover", "1", "--search-budget", "1000"]) == 0
     return out
 
 
@@ -176,7 +176,7 @@ def test_beyond_max_plans_it_searches_and_says_so(tmp_path, capsys):
 
     out = tmp_path / "out"
     assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--no-report",
-                 "--max-plans", "31", "--cover", "0"]) == 0
+                 "--max-plans", "31", "--cover", "0", "--search-budget", "1000"]) == 0
     captured = capsys.readouterr()
     assert "32 plans, more than --max-plans 31: searching for the best 50 instead" in captured.err
     assert "optimal" in captured.out  # 50 > 32: every plan compiled, so the search closed

@@ -71,7 +71,7 @@ def _plans(text: str) -> str | int:
 def add_parser(sub: Any) -> None:
     from hrc.compile.estimate import DEFAULT_MAX_PLANS
     from hrc.compile.output import STNU_MODES
-    from hrc.compile.search import COVER_DEPTH, DEFAULT_K, SEARCH_SECONDS
+    from hrc.compile.search import COVER_DEPTH, DEFAULT_K, SEARCH_FAMILIES
     from hrc.compile.sink import REPORT_TOP
 
     p = sub.add_parser("compile", help="compile a task into its ranked set of HRC schedules (STNUs)")
@@ -104,9 +104,12 @@ def add_parser(sub: Any) -> None:
                    help="all: every plan (refused above --max-plans); best:K: search for the K best by the ranking's "
                         "order, with a plan for each of the person's first choices (docs/search.md); auto "
                         f"(default): all up to --max-plans, else best:{DEFAULT_K}")
-    p.add_argument("--search-seconds", type=real(0.1), default=SEARCH_SECONDS, metavar="S",
-                   help=f"the search's time budget for the best K (default {SEARCH_SECONDS:g}); as much again for "
-                        "the plans that cover the person's choices")
+    p.add_argument("--search-budget", type=whole(1), default=None, metavar="N",
+                   help=f"the search compiles at most N families for the best K (default {SEARCH_FAMILIES} K): a "
+                        "budget in work, so the output is the same on any machine")
+    p.add_argument("--search-seconds", type=real(0.1), default=None, metavar="S",
+                   help="also stop the search after S seconds, and the coverage after as much again (the output "
+                        "then depends on the machine's pace)")
     p.add_argument("--cover", type=whole(0), default=COVER_DEPTH, metavar="D",
                    help=f"with the search: a plan for each action the person could start next, at the start and "
                         f"after each of their first D-1 choices (default {COVER_DEPTH}; 0: none)")
@@ -241,16 +244,19 @@ def _search(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, o
         if used:
             raise InputError(args.task, flag, f"not with the search compile (--plans best:{k}); it compiles "
                                               "only the plans it needs")
-    from hrc.compile.search import compile_search
+    from hrc.compile.search import SEARCH_FAMILIES, compile_search
 
-    say(f"{task.name}: searching for the best {k} plans ({args.search_seconds:g} s at most), then a plan for each "
-        f"of the person's first {args.cover} choice{'s' * (args.cover != 1)}")
+    budget = args.search_budget or SEARCH_FAMILIES * k
+    limit = "" if args.search_seconds is None else f", {args.search_seconds:g} s"
+    say(f"{task.name}: searching for the best {k} plans (at most {budget} families compiled{limit}), then a plan "
+        f"for each of the person's first {args.cover} choice{'s' * (args.cover != 1)}")
     progress = _Progress(tty=sys.stderr.isatty(), quiet=args.quiet)
     t0 = time.perf_counter()
     with claim.staging(check_earlier=_check_earlier(out)) as stage:
         try:
             result = compile_search(task, stage, k, seed=args.seed, options=options, stnu=args.stnu,
-                                    keep=args.report_top, seconds=args.search_seconds, cover=args.cover,
+                                    keep=args.report_top, families=budget, seconds=args.search_seconds,
+                                    cover=args.cover,
                                     progress=progress, stop=interrupt.check)
         finally:
             progress.close()

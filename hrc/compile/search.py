@@ -44,6 +44,7 @@ directly, with no new dependency. The bound is cheap (tens of microseconds per n
 from __future__ import annotations
 
 import heapq
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -58,14 +59,17 @@ from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import family_of, identical_actions, relabellings
 
-__all__ = ["COVER_DEPTH", "DEFAULT_K", "DIVE_NODES", "SEARCH_SECONDS", "SearchOutcome", "SearchResult",
-           "compile_search", "search_plans"]
+__all__ = ["COVER_DEPTH", "DEFAULT_K", "DIVE_NODES", "NODES_PER_FAMILY", "SEARCH_FAMILIES", "SearchOutcome",
+           "SearchResult", "compile_search", "search_plans"]
 
 DEFAULT_K = 50
 """Plans ``hrc compile`` searches for when it switches to the search on its own."""
 
-SEARCH_SECONDS = 40.0
-"""Default time budget (s) of the best-K search, the coverage's not included."""
+SEARCH_FAMILIES = 2
+"""Default budget of the best-K search: at most this many families compiled per plan asked for (``K``)."""
+
+NODES_PER_FAMILY = 400
+"""Nodes the search may expand per family of its budget."""
 
 COVER_DEPTH = 2
 """Default depth of the coverage: the person's first choice, and each choice after it."""
@@ -95,6 +99,7 @@ class SearchOutcome:
     impossible: int = 0  # no valid plan allows them
     given_up: int = 0  # the dive's node cap or the time ran out first
     cover_seconds: float = 0.0
+    seconds_to_best: float = 0.0  # from the search's start to the compile of its best plan
 
     def gap(self, key: tuple | None) -> float | None:
         """Seconds by which an uncompiled plan of `key`'s class could beat `key`'s ranked makespan at most
@@ -157,14 +162,17 @@ class _State:
     ids: set[str] = field(default_factory=set)
     prefixes: set[tuple[str, ...]] = field(default_factory=set)  # the person's sequence prefixes compiled
     families: int = 0
+    best_at: float = 0.0  # time.perf_counter() when the best key so far was found
 
 
-def search_plans(task: Task, bounds: NodeBounds, k: int, seconds: float,
+def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds: float | None,
                  compile_family: Callable[[tuple[Plan, ...]], list[tuple]],
                  stop: Callable[[], None] | None = None, state: _State | None = None,
                  progress: Progress | None = None) -> SearchOutcome:
     """Best-first branch and bound for the `k` best plans (module docstring). `compile_family(family)`
-    compiles a family and returns each plan's `rank_key`. Stops after `seconds` (then not closed)."""
+    compiles a family and returns each plan's `rank_key`. Stops (then not closed) once `families` families
+    were compiled or ``NODES_PER_FAMILY * families`` nodes expanded (a budget in work: the same output on
+    any machine), or after `seconds` if given (then it depends on the machine's pace)."""
     t0 = time.perf_counter()
     state = state or _State()
     groups = identical_actions(task)
@@ -186,7 +194,8 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, seconds: float,
             closed = True
             open_bound = key
             break
-        if time.perf_counter() - t0 > seconds:
+        if (state.families >= families or nodes >= NODES_PER_FAMILY * families
+                or (seconds is not None and time.perf_counter() - t0 > seconds)):
             open_bound = key
             break
         heapq.heappop(heap)
@@ -225,7 +234,8 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, seconds: float,
     kth = state.keys[k - 1] if len(state.keys) >= k else None
     return SearchOutcome(k=k, found=len(state.ids), families=state.families, nodes=nodes,
                          seconds=round(time.perf_counter() - t0, 3), closed=closed, kth=kth,
-                         best=state.keys[0] if state.keys else None, open_bound=open_bound)
+                         best=state.keys[0] if state.keys else None, open_bound=open_bound,
+                         seconds_to_best=round(max(0.0, state.best_at - t0), 3))
 
 
 def _take(state: _State, task: Task, family: tuple[Plan, ...], keys: list[tuple], k: int) -> None:
@@ -239,8 +249,11 @@ def _take(state: _State, task: Task, family: tuple[Plan, ...], keys: list[tuple]
         if human is not None:
             seq = plan.sequence(human)
             state.prefixes.update(seq[:n] for n in range(1, len(seq) + 1))
+    first = state.keys[0] if state.keys else None
     state.keys.sort()
     del state.keys[k:]
+    if state.keys[0] != first:
+        state.best_at = time.perf_counter()
 
 
 def _person(task: Task) -> str | None:
@@ -319,12 +332,14 @@ def _cover(task: Task, bounds: NodeBounds, state: _State, depth: int, deadline: 
 
 def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int = 0,
                    options: CompileOptions | None = None, stnu: str = "graphml", keep: int = REPORT_TOP,
-                   seconds: float = SEARCH_SECONDS, cover: int = COVER_DEPTH,
-                   cover_seconds: float | None = None, progress: Progress | None = None,
+                   families: int | None = None, seconds: float | None = None, cover: int = COVER_DEPTH,
+                   progress: Progress | None = None,
                    stop: Callable[[], None] | None = None, paths: PathLibrary | None = None) -> SearchResult:
     """Search `task`'s best `k` plans (and the coverage of the person's first `cover` choices) and write
-    them into `out_dir` as `hrc.compile.stream.compile_stream` writes a compile. `seconds`: the best-K
-    search's budget; `cover_seconds` the coverage's (default: the same). Raises `hrc.errors.HrcError`."""
+    them into `out_dir` as `hrc.compile.stream.compile_stream` writes a compile. `families`: the best-K
+    search's budget in families compiled (default ``SEARCH_FAMILIES * k``); `seconds`: a wall-clock limit
+    for it and as much again for the coverage (the output then depends on the machine's pace). Raises
+    `hrc.errors.HrcError`."""
     if k < 1:
         raise ValueError(f"k must be at least 1, got {k}")
     options = options or CompileOptions()
@@ -345,14 +360,15 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
             return keys
 
         state = _State()
-        best = search_plans(task, bounds, k, seconds, compile_family, stop, state, progress)
+        best = search_plans(task, bounds, k, families or SEARCH_FAMILIES * k, seconds, compile_family, stop, state,
+                            progress)
         t1 = time.perf_counter()
-        deadline = t1 + (seconds if cover_seconds is None else cover_seconds)
+        deadline = math.inf if seconds is None else t1 + seconds
         found = _State(list(state.keys), state.ids, state.prefixes, state.families)
         choices, covered, impossible, given_up = _cover(task, bounds, found, cover, deadline, compile_family, stop)
         outcome = SearchOutcome(best.k, len(found.ids), found.families, best.nodes, best.seconds, best.closed,
                                 best.kth, best.best, best.open_bound, cover, choices, covered, impossible,
-                                given_up, round(time.perf_counter() - t1, 3))
+                                given_up, round(time.perf_counter() - t1, 3), best.seconds_to_best)
         sink.extra = {"search": outcome.header()}
     except BaseException:
         sink.abandon()
