@@ -182,3 +182,16 @@ def test_beyond_max_plans_it_searches_and_says_so(tmp_path, capsys):
     assert "optimal" in captured.out  # 50 > 32: every plan compiled, so the search closed
     head = json.loads((out / "compiled.json").read_text())
     assert head["search"]["closed"] is True and head["search"]["plans_compiled"] == 32
+
+
+def test_the_tree_holds_every_canonical_plan_once_with_identical_actions():
+    """kitting_6picks (parts F and G are identical to A and C): the tree's leaves are exactly the canonical
+    plans (one per family of relabellings), each once; the search compiles each leaf's family."""
+    task = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
+    assert identical_actions(task)
+    nb = NodeBounds(task, plan_paths(task, seed=0))
+    below: dict = {}
+    _leaves(nb, nb.root(), below, [])
+    found = [_plan_of(task, leaf).id for leaf in below]
+    canonical = [p.id for p in generate_plans(task, symmetry=True)]
+    assert len(found) == len(set(found)) and sorted(found) == sorted(canonical)
