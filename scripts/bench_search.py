@@ -2,7 +2,8 @@
 
 For each task: ``hrc compile TASK --plans best:K --cover D --no-report -q`` in a fresh process (path
 planning, search, coverage, writing the output), wall seconds; then one ``hrc dispatch`` answer from the
-output (it is usable only if it dispatches). Prints one JSON line per run with the search's own counts.
+output (it is usable only if it dispatches). Prints one JSON line per run with the search's own counts
+and the compile's CPU seconds (it runs in one process: on a free core, its wall time).
 
     PYTHONPATH=. .venv/bin/python scripts/bench_search.py [--k 50] [--cover 2] [--repeat 1] TASK.yaml ...
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -36,16 +38,20 @@ def main() -> int:
             if args.budget is not None:
                 cmd += ["--search-budget", str(args.budget)]
             load = os.getloadavg()[0]
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
             subprocess.run(cmd, check=True)
             wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
             tick = '{"t": 0, "event": "tick"}\n'
             run = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(out)], input=tick, capture_output=True,
                                  text=True, check=True)
             answer = json.loads(run.stdout.splitlines()[0])
             head = json.loads((out / "compiled.json").read_text())
             search = head["search"]
-            print(json.dumps({"task": task, "wall_s": round(wall, 1), "load_at_start": round(load, 1),
+            print(json.dumps({"task": task, "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
+                              "load_at_start": round(load, 1),
                               "plans": sum(head["counts"].values()), "closed": search["closed"],
                               "best_gap_s": search["best_gap_s"], "kth_gap_s": search["kth_gap_s"],
                               "coverage": search["coverage"], "dispatch_ok": answer["ok"],

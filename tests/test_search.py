@@ -195,3 +195,12 @@ def test_the_tree_holds_every_canonical_plan_once_with_identical_actions():
     found = [_plan_of(task, leaf).id for leaf in below]
     canonical = [p.id for p in generate_plans(task, symmetry=True)]
     assert len(found) == len(set(found)) and sorted(found) == sorted(canonical)
+
+
+def test_the_same_search_writes_the_same_bytes(workshop, tmp_path):
+    task, paths = workshop
+    texts = []
+    for n in range(2):
+        compile_search(task, tmp_path / str(n), 2, cover=1, paths=paths)
+        texts.append((tmp_path / str(n) / "compiled.json").read_bytes())
+    assert texts[0] == texts[1]

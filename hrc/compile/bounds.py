@@ -54,11 +54,14 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from hrc.model import Task
-from hrc.motion import PathLibrary
-from hrc.motion.exact import ExactPlanner
 from hrc.plans import identical_actions, must_precede
+
+if TYPE_CHECKING:
+    from hrc.motion import PathLibrary
+    from hrc.motion.exact import ExactPlanner
 
 __all__ = ["Bound", "Node", "NodeBounds", "PLANNER_SLACK_M"]
 
@@ -117,6 +120,8 @@ class NodeBounds:
     """What the bounds need of a task, built once (the module docstring says what they are)."""
 
     def __init__(self, task: Task, paths: PathLibrary, rank_by: str = "worst") -> None:
+        from hrc.motion.exact import ExactPlanner  # shapely's visibility graph: only when a search runs
+
         self.task, self.rank_by = task, rank_by
         self.n, self.m = len(task.actions), len(task.agents)
         self.agent_ids = task.agent_ids
