@@ -83,7 +83,7 @@ def variants(draw, task):  # noqa: ANN001, ANN201
     return replace(task, actions=tuple(actions), deadline=float(draw(st.integers(30, 140))))
 
 
-@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+@settings(max_examples=2, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                 HealthCheck.too_slow])
 @given(data=st.data())
 def test_bounds_never_exceed_any_plan_below_on_random_variants(workshop, data):
@@ -176,12 +176,14 @@ def test_beyond_max_plans_it_searches_and_says_so(tmp_path, capsys):
 
     out = tmp_path / "out"
     assert main(["compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out", str(out), "--no-report",
-                 "--max-plans", "31", "--cover", "0", "--search-budget", "1000"]) == 0
+                 "--max-plans", "31", "--cover", "0", "--search-budget", "2"]) == 0
     captured = capsys.readouterr()
     assert "32 plans, more than --max-plans 31: searching for the best 50 instead" in captured.err
-    assert "optimal" in captured.out  # 50 > 32: every plan compiled, so the search closed
+    # two families of a budget cannot close a search for 50 of 32 plans: it says so, and never "optimal"
+    assert "best found, not proven" in captured.out and "optimal" not in captured.out
     head = json.loads((out / "compiled.json").read_text())
-    assert head["search"]["closed"] is True and head["search"]["plans_compiled"] == 32
+    assert head["search"]["closed"] is False and head["search"]["plans_compiled"] == 2
+    assert head["search"]["guarantee"].startswith("best found")
 
 
 def test_the_tree_holds_every_canonical_plan_once_with_identical_actions():

@@ -104,7 +104,11 @@ class SearchOutcome:
     def gap(self, key: tuple | None) -> float | None:
         """Seconds by which an uncompiled plan of `key`'s class could beat `key`'s ranked makespan at most
         (0 when closed; None when a plan of a better class may exist)."""
-        if key is None or self.open_bound is None or self.closed:
+        if self.closed:
+            return 0.0
+        if key is None:  # fewer plans found than asked for: nothing is known of the missing ones
+            return None
+        if self.open_bound is None:
             return 0.0
         if self.open_bound[0] < key[0]:
             return None
@@ -124,9 +128,11 @@ class SearchOutcome:
         if best is None:
             return (f"best found, not proven: the time ran out with families left whose bound is {cls} "
                     f"{self.open_bound[3]:.1f} s, so a plan of a better class than the best found may exist")
-        return (f"best found, not proven: a plan not compiled could beat the best by at most {best:.1f} s"
-                + ("" if worst is None else f" and the K-th by at most {worst:.1f} s")
-                + f" (the best bound left: {cls}, {self.open_bound[3]:.1f} s)")
+        kth = (f" and the K-th by at most {worst:.1f} s" if worst is not None else
+               f"; only {self.found} of the {self.k} plans asked for were found" if self.kth is None else
+               "; a plan of a better class than the K-th may exist")
+        return (f"best found, not proven: a plan not compiled could beat the best by at most {best:.1f} s{kth}"
+                f" (the best bound left: {cls}, {self.open_bound[3]:.1f} s)")
 
     def header(self) -> dict:
         """``compiled.json``'s ``"search"`` entry."""
