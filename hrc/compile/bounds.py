@@ -56,6 +56,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from hrc.compile.temporal_net_creator import seconds_to_ticks
 from hrc.model import Task
 from hrc.plans import identical_actions, must_precede
 
@@ -133,7 +134,7 @@ class NodeBounds:
             self.at.append(self.at[-1] + len(ph))
         self.owner = [(i, k) for i, ph in enumerate(self.phases) for k in range(len(ph))]
         locs = {loc.id: loc.xy for loc in task.workspace.locations}
-        self.deadline = None if task.deadline is None else round(task.deadline * _TICKS)
+        self.deadline = None if task.deadline is None else seconds_to_ticks(task.deadline)  # as the STNU has it
         self.pref = -math.inf if task.preferences else math.inf
         # travel lower bounds per reading, agent and (origin, target), in ticks
         self.travel: list[list[dict[tuple[str, str], int]]] = [[{} for _ in task.agents] for _ in range(2)]
