@@ -342,6 +342,8 @@ class NodeBounds:
                     continue  # identical actions: agents in task order
                 if i in forced and ag != who:
                     continue
+                if ag == who and not self._fits(alloc + (ag,), i, who, forced):
+                    continue  # the forced prefix would need an action of its agent before it that it lacks
                 out.append(Node(alloc + (ag,), seqs))
             return out
         placed = {x for seq in seqs for x in seq}
@@ -363,6 +365,20 @@ class NodeBounds:
                 continue  # identical actions: in task order within an agent
             out.append(Node(alloc, seqs[:ag] + (seqs[ag] + (i,),) + seqs[ag + 1:]))
         return out
+
+    def _fits(self, alloc: tuple[int, ...], i: int, who: int, forced: tuple[int, ...]) -> bool:
+        """Whether giving action `i` to `who` (as `alloc` does) keeps a sequence of `who` that starts with
+        `forced` possible: an action of `who` that must precede ``forced[p]`` (`hrc.plans.must_precede`)
+        must be one of ``forced[:p]``. Checked when either is allocated, so that a dive does not learn it
+        only after trying every order below an allocation (the allocations are the deep part of its
+        backtracking)."""
+        for p, x in enumerate(forced):
+            if (i, x) in self.before_idx and i not in forced[:p]:
+                return False
+            if x == i and any(alloc[j] == who and (j, i) in self.before_idx and j not in forced[:p]
+                              for j in range(len(alloc))):
+                return False
+        return True
 
     def is_leaf(self, node: Node) -> bool:
         return len(node.alloc) == self.n and sum(len(s) for s in node.seqs) == self.n
