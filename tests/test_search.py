@@ -206,3 +206,24 @@ def test_the_same_search_writes_the_same_bytes(workshop, tmp_path):
         compile_search(task, tmp_path / str(n), 2, cover=1, paths=paths)
         texts.append((tmp_path / str(n) / "compiled.json").read_bytes())
     assert texts[0] == texts[1]
+
+
+def test_coverage_dives_find_every_possible_first_choice_of_the_gearbox():
+    """The person can start with an action exactly when none of the actions that must precede it is theirs
+    alone (the robot then does those first, and the person waits): the coverage's dive finds a plan for
+    each such choice and proves the others impossible (hand-derived on tasks/gearbox_assembly.yaml:
+    fit_gear needs the bearings pressed, which needs the shaft the person inserts, and so on)."""
+    from hrc.compile.search import DIVE_NODES, _dive
+
+    task = load_task(ROOT / "tasks" / "gearbox_assembly.yaml")
+    nb = NodeBounds(task, plan_paths(task, seed=0))
+    human = task.agent_ids.index("human")
+    for i, action in enumerate(task.actions):
+        if "human" not in action.agents:
+            continue
+        possible = not any(task.action(j).agents == ("human",) for j, x in nb.before if x == action.id)
+        leaf = _dive(task, nb, (i,), DIVE_NODES)
+        assert leaf is not False, action.id
+        assert (leaf is not None) == possible, action.id
+        if leaf is not None:
+            assert leaf.seqs[human][0] == i
