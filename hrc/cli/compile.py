@@ -38,7 +38,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hrc.cli.argtypes import delay_range, whole
+from hrc.cli.argtypes import delay_range, real, whole
 from hrc.errors import InputError
 from hrc.io.claim import FolderClaim
 from hrc.io.task_file import MAX_SECONDS, load_task
@@ -60,9 +60,20 @@ def _pin(text: str) -> tuple[str, str]:
     return action, agent
 
 
+def _plans(text: str) -> str | int:
+    """``all``, ``auto`` or ``best:K`` (K at least 1): "all", "auto" or K."""
+    if text in ("all", "auto"):
+        return text
+    head, sep, k = text.partition(":")
+    if head != "best" or not sep or not k.isdigit() or int(k) < 1:
+        raise argparse.ArgumentTypeError(f"expected all, auto or best:K with K a whole number >= 1, found {text!r}")
+    return int(k)
+
+
 def add_parser(sub: Any) -> None:
     from hrc.compile.estimate import DEFAULT_MAX_PLANS
     from hrc.compile.output import STNU_MODES
+    from hrc.compile.search import COVER_DEPTH, DEFAULT_K, SEARCH_FAMILIES
     from hrc.compile.sink import REPORT_TOP
 
     p = sub.add_parser("compile", help="compile a task into its ranked set of HRC schedules (STNUs)")
@@ -94,6 +105,19 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--best-per-allocation", type=whole(1), default=None, metavar="K",
                    help="keep only the K best plans of each allocation (all are compiled; the others are not "
                         "written, ranked or offered to the dispatcher)")
+    p.add_argument("--plans", type=_plans, default="auto", metavar="all|best:K|auto",
+                   help="all: every plan (refused above --max-plans); best:K: search for the K best by the ranking's "
+                        "order, with a plan for each of the person's first choices (docs/search.md); auto "
+                        f"(default): all up to --max-plans, else best:{DEFAULT_K}")
+    p.add_argument("--search-budget", type=whole(1), default=None, metavar="N",
+                   help=f"the search compiles at most N families for the best K (default {SEARCH_FAMILIES} K): a "
+                        "budget in work, so the output is the same on any machine")
+    p.add_argument("--search-seconds", type=real(0.1), default=None, metavar="S",
+                   help="also stop the search after S seconds, and the coverage after as much again (the output "
+                        "then depends on the machine's pace)")
+    p.add_argument("--cover", type=whole(0), default=COVER_DEPTH, metavar="D",
+                   help=f"with the search: a plan for each action the person could start next, at the start and "
+                        f"after each of their first D-1 choices (default {COVER_DEPTH}; 0: none)")
     p.add_argument("--resume", action="store_true",
                    help="go on with the interrupted compile in --out (same task and options): its plans are "
                         "kept, the rest compiled; the output is the same as an uninterrupted run's")
@@ -217,6 +241,50 @@ def _check_earlier(out: str) -> Callable[[Path, Path], None]:
     return check
 
 
+def _search(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, out: str, k: int,
+            claim: FolderClaim, say: Callable[[str], None], options: Any) -> int:
+    """``--plans best:K`` (or ``auto`` above ``--max-plans``): the search compile (`hrc.compile.search`),
+    in this process. Options that only the exhaustive compile has are refused, not ignored."""
+    for flag, used in (("--resume", args.resume), ("--symmetry", args.symmetry),
+                       ("--best-per-allocation", args.best_per_allocation is not None),
+                       ("--executor", args.executor is not None)):
+        if used:
+            raise InputError(args.task, flag, f"not with the search compile (--plans best:{k}); it compiles "
+                                              "only the plans it needs")
+    from hrc.compile.search import SEARCH_FAMILIES, compile_search
+
+    budget = args.search_budget or SEARCH_FAMILIES * k
+    limit = "" if args.search_seconds is None else f", {args.search_seconds:g} s"
+    say(f"{task.name}: searching for the best {k} plans (at most {budget} families compiled{limit}), then a plan "
+        f"for each of the person's first {args.cover} choice{'s' * (args.cover != 1)}")
+    progress = _Progress(tty=sys.stderr.isatty(), quiet=args.quiet)
+    t0 = time.perf_counter()
+    with claim.staging(check_earlier=_check_earlier(out)) as stage:
+        try:
+            result = compile_search(task, stage, k, seed=args.seed, options=options, stnu=args.stnu,
+                                    keep=args.report_top, families=budget, seconds=args.search_seconds,
+                                    cover=args.cover,
+                                    progress=progress, stop=interrupt.check)
+        finally:
+            progress.close()
+        if not args.no_report:
+            from hrc.report import write_report
+
+            write_report(result.plan_set, stage)
+    o = result.outcome
+    if not args.quiet:
+        counts = result.plan_set.counts()
+        print(f"searched {task.name} in {time.perf_counter() - t0:.2f} s: compiled {o.found} plans ("
+              + ", ".join(f"{n} {c}" for c, n in counts.items()) + f"); {o.guarantee()}")
+        if o.cover_depth:
+            print(f"the person's choices (first {o.cover_depth}): {o.covered} of {o.choices} have a plan, "
+                  f"{o.impossible} no valid plan allows, {o.given_up} given up (time or the dive's limit)")
+        stnu = {"graphml": f"{out}/stnu/", "archive": f"{out}/stnu.zip", "none": "no STNU files"}[args.stnu]
+        report = "" if args.no_report else f", {out}/report.md, {out}/report.html"
+        print(f"wrote {out}/compiled.json, {stnu}{report}")
+    return 0
+
+
 def _refusal(task_file: str, est: Any, limit: int, workers: int) -> InputError:
     from hrc.compile.estimate import fmt_bytes, fmt_span
 
@@ -324,6 +392,15 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
         resume = (Path(out), read_resume(Path(out), task, args.seed, options, args.stnu, args.symmetry,
                                          args.best_per_allocation))
     est = estimate(task, symmetry=args.symmetry)
+    k = args.plans
+    if k == "auto" and est.plans.value > args.max_plans:
+        from hrc.compile.search import DEFAULT_K
+
+        k = DEFAULT_K
+        say(f"{task.name}: {est.plans} plans, more than --max-plans {args.max_plans:,}: searching for the best "
+            f"{k} instead (--plans best:K; --plans all to refuse; docs/search.md)")
+    if isinstance(k, int):
+        return _search(args, interrupt, task, out, k, claim, say, options)
     if est.plans.value > args.max_plans:
         raise _refusal(args.task, est, args.max_plans, workers)
     interrupt.check()

@@ -106,8 +106,9 @@ def _text(s: dict[str, Any]) -> str:
                  f"{fmt_bytes(disk['graphml'])} (--stnu archive: {fmt_bytes(disk['archive'])}, none: "
                  f"{fmt_bytes(disk['none'])})")
     if s["plan_count"] > e["max_plans_default"]:
-        lines.append(f"  more than {e['max_plans_default']:,} plans: `hrc compile` refuses it unless --max-plans "
-                     "allows it; or use --executor (Dask), or --pin ACTION=AGENT or --symmetry to compile fewer")
+        lines.append(f"  more than {e['max_plans_default']:,} plans: `hrc compile` searches for the best plans "
+                     "instead (--plans best:K, docs/search.md); every plan only with --plans all and a --max-plans "
+                     "that allows it; or use --executor (Dask), or --pin ACTION=AGENT or --symmetry to compile fewer")
     if s["identical_actions"]:
         groups = "; ".join(", ".join(g) for g in s["identical_actions"])
         lines.append(f"  identical actions ({groups}): `hrc compile --symmetry` compiles one plan in "

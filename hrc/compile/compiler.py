@@ -132,6 +132,7 @@ class CompiledPlanSet:
     options: CompileOptions = CompileOptions()
     summary: PlanSetSummary | None = None
     stnu_files: str = "graphml"  # how the STNUs were written (`hrc.compile.output.STNU_MODES`)
+    search: str = ""  # a search compile's guarantee (`hrc.compile.search`): not every plan was compiled
 
     @property
     def total(self) -> int:

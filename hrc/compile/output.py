@@ -264,7 +264,7 @@ def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n
 def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, counts: dict[str, int],
                 stnu: str = "graphml", partial: tuple[int, int] | None = None,
                 symmetric: tuple[tuple[str, ...], ...] = (), best: tuple[int, int] | None = None,
-                form: str | None = None) -> dict[str, Any]:
+                form: str | None = None, extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """``compiled.json`` without its plans. The optional keys appear only when they say something:
     ``stnu_files`` ("none" or "archive") and ``stnu_archive`` when the STNUs are not one GraphML file per
     plan; ``partial`` and ``plans_expected`` when the run was interrupted (`partial`: plans written, plans
@@ -272,7 +272,8 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
     relabelling of identical actions was compiled (``hrc compile --symmetry``); ``best_per_allocation`` and
     ``plans_compiled`` when only the best plans of each allocation are listed (`best`: how many, and the
     plans compiled; ``hrc compile --best-per-allocation``); ``dispatch_form`` when the dispatch form was
-    written (`form`: the SHA-256 of its ``form.json``, `hrc.compile.dispatch_form`)."""
+    written (`form`: the SHA-256 of its ``form.json``, `hrc.compile.dispatch_form`); `extra`'s entries last
+    (a search compile's ``search``: what it guarantees, `hrc.compile.search.SearchOutcome.header`)."""
     out: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
         "generator": f"hrc {__version__}",
@@ -298,6 +299,8 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
         out["plans_expected"] = partial[1]
     if form is not None:
         out["dispatch_form"] = {"path": FORM_FOLDER, "sha256": form}
+    if extra:
+        out.update(extra)
     return out
 
 

@@ -114,6 +114,7 @@ class PlanSink:
         self._ids = bytearray()  # 16 bytes per plan: its id, padded with spaces
         self._held: list[tuple[tuple, int, CompiledPlan]] = []
         self._best: dict[str, tuple[tuple, int, CompiledPlan]] = {}
+        self.extra: dict = {}  # more header entries (the search compile's ``"search"``, `hrc.compile.search`)
 
     def __len__(self) -> int:
         return len(self._ids) // 16  # the last of a plan's columns `add_record` appends to
@@ -243,7 +244,7 @@ class PlanSink:
         def header_of(form: str | None) -> dict:
             return header_dict(self.task, seed, digest, options, counts, self.stnu,
                                None if partial is None else (n, partial), self.symmetric,
-                               None if self.best is None else (self.best, compiled), form)
+                               None if self.best is None else (self.best, compiled), form, self.extra)
 
         form = None
         if self._form is not None:  # first: compiled.json's header names it, and it names the lines' places

@@ -306,7 +306,9 @@ def build_report_data(cps: CompiledPlanSet, margin: CompiledPlanSet | None = Non
                  ("separation", model_words(task)))
         + (() if cps.summary is None or cps.summary.best is None else
            (("plans kept", f"the best {cps.summary.best[0]} of each allocation: {cps.total:,} of the "
-                           f"{cps.summary.best[1]:,} plans compiled (--best-per-allocation)"),)),
+                           f"{cps.summary.best[1]:,} plans compiled (--best-per-allocation)"),))
+        + ((("plans searched", f"{cps.total:,} plans compiled by the search compile (docs/search.md); "
+                               f"{cps.search}"),) if cps.search else ()),
         preferences=bool(task.preferences),
         total=cps.total,
         stats=cps.summary.stats if cps.summary is not None and cps.total > len(rows) else (),
