@@ -128,3 +128,22 @@ def test_bad_observation_delay_option(tmp_path: Path, capsys: pytest.CaptureFixt
         assert stop.value.code == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "--observation-delay" in err
+
+
+def test_the_dispatcher_holds_observations_to_the_compiles_delay(stated: tuple[Path, Path]) -> None:
+    """What the classes were checked under is what the dispatcher holds a message's `delay` to: an
+    observation learnt later than the compile's longest delay voids the guarantee, and the answer says so."""
+    from hrc.dispatch import Dispatcher
+    from hrc.dispatch.messages import Observation
+
+    plain, late = stated
+    assert Dispatcher.from_folder(plain).max_observation_delay is None
+    assert Dispatcher.from_folder(late, max_observation_delay=1.0).max_observation_delay == 1.0  # stated wins
+    seen = []
+    for delay in (2.9, 3.1):
+        d = Dispatcher.from_folder(late)
+        assert d.max_observation_delay == 3.0
+        first = next(o for o in d.human_options() if o.event == "depart")
+        seen.append(d.observe(Observation(3.5, "depart", "human", first.action, first.phase, delay=delay)))
+    assert seen[0].deviation is None
+    assert seen[1].deviation is not None and dict(seen[1].deviation["late"])["max"] == 3.0

@@ -103,7 +103,9 @@ class Dispatcher:
     use on a large message (default: up to 4, as the machine has cores; 1 where processes share the cores,
     as the simulator's workers do). `ranker`: share the set ranking of another dispatcher on the same set.
     `max_observation_delay` (s): the longest a person's event may reach the dispatcher after it happened
-    (`Observation.delay`); a later one voids the guarantee (`Decision.deviation`). `bound_tolerance` (s):
+    (`Observation.delay`); a later one voids the guarantee (`Decision.deviation`). Default: the longest
+    delay of the compile's sensing (`Task.sensing`, what its classes were checked under), else none stated.
+    `bound_tolerance` (s):
     a person's event estimated within this of a bound of the hint they were given is read as on the
     bound (`_on_bound`); 0 (buttons): never.
     """
@@ -115,6 +117,9 @@ class Dispatcher:
         self.bound_tolerance = bound_tolerance
         self.feasible_only = feasible_only
         self.use_preferences = use_preferences
+        sensing = plan_set.task.sensing
+        if max_observation_delay is None and sensing is not None:  # the classes hold up to this delay only
+            max_observation_delay = sensing.delay[1]
         self.max_observation_delay = max_observation_delay
         self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
         self.routes = RouteIndex(plan_set.form)  # shared by forks: a function of the plans alone
