@@ -213,6 +213,7 @@ def test_a_log_of_another_seeds_compile_is_refused_for_that_reason(compiles, tmp
         assert "the log was written for another compiled plan set" in done.stderr, done.stderr
 
 
+@pytest.mark.slow
 def test_a_folder_held_by_a_killed_run_is_free_again(compiles, tmp_path):
     """The kernel drops a run's hold when it dies, however: kill -9 of ``hrc dispatch`` and the compile
     goes ahead."""
