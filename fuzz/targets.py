@@ -33,7 +33,8 @@ _STATE: dict[str, Any] = {}
 
 def _scratch() -> Path:
     if "scratch" not in _STATE:
-        _STATE["scratch"] = Path(tempfile.mkdtemp(prefix="hrc-fuzz-"))
+        # under the runner's work folder (removed when the run ends), or the system's temporary folder
+        _STATE["scratch"] = Path(tempfile.mkdtemp(prefix="hrc-fuzz-", dir=os.environ.get("HRC_FUZZ_SCRATCH")))
     return Path(_STATE["scratch"])
 
 

@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.sanitize:
         names = [n for n in names if n in targets.NATIVE]
     work = Path(tempfile.mkdtemp(prefix="hrc-fuzz-run-"))
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ, PYTHONPATH=str(ROOT), HRC_FUZZ_SCRATCH=str(work))
     try:
         if any(n in targets.COMPILED for n in names):
             env[targets.COMPILED_VARIABLE] = args.compiled or str(compile_workshop(work))
