@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 ROS2   := $(VENV)/.installed-ros2
 OUT    ?= out/cube_stacking
 
-.PHONY: demo test lint bench clean browser oracle
+.PHONY: demo test lint bench clean browser oracle fuzz fuzz-short
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -48,6 +48,23 @@ oracle:
 	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
 	  "$(CSTNU_CHECK)" --install >/dev/null 2>&1; [ $$? -ne 3 ]; then :; \
 	else echo "make: the CSTNU Tool cannot run (as root: $(CSTNU_CHECK) --install): its tests will skip"; fi
+
+# Fuzzing (docs/fuzzing.md): every target from its seed corpus in fuzz/corpus/, then the C cores again on
+# their AddressSanitizer/UndefinedBehaviorSanitizer build. fuzz-short is CI's few minutes; fuzz the long
+# run (FUZZ_SECONDS per target; nice'd: the machine may be shared), adding what it finds to the corpus.
+FUZZ       := $(VENV)/.installed-fuzz
+FUZZ_SECONDS ?= 600
+$(FUZZ): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[test,fuzz]'
+	touch $(FUZZ)
+
+fuzz-short: $(FUZZ)
+	$(BIN)/python scripts/fuzz.py --seconds 4
+	$(BIN)/python scripts/fuzz.py --seconds 4 --sanitize
+
+fuzz: $(FUZZ)
+	nice $(BIN)/python scripts/fuzz.py --seconds $(FUZZ_SECONDS) --grow
+	nice $(BIN)/python scripts/fuzz.py --seconds $(FUZZ_SECONDS) --sanitize
 
 lint: $(STAMP)
 	$(BIN)/ruff check hrc tests scripts

@@ -4,12 +4,16 @@ Usage (from the fault-injection tests, `tests/test_compile_faults.py`)::
 
     python tests/fault_driver.py --at MODULE:NAME[.ATTR][@K] --signal TERM|INT|KILL [--after] [--match TEXT] \
         -- compile TASK --out OUT ...
+    python tests/fault_driver.py --after-main --signal TERM|INT -- compile TASK --out OUT ...
     python tests/fault_driver.py --in-pymunk-callback TERM -- compile TASK --out OUT ...
 
 ``--at``: the K-th call (default 1) of that function (with ``--match``, counting only calls whose
 arguments' text holds TEXT) sends the signal to this process just before it runs (``--after``: just
 after it returned). A SIGKILL is a power cut there; a SIGTERM or SIGINT is what a user or the system
 sends, handled by the real code as it would be at that instant.
+
+``--after-main``: the signal once hrc's ``main`` has returned its status (the process is shutting
+down: what remains is the interpreter's exit).
 
 ``--in-pymunk-callback``: before the compile plans its paths, a pymunk collision callback (a C callback,
 through cffi, which prints and swallows any exception raised in it) sends the signal from inside itself:
@@ -99,6 +103,7 @@ def main() -> int:
     p.add_argument("--after", action="store_true")
     p.add_argument("--match")
     p.add_argument("--in-pymunk-callback", metavar="SIGNAL")
+    p.add_argument("--after-main", action="store_true", help="the signal once hrc's main has returned")
     args = p.parse_args(argv[:cut])
     if args.at:
         _wrap_at(args.at, args.signal, args.after, args.match)
@@ -106,7 +111,11 @@ def main() -> int:
         _in_pymunk_callback(args.in_pymunk_callback)
     from hrc.cli import main as hrc_main
 
-    return hrc_main(argv[cut + 1:])
+    sys.argv = [sys.argv[0], *argv[cut + 1:]]  # as the `hrc` command runs it: main is the process
+    code = hrc_main()
+    if args.after_main:
+        _signal_self(args.signal)
+    return code
 
 
 if __name__ == "__main__":

@@ -189,6 +189,8 @@ NAMED = {  # point -> fault_driver arguments
     "writing the report": ("--at", "hrc.report:write_report"),
     "at the swap": ("--at", "hrc.io.claim:exchange"),
     "after the swap": ("--at", "hrc.io.claim:exchange", "--after"),
+    "after the claim's release": ("--at", "hrc.io.claim:FolderClaim.__exit__", "--after"),
+    "after main returned": ("--after-main",),
 }
 
 
@@ -197,6 +199,8 @@ NAMED = {  # point -> fault_driver arguments
     ("amid the plans", "TERM", False, "partial"),
     ("writing the report", "TERM", False, "complete"),  # was: every plan lost, "nothing to resume"
     ("after the swap", "KILL", True, "complete"),  # the earlier output, at the staging name, cleaned next time
+    pytest.param("after the claim's release", "TERM", False, "complete", marks=pytest.mark.slow),  # was: exit 0
+    ("after main returned", "TERM", False, "complete"),  # was: the default action in the shutdown, -15
     pytest.param("amid the plans", "INT", True, "earlier", marks=pytest.mark.slow),
     pytest.param("writing compiled.json", "TERM", True, "complete", marks=pytest.mark.slow),
     pytest.param("writing the report", "KILL", True, "earlier", marks=pytest.mark.slow),

@@ -9,8 +9,10 @@ Exit status: 0 success, 2 bad input or usage (one ``error:`` line on stderr, nev
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
 import importlib
+import os
 import signal
 import sys
 import threading
@@ -62,23 +64,61 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt  # SIGTERM is handled like Ctrl-C: clean up, say so, exit 130
 
 
+_LATE_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_late: list[int] = []  # signals that came once the command had returned (only when `main` is the process)
+
+
+def _note_late(signum: int, frame: object) -> None:
+    _late.append(signum)
+
+
+def _exit_late() -> None:
+    """The process's last Python code (an ``atexit`` function registered before any other of the run:
+    they run last first): SIGINT and SIGTERM are blocked from here to the end, and one that came since the
+    command returned, or is pending, ends the process with 130 (issue 34: a SIGTERM in the tenth of a
+    second after a compile wrote its output, while the interpreter shut down, killed it: status -15)."""
+    signal.pthread_sigmask(signal.SIG_BLOCK, _LATE_SIGNALS)
+    pending = signal.sigpending() & set(_LATE_SIGNALS)
+    if _late or pending:
+        name = signal.Signals(_late[0] if _late else min(pending)).name
+        with contextlib.suppress(Exception):
+            print(f"error: interrupted ({name}) as hrc ended; what it wrote was complete", file=sys.stderr)
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(130)
+
+
 @contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
+def _sigterm_as_interrupt(process: bool) -> Iterator[None]:
+    """SIGTERM as KeyboardInterrupt for the command. `process`: `main` is the process (its entry point):
+    afterwards SIGINT and SIGTERM are only noted until it exits, then exit it with 130 (`_exit_late`),
+    rather than the default action killing it (status -15) or a KeyboardInterrupt in its shutdown."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    if process:
+        atexit.register(_exit_late)
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        if process:
+            for sig in _LATE_SIGNALS:
+                signal.signal(sig, _note_late)
+        else:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command `argv` (default: the process's arguments; then `main` is taken to be the process's
+    entry point, and a signal after the command returned still ends the process with 130). Returns the
+    exit status."""
+    process = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(argv).parse_args(argv)
     try:
-        with _sigterm_as_interrupt():
+        with _sigterm_as_interrupt(process):
             return int(args.run(args))
     except HrcError as err:
         print(f"error: {err}", file=sys.stderr)

@@ -303,11 +303,16 @@ def run(args: argparse.Namespace) -> int:
 
     with DeferredInterrupt() as interrupt:
         try:
-            return _run(args, interrupt)
+            code = _run(args, interrupt)
         except KeyboardInterrupt:  # `interrupt.check` before the first plan: nothing was written
             print(f"error: interrupted ({interrupt.name}) before any plan was compiled; the output folder is as "
                   "it was", file=sys.stderr)
             return 130
+        if code == 0 and interrupt.requested:  # after the output was complete: in its last lines, the release
+            print(f"error: interrupted ({interrupt.name}) once the output was written; it is complete",
+                  file=sys.stderr)
+            return 130
+        return code
 
 
 def _stated_sensing(task: Task, delay: tuple[Fraction, Fraction | None]) -> Task:

@@ -27,11 +27,14 @@ from collections import OrderedDict
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, overload
+from typing import Any, BinaryIO, overload
+
+import numpy as np
 
 from hrc.compile.dispatch_form import DispatchForm, build_form, plan_record, read_form
 from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.errors import InputError
+from hrc.io.folder_use import FolderUse
 from hrc.model import Plan, Task
 from hrc.plans import agent_legs
 from hrc.temporal import STNU
@@ -40,7 +43,7 @@ from hrc.temporal.limits import MAX_FILE_BYTES
 
 from .messages import LEG_EVENTS
 
-__all__ = ["PlanEntry", "PlanSet", "load_plan_set", "plan_entry", "plan_set_from_compiled"]
+__all__ = ["PlanEntry", "PlanSet", "content_digest", "load_plan_set", "plan_entry", "plan_set_from_compiled"]
 
 LegKey = tuple[str, str, str]  # (agent, action, phase)
 EventKey = tuple[str, str, str, str]  # (agent, action, phase, event)
@@ -106,17 +109,37 @@ class PlanSet:
     task, the compile's ``rank_by`` and where it came from. ``len`` is the plan count; `entry` (and the
     `plans` view) make a plan's `PlanEntry` when asked for one."""
 
-    def __init__(self, form: DispatchForm, source: str = "") -> None:
+    def __init__(self, form: DispatchForm, source: str = "", content: str | None = None,
+                 use: FolderUse | None = None, compiled: BinaryIO | None = None) -> None:
         self.form = form
         self.task: Task = form.task
         self.rank_by: str = form.rank_by
         self.source = source or form.source
+        self.use = use
+        """The output folder held while this set lives (`hrc.io.folder_use`: no compile replaces it)."""
+        self.compiled = compiled
+        """That folder's ``compiled.json``, open: read from at the form's offsets (a plan's motions),
+        whatever is at its path later."""
+        self._content = content
         self._index: dict[str, int] | None = None
         self._entries: OrderedDict[int, tuple[PlanEntry, dict[str, int]]] = OrderedDict()
         self._digest: str | None = None
 
     def __len__(self) -> int:
         return len(self.form)
+
+    def close(self) -> None:
+        """Close ``compiled.json`` and let the folder go (a compile may replace it then); also when the set
+        is collected."""
+        compiled, self.compiled = getattr(self, "compiled", None), None
+        if compiled is not None:
+            compiled.close()
+        use = getattr(self, "use", None)
+        if use is not None:
+            use.release()
+
+    def __del__(self) -> None:
+        self.close()
 
     def id(self, p: int) -> str:
         return self.form.plan_id(p)
@@ -129,12 +152,17 @@ class PlanSet:
 
     @property
     def digest(self) -> str:
-        """What a log names the set by: SHA-256 of the task's digest and every plan id in rank order."""
+        """What a log names the set by: SHA-256 of the task's digest, every plan id in rank order and the
+        set's content (`content_digest`: every plan's STNU, class, preference, and the compile's seed and
+        options, which determine every motion), so that a log of another compile of the same task (another
+        seed) is refused as such when it is opened, not at its first answer that differs."""
         if self._digest is None:
             from hrc.io.task_file import task_digest
 
             ids = ",".join(raw.decode("ascii").rstrip() for raw in self.form.plans["id"].tolist())
-            self._digest = hashlib.sha256(f"{task_digest(self.task)}:{ids}".encode()).hexdigest()[:16]
+            content = self._content if self._content is not None else content_digest(self.form)
+            text = f"{task_digest(self.task)}:{ids}:{content}"
+            self._digest = hashlib.sha256(text.encode()).hexdigest()[:16]
         return self._digest
 
     def entry(self, p: int) -> PlanEntry:
@@ -190,6 +218,32 @@ class _Entries(Sequence[PlanEntry]):
         return (self._set.entry(k) for k in range(len(self._set)))
 
 
+def content_digest(form: DispatchForm, header: Mapping[str, Any] | None = None) -> str:
+    """SHA-256 of what the form's arrays hold (every plan's row but where its line lies in
+    ``compiled.json``, its sequences, timepoints, edges and contingent links, integers as 64 bits) and of
+    the compile's seed and options in `header` (``compiled.json``'s, or the in-memory set's): the
+    motions are a function of the task, the seed and the options (the compile is deterministic).
+    O(size of the form)."""
+    h = hashlib.sha256(json.dumps({k: (header or {}).get(k) for k in ("seed", "options")}, sort_keys=True).encode())
+    rows = form.plans
+    for name in ("id", "rank", "cls", "blocked", "preference", "n", "shape"):
+        h.update(np.ascontiguousarray(rows[name]).tobytes())
+    for name in ("seq", "nodes", "edges_ptr", "edges_u", "edges_v", "edges_w", "conts_ptr", "conts_a", "conts_c",
+                 "conts_lb", "conts_ub"):
+        h.update(np.ascontiguousarray(getattr(form, name), dtype=np.int64).tobytes())
+    return h.hexdigest()
+
+
+def _folder_content(header: Mapping[str, Any]) -> str:
+    """`content_digest`'s counterpart for a form read from a folder, at no cost: the SHA-256 of its
+    ``form.json`` (checked against the SHA-256 of every array file when the form was read) with the seed
+    and options."""
+    form = header.get("dispatch_form")
+    sha = form.get("sha256") if isinstance(form, dict) else None
+    text = json.dumps({"form": sha, **{k: header.get(k) for k in ("seed", "options")}}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 def plan_set_from_compiled(cps: Any) -> PlanSet:
     """The plan set of an in-memory `hrc.compile.compiler.CompiledPlanSet` (its plans' dispatch form
     records, or where a plan has none, its GraphML text read back: the same arrays the folder would
@@ -204,7 +258,9 @@ def plan_set_from_compiled(cps: Any) -> PlanSet:
                            graphml_names=True, where=where)
 
     entries = ((cp.plan.id, cp.plan_class.value, cp.preference, cp.plan, record(cp)) for cp in cps.plans)
-    return PlanSet(build_form(task, cps.options.rank_by, entries, "<memory>"), "<memory>")
+    form = build_form(task, cps.options.rank_by, entries, "<memory>")
+    header = {"seed": cps.seed, "options": {"human_waits": cps.options.human_waits, "rank_by": cps.options.rank_by}}
+    return PlanSet(form, "<memory>", content_digest(form, header))
 
 
 def _need(obj: Any, key: str, kind: type | tuple[type, ...], file: str, path: str) -> Any:
@@ -244,12 +300,31 @@ class _Archive:
 def load_plan_set(out_dir: str | os.PathLike[str], *, allow_partial: bool = False) -> PlanSet:
     """Read an `hrc compile` output folder. Raises `InputError` naming the file and key at fault: not such
     a folder, compiled with ``--stnu none``, a partial output (interrupted; unless `allow_partial`), a
-    dispatch form that does not match ``compiled.json`` (truncated, swapped, from another compile)."""
-    from hrc.compile.output import load_compiled_task, read_header
+    dispatch form that does not match ``compiled.json`` (truncated, swapped, from another compile).
 
+    The set holds the folder as long as it lives (`PlanSet.use`, `hrc.io.folder_use`), taken before
+    anything in it is read: a compile into it is refused meanwhile, and ``compiled.json`` stays open
+    (`PlanSet.compiled`) for what is read from it later."""
     folder = Path(out_dir)
     if not folder.is_dir():
         raise InputError(str(folder), "", "not a folder (give the --out folder of hrc compile)")
+    use = FolderUse(folder).acquire()
+    try:
+        plan_set = _load(folder, allow_partial)
+        try:
+            plan_set.compiled = use.open("compiled.json")
+        except OSError as err:
+            raise InputError(str(folder / "compiled.json"), "", f"cannot read: {err.strerror or err}") from err
+    except BaseException:
+        use.release()
+        raise
+    plan_set.use = use
+    return plan_set
+
+
+def _load(folder: Path, allow_partial: bool) -> PlanSet:
+    from hrc.compile.output import load_compiled_task, read_header
+
     file = str(folder / "compiled.json")
     header = read_header(folder)
     task = load_compiled_task(folder)
@@ -268,7 +343,7 @@ def load_plan_set(out_dir: str | os.PathLike[str], *, allow_partial: bool = Fals
         form = read_form(folder, task, rank_by, expected=str(meta.get("sha256")))
         if len(form) == 0:
             raise InputError(file, "plans", "no plans: nothing to dispatch")
-        return PlanSet(form, str(folder))
+        return PlanSet(form, str(folder), _folder_content(header))
     return _from_graphml(folder, task, rank_by, header)
 
 
@@ -313,4 +388,5 @@ def _from_graphml(folder: Path, task: Task, rank_by: str, header: Mapping[str, A
         entries.append((plan.id, cls, float(pref) if isinstance(pref, int | float) else None, plan, record))
     if not entries:
         raise InputError(file, "plans", "no plans: nothing to dispatch")
-    return PlanSet(build_form(task, rank_by, entries, str(folder)), str(folder))
+    form = build_form(task, rank_by, entries, str(folder))
+    return PlanSet(form, str(folder), content_digest(form, header))

@@ -30,10 +30,19 @@ def _xy(p: Iterable[float]) -> list[float]:
 def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable[[str], list[dict[str, Any]] | None]:
     """A plan's ``motions`` from ``compiled.json``, by plan id (None: no such plan), read when asked for:
     its one line, where the dispatch form says it lies (a large compile's file is gigabytes); for an
-    output without a form, the file is read once."""
+    output without a form, the file is read once. Read from the file the plan set holds open
+    (`PlanSet.compiled`: the one its form was checked with, whatever a later compile puts at its path;
+    one opened now for a set that holds none)."""
     path = Path(out_dir) / "compiled.json"
     rows = plan_set.form.plans
     everything: dict[str, Any] | None = None
+    held = plan_set.compiled
+    if held is None:
+        try:
+            held = plan_set.compiled = open(path, "rb")  # noqa: SIM115 - kept open with the set
+        except OSError as err:
+            raise InputError(str(path), "", f"cannot read: {err.strerror or err}") from err
+    fd = held.fileno()
 
     def motions(plan_id: str) -> list[dict[str, Any]] | None:
         nonlocal everything
@@ -44,19 +53,25 @@ def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable
         at, size = int(rows["line_at"][p]), int(rows["line_len"][p])
         try:
             if size:
-                with open(path, "rb") as f:
-                    f.seek(at)
-                    line = json.loads(f.read(size))
+                line = json.loads(os.pread(fd, size, at))
                 if isinstance(line, dict) and line.get("id") == plan_id:
                     return list(line.get("motions", []))
                 raise ValueError(f"plan {plan_id}'s line is not where the dispatch form says")
             if everything is None:
-                everything = {p["id"]: p for p in json.loads(path.read_text(encoding="utf-8"))["plans"]}
+                everything = {p["id"]: p for p in json.loads(_read_all(fd))["plans"]}
             return list(everything[plan_id]["motions"]) if plan_id in everything else None
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise InputError(str(path), "", f"cannot read plan {plan_id}'s motions ({err})") from err
 
     return motions
+
+
+def _read_all(fd: int) -> bytes:
+    chunks, at = [], 0
+    while chunk := os.pread(fd, 1 << 20, at):
+        chunks.append(chunk)
+        at += len(chunk)
+    return b"".join(chunks)
 
 
 class PlanRoutes:

@@ -20,7 +20,9 @@ them all). So a journal found unlocked is a dead process's, and the folders it n
 leftovers: provably ours (named in our journal, in our pattern) and stale (their process is gone). The
 next claim of the same folder removes them, or, for a run that died between the two renames of a swap
 (NAME missing, the earlier output aside), puts the earlier output back first. A folder no journal names
-is never touched, nor is NAME while another live process holds its claim (`InputError`).
+is never touched, nor is NAME while another live process holds its claim (`InputError`), nor while a
+live run reads it (`hrc.io.folder_use`: refused when claimed, and when a run started meanwhile, at the
+swap).
 
 The swap, when the staging folder's context ends without an exception: everything under the staging
 folder is flushed to the disk (`sync_tree`) before any name points at it; then it is exchanged with NAME
@@ -57,6 +59,7 @@ from pathlib import Path
 
 from hrc.errors import InputError
 from hrc.io.durable import exchange, fsync_folder, sync_tree
+from hrc.io.folder_use import check_unused, exclusive
 
 __all__ = ["LOCK_WAIT", "FolderClaim"]
 
@@ -109,6 +112,7 @@ class FolderClaim:
         self._created = _make_parents(self.parent)
         try:
             self._fd = self._lock()
+            check_unused(self.target)  # a live run reads it (`hrc.io.folder_use`)
             self.recovered = self._undo(self._journal(self._fd), found=True)
             os.ftruncate(self._fd, 0)
             self._append(f"{_HEADER}{os.getpid()}\n")
@@ -239,6 +243,10 @@ class FolderClaim:
 
     def _swap(self, staging: Path, check_earlier: Callable[[Path, Path], None] | None) -> None:
         sync_tree(staging)
+        with exclusive(self.target):  # no live run reads the earlier target, none starts during the swap
+            self._swap_held(staging, check_earlier)
+
+    def _swap_held(self, staging: Path, check_earlier: Callable[[Path, Path], None] | None) -> None:
         target = self.target
         if not _exists(target):
             os.rename(staging, target)

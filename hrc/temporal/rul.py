@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import ctypes
 import importlib.machinery
+import os
 from array import array
 from collections.abc import Callable, Sequence
 from heapq import heappop, heappush
@@ -434,10 +435,22 @@ def _python_check(stnu: STNU) -> tuple[str, tuple[Edge, ...], _Rul]:
     return "DC", (), run
 
 
+NATIVE_LIBRARY_VARIABLE = "HRC_NATIVE_LIBRARY"
+"""The environment variable naming another build of the native core to load instead (a path): the fuzz
+job's build with AddressSanitizer and UndefinedBehaviorSanitizer (``scripts/fuzz.py``, docs/fuzzing.md).
+A developer's setting, read once: a path that does not load raises `OSError` (a sanitizer run must not
+go on silently without its library)."""
+
+
 def native_library() -> ctypes.CDLL | None:
-    """The native core (``_rulcore.c``, ``_stncore.c`` and ``hrc/compile/_patterncore.c``, built into
-    ``_native/`` by ``pip install`` when a C compiler is there), or None. Loaded once."""
+    """The native core (``_rulcore.c``, ``_stncore.c``, ``hrc/compile/_patterncore.c`` and
+    ``hrc/dispatch/_dispatchcore.c``, built into ``_native/`` by ``pip install`` when a C compiler is
+    there, or the build `NATIVE_LIBRARY_VARIABLE` names), or None. Loaded once."""
     if not _LIBRARY:
+        chosen = os.environ.get(NATIVE_LIBRARY_VARIABLE)
+        if chosen:
+            _LIBRARY.append(ctypes.CDLL(chosen))  # OSError when it does not load
+            return _LIBRARY[0]
         here = Path(__file__).resolve().parent / "_native"
         found = None
         for suffix in importlib.machinery.EXTENSION_SUFFIXES:

@@ -1,0 +1,55 @@
+"""The fuzz corpus replayed through the fuzz targets (`fuzz/targets.py`, docs/fuzzing.md), without
+libFuzzer: every seed, and every input a fuzz run found that once crashed (kept in the corpus as
+``crash-*``), must keep the targets' contract (only hrc's own errors escape; answers well formed; the
+C cores agree with the Python definitions). The file parsers run by default; the targets that dispatch
+on a compiled workshop, and the native ones (their inputs are read by atheris' FuzzedDataProvider),
+under ``-m slow``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / "fuzz"))
+import targets  # noqa: E402
+
+CORPUS = ROOT / "fuzz" / "corpus"
+NEEDS_MORE = set(targets.COMPILED) | set(targets.NATIVE)
+
+
+def _inputs(name: str) -> list[Path]:
+    return sorted((CORPUS / name).iterdir())
+
+
+def test_every_target_has_a_seed_corpus() -> None:
+    assert set(targets.TARGETS) == {p.name for p in CORPUS.iterdir() if p.is_dir()}
+    for name in targets.TARGETS:
+        assert _inputs(name), name
+
+
+@pytest.mark.parametrize("name", sorted(set(targets.TARGETS) - NEEDS_MORE))
+def test_the_parsers_keep_their_contract_on_the_corpus(name: str) -> None:
+    for path in _inputs(name):
+        targets.TARGETS[name](path.read_bytes())
+
+
+@pytest.fixture(scope="module")
+def workshop(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from conftest import compiled_folder
+
+    return compiled_folder(tmp_path_factory.mktemp("fuzz") / "ws", ROOT / "tasks" / "cube_stacking.yaml", "--jobs", "1")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(NEEDS_MORE))
+def test_the_protocols_and_cores_keep_their_contract_on_the_corpus(name: str, workshop: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("atheris")
+    monkeypatch.setitem(os.environ, targets.COMPILED_VARIABLE, str(workshop))
+    for path in _inputs(name):
+        targets.TARGETS[name](path.read_bytes())
