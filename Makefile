@@ -26,7 +26,7 @@ demo: $(STAMP)
 	$(BIN)/hrc compile tasks/cube_stacking.yaml --out $(OUT)
 
 test: $(ROS2) browser oracle
-	$(BIN)/ruff check hrc tests scripts
+	$(BIN)/ruff check hrc tests scripts fuzz
 	$(BIN)/mypy hrc
 	$(BIN)/python -m pytest -q
 
@@ -67,7 +67,7 @@ fuzz: $(FUZZ)
 	nice $(BIN)/python scripts/fuzz.py --seconds $(FUZZ_SECONDS) --sanitize
 
 lint: $(STAMP)
-	$(BIN)/ruff check hrc tests scripts
+	$(BIN)/ruff check hrc tests scripts fuzz
 	$(BIN)/mypy hrc
 
 clean:
