@@ -28,7 +28,7 @@ from typing import Any
 import pytest
 from console_harness import ConsoleProcess, compiled_workshop
 
-from hrc.console.connections import HEADER_TIMEOUT
+from hrc.console.connections import HEADER_TIMEOUT, MAX_BACKLOG
 
 pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 ANSWER_WITHIN = 5.0  # s: the watchdog's bound for one answer
@@ -176,11 +176,28 @@ def test_the_robot_reconnects_within_a_second_under_2000_idle_connections(worksh
         robot.close()
         start = time.monotonic()
         idle = _idle_connections(port, IDLE)
-        deadline = start + 60
-        while (t := console.state()["traffic"])["connections"] + t["shed"] + t["timed_out"] < IDLE:
-            assert time.monotonic() < deadline, t  # the server takes every connection in (and sheds most)
-            time.sleep(0.2)
-        absorbed = time.monotonic() - start
+        # Wait until the server has taken in what it will: its count of connections (held + shed +
+        # timed out) unchanged for a second. Not "until all 2,000": a connection the kernel's listening
+        # queue had no room for is not the server's to take (its SYN is tried again after 1, 3, 7, 15,
+        # 31 s; past a SYN cookie its last ACK is dropped and the server never hears of it), so that
+        # wait could last a minute or forever. Where the queue holds all 2,000 (MAX_BACKLOG, clamped to
+        # net.core.somaxconn: 4,096 by default since Linux 5.4), every one must have been taken in:
+        # the queue was once the accept burst (306), and 2,000 trickled in over a minute.
+        queue = min(MAX_BACKLOG, int(Path("/proc/sys/net/core/somaxconn").read_text()))
+        deadline, seen, steady = start + 60, -1, time.monotonic()
+        while True:
+            t = console.state()["traffic"]
+            taken = t["connections"] + t["shed"] + t["timed_out"]
+            if taken != seen:
+                seen, steady = taken, time.monotonic()
+            elif time.monotonic() - steady >= 1.0:
+                break
+            assert time.monotonic() < deadline, t  # (a server still taking connections in after a minute)
+            time.sleep(0.1)
+        absorbed = steady - start
+        if queue > IDLE:
+            assert taken >= IDLE, t  # (this request's own connection is among those held)
+        assert t["shed"] > 0, t  # the flood was over the cap
         took = []
         for _ in range(3):  # the robot's controller reconnects, three times
             start = time.monotonic()
@@ -190,7 +207,7 @@ def test_the_robot_reconnects_within_a_second_under_2000_idle_connections(worksh
             _watchdog(console, robot)
             robot.close()
         print(f"\nrobot reconnects under {IDLE} idle connections at a {NOFILE}-file limit: "
-              f"{[round(x * 1000) for x in took]} ms (the {IDLE} taken in in {absorbed:.1f} s; {t})")
+              f"{[round(x * 1000) for x in took]} ms ({taken} taken in within {absorbed:.1f} s; {t})")
         assert max(took) <= 1.0, took
         assert console.state()["traffic"]["shed"] > 0
     finally:
@@ -199,6 +216,7 @@ def test_the_robot_reconnects_within_a_second_under_2000_idle_connections(worksh
         console.stop()
     err = console.stderr()
     assert len(err) < 20_000 and err.count("\n") < 60, err[:6000]  # once per interval, not per event
+    assert "Too many open files" not in err, err[:6000]  # the accept burst fits under the limit
 
 
 @pytest.mark.slow

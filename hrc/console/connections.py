@@ -8,13 +8,21 @@ robot's controller could not reconnect, and asyncio wrote an error per failed ``
 connections, below the ASGI app: `ConnectionLimiter` is told of each connection as uvicorn's HTTP
 protocol takes it (`limited_protocol`), and of each request as the access guard admits it (`admitted`).
 
-- **Cap.** At most `cap` connections are held, and asyncio accepts at most `backlog` at once (it takes
-  up to its ``backlog`` connections per wake-up, each a descriptor, before the first is counted here;
-  the listening queue has the same length): `budget` splits the process's ``RLIMIT_NOFILE``, less the
-  descriptors open now (the log, the dispatch form's maps) and `RESERVE_FILES`, between the two, at
-  most `MAX_CONNECTIONS` and `MAX_BACKLOG`. So ``accept()`` never fails for want of a descriptor (EMFILE
-  made asyncio stop accepting for a second each time) and the listening socket keeps taking
-  connections.
+- **Cap.** At most `cap` connections are held, and asyncio accepts at most `burst` at once (it takes
+  up to that many connections per wake-up, each a descriptor, before the first is counted here, and
+  a connection shed to make room keeps its descriptor until the loop's next pass: about three bursts
+  are in flight): `budget` splits the process's ``RLIMIT_NOFILE``, less the descriptors open now (the
+  log, the dispatch form's maps) and `RESERVE_FILES`, between the two, at most `MAX_CONNECTIONS` and
+  `MAX_BURST`. So ``accept()`` never fails for want of a descriptor (EMFILE made asyncio stop
+  accepting for a second each time, with a traceback on stderr).
+- **A long listening queue.** The kernel's queue of connections not yet accepted costs the process
+  no descriptor, so it is `MAX_BACKLOG` long whatever the limit (Linux clamps it to
+  ``net.core.somaxconn``, 4,096 by default since 5.4). A short one (it was the accept burst, 306 at
+  1,024 files) is what made a flood slow to drain: over it the kernel drops a new connection's SYN
+  (the client tries again after 1, 3, 7, 15, 31 s) or, past a SYN cookie, its last ACK (the client
+  then believes it is connected and the server never hears of it), so 2,000 idle connections trickled
+  in over a minute, and the robot controller's own SYN waited its second behind them. In the queue,
+  the flood is drained at the loop's speed and the robot's connection is taken in its turn.
 - **Shed, unauthenticated first.** A connection over the cap makes room by closing the oldest one that
   has not sent a whole request yet; failing that, the oldest plain HTTP one (a page's keep-alive, a
   refused request); an admitted websocket (the robot's controller, a page's) is never shed. With none
@@ -39,13 +47,17 @@ from typing import Any
 
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
-__all__ = ["HEADER_TIMEOUT", "KEEP_ALIVE", "MAX_BACKLOG", "MAX_CONNECTIONS", "RESERVE_FILES", "ConnectionLimiter",
-           "budget", "limited_protocol"]
+__all__ = ["HEADER_TIMEOUT", "KEEP_ALIVE", "MAX_BACKLOG", "MAX_BURST", "MAX_CONNECTIONS", "RESERVE_FILES",
+           "ConnectionLimiter", "budget", "limited_protocol"]
 
 MAX_CONNECTIONS = 512
 """Connections held at most (pages are 16 at most, the robot's controller one; the rest is headroom)."""
-MAX_BACKLOG = 2048
-"""The listening queue's length and asyncio's accepts per wake-up at most (uvicorn's default)."""
+MAX_BACKLOG = 4096
+"""The listening queue's length (the kernel's: no descriptor of this process; clamped to ``somaxconn``)."""
+MAX_BURST = 128
+"""asyncio's accepts per wake-up at most (each a descriptor before it is counted here)."""
+IN_FLIGHT_BURSTS = 3
+"""Bursts of descriptors not counted as held at once: accepted, being made transports, shed but not yet closed."""
 RESERVE_FILES = 64
 """File descriptors kept free below ``RLIMIT_NOFILE`` besides the connections and the accept burst."""
 HEADER_TIMEOUT = 5.0
@@ -55,18 +67,18 @@ KEEP_ALIVE = 5.0
 
 
 def budget() -> tuple[int, int]:
-    """``(cap, backlog)`` for this process now (see the module docstring): at a limit of 1,024 open
-    files with 40 open, ``(512, 306)``; at 20,000, ``(512, 2048)``."""
+    """``(cap, burst)`` for this process now (see the module docstring): at a limit of 1,024 open files
+    with 20 open, ``(512, 128)``; at 20,000, the same; at 256 with 6 open, ``(108, 26)``."""
     soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
     if soft == resource.RLIM_INFINITY:
-        return MAX_CONNECTIONS, MAX_BACKLOG
+        return MAX_CONNECTIONS, MAX_BURST
     try:
         used = len(os.listdir("/proc/self/fd"))
     except OSError:
         used = 64
-    free = max(16, soft - used - RESERVE_FILES)
-    backlog = max(8, min(MAX_BACKLOG, free // 3))
-    return max(8, min(MAX_CONNECTIONS, free - backlog)), backlog
+    free = max(32, soft - used - RESERVE_FILES)
+    burst = max(8, min(MAX_BURST, free // (2 * IN_FLIGHT_BURSTS + 1)))
+    return max(8, min(MAX_CONNECTIONS, free - IN_FLIGHT_BURSTS * burst)), burst
 
 
 @dataclass(slots=True)
@@ -84,13 +96,14 @@ def _peer(address: Any) -> tuple[str, int] | None:
 
 class ConnectionLimiter:
     """The connections held, oldest first (see the module docstring), at most `cap`, accepted at most
-    `backlog` at a time (`budget`, unless `cap` is given); `shed` and `refused` count the
-    connections closed to make room and those closed for want of any. `fault(kind, text)` is told of
-    each (`hrc.console.supervise.Throttle` says it once a second)."""
+    `burst` at a time (`budget`, unless `cap` is given), `backlog` waiting in the kernel's queue;
+    `shed` and `refused` count the connections closed to make room and those closed for want of any;
+    `fault(kind, text)` is told of each (`hrc.console.supervise.Throttle` says it once a second)."""
 
     def __init__(self, cap: int | None = None, header_timeout: float = HEADER_TIMEOUT,
                  fault: Callable[[str, str], None] | None = None) -> None:
-        self.cap, self.backlog = budget()
+        self.cap, self.burst = budget()
+        self.backlog = MAX_BACKLOG
         if cap is not None:
             self.cap = cap
         self.header_timeout = header_timeout

@@ -109,6 +109,22 @@ def _quiet_logs(server: ConsoleServer) -> None:
         logger.addFilter(throttle)
 
 
+class _Server(uvicorn.Server):
+    """uvicorn's server with the listening queue `backlog` long while asyncio accepts ``config.backlog``
+    at a time (`hrc.console.connections`): asyncio takes one number for both, ``listen()`` and its
+    accepts per wake-up, so the queue is set again once it listens (``listen()`` on a listening socket
+    sets its queue's length)."""
+
+    def __init__(self, config: uvicorn.Config, backlog: int) -> None:
+        super().__init__(config)
+        self.backlog = backlog
+
+    async def startup(self, sockets: list[socket.socket] | None = None) -> None:
+        await super().startup(sockets=sockets)
+        for sock in sockets or ():
+            sock.listen(self.backlog)
+
+
 def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
           ready: Callable[[str], None] | None = None) -> str:
     """Serve until SIGINT or SIGTERM; `ready(base_url)` is called once the socket listens (port 0: any
@@ -120,7 +136,7 @@ def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind((host, port))
-        sock.listen(server.connections.backlog)  # asyncio accepts as many at once (`hrc.console.connections`)
+        sock.listen(server.connections.backlog)  # the kernel's queue: long, no descriptor of ours
     except (OSError, OverflowError) as err:
         sock.close()
         raise HrcError(f"cannot listen on {host}:{port}: {getattr(err, 'strerror', None) or err}") from err
@@ -133,7 +149,7 @@ def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
                             ws_ping_timeout=10.0, timeout_graceful_shutdown=2, lifespan="on",
                             proxy_headers=False, server_header=False, http=limited_protocol(server.connections),
                             timeout_keep_alive=int(KEEP_ALIVE), h11_max_incomplete_event_size=MAX_HEADER_BYTES,
-                            backlog=server.connections.backlog)
+                            backlog=server.connections.burst)
     _quiet_logs(server)
     if ready is not None:
         shown = f"[{host}]" if ":" in host else host
@@ -148,7 +164,7 @@ def serve(server: ConsoleServer, host: str = "127.0.0.1", port: int = 8765,
     main = threading.current_thread() is threading.main_thread()
     previous = {s: signal.signal(s, lambda signum, _frame: stop.append(signum)) for s in _STOP_SIGNALS} if main else {}
     try:
-        asyncio.run(uvicorn.Server(config).serve(sockets=[sock]))
+        asyncio.run(_Server(config, server.connections.backlog).serve(sockets=[sock]))
     finally:
         gc.unfreeze()  # let the bindings' objects be collected at exit, as usual
         for s, handler in previous.items():
