@@ -72,13 +72,14 @@ _RECORD_KEYS = frozenset({"in", "in_b64", "in_more", "out", "resumed"})  # each 
 class Message:
     """One logged message: `data`, its bytes (the first ``MAX_LINE + 1`` of them when it was longer:
     enough to give the same answer), `size` its full length in bytes, `answer` the logged answer, and
-    `line` the line of the log its record starts on (1 = the header)."""
+    `line` the line of the log that holds its answer and `message_line` the line its (first) record starts
+    on (1 = the header; 0: not read from a file)."""
 
     data: bytes
     size: int
     answer: str
     line: int = field(default=0, compare=False)
-    """The line of the log that holds the answer (1-based; 0: not read from a file)."""
+    message_line: int = field(default=0, compare=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -246,7 +247,7 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
                         raise _Damaged("an answer without its message")
                     if not isinstance(rec["out"], str):
                         raise _Damaged("'out' must be a string")
-                    messages.append(Message(bytes(pending.first), pending.size, rec["out"], number))
+                    messages.append(Message(bytes(pending.first), pending.size, rec["out"], number, pending.line))
                     pending = None
                     good = offset + len(raw)
                 elif "resumed" in rec and pending is None:

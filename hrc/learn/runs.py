@@ -183,7 +183,7 @@ def _read_log(file: Path, want: str) -> tuple[Run | None, list[Skipped]]:
     if contents.torn is not None:
         skipped.append(Skipped(str(file), str(contents.torn)))
     for m in contents.messages:
-        events.take(m.data, m.answer, m.line or None)
+        events.take(m.data, m.answer, m.message_line or None)
     events.finish()
     return Run(str(file), tuple(events.events)), skipped + events.skipped
 

@@ -44,7 +44,8 @@ from hrc.sim.metrics import aggregate
 from hrc.sim.policies import POLICIES
 from hrc.sim.run import RunResult, SimContext, SimSettings, simulate_run
 
-__all__ = ["Simulation", "baseline_delay", "check_policies", "comparison", "simulate", "simulation_json"]
+__all__ = ["Simulation", "baseline_delay", "check_policies", "comparison", "separation_summary", "simulate",
+           "simulation_json"]
 
 Progress = Callable[[str, int, int], None]
 CHUNK = 10
