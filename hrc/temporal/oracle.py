@@ -27,34 +27,45 @@ from hrc.temporal.network import STNU
 __all__ = ["oracle_is_dc", "oracle_is_delay_controllable"]
 
 
-def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
-    """True iff the agent has a winning dynamic strategy (see the module docstring).
-
-    Raises `RuntimeError` if the search visits more than ``max_states`` states (network too big).
-    """
-    names = stnu.timepoints
-    n = len(names)
+def _requirements(stnu: STNU) -> tuple[dict[str, int], list[tuple[int, int, int]]]:
+    """Each timepoint's index and the requirement links as ``(i, j, w)``: ``T(j) - T(i) <= w`` (the games'
+    common start; contingent lower bounds must be >= 1: nature moves before the agent each tick)."""
     if any(c.lb == 0 for c in stnu.contingents):
         raise ValueError("oracle: contingent links need lb >= 1 (nature moves before the agent each tick)")
-    if n == 0:
-        return True
-    idx = {v: i for i, v in enumerate(names)}
-    # constraints as (i, j, w): T(j) - T(i) <= w, contingent links included as requirements
+    idx = {v: i for i, v in enumerate(stnu.timepoints)}
     cons: list[tuple[int, int, int]] = []
     for r in stnu.requirements:
         if r.ub is not None:
             cons.append((idx[r.source], idx[r.target], r.ub))
         if r.lb is not None:
             cons.append((idx[r.target], idx[r.source], -r.lb))
+    return idx, cons
+
+
+def _by_timepoint(n: int, cons: list[tuple[int, int, int]]) -> list[list[tuple[int, int, int]]]:
+    """The constraints touching each timepoint."""
+    out: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
+    for con in cons:
+        out[con[0]].append(con)
+        out[con[1]].append(con)
+    return out
+
+
+def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
+    """True iff the agent has a winning dynamic strategy (see the module docstring).
+
+    Raises `RuntimeError` if the search visits more than ``max_states`` states (network too big).
+    """
+    n = len(stnu.timepoints)
+    if n == 0:
+        return True
+    idx, cons = _requirements(stnu)
     activation: dict[int, tuple[int, int, int]] = {}  # contingent tp -> (activation tp, lb, ub)
     for c in stnu.contingents:
         activation[idx[c.target]] = (idx[c.source], c.lb, c.ub)
     horizon = 1 + sum(abs(w) for _, _, w in cons) + sum(c.ub for c in stnu.contingents)
     executables = [i for i in range(n) if i not in activation]
-    cons_of: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
-    for con in cons:
-        cons_of[con[0]].append(con)
-        cons_of[con[1]].append(con)
+    cons_of = _by_timepoint(n, cons)
     visited = 0
 
     def ok_with(times: tuple[int | None, ...], v: int) -> bool:
@@ -138,19 +149,10 @@ def oracle_is_delay_controllable(stnu: STNU, delays: dict[str, tuple[int, int | 
     >= 1, as `oracle_is_dc`; exponential: a handful of timepoints with small bounds only. At delay 0 it is
     `oracle_is_dc`'s game.
     """
-    names = stnu.timepoints
-    n = len(names)
-    if any(c.lb == 0 for c in stnu.contingents):
-        raise ValueError("oracle: contingent links need lb >= 1 (nature moves before the agent each tick)")
+    n = len(stnu.timepoints)
     if n == 0:
         return True
-    idx = {v: i for i, v in enumerate(names)}
-    cons: list[tuple[int, int, int]] = []
-    for r in stnu.requirements:
-        if r.ub is not None:
-            cons.append((idx[r.source], idx[r.target], r.ub))
-        if r.lb is not None:
-            cons.append((idx[r.target], idx[r.source], -r.lb))
+    idx, cons = _requirements(stnu)
     activation: dict[int, tuple[int, int, int]] = {}
     delay: dict[int, tuple[int, int | None]] = {}
     for c in stnu.contingents:
@@ -161,10 +163,7 @@ def oracle_is_delay_controllable(stnu: STNU, delays: dict[str, tuple[int, int | 
     horizon = (1 + sum(abs(w) for _, _, w in cons)
                + sum(hi for _, hi in delay.values() if hi is not None))
     executables = [i for i in range(n) if i not in activation]
-    cons_of: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
-    for con in cons:
-        cons_of[con[0]].append(con)
-        cons_of[con[1]].append(con)
+    cons_of = _by_timepoint(n, cons)
     visited = 0
     State = tuple[tuple[int | None, ...], tuple[bool, ...]]  # times, observed
 
