@@ -209,11 +209,10 @@ def _console() -> Any:
     if "console" not in _STATE or count % 500 == 0:
         from hrc.compile.output import read_header
         from hrc.console.clock import RunClock
-        from hrc.console.run import plan_motions
         from hrc.console.session import ConsoleSession
-        from hrc.console.views import PlanRoutes
         from hrc.dispatch import Dispatcher
         from hrc.dispatch.durable import LoggedDispatcher
+        from hrc.dispatch.routes import PlanRoutes, plan_motions
         from hrc.motion import plan_paths
 
         plan_set = _plan_set()

@@ -25,11 +25,11 @@ from conftest import ROOT, compiled_folder
 from console_harness import ConsoleProcess
 
 from hrc.cli import main
-from hrc.console.run import plan_motions
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.logfile import read_log
 from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.protocol import replay
+from hrc.dispatch.routes import plan_motions
 
 ENV = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
 

@@ -14,9 +14,8 @@ from conftest import WORKSHOP_TASK
 from scipy.stats import beta
 
 from hrc.cli import main
-from hrc.compile.compiler import task_digest
 from hrc.dispatch.logfile import encode_answer, encode_header, encode_input
-from hrc.io.task_file import load_task
+from hrc.io.task_file import load_task, task_digest
 from hrc.learn.estimate import learn
 from hrc.learn.runs import read_runs
 from hrc.learn.task_edit import replace_bounds

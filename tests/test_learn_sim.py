@@ -69,7 +69,7 @@ def test_learn_reads_each_run_as_it_happened(sims: tuple, tmp_path: Path) -> Non
 
 
 def test_a_recording_holds_the_same_events_as_the_log(sims: tuple, tmp_path: Path) -> None:
-    from hrc.compile.compiler import task_digest
+    from hrc.io.task_file import task_digest
     from hrc.record.sim import record_run
 
     _, kept = sims
@@ -86,7 +86,7 @@ def test_a_recording_holds_the_same_events_as_the_log(sims: tuple, tmp_path: Pat
 def test_two_simulated_worker_types_are_recovered(sims: tuple, tmp_path: Path) -> None:
     """A fast worker who takes the actions in a preferred order and a slow one who chooses freely (the
     hidden true durations 0.6 and 1.3 times the task's bounds), 25 runs each: the types found match."""
-    from hrc.compile.compiler import task_digest
+    from hrc.io.task_file import task_digest
     from hrc.learn.worker_types import adjusted_rand_index, find_types
 
     compiles = sims[0].context.compiles
