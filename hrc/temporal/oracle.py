@@ -51,6 +51,21 @@ def _by_timepoint(n: int, cons: list[tuple[int, int, int]]) -> list[list[tuple[i
     return out
 
 
+def _nature_may_must(activation: dict[int, tuple[int, int, int]], times: tuple[int | None, ...],
+                     t: int) -> tuple[list[int], list[int]]:
+    """The contingent timepoints nature may end at tick `t` (activated, within bounds) and those it must
+    (at their upper bound), given the `times` so far."""
+    may, must = [], []
+    for c, (a, lb, ub) in activation.items():
+        ta = times[a]
+        if ta is not None and times[c] is None:
+            if ta + ub == t:
+                must.append(c)
+            elif ta + lb <= t < ta + ub:
+                may.append(c)
+    return may, must
+
+
 def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
     """True iff the agent has a winning dynamic strategy (see the module docstring).
 
@@ -91,14 +106,7 @@ def oracle_is_dc(stnu: STNU, *, max_states: int = 2_000_000) -> bool:
             raise RuntimeError("oracle: state space too large")
         if t > horizon:
             return False
-        may, must = [], []
-        for c, (a, lb, ub) in activation.items():
-            ta = times[a]
-            if ta is not None and times[c] is None:
-                if ta + ub == t:
-                    must.append(c)
-                elif ta + lb <= t < ta + ub:
-                    may.append(c)
+        may, must = _nature_may_must(activation, times, t)
         # every subset of `may`, plus all of `must`
         for mask in range(1 << len(may)):
             new = list(times)
@@ -177,14 +185,7 @@ def oracle_is_delay_controllable(stnu: STNU, delays: dict[str, tuple[int, int | 
     def successors(t: int, state: State) -> list[State] | None:
         """Nature's moves at tick t from one history; None if one of them breaks a link (nature wins)."""
         times, seen = state
-        may, must = [], []
-        for c, (a, lb, ub) in activation.items():
-            ta = times[a]
-            if ta is not None and times[c] is None:
-                if ta + ub == t:
-                    must.append(c)
-                elif ta + lb <= t < ta + ub:
-                    may.append(c)
+        may, must = _nature_may_must(activation, times, t)
         out: list[State] = []
         for mask in range(1 << len(may)):
             new = list(times)
