@@ -327,6 +327,20 @@ def stn_distances(data: bytes) -> None:
         if u != v:
             edges.append((u, v, fdp.ConsumeIntInRange(-50, 100)))
     src, dst, wt = [e[0] for e in edges], [e[1] for e in edges], [e[2] for e in edges]
+    if fdp.ConsumeBool():  # an end outside 0..n-1 is refused before the core reads anything
+        bad = fdp.ConsumeIntInRange(-3, n + 3)
+        if not 0 <= bad < n:
+            at = fdp.ConsumeIntInRange(0, len(src))
+            (src if fdp.ConsumeBool() else dst).insert(at, bad)
+            (dst if len(dst) < len(src) else src).insert(at, 0)
+            wt.insert(at, 1)
+            for call in (lambda: native_distances(n, src, dst, wt, None), lambda: native_apsp(n, src, dst, wt)):
+                try:
+                    got = call()
+                except ValueError:
+                    continue
+                assert got is None, (src, dst)  # only without the native core
+            return
     inf = float("inf")
     table = [[0.0 if i == j else inf for j in range(n)] for i in range(n)]  # Floyd-Warshall: the truth
     for u, v, w in edges:

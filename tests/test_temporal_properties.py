@@ -377,3 +377,25 @@ def test_derived_networks_arrays_are_those_read_in_full(stnu: STNU, data) -> Non
         assert rul.edge_arrays(child) == rul._edge_arrays(built)
         assert classify._packed(child) == classify._pack(built)
         net = child
+
+
+@pytest.mark.skipif(rul.native_library() is None, reason="the native core is not built (no C compiler at install time)")
+@FAST
+@given(st.integers(1, 6), st.integers(-3, 9), st.booleans(), st.booleans())
+def test_native_cores_refuse_an_index_outside_the_network(n: int, bad: int, at_source: bool, as_z: bool) -> None:
+    """An edge end (or the target z) outside 0..n-1 would make the C core read and write outside its
+    arrays: it refuses before touching them, and the wrappers raise; every index inside is answered."""
+    from hrc.temporal.native_stn import native_apsp, native_distances
+
+    inside = 0 <= bad < n
+    if as_z:
+        calls = [lambda: native_distances(n, [0], [n - 1], [1], bad)]
+    else:
+        src, dst = ([bad], [0]) if at_source else ([0], [bad])
+        calls = [lambda: native_distances(n, src, dst, [1], None), lambda: native_apsp(n, src, dst, [1])]
+    for call in calls:
+        if inside:
+            assert call() is not None
+        else:
+            with pytest.raises(ValueError, match="outside"):
+                call()

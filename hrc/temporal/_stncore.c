@@ -21,9 +21,20 @@
 
 #define DIST_INF INT64_MAX
 
-/* Returns 0 (out: the distances, DIST_INF where z is not reached), 1 (a negative cycle) or -1 (memory).
-   Weights must be small enough that no sum of n of them overflows (the caller checks). */
+/* 1 if every edge's ends (and z, unless negative) are timepoints 0..n-1: an index outside would read and
+   write outside the arrays, so both functions refuse it (-2) before touching anything. */
+static int indices_valid(int n, int m, const int *src, const int *dst, int z) {
+    if (n <= 0 || m < 0 || z >= n) return 0;
+    for (int e = 0; e < m; e++)
+        if (src[e] < 0 || src[e] >= n || dst[e] < 0 || dst[e] >= n) return 0;
+    return 1;
+}
+
+/* Returns 0 (out: the distances, DIST_INF where z is not reached), 1 (a negative cycle), -1 (memory) or
+   -2 (an index out of range). Weights must be small enough that no sum of n of them overflows (the
+   caller checks). */
 int hrc_stn_distances(int n, int m, const int *src, const int *dst, const int64_t *wt, int z, int64_t *out) {
+    if (!indices_valid(n, m, src, dst, z)) return -2;
     /* the edges by target (u -> v of weight w is read when v improves) */
     int *start = calloc((size_t)n + 1, sizeof(int));
     int *from = malloc(((size_t)m + 1) * sizeof(int));
@@ -89,6 +100,7 @@ done:
 /* Returns 0 (out: n x n distances, INFINITY where there is no path) or 1 (a negative cycle). Self-loops
    are the caller's to leave out (the distance of a node to itself starts at 0). */
 int hrc_stn_apsp(int n, int m, const int *src, const int *dst, const int64_t *wt, double *out) {
+    if (!indices_valid(n, m, src, dst, -1)) return -2;
     size_t nn = (size_t)n * n;
     for (size_t i = 0; i < nn; i++) out[i] = INFINITY;
     for (int i = 0; i < n; i++) out[(size_t)i * n + i] = 0.0;

@@ -23,6 +23,7 @@ MAX_WEIGHT = 1 << 40
 """|weight| below this: no sum of a few million of them overflows int64 or loses float64 precision."""
 MAX_NODES = 1 << 20
 """Timepoints below this: indices fit the core's 32-bit arrays with room to spare."""
+_BAD_INDEX = -2  # the core's answer to an edge end (or z) outside 0..n-1: nothing read or written
 
 
 def _load() -> tuple[Callable[..., int] | None, Callable[..., int] | None]:
@@ -58,8 +59,11 @@ def native_distances(n: int, src: Sequence[int], dst: Sequence[int], wt: Sequenc
     """``(consistent, d)``: ``d[x]`` the shortest distance from x to `z` (queue-based Bellman-Ford; the
     earliest time of x after z is ``-d[x]``; ``2**63 - 1`` where z is not reached), or with ``z=None``
     to a virtual node every node reaches by a 0 edge (a consistency check, whose distances equal those to
-    a timepoint every node has a 0 edge to). ``(False, [])`` on a negative cycle; None: no native core."""
+    a timepoint every node has a 0 edge to). ``(False, [])`` on a negative cycle; None: no native core.
+    An edge end or `z` outside ``0..n-1`` raises ValueError (the core checks before it reads)."""
     fn = _DIST
+    if z is not None and not 0 <= z < n:  # a negative z means the virtual node to the core
+        raise ValueError(f"native_distances: z = {z} outside 0..{n - 1}")
     arrays = _arrays(n, src, dst, wt) if fn is not None and n > 0 else None
     if fn is None or arrays is None:
         return None
@@ -67,6 +71,8 @@ def native_distances(n: int, src: Sequence[int], dst: Sequence[int], wt: Sequenc
     out = array("q", bytes(8 * n))
     rc = fn(n, len(s), s.buffer_info()[0], d.buffer_info()[0], w.buffer_info()[0], -1 if z is None else z,
                out.buffer_info()[0])
+    if rc == _BAD_INDEX:
+        raise ValueError(f"native_distances: an edge end or z outside 0..{n - 1}")
     if rc < 0:
         return None
     return (True, out.tolist()) if rc == 0 else (False, [])
@@ -75,7 +81,7 @@ def native_distances(n: int, src: Sequence[int], dst: Sequence[int], wt: Sequenc
 def native_apsp(n: int, src: Sequence[int], dst: Sequence[int], wt: Sequence[int]) -> tuple[bool, np.ndarray] | None:
     """``(consistent, D)``: the dense all-pairs shortest distances (float64, ``inf`` where there is no
     path; Floyd-Warshall), ``(False, empty)`` on a negative cycle, None without the native core. Self-loops
-    must be left out by the caller."""
+    must be left out by the caller. An edge end outside ``0..n-1`` raises ValueError."""
     fn = _APSP
     arrays = _arrays(n, src, dst, wt) if fn is not None and n > 0 else None
     if fn is None or arrays is None:
@@ -83,4 +89,6 @@ def native_apsp(n: int, src: Sequence[int], dst: Sequence[int], wt: Sequence[int
     s, d, w = arrays
     out = np.empty((n, n))
     rc = fn(n, len(s), s.buffer_info()[0], d.buffer_info()[0], w.buffer_info()[0], out.ctypes.data)
+    if rc == _BAD_INDEX:
+        raise ValueError(f"native_apsp: an edge end outside 0..{n - 1}")
     return (True, out) if rc == 0 else (False, np.empty((0, 0)))
