@@ -128,8 +128,22 @@ _LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
 def leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
     """Per agent and leg, the name of each timepoint the leg may have (`leg_timepoint`), remembered per
     plan (`hrc.plans.per_plan`): a plan's compile names thousands of references (conflicts, passing
-    orders, output)."""
-    return {a.id: [_names(a.id, leg.phase, leg.action) for leg in agent_legs(task, plan, a.id)] for a in task.agents}
+    orders, output). A joint action's phase has one start and one end for all its agents, its lead's
+    (`_leg_names`)."""
+    return {a.id: [_leg_names(task, plan, a.id, leg) for leg in agent_legs(task, plan, a.id)] for a in task.agents}
+
+
+def _leg_names(task: Task, plan: Plan, agent: str, leg: Leg) -> dict[str, str]:
+    """`_names` of a leg; for a joint action's leg of an agent other than its lead, the start and end are
+    the lead's (the module docstring, "joint actions")."""
+    here = _names(agent, leg.phase, leg.action)
+    if not task.has_joint or not task.action(leg.action).joint:
+        return here
+    lead = plan.agent_of(leg.action)
+    if lead == agent:
+        return here
+    shared = _names(lead, leg.phase, leg.action)
+    return {**here, "start": shared["start"], "end": shared["end"]}
 
 
 def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
@@ -204,19 +218,25 @@ class _Skeleton:
                 waits_on.setdefault((p.after.action, p.after.phase), []).append(p.before.action)
         owner = dict(plan.allocation)
         self.legs: list[tuple[Agent, Leg, tuple, list[_Op]]] = []  # agent, leg, travel key, links after travel
+        self.joins: set[int] = set()  # legs whose start and end are another agent's (joint actions)
         last_ends = []
         for agent in task.agents:
             prev_end = ORIGIN
             for leg in agent_legs(task, plan, agent.id):
                 waits_for_robot = any(owner[b] != agent.id for b in waits_on.get((leg.action, leg.phase), ()))
-                key: tuple = ("after", agent.id, leg.action, leg.phase, leg.location, waits_for_robot, human_waits)
+                lead = owner[leg.action] if task.has_joint and task.action(leg.action).joint else None
+                key: tuple = ("after", agent.id, leg.action, leg.phase, leg.location, waits_for_robot, human_waits,
+                              lead)
                 after = ops.get(key)
                 if after is None:
-                    after = ops[key] = _after(task, agent, leg, waits_for_robot, human_waits)
+                    after = ops[key] = (_after(task, agent, leg, waits_for_robot, human_waits) if lead is None
+                                        else _joint_after(task, agent, leg, lead))
+                if lead is not None and lead != agent.id:
+                    self.joins.add(len(self.legs))
                 self.legs.append((agent, leg, ("travel", agent.id, leg.action, leg.phase, leg.origin, leg.location,
                                                prev_end, human_waits), after))
-                prev_end = _names(agent.id, leg.phase, leg.action)["end"]
-            if prev_end != ORIGIN:
+                prev_end = _names(lead or agent.id, leg.phase, leg.action)["end"]
+            if prev_end != ORIGIN and prev_end not in last_ends:
                 last_ends.append(prev_end)
         self.last_ends = tuple(last_ends)
         self.graph: list[_Op] = []
@@ -256,6 +276,8 @@ class _Skeleton:
         found = ops.get(key)
         if found is None:
             found = ops[key] = _travel_ops(agent, leg, leg_key[6], self.human_waits, motion)
+        if i in self.joins:  # the joint phase's start and end are its lead's timepoints, listed there
+            return found[0][:-2], found[1]
         return found
 
 
@@ -296,6 +318,30 @@ def _after(task: Task, agent: Agent, leg: Leg, waits_for_robot: bool, human_wait
         after.append(_cont(st, en, bounds.lb, bounds.ub, what))
     else:
         after.append(_req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), "robot", what))
+    return after
+
+
+def _joint_after(task: Task, agent: Agent, leg: Leg, lead: str) -> list[_Op]:
+    """A joint action's leg's links after the arrival (the module docstring, "joint actions"): the one
+    start waits for this agent's arrival; the lead's leg also carries the phase's duration, from the one
+    start to the one end, contingent when a person takes part."""
+    here = _names(agent.id, leg.phase, leg.action)
+    shared = _names(lead, leg.phase, leg.action)
+    step = f"{leg.action}.{leg.phase}"
+    after = [_req(here["arrive"], shared["start"], 0, None, "order",
+                  f"{step} starts when {agent.id} is at {leg.location} (joint action)")]
+    if agent.id != lead:
+        return after
+    action = task.action(leg.action)
+    phase = action.phase(leg.phase)
+    lb = max(phase.duration(a).lb for a in action.agents)
+    ub = max(phase.duration(a).ub for a in action.agents)
+    roles = ", ".join(f"{role} {ag} {phase.duration(ag).lb:g}-{phase.duration(ag).ub:g} s" for role, ag in action.roles)
+    what = f"{leg.phase} of {leg.action}, ending for all at once ({roles}: {lb:g}-{ub:g} s)"
+    if any(task.agent(a).is_human for a in action.agents):
+        after.append(_cont(shared["start"], shared["end"], lb, ub, what))
+    else:
+        after.append(_req(shared["start"], shared["end"], seconds_to_ticks(lb), seconds_to_ticks(ub), "robot", what))
     return after
 
 
