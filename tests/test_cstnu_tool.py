@@ -128,6 +128,16 @@ def test_the_tool_reads_every_kitting_stnu_and_agrees(tool: Path, tmp_path: Path
     assert _agree(tool, classes) == {"DC": 1833, "NOT_DC": 1047}
 
 
+@pytest.mark.slow
+def test_the_tool_reads_every_joint_workshop_stnu_and_agrees(tool: Path, tmp_path: Path) -> None:
+    """Issue 37: the workshop with "support the pile" (a joint action: one start the robot executes once the
+    person is there, one contingent end for both): all 32 files, each read and judged as hrc classed it."""
+    classes = _compile("cube_stacking_joint.yaml", tmp_path / "joint")
+    assert len(classes) == 32
+    counts = _agree(tool, classes)
+    assert counts["DC"] and counts["NOT_DC"]
+
+
 @pytest.fixture(scope="module")
 def blocked_plans() -> list:
     """Kitting with the person never waiting for the robot's sake (``human_waits=False``): most plans'

@@ -215,8 +215,10 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
             doc.ident(role, path + ("roles", str(role)))
             if doc.ident(ag, path + ("roles", role)) not in known:
                 doc.fail(path + ("roles", role), f"unknown agent '{ag}' (known: {', '.join(known)})")
+            for other, taken in roles:
+                if taken == ag:
+                    doc.fail(path + ("roles", role), f"'{ag}' already plays role '{other}': one agent, one role")
             roles.append((role, ag))
-        doc.unique([ag for _, ag in roles], path + ("roles",), "agent", key="")
         who = [ag for ag in known if ag in {a for _, a in roles}]  # task order
     else:
         if "agents" not in m:
