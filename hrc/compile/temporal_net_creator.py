@@ -41,6 +41,35 @@ ticks here and only here: contingent bounds are widened outward (floor lb, ceil 
 gaps rounded up, so rounding never makes a plan look more controllable than it is; other requirement
 bounds are rounded to the nearest tick.
 
+**Joint actions** (issue 37; Strassmair & Taylor 2014, section IV, "support the pile", left there for
+future work). A phase of a joint action (`hrc.model.Action.roles`) is on a leg of every agent of it, and
+is one synchronisation: each agent travels to the place as usual (its own ``depart``, ``arrive``), and the
+phase has **one start and one end for all**, the timepoints of its *lead* (`hrc.model.Task.lead`, the
+robot: ``robot.PHASE.ACTION.start`` / ``.end``; the other agents' legs have no start or end of their own,
+`leg_names` names the lead's for them). Links:
+
+- ``arrive -> start`` in ``[0, +inf)`` for *each* agent of it: the start waits for every arrival (also
+  with ``human_waits=False``: the person waits at the place for the co-worker);
+- ``start -> end``: the phase lasts until the last role is done, ``[max lb, max ub]`` over the roles'
+  durations, **contingent** when a person takes part (a requirement link when only robots do). For a
+  robot role whose duration the robot picks this over-approximates what can happen (the true end is
+  ``max(person's, robot's)``, inside the range whatever the robot picks), so a DC verdict is sound;
+- every agent's next ``depart`` follows the one end; the task graph and the limits name the action's
+  events as usual (`event_timepoint` finds the lead through the plan's allocation).
+
+*What DC means here.* The start is controllable (the robot executes it), and every person's arrival is a
+contingent timepoint that must precede it. A dynamic strategy may execute a timepoint only on what it
+has observed, so it cannot execute the start while an arrival before it is still unobserved: executing it
+at t with the arrival unobserved would let nature put the arrival after t and break ``start >= arrive``.
+So in a DC plan the robot *waits for the person's arrival event* and then starts (at once, or later if
+other constraints say so), and the residual network stays DC whatever the person's walk and share of the
+work take. The real-time execution (`hrc.temporal.execution`, the dispatcher's DC mode) gives the start
+no window before the arrival is observed (`tests/test_joint.py`, hypothesis over histories). With
+``human_waits`` (the paper's reading) the robot also says when the person leaves for the place, so it can
+choose the person's departure late enough that both meet without idling long; the person's walk and the
+phase's end stay contingent. The CSTNU Tool reads these networks as they are (one contingent link per
+person's walk, one per joint phase) and agrees on every one of `tasks/cube_stacking_joint.yaml`.
+
 **One tick.** A person's action that may take no time at all (a duration ``[0, ub]`` with ``ub > 0``)
 gets the contingent link ``[1 ms, ub]``: a person's action takes at least a millisecond. The CSTNU Tool
 reads contingent links only with ``0 < lb`` (`hrc.temporal.graphml`), and this keeps every STNU the

@@ -104,6 +104,17 @@ def plan_entry(task: Task, plan: Plan, rank: int, compiled_class: str, preferenc
     return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events, blocked)
 
 
+def _refuse_joint(task: Task, where: str) -> None:
+    """Joint actions (issue 37) are compiled, not yet dispatched: set validation reads one doer per action
+    and one agent per event, which a joint action's one start and one end are not (docs/dispatch.md,
+    "Joint actions"). Raises `InputError` naming the first joint action."""
+    for i, action in enumerate(task.actions):
+        if action.joint:
+            raise InputError(task.source or where, f"actions[{i}].roles",
+                             f"'{action.id}' is a joint action: hrc compiles joint actions but does not dispatch "
+                             f"or simulate them yet (issue 37)")
+
+
 class PlanSet:
     """Every plan of a compile, in compile rank order (index 0 the best), as its dispatch `form`; with the
     task, the compile's ``rank_by`` and where it came from. ``len`` is the plan count; `entry` (and the
@@ -113,6 +124,7 @@ class PlanSet:
                  use: FolderUse | None = None, compiled: BinaryIO | None = None) -> None:
         self.form = form
         self.task: Task = form.task
+        _refuse_joint(form.task, source or form.source)
         self.rank_by: str = form.rank_by
         self.source = source or form.source
         self.use = use

@@ -43,6 +43,10 @@ This module turns that into constraints the temporal net can carry, for every hu
    at a time both before and after itself). Which one a plan uses is the plan's choice
    (`hrc.compile.motion_pattern`); the temporal net creator adds it as a requirement link.
 
+**Joint actions** (issue 37): for a task with joint actions, the pairs of the two working together at a
+joint action's spot are no conflicts (`_coworking`: the robot's stay there against the person's walk up,
+stay and walk away); the robot's drives keep their separations, so it arrives first and leaves last.
+
 **Exactness.** Routes are sampled every `STEP` metres; a pair closer than `reach` has samples within
 ``STEP / 2`` of each, so the sampled set uses ``reach + STEP`` and every gap is widened by the time
 ``STEP / 2`` takes at each agent's speed: the separations are sufficient for the true (continuous)
