@@ -96,23 +96,15 @@ def plan_entry(task: Task, plan: Plan, rank: int, compiled_class: str, preferenc
                 if node in known:
                     found.append((event, node))
                     events[node] = (agent.id, leg.action, leg.phase, event)
-            if [e for e, _ in found if e in ("depart", "arrive", "start", "end")] != ["depart", "arrive", "start",
-                                                                                     "end"]:
+            # a joint action's phase starts and ends once, on its lead's leg (`hrc.model.Task.lead`): the
+            # other agents' legs of it have a departure and an arrival only
+            shared = task.has_joint and task.action(leg.action).joint and plan.agent_of(leg.action) != agent.id
+            if [e for e, _ in found if e in ("depart", "arrive", "start", "end")] != (
+                    ["depart", "arrive"] if shared else ["depart", "arrive", "start", "end"]):
                 raise InputError(where, "", f"the STNU lacks the timepoints of {agent.id}'s "
                                             f"{leg.action}.{leg.phase} (not compiled from this task?)")
             points[(agent.id, leg.action, leg.phase)] = tuple(found)
     return PlanEntry(plan, rank, compiled_class, preference, stnu, legs, points, events, blocked)
-
-
-def _refuse_joint(task: Task, where: str) -> None:
-    """Joint actions (issue 37) are compiled, not yet dispatched: set validation reads one doer per action
-    and one agent per event, which a joint action's one start and one end are not (docs/dispatch.md,
-    "Joint actions"). Raises `InputError` naming the first joint action."""
-    for i, action in enumerate(task.actions):
-        if action.joint:
-            raise InputError(task.source or where, f"actions[{i}].roles",
-                             f"'{action.id}' is a joint action: hrc compiles joint actions but does not dispatch "
-                             f"or simulate them yet (issue 37)")
 
 
 class PlanSet:
@@ -124,7 +116,6 @@ class PlanSet:
                  use: FolderUse | None = None, compiled: BinaryIO | None = None) -> None:
         self.form = form
         self.task: Task = form.task
-        _refuse_joint(form.task, source or form.source)
         self.rank_by: str = form.rank_by
         self.source = source or form.source
         self.use = use
