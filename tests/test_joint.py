@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import random
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -21,12 +22,17 @@ import networkx as nx
 import pytest
 import yaml
 from conftest import ROOT
+from dispatch_client import broken_links
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from joint_client import JointRun
 
 from hrc.cli import main
 from hrc.compile.classify import PlanClass
-from hrc.compile.compiler import CompileOptions, compile_plan
+from hrc.compile.compiler import CompileOptions, compile_plan, compile_task
+from hrc.dispatch import Dispatcher
+from hrc.dispatch.messages import Observation, RobotStep
+from hrc.errors import DispatchError
 from hrc.compile.motion_pattern import pattern_network
 from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.io.task_file import dump_task, load_task
@@ -282,3 +288,71 @@ def test_the_joint_workshop_has_its_plans(tmp_path: Path) -> None:
         for _, seq in plan.sequences:
             assert seq.index("support") > max((seq.index(c) for c in ("cube1", "cube2", "cube3", "cube4")
                                                if c in seq), default=-1)
+
+
+# ------------------------------------------------------------------------------------------ dispatching
+LIFT2: dict[str, Any] = copy.deepcopy(LIFT)
+LIFT2["actions"] = [
+    {"id": "a", "agents": ["human", "robot"], "phases": [
+        {"id": "fetch", "location": "A", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
+    {"id": "b", "agents": ["human", "robot"], "phases": [
+        {"id": "fetch", "location": "B", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
+    *LIFT["actions"],
+]
+LIFT2["precedence"] = [["a", "lift"], ["b", "lift"]]
+"""Two fetches (either agent, at A and B) before the joint lift at J: plans in every class."""
+
+
+@pytest.fixture(scope="module")
+def lift2_dispatcher(tmp_path_factory):
+    task = load_task(_write(tmp_path_factory.mktemp("lift2"), LIFT2))
+    return Dispatcher.from_compiled(compile_task(task, jobs=1))
+
+
+def _check_run(run: JointRun, joint: str, phase: str) -> None:
+    """The joint start is never told before the person's arrival there was seen, and happens after it;
+    a run that ends on a DC plan has done every event and broken no link of its STNU."""
+    arrive = ("human", joint, phase, "arrive")
+    for dec, seen in run.answers:
+        step = dec.robot
+        if isinstance(step, RobotStep) and (step.action, step.phase, step.event) == (joint, phase, "start"):
+            assert arrive in seen, (dec, sorted(seen))
+            assert step.earliest >= run.times[arrive]
+    start = ("robot", joint, phase, "start")
+    assert start in run.times and run.times[start] >= run.times[arrive]
+    last = run.answers[-1][0]
+    if last.plan_class == "DC":
+        d = run.dispatcher
+        assert broken_links(d.plan_set.entry(d.plan_set.index(last.plan)).stnu, run.times) == []
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_dispatcher_starts_the_lift_only_once_the_person_is_seen_there(lift2_dispatcher, seed) -> None:
+    """Random valid histories (the person and the robot played by `joint_client`, durations and times drawn
+    inside the windows and contingent bounds) against the real dispatcher, from its first answer."""
+    run = JointRun(lift2_dispatcher.fork(), random.Random(seed))
+    run.play()
+    _check_run(run, "lift", "hold")
+
+
+def test_a_person_cannot_start_or_end_a_joint_action(lift2_dispatcher) -> None:
+    d = lift2_dispatcher.fork()
+    for obs in (Observation(0.0, "start", "human", "lift", "hold"), Observation(0.0, "end", "human", "lift", "hold")):
+        with pytest.raises(DispatchError, match="joint action, the robot starts and ends it"):
+            d.observe(obs)
+    assert d.history == ()
+
+
+@pytest.mark.slow
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_dispatcher_on_the_joint_workshop(joint_workshop, seed) -> None:
+    run = JointRun(joint_workshop.fork(), random.Random(seed))
+    run.play()
+    _check_run(run, "support", "hold")
+
+
+@pytest.fixture(scope="module")
+def joint_workshop():
+    return Dispatcher.from_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking_joint.yaml"), jobs=1))
