@@ -30,11 +30,11 @@ from joint_client import JointRun
 from hrc.cli import main
 from hrc.compile.classify import PlanClass
 from hrc.compile.compiler import CompileOptions, compile_plan, compile_task
+from hrc.compile.motion_pattern import pattern_network
+from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.messages import Observation, RobotStep
 from hrc.errors import DispatchError
-from hrc.compile.motion_pattern import pattern_network
-from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.io.task_file import dump_task, load_task
 from hrc.model import Action, Interval, Phase, PhaseRef, Plan, Precedence, Task
 from hrc.motion import plan_paths
