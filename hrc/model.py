@@ -321,6 +321,11 @@ class Task:
     source: str = field(default="", compare=False)
     sensing: Sensing | None = None  # how the human's events reach the robot; None: at once (DC)
     safety: Safety | None = None
+    has_joint: bool = field(init=False, repr=False, compare=False)
+    """Whether some action is joint (`Action.roles`): asked per leg on hot paths, so computed once."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "has_joint", any(a.joint for a in self.actions))
 
     def preference_set(self, name: str) -> tuple[Preference, ...]:
         """The named set's preferences (raises `KeyError` for an unknown name)."""
@@ -353,11 +358,6 @@ class Task:
         if not action.joint:
             raise KeyError(action_id)
         return next(a.id for a in self.agents if a.id in action.agents and not a.is_human)
-
-    @property
-    def has_joint(self) -> bool:
-        """Whether some action is joint (`Action.roles`)."""
-        return any(a.joint for a in self.actions)
 
     @property
     def action_ids(self) -> tuple[str, ...]:

@@ -39,6 +39,7 @@ from hrc.io.task_file import dump_task, load_task
 from hrc.model import Action, Interval, Phase, PhaseRef, Plan, Precedence, Task
 from hrc.motion import plan_paths
 from hrc.plans import count_plans, generate_plans, phase_graph, plan_code, plan_count_bound, plan_from_code
+from hrc.report.gantt import gantt_bars
 from hrc.temporal import ContingentLink, ExecutionMode, real_time_state
 from hrc.temporal.execution import ExecutionWindow
 
@@ -90,6 +91,11 @@ def test_agents_needed_is_every_agent_in_a_role_named_for_it(tmp_path: Path) -> 
     assert loaded.action("lift").roles == (("human", "human"), ("robot", "robot"))
     task["actions"][0]["agents_needed"] = 1  # one agent: as without the key
     assert not load_task(_write(tmp_path, task)).action("lift").joint
+
+
+def test_show_says_who_plays_which_role(tmp_path: Path, capsys) -> None:
+    assert main(["show", str(_write(tmp_path, LIFT))]) == 0
+    assert "(by all at once: holder human, lifter robot)" in capsys.readouterr().out
 
 
 def test_a_joint_task_round_trips_and_a_plain_one_is_written_as_before(lift, tmp_path: Path) -> None:
@@ -237,6 +243,10 @@ def test_the_joint_start_by_hand(lift) -> None:
     assert drive_in.first == "robot" and drive_in.how == "forced"
     assert links[(f"{R}.depart", f"{H}.arrive")][0][0] == 8000
     assert cp.plan_class is PlanClass.DC
+    # the Gantt draws the one phase on both rows, over the same span
+    bars = gantt_bars(lift, cp)
+    work = {agent: [(a, b) for kind, a, b, _ in rows if kind == "work"] for agent, rows in bars.items()}
+    assert work["human"] == work["robot"] and len(work["robot"]) == 1
     # with the person leaving at once (--human-waits no), they are at J by 5 s, before the robot can be:
     # no order keeps the separation, and the plan is inconsistent
     strict = compile_plan(lift, plan, paths, CompileOptions(human_waits=False))
