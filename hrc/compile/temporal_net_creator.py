@@ -147,7 +147,7 @@ def ref_timepoint(task: Task, plan: Plan, ref: TimeRef) -> str:
     """The timepoint a `TimeRef` (agent, leg index, event) names in `plan`'s STNU."""
     if ref.agent == "":
         return ORIGIN
-    return leg_timepoint(agent_legs(task, plan, ref.agent)[ref.leg], ref.what)
+    return leg_names(task, plan)[ref.agent][ref.leg][ref.what]  # a joint action's start and end: its lead's
 
 
 _LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
