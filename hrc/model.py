@@ -151,12 +151,25 @@ class Phase:
 
 @dataclass(frozen=True, slots=True)
 class Action:
-    """A unit of the task, done by exactly one of `agents`, its phases in the given order."""
+    """A unit of the task, done by exactly one of `agents`, its phases in the given order.
+
+    A *joint* action (`roles` not empty: Strassmair & Taylor 2014, section IV, "support the pile", left
+    there for future work) is done by all its roles at once: `roles` maps each role's name to the agent
+    that plays it, `agents` are those agents (task order), and each phase's `durations` are by agent (the
+    role's agent). Each phase starts when every role's agent is at its location and ends for all at once
+    (`hrc.compile.temporal_net_creator`, "joint actions").
+    """
 
     id: str
     name: str
     agents: tuple[str, ...]
     phases: tuple[Phase, ...]
+    roles: tuple[tuple[str, str], ...] = ()  # (role, agent), in the task file's order; () for one agent
+
+    @property
+    def joint(self) -> bool:
+        """Whether every agent of the action takes part in it (a joint action)."""
+        return bool(self.roles)
 
     def phase(self, phase_id: str) -> Phase:
         for ph in self.phases:
@@ -308,6 +321,11 @@ class Task:
     source: str = field(default="", compare=False)
     sensing: Sensing | None = None  # how the human's events reach the robot; None: at once (DC)
     safety: Safety | None = None
+    has_joint: bool = field(init=False, repr=False, compare=False)
+    """Whether some action is joint (`Action.roles`): asked per leg on hot paths, so computed once."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "has_joint", any(a.joint for a in self.actions))
 
     def preference_set(self, name: str) -> tuple[Preference, ...]:
         """The named set's preferences (raises `KeyError` for an unknown name)."""
@@ -332,6 +350,15 @@ class Task:
     def agent_ids(self) -> tuple[str, ...]:
         return tuple(a.id for a in self.agents)
 
+    def lead(self, action_id: str) -> str:
+        """Who starts a joint action (the first robot among its agents, in task order): the one whose
+        controllable timepoint is the action's start, and the agent a plan's allocation names for it. For
+        any other action, its one agent is chosen by the plan, so this raises `KeyError`."""
+        action = self.action(action_id)
+        if not action.joint:
+            raise KeyError(action_id)
+        return next(a.id for a in self.agents if a.id in action.agents and not a.is_human)
+
     @property
     def action_ids(self) -> tuple[str, ...]:
         return tuple(a.id for a in self.actions)
@@ -353,6 +380,9 @@ def _plan_id(sequences: tuple[tuple[str, tuple[str, ...]], ...]) -> str:
 @dataclass(frozen=True, slots=True)
 class Plan:
     """An allocation (action -> agent) and one sequence of actions per agent.
+
+    A joint action is in the sequence of every agent taking part; the allocation names its lead
+    (`Task.lead`), the agent that starts it.
 
     Both are stored in a canonical order (task order of actions, task order of agents), so equal plans
     compare equal and `id` depends only on what the plan is, not on when it was enumerated.

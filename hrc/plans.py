@@ -43,8 +43,10 @@ class _TooManyStates(Exception):
 
 
 def _agent_choices(task: Task) -> list[list[str]]:
-    """Per action (task order), the agents that may do it (task order)."""
-    return [[ag for ag in task.agent_ids if ag in action.agents] for action in task.actions]
+    """Per action (task order), the agents that may do it (task order); a joint action's only choice is its
+    lead (`Task.lead`): every agent of it takes part, there is nothing to allocate."""
+    return [[task.lead(action.id)] if action.joint else [ag for ag in task.agent_ids if ag in action.agents]
+            for action in task.actions]
 
 
 def allocation_count(task: Task) -> int:
@@ -109,8 +111,9 @@ def phase_graph(task: Task, plan: Plan) -> nx.DiGraph:
 def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
                before: frozenset[tuple[str, str]]) -> Iterator[tuple[tuple[str, tuple[str, ...]], ...]]:
     per_agent = []
+    joint = {a.id: a.agents for a in task.actions if a.joint}
     for agent in task.agent_ids:
-        mine = tuple(a for a, ag in allocation if ag == agent)
+        mine = tuple(a for a, ag in allocation if ag == agent or agent in joint.get(a, ()))
         per_agent.append([(agent, seq) for seq in _linear_extensions(mine, before)])
     base = _task_phase_graph(task)
     last = {a.id: str(PhaseRef(a.id, a.phases[-1].id)) for a in task.actions}
@@ -118,8 +121,10 @@ def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
     # a cycle through two agents' sequences needs a task-graph edge between two actions: without one
     # (independent actions, as in the kitting tasks) every combination is valid, and checking each
     # with networkx was most of the time plan generation took
+    # (a joint action is in two agents' sequences: two of them can close a cycle on their own, and the
+    # check is what makes the agents' orders of their joint actions agree)
     linked = (any(pr.before.action != pr.after.action for pr in task.precedence)
-              or not nx.is_directed_acyclic_graph(base))
+              or not nx.is_directed_acyclic_graph(base) or bool(joint))
     for combo in itertools.product(*per_agent):
         if linked and len(combo) > 1:  # cross-agent cycles need two or more busy agents
             g = base.copy()
@@ -155,7 +160,7 @@ def identical_actions(task: Task) -> tuple[tuple[str, ...], ...]:
     by_shape: dict[tuple, list[str]] = {}
     for a in task.actions:
         if a.id not in named:
-            shape = (a.agents, tuple((p.id, p.location, p.durations) for p in a.phases))
+            shape = (a.agents, a.roles, tuple((p.id, p.location, p.durations) for p in a.phases))
             by_shape.setdefault(shape, []).append(a.id)
     return tuple(tuple(ids) for ids in by_shape.values() if len(ids) > 1)
 
@@ -204,6 +209,10 @@ def count_plans(task: Task, max_states: int | None = None) -> int:
     first_bit = [bit[(i, 0)] for i in range(len(actions))]
     all_done = (1 << len(bit)) - 1
     allowed = [[i for i, a in enumerate(actions) if ag.id in a.agents] for ag in task.agents]
+    # a joint action (`Action.roles`) is revealed by each of its agents in turn, and its phases are done
+    # only when all of them are at that phase: they are done together, and a plan in which the agents'
+    # orders of their joint actions disagree gets stuck (a cycle, as in the phase graph)
+    takers = [tuple(n for n, ag in enumerate(task.agents) if ag.id in a.agents) if a.joint else () for a in actions]
     choosing, finished = -1, -2  # agent states besides (action, phase index)
 
     memo: dict[tuple[int, tuple], int] = {}
@@ -225,14 +234,17 @@ def count_plans(task: Task, max_states: int | None = None) -> int:
             if st == choosing:  # reveal this agent's next action, or that its sequence ends here
                 total = count(done, states[:n] + (finished,) + states[n + 1:])
                 for i in allowed[n]:
-                    if not done & first_bit[i] and i not in busy:
+                    if not done & first_bit[i] and (i not in busy or takers[i]):
                         total += count(done, states[:n] + ((i, 0),) + states[n + 1:])
                 return total
         for n, st in enumerate(states):
             if isinstance(st, tuple) and needs[st] & ~done == 0:
                 i, k = st
                 after = (i, k + 1) if k + 1 < len(actions[i].phases) else choosing
-                return count(done | bit[st], states[:n] + (after,) + states[n + 1:])
+                if not takers[i]:
+                    return count(done | bit[st], states[:n] + (after,) + states[n + 1:])
+                if all(states[m] == st for m in takers[i]):  # every agent of the joint action is there
+                    return count(done | bit[st], tuple(after if m in takers[i] else x for m, x in enumerate(states)))
         return 0  # stuck: the plan's phase graph has a cycle, or actions are left that nobody will do
 
     return count(0, (choosing,) * len(task.agents))
@@ -248,6 +260,10 @@ def plan_count_bound(task: Task) -> int:
     for action in task.actions:
         nxt: dict[tuple[int, ...], int] = {}
         for counts, n in ways.items():
+            if action.joint:  # in the sequence of every agent of it
+                key = tuple(k + (agent.id in action.agents) for k, agent in zip(counts, task.agents, strict=True))
+                nxt[key] = nxt.get(key, 0) + n
+                continue
             for i, agent in enumerate(task.agents):
                 if agent.id in action.agents:
                     key = counts[:i] + (counts[i] + 1,) + counts[i + 1:]
@@ -340,6 +356,8 @@ def pin_actions(task: Task, pins: dict[str, str]) -> Task:
         where = f"--pin {action_id}={agent_id}"
         if action_id not in actions:
             raise InputError(task.source, where, f"no action '{action_id}' (actions: {', '.join(actions)})")
+        if actions[action_id].joint:
+            raise InputError(task.source, where, f"{action_id} is a joint action: every agent of it takes part")
         if agent_id not in actions[action_id].agents:
             raise InputError(task.source, where, f"'{agent_id}' may not do {action_id} (its agents: "
                                                  f"{', '.join(actions[action_id].agents)})")
@@ -422,6 +440,8 @@ def plan_from_code(task: Task, code: bytes) -> Plan:
             part.append(task.action_ids[x])
     sequences.append((task.agent_ids[len(sequences)], tuple(part)))
     agent_of = {a: agent for agent, seq in sequences for a in seq}
+    if task.has_joint:
+        agent_of.update((a.id, task.lead(a.id)) for a in task.actions if a.joint)
     return Plan(allocation=tuple((a, agent_of[a]) for a in task.action_ids), sequences=tuple(sequences))
 
 

@@ -128,6 +128,35 @@ def test_the_tool_reads_every_kitting_stnu_and_agrees(tool: Path, tmp_path: Path
     assert _agree(tool, classes) == {"DC": 1833, "NOT_DC": 1047}
 
 
+def test_the_tool_agrees_on_the_hand_worked_joint_start(tool: Path, tmp_path: Path) -> None:
+    """Issue 37: the hand-worked joint lift of tests/test_joint.py, as the paper's reading compiles it (DC:
+    the robot waits for the person's arrival, then starts) and as the strict one does (the person would
+    be at the spot before the robot: not DC), each file as its compile wrote it."""
+    from test_joint import LIFT, _write
+
+    task = load_task(_write(tmp_path, LIFT))
+    (plan,) = list(generate_plans(task))
+    paths = plan_paths(task, seed=0)
+    cps = [compile_plan(task, plan, paths), compile_plan(task, plan, paths, CompileOptions(human_waits=False))]
+    classes = {}
+    for name, cp in zip(("waits", "strict"), cps, strict=True):
+        path = tmp_path / f"{name}.graphml"
+        path.write_text(cp.graphml, "utf-8")
+        classes[path] = cp.plan_class.value
+    assert sorted(classes.values()) == ["DC", "inconsistent"]
+    assert _agree(tool, classes) == {"DC": 1, "NOT_DC": 1}
+
+
+@pytest.mark.slow
+def test_the_tool_reads_every_joint_workshop_stnu_and_agrees(tool: Path, tmp_path: Path) -> None:
+    """Issue 37: the workshop with "support the pile" (a joint action: one start the robot executes once the
+    person is there, one contingent end for both): all 32 files, each read and judged as hrc classed it."""
+    classes = _compile("cube_stacking_joint.yaml", tmp_path / "joint")
+    assert len(classes) == 32
+    counts = _agree(tool, classes)
+    assert counts["DC"] and counts["NOT_DC"]
+
+
 @pytest.fixture(scope="module")
 def blocked_plans() -> list:
     """Kitting with the person never waiting for the robot's sake (``human_waits=False``): most plans'

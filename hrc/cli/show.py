@@ -43,7 +43,7 @@ def task_summary(task: Task) -> dict[str, Any]:
                     "travel_slack": a.travel_slack} for a in task.agents],
         "actions": [{"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
             {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
-            for p in a.phases]} for a in task.actions],
+            for p in a.phases]} | ({"roles": dict(a.roles)} if a.joint else {}) for a in task.actions],
         "precedence": [[str(p.before), str(p.after)] for p in task.precedence],
         "constraints": [{"from": str(c.source), "to": str(c.target),
                          "bounds": [c.bounds.lb, _bound(c.bounds.ub)]} for c in task.constraints],
@@ -77,7 +77,11 @@ def _text(s: dict[str, Any]) -> str:
                      f"starts at {a['start']}")
     lines.append("actions:")
     for a in s["actions"]:
-        lines.append(f"  {a['id']:<10} {a['name']}  (by {', '.join(a['agents'])})")
+        if "roles" in a:  # a joint action (issue 37): every agent of it at once
+            who = ", ".join(f"{role} {ag}" for role, ag in a["roles"].items())
+            lines.append(f"  {a['id']:<10} {a['name']}  (by all at once: {who})")
+        else:
+            lines.append(f"  {a['id']:<10} {a['name']}  (by {', '.join(a['agents'])})")
         for p in a["phases"]:
             durs = ", ".join(f"{ag} [{lb:g}, {ub:g}] s" for ag, (lb, ub) in p["duration"].items())
             lines.append(f"    {p['id']:<8} at {p['location']:<4} {durs}")

@@ -55,6 +55,7 @@ from hrc.compile.compiler import CompiledPlanSet, CompileOptions, rank_key
 from hrc.compile.output import write_input
 from hrc.compile.sink import REPORT_TOP, PlanSink
 from hrc.compile.stream import compile_records
+from hrc.errors import InputError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import family_of, identical_actions, relabellings
@@ -348,6 +349,10 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
     `hrc.errors.HrcError`."""
     if k < 1:
         raise ValueError(f"k must be at least 1, got {k}")
+    joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
+    if joint is not None:  # issue 37: its plan tree allocates every action to one agent (`hrc.compile.bounds`)
+        raise InputError(task.source, f"actions[{joint}].roles", f"'{task.actions[joint].id}' is a joint action: "
+                         "the search compile does not take joint actions yet (--plans all compiles every plan)")
     options = options or CompileOptions()
     out_dir = Path(out_dir)
     write_input(task, out_dir)

@@ -41,6 +41,35 @@ ticks here and only here: contingent bounds are widened outward (floor lb, ceil 
 gaps rounded up, so rounding never makes a plan look more controllable than it is; other requirement
 bounds are rounded to the nearest tick.
 
+**Joint actions** (issue 37; Strassmair & Taylor 2014, section IV, "support the pile", left there for
+future work). A phase of a joint action (`hrc.model.Action.roles`) is on a leg of every agent of it, and
+is one synchronisation: each agent travels to the place as usual (its own ``depart``, ``arrive``), and the
+phase has **one start and one end for all**, the timepoints of its *lead* (`hrc.model.Task.lead`, the
+robot: ``robot.PHASE.ACTION.start`` / ``.end``; the other agents' legs have no start or end of their own,
+`leg_names` names the lead's for them). Links:
+
+- ``arrive -> start`` in ``[0, +inf)`` for *each* agent of it: the start waits for every arrival (also
+  with ``human_waits=False``: the person waits at the place for the co-worker);
+- ``start -> end``: the phase lasts until the last role is done, ``[max lb, max ub]`` over the roles'
+  durations, **contingent** when a person takes part (a requirement link when only robots do). For a
+  robot role whose duration the robot picks this over-approximates what can happen (the true end is
+  ``max(person's, robot's)``, inside the range whatever the robot picks), so a DC verdict is sound;
+- every agent's next ``depart`` follows the one end; the task graph and the limits name the action's
+  events as usual (`event_timepoint` finds the lead through the plan's allocation).
+
+*What DC means here.* The start is controllable (the robot executes it), and every person's arrival is a
+contingent timepoint that must precede it. A dynamic strategy may execute a timepoint only on what it
+has observed, so it cannot execute the start while an arrival before it is still unobserved: executing it
+at t with the arrival unobserved would let nature put the arrival after t and break ``start >= arrive``.
+So in a DC plan the robot *waits for the person's arrival event* and then starts (at once, or later if
+other constraints say so), and the residual network stays DC whatever the person's walk and share of the
+work take. The real-time execution (`hrc.temporal.execution`, the dispatcher's DC mode) gives the start
+no window before the arrival is observed (`tests/test_joint.py`, hypothesis over histories). With
+``human_waits`` (the paper's reading) the robot also says when the person leaves for the place, so it can
+choose the person's departure late enough that both meet without idling long; the person's walk and the
+phase's end stay contingent. The CSTNU Tool reads these networks as they are (one contingent link per
+person's walk, one per joint phase) and agrees on every one of `tasks/cube_stacking_joint.yaml`.
+
 **One tick.** A person's action that may take no time at all (a duration ``[0, ub]`` with ``ub > 0``)
 gets the contingent link ``[1 ms, ub]``: a person's action takes at least a millisecond. The CSTNU Tool
 reads contingent links only with ``0 < lb`` (`hrc.temporal.graphml`), and this keeps every STNU the
@@ -118,7 +147,7 @@ def ref_timepoint(task: Task, plan: Plan, ref: TimeRef) -> str:
     """The timepoint a `TimeRef` (agent, leg index, event) names in `plan`'s STNU."""
     if ref.agent == "":
         return ORIGIN
-    return leg_timepoint(agent_legs(task, plan, ref.agent)[ref.leg], ref.what)
+    return leg_names(task, plan)[ref.agent][ref.leg][ref.what]  # a joint action's start and end: its lead's
 
 
 _LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
@@ -128,8 +157,22 @@ _LEG_TIMEPOINTS = ("depart", "park", "unpark", "arrive", "start", "end")
 def leg_names(task: Task, plan: Plan) -> dict[str, list[dict[str, str]]]:
     """Per agent and leg, the name of each timepoint the leg may have (`leg_timepoint`), remembered per
     plan (`hrc.plans.per_plan`): a plan's compile names thousands of references (conflicts, passing
-    orders, output)."""
-    return {a.id: [_names(a.id, leg.phase, leg.action) for leg in agent_legs(task, plan, a.id)] for a in task.agents}
+    orders, output). A joint action's phase has one start and one end for all its agents, its lead's
+    (`_leg_names`)."""
+    return {a.id: [_leg_names(task, plan, a.id, leg) for leg in agent_legs(task, plan, a.id)] for a in task.agents}
+
+
+def _leg_names(task: Task, plan: Plan, agent: str, leg: Leg) -> dict[str, str]:
+    """`_names` of a leg; for a joint action's leg of an agent other than its lead, the start and end are
+    the lead's (the module docstring, "joint actions")."""
+    here = _names(agent, leg.phase, leg.action)
+    if not task.has_joint or not task.action(leg.action).joint:
+        return here
+    lead = plan.agent_of(leg.action)
+    if lead == agent:
+        return here
+    shared = _names(lead, leg.phase, leg.action)
+    return {**here, "start": shared["start"], "end": shared["end"]}
 
 
 def ref_namer(task: Task, plan: Plan) -> Callable[[TimeRef], str]:
@@ -204,19 +247,25 @@ class _Skeleton:
                 waits_on.setdefault((p.after.action, p.after.phase), []).append(p.before.action)
         owner = dict(plan.allocation)
         self.legs: list[tuple[Agent, Leg, tuple, list[_Op]]] = []  # agent, leg, travel key, links after travel
+        self.joins: set[int] = set()  # legs whose start and end are another agent's (joint actions)
         last_ends = []
         for agent in task.agents:
             prev_end = ORIGIN
             for leg in agent_legs(task, plan, agent.id):
                 waits_for_robot = any(owner[b] != agent.id for b in waits_on.get((leg.action, leg.phase), ()))
-                key: tuple = ("after", agent.id, leg.action, leg.phase, leg.location, waits_for_robot, human_waits)
+                lead = owner[leg.action] if task.has_joint and task.action(leg.action).joint else None
+                key: tuple = ("after", agent.id, leg.action, leg.phase, leg.location, waits_for_robot, human_waits,
+                              lead)
                 after = ops.get(key)
                 if after is None:
-                    after = ops[key] = _after(task, agent, leg, waits_for_robot, human_waits)
+                    after = ops[key] = (_after(task, agent, leg, waits_for_robot, human_waits) if lead is None
+                                        else _joint_after(task, agent, leg, lead))
+                if lead is not None and lead != agent.id:
+                    self.joins.add(len(self.legs))
                 self.legs.append((agent, leg, ("travel", agent.id, leg.action, leg.phase, leg.origin, leg.location,
                                                prev_end, human_waits), after))
-                prev_end = _names(agent.id, leg.phase, leg.action)["end"]
-            if prev_end != ORIGIN:
+                prev_end = _names(lead or agent.id, leg.phase, leg.action)["end"]
+            if prev_end != ORIGIN and prev_end not in last_ends:
                 last_ends.append(prev_end)
         self.last_ends = tuple(last_ends)
         self.graph: list[_Op] = []
@@ -256,6 +305,8 @@ class _Skeleton:
         found = ops.get(key)
         if found is None:
             found = ops[key] = _travel_ops(agent, leg, leg_key[6], self.human_waits, motion)
+        if i in self.joins:  # the joint phase's start and end are its lead's timepoints, listed there
+            return found[0][:-2], found[1]
         return found
 
 
@@ -296,6 +347,30 @@ def _after(task: Task, agent: Agent, leg: Leg, waits_for_robot: bool, human_wait
         after.append(_cont(st, en, bounds.lb, bounds.ub, what))
     else:
         after.append(_req(st, en, seconds_to_ticks(bounds.lb), seconds_to_ticks(bounds.ub), "robot", what))
+    return after
+
+
+def _joint_after(task: Task, agent: Agent, leg: Leg, lead: str) -> list[_Op]:
+    """A joint action's leg's links after the arrival (the module docstring, "joint actions"): the one
+    start waits for this agent's arrival; the lead's leg also carries the phase's duration, from the one
+    start to the one end, contingent when a person takes part."""
+    here = _names(agent.id, leg.phase, leg.action)
+    shared = _names(lead, leg.phase, leg.action)
+    step = f"{leg.action}.{leg.phase}"
+    after = [_req(here["arrive"], shared["start"], 0, None, "order",
+                  f"{step} starts when {agent.id} is at {leg.location} (joint action)")]
+    if agent.id != lead:
+        return after
+    action = task.action(leg.action)
+    phase = action.phase(leg.phase)
+    lb = max(phase.duration(a).lb for a in action.agents)
+    ub = max(phase.duration(a).ub for a in action.agents)
+    roles = ", ".join(f"{role} {ag} {phase.duration(ag).lb:g}-{phase.duration(ag).ub:g} s" for role, ag in action.roles)
+    what = f"{leg.phase} of {leg.action}, ending for all at once ({roles}: {lb:g}-{ub:g} s)"
+    if any(task.agent(a).is_human for a in action.agents):
+        after.append(_cont(shared["start"], shared["end"], lb, ub, what))
+    else:
+        after.append(_req(shared["start"], shared["end"], seconds_to_ticks(lb), seconds_to_ticks(ub), "robot", what))
     return after
 
 

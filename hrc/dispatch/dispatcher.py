@@ -124,6 +124,8 @@ class Dispatcher:
         self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
         self.routes = RouteIndex(plan_set.form)  # shared by forks: a function of the plans alone
         self._robot = next((a.id for a in plan_set.task.agents if not a.is_human), "")
+        # joint actions (issue 37): action -> its agents; empty for a task without
+        self._joint = MappingProxyType({a.id: a.agents for a in plan_set.task.actions if a.joint})
         self._human_g = next((g for g, a in enumerate(plan_set.task.agents) if a.is_human), -1)
         self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
         self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
@@ -540,6 +542,11 @@ class Dispatcher:
         for slot, (agent, other_nodes) in enumerate(((robot, human_nodes), (human, robot_nodes))):
             nxt = next(((action, phase, event, node) for action, phase in entry.legs.get(agent, ())
                         for event, node in entry.leg_points[(agent, action, phase)] if node not in done), None)
+            if nxt is not None and self._joint and nxt[0] in self._joint:
+                held = self._joint_hold(entry, agent, nxt, done)
+                if held is not None:  # a joint action: its start waits for every agent's observed arrival
+                    out[slot] = held
+                    continue
             if nxt is None or nxt[3] in contingent or (agent == human and history.away):
                 continue
             action, phase, event, node = nxt
@@ -565,6 +572,25 @@ class Dispatcher:
             w_agent, w_action, w_phase, w_event = entry.events.get(waits[0], ("", "", "", waits[0]))
             out[slot] = WaitFor(w_agent, w_action, w_phase, w_event)
         return out[0], out[1]
+
+    def _joint_hold(self, entry: PlanEntry, agent: str, nxt: tuple[str, str, str, str],
+                    done: dict[str, int]) -> WaitFor | None:
+        """For the next event `nxt` of `agent` on a joint action (issue 37): the start, while some other
+        agent of it has not been seen arriving at the place, waits for that arrival, whatever the plan's
+        class (in a DC plan the real-time execution waits anyway, `hrc.compile.temporal_net_creator`, "joint
+        actions"; in the others the robot must not start on a predicted arrival); the end, nature's, is
+        waited for. None otherwise (the departure and the drive are as for any leg)."""
+        action, phase, event, _ = nxt
+        if event == "end":
+            return WaitFor(agent, action, phase, "end")
+        if event != "start":
+            return None
+        for other in self._joint[action]:
+            if other != agent:
+                node = dict(entry.leg_points[(other, action, phase)])["arrive"]
+                if node not in done:
+                    return WaitFor(other, action, phase, "arrive")
+        return None
 
     def _windows(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
                  asks: list[tuple[int, str, str, str, str, str, frozenset[str]]], seen: tuple[np.ndarray, np.ndarray]

@@ -96,8 +96,11 @@ def plan_entry(task: Task, plan: Plan, rank: int, compiled_class: str, preferenc
                 if node in known:
                     found.append((event, node))
                     events[node] = (agent.id, leg.action, leg.phase, event)
-            if [e for e, _ in found if e in ("depart", "arrive", "start", "end")] != ["depart", "arrive", "start",
-                                                                                     "end"]:
+            # a joint action's phase starts and ends once, on its lead's leg (`hrc.model.Task.lead`): the
+            # other agents' legs of it have a departure and an arrival only
+            shared = task.has_joint and task.action(leg.action).joint and plan.agent_of(leg.action) != agent.id
+            if [e for e, _ in found if e in ("depart", "arrive", "start", "end")] != (
+                    ["depart", "arrive"] if shared else ["depart", "arrive", "start", "end"]):
                 raise InputError(where, "", f"the STNU lacks the timepoints of {agent.id}'s "
                                             f"{leg.action}.{leg.phase} (not compiled from this task?)")
             points[(agent.id, leg.action, leg.phase)] = tuple(found)

@@ -143,7 +143,11 @@ class History:
         if obs.key in self.times:
             raise DispatchError(f"duplicate: {what} was seen at {self.times[obs.key]:g} s")
         other = self.doer.get(action)
-        if other is not None and other != agent:
+        if act.joint:  # every agent of it does it; its one start and end are its lead's (`Task.lead`)
+            lead = task.lead(action)
+            if agent != lead and event in ("start", "end"):
+                raise DispatchError(f"{what}: {action} is a joint action, the {lead} starts and ends it")
+        elif other is not None and other != agent:
             raise DispatchError(f"{action} is being done by the {other}, not the {agent}")
         leg = (action, phase)
         current = self.current(agent)

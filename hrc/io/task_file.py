@@ -199,17 +199,55 @@ def _check_reachable(doc: Doc, agents: list[Agent], actions: list[Action], ws: W
 
 
 def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace, margin: float) -> Action:
-    m = doc.mapping(raw, path, required=("id", "agents", "phases"), optional=("name",))
+    m = doc.mapping(raw, path, required=("id", "phases"), optional=("name", "agents", "agents_needed", "roles"))
     aid = doc.ident(m["id"], path + ("id",))
     name = doc.text(m.get("name", aid), path + ("name",))
     known = {a.id: a for a in agents}
-    who = doc.sequence(m["agents"], path + ("agents",))
-    if not who:
-        doc.fail(path + ("agents",), f"no agent can do action '{aid}'")
-    for j, ag in enumerate(who):
-        if doc.ident(ag, path + ("agents", j)) not in known:
-            doc.fail(path + ("agents", j), f"unknown agent '{ag}' (known: {', '.join(known)})")
-    doc.unique(list(who), path + ("agents",), "agent", key="")
+    roles: list[tuple[str, str]] = []
+    if "roles" in m:
+        for key in ("agents", "agents_needed"):
+            if key in m:
+                doc.fail(path + (key,), "give either roles or agents (with agents_needed), not both")
+        rm = m["roles"]
+        if not isinstance(rm, dict):
+            doc.fail(path + ("roles",), "expected a mapping role: agent (e.g. {holder: human, stacker: robot})")
+        for role, ag in rm.items():
+            doc.ident(role, path + ("roles", str(role)))
+            if doc.ident(ag, path + ("roles", role)) not in known:
+                doc.fail(path + ("roles", role), f"unknown agent '{ag}' (known: {', '.join(known)})")
+            for other, taken in roles:
+                if taken == ag:
+                    doc.fail(path + ("roles", role), f"'{ag}' already plays role '{other}': one agent, one role")
+            roles.append((role, ag))
+        who = [ag for ag in known if ag in {a for _, a in roles}]  # task order
+    else:
+        if "agents" not in m:
+            doc.fail(path + ("agents",), "missing (required key; or roles, for a joint action)")
+        who = doc.sequence(m["agents"], path + ("agents",))
+        if not who:
+            doc.fail(path + ("agents",), f"no agent can do action '{aid}'")
+        for j, ag in enumerate(who):
+            if doc.ident(ag, path + ("agents", j)) not in known:
+                doc.fail(path + ("agents", j), f"unknown agent '{ag}' (known: {', '.join(known)})")
+        doc.unique(list(who), path + ("agents",), "agent", key="")
+        if "agents_needed" in m:
+            needed = m["agents_needed"]
+            if isinstance(needed, bool) or not isinstance(needed, int) or needed < 1:
+                doc.fail(path + ("agents_needed",), f"expected a whole number >= 1, found {needed!r}")
+            if needed > 1 and needed != len(who):
+                doc.fail(path + ("agents_needed",), f"{needed} agents needed out of {len(who)}: a joint action "
+                                                    f"is done by every agent it lists (choosing some is not "
+                                                    f"supported yet)")
+            if needed > 1:
+                roles = [(ag, ag) for ag in who]
+    if roles:
+        if len(roles) < 2:
+            doc.fail(path + ("roles",), f"a joint action needs two or more roles, found {len(roles)}")
+        if all(known[ag].is_human for _, ag in roles):
+            doc.fail(path + ("roles",), "a joint action needs a robot among its agents: the robot starts it")
+    by_key = dict(roles) if roles else {ag: ag for ag in who}  # duration key (role or agent) -> agent
+    keys = list(by_key)
+    what = "role" if roles and "roles" in m else "agent"
     phases = []
     for j, raw_phase in enumerate(doc.sequence(m["phases"], path + ("phases",), min_len=1)):
         ppath = path + ("phases", j)
@@ -217,19 +255,23 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
         pid = doc.ident(pm["id"], ppath + ("id",))
         loc = doc.ident(pm["location"], ppath + ("location",))
         if isinstance(pm["duration"], dict):
-            for ag in pm["duration"]:
-                if ag not in who:
-                    doc.fail(ppath + ("duration", ag), f"agent '{ag}' may not do action '{aid}' "
-                                                       f"(its agents: {', '.join(who)})")
-        dm = doc.mapping(pm["duration"], ppath + ("duration",), required=who)
-        durations = []
-        for ag in who:
-            lb, ub = doc.interval(dm[ag], ppath + ("duration", ag), maximum=MAX_SECONDS, unit=" s")
-            durations.append((ag, Interval(lb, ub)))
-            _check_location(doc, ppath + ("location",), loc, known[ag], ws, margin)
+            for key in pm["duration"]:
+                if key not in by_key:
+                    if what == "role":
+                        doc.fail(ppath + ("duration", key), f"no role '{key}' in action '{aid}' "
+                                                            f"(its roles: {', '.join(keys)})")
+                    doc.fail(ppath + ("duration", key), f"agent '{key}' may not do action '{aid}' "
+                                                        f"(its agents: {', '.join(who)})")
+        dm = doc.mapping(pm["duration"], ppath + ("duration",), required=keys)
+        got = {}
+        for key in keys:
+            lb, ub = doc.interval(dm[key], ppath + ("duration", key), maximum=MAX_SECONDS, unit=" s")
+            got[by_key[key]] = Interval(lb, ub)
+            _check_location(doc, ppath + ("location",), loc, known[by_key[key]], ws, margin)
+        durations = [(ag, got[ag]) for ag in who]
         phases.append(Phase(id=pid, location=loc, durations=tuple(durations)))
     doc.unique([p.id for p in phases], path + ("phases",), "phase")
-    return Action(id=aid, name=name, agents=tuple(who), phases=tuple(phases))
+    return Action(id=aid, name=name, agents=tuple(who), phases=tuple(phases), roles=tuple(roles))
 
 
 def _phase_ref(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action], first: bool) -> PhaseRef:
@@ -339,9 +381,7 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
     out["agents"] = [{"id": a.id, "kind": a.kind.value, "radius": a.radius, "speed": a.speed, "start": a.start}
                      | ({} if a.travel_slack == DEFAULT_TRAVEL_SLACK else {"travel_slack": a.travel_slack})
                      for a in task.agents]
-    out["actions"] = [{"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
-        {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
-        for p in a.phases]} for a in task.actions]
+    out["actions"] = [_action_dict(a) for a in task.actions]
     out["precedence"] = [[str(p.before), str(p.after)] for p in task.precedence]
     out["constraints"] = [{"from": str(c.source), "to": str(c.target), "bounds": [c.bounds.lb, c.bounds.ub]}
                           for c in task.constraints]
@@ -354,6 +394,18 @@ def task_to_dict(task: Task, map_path: str | None = None) -> dict[str, Any]:
     if task.safety is not None:  # likewise
         out["safety"] = safety_to_dict(task.safety)
     return out
+
+
+def _action_dict(a: Action) -> dict[str, Any]:
+    """An action's YAML form; a joint action's (written only for one: older files round-trip unchanged)
+    with its roles, and each phase's durations by role."""
+    if not a.joint:
+        return {"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
+            {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
+            for p in a.phases]}
+    return {"id": a.id, "name": a.name, "roles": dict(a.roles), "phases": [
+        {"id": p.id, "location": p.location, "duration": {role: [p.duration(ag).lb, p.duration(ag).ub]
+                                                          for role, ag in a.roles}} for p in a.phases]}
 
 
 def task_digest(task: Task) -> str:

@@ -43,6 +43,10 @@ This module turns that into constraints the temporal net can carry, for every hu
    at a time both before and after itself). Which one a plan uses is the plan's choice
    (`hrc.compile.motion_pattern`); the temporal net creator adds it as a requirement link.
 
+**Joint actions** (issue 37): for a task with joint actions, the pairs of the two working together at a
+joint action's spot are no conflicts (`_coworking`: the robot's stay there against the person's walk up,
+stay and walk away); the robot's drives keep their separations, so it arrives first and leaves last.
+
 **Exactness.** Routes are sampled every `STEP` metres; a pair closer than `reach` has samples within
 ``STEP / 2`` of each, so the sampled set uses ``reach + STEP`` and every gap is widened by the time
 ``STEP / 2`` takes at each agent's speed: the separations are sufficient for the true (continuous)
@@ -328,9 +332,12 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
 
     out: list[Conflict] = []
     h_occ = numbered(human)
+    cowork = _coworking(task, plan, robot.id, human.id) if task.has_joint else None
     for r, rn in numbered(robot):
         rk = rn << 32
         for h, hk in h_occ:
+            if cowork is not None and cowork(r, h):
+                continue
             found = cache.get(rk | hk)
             if found is None:
                 vr = speed(r) if r.kind == "travel" else robot.speed
@@ -338,6 +345,41 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
                 found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reaches, vr, human.speed, paths))
             out.extend(found)
     return tuple(out)
+
+
+def _at_spot(legs: tuple[Leg, ...], first: int, last: int, spot: str) -> bool:
+    """Whether legs `first` .. `last` (inclusive) are all at `spot` (the agent does not move between them)."""
+    return all(legs[k].location == spot for k in range(max(first, 0), last + 1))
+
+
+def _coworking(task: Task, plan: Plan, robot: str, human: str):  # noqa: ANN202
+    """For a task with joint actions: whether a (robot, human) occupancy pair is the two of them working
+    together at a joint action's place, where the separation is not kept (`hrc.motion.separation`,
+    "joint actions"): the robot's stay there, over the joint phase, against the person's walk up to
+    the place, their stay there over the phase, and their walk away from it. The robot's own drives to
+    and from the place keep the separation from the person standing there, so the robot arrives first
+    and the person leaves first: the robot never moves within reach of a person at the joint spot."""
+    r_legs, h_legs = agent_legs(task, plan, robot), agent_legs(task, plan, human)
+    h_index = {(leg.action, leg.phase): leg.index for leg in h_legs}
+    joint = [(leg.index, h_index[(leg.action, leg.phase)], leg.location) for leg in r_legs
+             if task.action(leg.action).joint and (leg.action, leg.phase) in h_index]
+
+    def covers(occ: Occupancy, j: int) -> bool:  # a stay that lasts over leg j
+        return occ.kind == "stay" and occ.part == 0 and occ.leg <= j and (
+            occ.finish.what == "end" or occ.finish.leg > j)
+
+    def together(r: Occupancy, h: Occupancy) -> bool:
+        for j, i, spot in joint:
+            if r.location != spot or not covers(r, j):
+                continue
+            if h.location == spot and (covers(h, i) or h.kind == "travel" and h.leg <= i
+                                       and _at_spot(h_legs, h.leg, i, spot)):
+                return True
+            if h.kind == "travel" and h.origin == spot and h.leg > i and _at_spot(h_legs, i, h.leg - 1, spot):
+                return True
+        return False
+
+    return together
 
 
 def _path_key(p: Path) -> tuple[str, str, str, float]:

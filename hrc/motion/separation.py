@@ -25,6 +25,11 @@ occupancies conflict, is ``r_h + r_r + S_p(v_r)`` (`reach`), and a task without 
 ``safety_margin`` in place of S_p. A standing robot (``v_r = 0``) still keeps ``v_h T_r + C + Z_d + Z_r``:
 the person's approach while its controller reacts, so it never starts moving into them. O(stops) per call.
 
+Joint actions (issue 37) are the one place where the distance is not kept: the standing robot and the
+person who works beside it at a joint action's spot (`hrc.motion.conflicts._coworking`: the robot's stay
+there against the person's walk up, stay and walk away). The robot's drives keep `reach` at their speed,
+there too, so it arrives before the person and leaves after them (docs/motion.md, "Joint actions").
+
 >>> from hrc.model import Safety
 >>> terms = protective_separation(Safety(reaction_time=0.1, deceleration=1.0), 0.6)
 >>> round(terms.human, 3), round(terms.robot, 3), round(terms.stopping, 3), round(terms.total, 3)

@@ -23,7 +23,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
-from hrc.compile.temporal_net_creator import leg_timepoint
+from hrc.compile.temporal_net_creator import leg_names
 from hrc.plans import agent_legs
 from hrc.report.figures import DPI, agent_color, new_figure
 from hrc.report.summary import MIN_WAIT
@@ -47,9 +47,10 @@ def gantt_bars(task: Task, cp: CompiledPlan, which: str = "earliest") -> dict[st
         rows: list[tuple[str, float, float, str]] = []
         free_since: float | None = 0.0  # when the agent last finished something
         parks = {m.leg: m.park for m in cp.motions if m.agent == agent and m.park}
+        names = leg_names(task, cp.plan)[agent]  # a joint action's start and end are its lead's (issue 37)
         for k, leg in enumerate(agent_legs(task, cp.plan, agent)):
             label = f"{leg.action} {leg.phase}"
-            dep, park, unpark, arr, st, en = (times.get(leg_timepoint(leg, w))
+            dep, park, unpark, arr, st, en = (times.get(names[k][w])
                                               for w in ("depart", "park", "unpark", "arrive", "start", "end"))
             place = f"at {parks[k]}" if k in parks else ""
             spans: list[tuple[str, float | None, float | None, str]] = [("wait", free_since, dep, "")]
