@@ -489,3 +489,49 @@ def test_paths_plan_lists_each_passing_order_once_in_words(waiting_plan, capsys)
     listed = [line for line in out.splitlines() if re.match(r"  \d+\. The (human|robot) ", line)]
     assert len(listed) == len(words) and "passing order (" not in out
     assert all(" before the " in line for line in listed)
+
+
+# ------------------------------------------------------------ figures drawn beside the compile (issue 38)
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_the_figure_processes_write_what_one_process_writes(cps: CompiledPlanSet, report_dir: Path,
+                                                            tmp_path: Path) -> None:
+    """`FigureDrawer` (started before the work, figures drawn half each in two processes while the text is
+    written) writes the same files as `write_report` alone: the same names, report text and PNGs byte for
+    byte; and `figure_names` knew every figure's name before any was drawn."""
+    from hrc.report import figure_names, figure_work
+    from hrc.report.drawer import FigureDrawer
+
+    with FigureDrawer(cps.task) as drawer:
+        write_report(cps, tmp_path, drawer=drawer)
+    mine, alone = _files(tmp_path), _files(report_dir)
+    assert sorted(mine) == sorted(alone) and len([n for n in mine if n.startswith("figures/")]) >= 10
+    assert all(mine[name] == alone[name] for name in alone)
+    assert set(figure_names(figure_work(cps)).values()) == {n for n in alone if n.startswith("figures/")}
+
+
+def test_a_figure_process_that_fails_says_why(cps: CompiledPlanSet, tmp_path: Path, monkeypatch) -> None:
+    """A figure that cannot be drawn (here: every map, in the forked processes) fails the report with the
+    figure process's traceback, not a report with a missing picture."""
+    import hrc.report.maps
+    from hrc.report.drawer import FigureDrawer
+
+    def cannot(*args: object) -> None:
+        raise ValueError("no map today")
+
+    monkeypatch.setattr(hrc.report.maps, "draw_map", cannot)
+    with FigureDrawer(cps.task) as drawer, pytest.raises(RuntimeError, match="(?s)figures failed.*no map today"):
+        write_report(cps, tmp_path, drawer=drawer)
+
+
+def test_the_compile_imports_matplotlib_only_where_it_draws() -> None:
+    """The command's own process never imports matplotlib (its import is a fifth of the start-up): the
+    report's text needs only the figures' names and colours."""
+    import subprocess
+    import sys
+
+    code = ("import sys, hrc.cli.compile, hrc.report, hrc.report.drawer, hrc.compile.stream; "
+            "sys.exit('matplotlib' in sys.modules)")
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0

@@ -16,19 +16,24 @@ makes one wait).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hrc.model import Task
 from hrc.report.html import render_html
 from hrc.report.markdown import render_markdown
 from hrc.report.summary import ReportData, build_report_data, featured_plans
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from hrc.compile.compiler import CompiledPlanSet
+    from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+    from hrc.report.drawer import FigureDrawer
 
-__all__ = ["FORMATS", "REPORT_FILES", "write_figures", "write_report"]
+__all__ = ["FORMATS", "REPORT_FILES", "Bases", "FigureWork", "draw_figures", "figure_bases", "figure_names",
+           "figure_work", "write_figures", "write_report"]
 
 FORMATS: dict[str, Callable[[ReportData, dict[str, str]], str]] = {
     "report.md": render_markdown,
@@ -40,54 +45,119 @@ REPORT_FILES = (*FORMATS, "figures")
 """What `write_report` writes into an output folder (files and the figures' folder)."""
 
 
-def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
-    """Draw the figures into ``out_dir/figures``; returns figure key -> path relative to `out_dir`.
+@dataclass(frozen=True, slots=True)
+class FigureWork:
+    """What the report's figures show, and nothing else: small enough to hand to another process
+    (`hrc.report.drawer`). `histogram`: the bins and per-class counts of every plan's worst-case makespan,
+    drawn only when the ranked table holds the best plans only; `featured`: `featured_plans`."""
 
-    One Gantt and one map figure are reused for all featured plans: the plan-independent part (axes,
-    workspace) is drawn once and each plan's artists are removed after saving, which saves about a third
-    of the drawing time (ticks and text layouts are cached). The bytes are those of a fresh figure.
+    task: Task
+    counts: dict[str, int]
+    histogram: tuple[tuple[float, ...], dict[str, tuple[int, ...]]] | None
+    featured: tuple[CompiledPlan, ...]
+
+
+def figure_work(cps: CompiledPlanSet) -> FigureWork:
+    """`cps`'s `FigureWork`."""
+    histogram = None
+    if cps.summary is not None and cps.total > len(cps.plans):  # a large set: its distribution, not its rows
+        histogram = (cps.summary.bins, {st.plan_class: st.histogram for st in cps.summary.stats})
+    return FigureWork(cps.task, cps.counts(), histogram, featured_plans(cps))
+
+
+def figure_names(work: FigureWork) -> dict[str, str]:
+    """Figure key -> path relative to the output folder, of every figure `draw_figures` writes for `work`
+    (known before any is drawn: the report's text does not wait for the pictures)."""
+    keys = ["counts"] + ["makespans"] * (work.histogram is not None)
+    for prefix in ("gantt_", "gantt_worst_"):
+        keys += [f"{prefix}{cp.plan.id}" for cp in work.featured if cp.classification.schedule]
+    keys += [f"map_{cp.plan.id}" for cp in work.featured]
+    return {key: f"figures/{key}.png" for key in sorted(keys)}
+
+
+Bases = dict[str, "tuple[Figure, Axes]"]
+"""The plan-independent figures by kind (``gantt_earliest``, ``gantt_worst``, ``map``), drawn once each
+and reused for every plan (`draw_figures`, `figure_bases`)."""
+
+
+def figure_bases(task: Task, bases: Bases | None = None) -> Bases:
+    """`bases` (a new dict if None) with every kind of plan figure's base for `task` in it."""
+    from hrc.report.gantt import gantt_base
+    from hrc.report.maps import map_base
+
+    bases = {} if bases is None else bases
+    for kind in ("gantt_earliest", "gantt_worst", "map"):
+        if kind not in bases:
+            bases[kind] = map_base(task) if kind == "map" else gantt_base(task, kind.removeprefix("gantt_"))
+    return bases
+
+
+def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1),
+                 bases: Bases | None = None) -> None:
+    """Draw `work`'s figures into ``out_dir/figures`` (`figure_names`): with `share` ``(k, n)`` only the
+    k-th of every n, so that n processes draw them all at once (`hrc.report.drawer`).
+
+    One Gantt (per schedule) and one map figure are reused for all featured plans (`bases`, drawn here if
+    not given): the plan-independent part (axes, workspace) is drawn once and each plan's artists are
+    removed after saving, which saves about a third of the drawing time (ticks and text layouts are
+    cached). The bytes are those of a fresh figure.
     """
     from hrc.report.figures import counts_figure, makespans_figure, save_png
-    from hrc.report.gantt import draw_gantt, gantt_base
-    from hrc.report.maps import draw_map, map_base
 
     fig_dir = out_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    written: dict[str, str] = {}
-
-    def save(key: str, fig: Figure, clear: bool = True) -> None:
-        save_png(fig, fig_dir / f"{key}.png", clear=clear)
-        written[key] = f"figures/{key}.png"
-
-    save("counts", counts_figure(cps.counts()))
-    if cps.summary is not None and cps.total > len(cps.plans):  # a large set: its distribution, not its rows
-        save("makespans", makespans_figure(cps.summary.bins,
-                                           {st.plan_class: st.histogram for st in cps.summary.stats}))
-    featured = featured_plans(cps)
+    task = work.task
+    todo: list[tuple[str, str, CompiledPlan | None]] = [("counts", "counts", None)]
+    if work.histogram is not None:
+        todo.append(("makespans", "makespans", None))
     for which, prefix in (("earliest", "gantt_"), ("worst", "gantt_worst_")):
-        gantt_fig, gantt_ax = gantt_base(cps.task, which)
-        for cp in featured:
-            if cp.classification.schedule:
-                added = draw_gantt(gantt_ax, cps.task, cp, which)
-                save(f"{prefix}{cp.plan.id}", gantt_fig, clear=False)
-                for artist in added:
-                    artist.remove()
-        gantt_fig.clear()
-    map_fig, map_ax = map_base(cps.task)
-    for cp in featured:
-        added = draw_map(map_ax, cps, cp)
-        save(f"map_{cp.plan.id}", map_fig, clear=False)
+        todo += [(f"gantt_{which}", f"{prefix}{cp.plan.id}", cp) for cp in work.featured if cp.classification.schedule]
+    todo += [("map", f"map_{cp.plan.id}", cp) for cp in work.featured]
+    k, n = share
+    mine = todo[k::n]
+    if any(cp is not None for _, _, cp in mine):
+        from hrc.report.gantt import draw_gantt
+        from hrc.report.maps import draw_map
+
+        bases = figure_bases(task, bases)
+    for kind, key, cp in mine:
+        if cp is None:
+            fig = counts_figure(work.counts) if kind == "counts" else makespans_figure(*work.histogram)  # type: ignore[misc]
+            save_png(fig, fig_dir / f"{key}.png")
+            continue
+        fig, ax = bases[kind]  # type: ignore[index]
+        if kind == "map":
+            added = draw_map(ax, task, cp)
+        else:
+            added = draw_gantt(ax, task, cp, kind.removeprefix("gantt_"))
+        save_png(fig, fig_dir / f"{key}.png", clear=False)
         for artist in added:
             artist.remove()
-    map_fig.clear()
-    return dict(sorted(written.items()))
 
 
-def write_report(cps: CompiledPlanSet, out_dir: Path, margin: CompiledPlanSet | None = None) -> None:
+def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:
+    """Draw the figures into ``out_dir/figures`` in this process; returns figure key -> path relative to
+    `out_dir` (`figure_names`)."""
+    work = figure_work(cps)
+    draw_figures(work, out_dir)
+    return figure_names(work)
+
+
+def write_report(cps: CompiledPlanSet, out_dir: Path, margin: CompiledPlanSet | None = None,
+                 drawer: FigureDrawer | None = None) -> None:
     """Write ``report.md``, ``report.html`` and ``figures/`` into `out_dir` (the caller's staging folder);
-    `margin`: the task compiled with its fixed margin, to show what the protective separation costs."""
+    `margin`: the task compiled with its fixed margin, to show what the protective separation costs.
+    `drawer`: a `FigureDrawer` started earlier (matplotlib imported there meanwhile): it draws the figures
+    in two processes while this one writes the text, and this returns once they are written."""
     out_dir = Path(out_dir)
+    work = figure_work(cps)
+    if drawer is not None:
+        drawer.draw(work, out_dir)
+    else:
+        draw_figures(work, out_dir)
     data = build_report_data(cps, margin)
-    figures = write_figures(cps, out_dir)
+    figures = figure_names(work)
     for name, render in FORMATS.items():
         (out_dir / name).write_text(render(data, figures), encoding="utf-8")
+    if drawer is not None:
+        drawer.wait()
