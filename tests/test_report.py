@@ -535,3 +535,37 @@ def test_the_compile_imports_matplotlib_only_where_it_draws() -> None:
     code = ("import sys, hrc.cli.compile, hrc.report, hrc.report.drawer, hrc.compile.stream; "
             "sys.exit('matplotlib' in sys.modules)")
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_simulation_figures_in_two_processes_are_those_of_one(tmp_path: Path) -> None:
+    """`write_simulation_figures` splits its figures over two processes: the same files, byte for byte,
+    as each figure drawn and saved in this process by the functions that make it."""
+    from hrc.report.figures import save_png
+    from hrc.report.simulation import (
+        animation_gif,
+        makespan_figure,
+        run_gantt_figure,
+        trajectories_figure,
+        write_simulation_figures,
+    )
+    from hrc.sim.human import HumanModel
+    from hrc.sim.montecarlo import simulate
+    from hrc.sim.policies import POLICIES
+    from hrc.sim.run import SimSettings, simulate_run
+
+    task = load_task(Path(__file__).resolve().parents[1] / "tasks" / "cube_stacking.yaml")
+    sim = simulate(task, 2, 0, ["hrc", "fixed"], SimSettings(human=HumanModel()), jobs=1)
+    featured = {p: simulate_run(sim.context, p, 0, record=True) for p in sim.policies}
+    names = write_simulation_figures(sim, featured, tmp_path / "two")
+    one = tmp_path / "one"
+    one.mkdir()
+    save_png(makespan_figure(sim), one / "makespans.png")
+    for policy, result in featured.items():
+        cps = sim.context.compiles[POLICIES[policy].compile]
+        cp = next((c for c in cps.plans if c.plan.id == result.first_plan), None)
+        save_png(run_gantt_figure(task, cp, result), one / f"gantt_{policy}_run0.png")
+        save_png(trajectories_figure(task, result), one / f"trajectories_{policy}_run0.png")
+    animation_gif(task, featured["hrc"], one / "run_hrc_run0.gif")
+    two = _files(tmp_path / "two")
+    assert sorted(names.values()) == sorted(two) and len(two) == 6
+    assert two == {f"figures/{p.name}": p.read_bytes() for p in one.iterdir()}

@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from hrc.model import Task
     from hrc.report import FigureWork
 
-__all__ = ["FigureDrawer"]
+__all__ = ["FigureDrawer", "draw_in_two", "shares"]
 
 
 class FigureDrawer:
@@ -129,7 +129,7 @@ def _draw_in_two(draw: Callable[[tuple[int, int]], None]) -> str | None:
     failed = None
     try:
         draw((0, 2))
-    except BaseException:  # noqa: BLE001 - handed to the compile
+    except BaseException:  # noqa: BLE001 - handed to the caller
         failed = traceback.format_exc()
     with os.fdopen(read, "rb") as pipe:
         theirs = pipe.read().decode()
@@ -137,3 +137,24 @@ def _draw_in_two(draw: Callable[[tuple[int, int]], None]) -> str | None:
     if theirs or status:
         failed = (failed or "") + (theirs or f"the second figure process ended with status {status}")
     return failed
+
+
+def draw_in_two(draw: Callable[[tuple[int, int]], None]) -> None:
+    """``draw(share)`` for the shares ``(0, 2)`` and ``(1, 2)`` at once: the second in a process forked
+    from this one (it has what this one has), the first here; returns when both are done, raises
+    `RuntimeError` with the failure's traceback if either failed."""
+    failed = _draw_in_two(draw)
+    if failed is not None:
+        raise RuntimeError(f"drawing the figures failed:\n{failed}")
+
+
+def shares(weights: list[float], n: int = 2) -> list[list[int]]:
+    """Indices of `weights` in `n` groups of about equal total (longest first, each to the lightest
+    group so far; ties to the first): a fixed split, the same for the same weights."""
+    groups: list[list[int]] = [[] for _ in range(n)]
+    load = [0.0] * n
+    for i in sorted(range(len(weights)), key=lambda i: (-weights[i], i)):
+        k = load.index(min(load))
+        groups[k].append(i)
+        load[k] += weights[i]
+    return [sorted(g) for g in groups]
