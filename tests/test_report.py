@@ -497,13 +497,15 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 def test_the_figure_processes_write_what_one_process_writes(cps: CompiledPlanSet, report_dir: Path,
-                                                            tmp_path: Path) -> None:
+                                                            tmp_path: Path, monkeypatch) -> None:
     """`FigureDrawer` (started before the work, figures drawn half each in two processes while the text is
     written) writes the same files as `write_report` alone: the same names, report text and PNGs byte for
     byte; and `figure_names` knew every figure's name before any was drawn."""
+    from hrc.caches import CACHE_ENV
     from hrc.report import figure_names, figure_work
     from hrc.report.drawer import FigureDrawer
 
+    monkeypatch.setenv(CACHE_ENV, "")  # every figure drawn, none from the disk cache
     with FigureDrawer(cps.task) as drawer:
         write_report(cps, tmp_path, drawer=drawer)
     mine, alone = _files(tmp_path), _files(report_dir)
@@ -516,7 +518,10 @@ def test_a_figure_process_that_fails_says_why(cps: CompiledPlanSet, tmp_path: Pa
     """A figure that cannot be drawn (here: every map, in the forked processes) fails the report with the
     figure process's traceback, not a report with a missing picture."""
     import hrc.report.maps
+    from hrc.caches import CACHE_ENV
     from hrc.report.drawer import FigureDrawer
+
+    monkeypatch.setenv(CACHE_ENV, "")
 
     def cannot(*args: object) -> None:
         raise ValueError("no map today")
@@ -569,3 +574,33 @@ def test_simulation_figures_in_two_processes_are_those_of_one(tmp_path: Path) ->
     two = _files(tmp_path / "two")
     assert sorted(names.values()) == sorted(two) and len(two) == 6
     assert two == {f"figures/{p.name}": p.read_bytes() for p in one.iterdir()}
+
+
+def test_figures_from_the_disk_cache_are_the_figures_drawn(cps: CompiledPlanSet, tmp_path: Path, monkeypatch) -> None:
+    """A report of the same plans again copies every figure from the disk cache (nothing drawn: drawing
+    made to fail), the same bytes; a plan that differs (its schedule a second later) is drawn again; no
+    cache (HRC_CACHE_DIR empty), no files."""
+    import hrc.report.figures
+    from hrc.caches import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    write_report(cps, tmp_path / "first")
+    first = _files(tmp_path / "first")
+    n = len([k for k in first if k.startswith("figures/")])
+    assert len(list((tmp_path / "cache" / "figures").iterdir())) == n >= 10
+
+    def no_drawing(*args, **kwargs):
+        raise AssertionError("drawn")
+
+    monkeypatch.setattr(hrc.report.figures, "save_png", no_drawing)
+    write_report(cps, tmp_path / "again")
+    assert _files(tmp_path / "again") == first
+    cp = cps.plans[0]
+    later = replace(cp, classification=replace(cp.classification, schedule=tuple(
+        (name, t + 1.0) for name, t in cp.classification.schedule)))
+    with pytest.raises(AssertionError, match="drawn"):
+        write_report(replace(cps, plans=(later, *cps.plans[1:])), tmp_path / "later")
+    monkeypatch.undo()
+    monkeypatch.setenv(CACHE_ENV, "")
+    write_report(cps, tmp_path / "none")
+    assert _files(tmp_path / "none") == first and len(list((tmp_path / "cache" / "figures").iterdir())) == n

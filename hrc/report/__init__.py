@@ -15,11 +15,16 @@ makes one wait).
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import io
+import pickle
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hrc.caches import cache_folder, disk_load, disk_store, source_digest
 from hrc.model import Task
 from hrc.report.html import render_html
 from hrc.report.markdown import render_markdown
@@ -101,10 +106,13 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
     not given): the plan-independent part (axes, workspace) is drawn once and each plan's artists are
     removed after saving, which saves about a third of the drawing time (ticks and text layouts are
     cached). The bytes are those of a fresh figure.
+
+    Each PNG is also kept in the disk cache (`hrc.caches.cache_folder` ``figures``) under everything its
+    bytes depend on (`_figure_key`): a compile of the same task again copies its figures from there.
     """
     from hrc.report.figures import counts_figure, makespans_figure, save_png
 
-    fig_dir = out_dir / "figures"
+    fig_dir = Path(out_dir) / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     task = work.task
     todo: list[tuple[str, str, CompiledPlan | None]] = [("counts", "counts", None)]
@@ -114,25 +122,70 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
         todo += [(f"gantt_{which}", f"{prefix}{cp.plan.id}", cp) for cp in work.featured if cp.classification.schedule]
     todo += [("map", f"map_{cp.plan.id}", cp) for cp in work.featured]
     k, n = share
-    mine = todo[k::n]
-    if any(cp is not None for _, _, cp in mine):
+    folder = cache_folder("figures")
+    mine = []
+    for kind, key, cp in todo[k::n]:
+        payload = work.counts if kind == "counts" else work.histogram if kind == "makespans" else (task, cp)
+        ckey = _figure_key(kind, payload) if folder is not None else ""
+        found = disk_load(folder, ckey)
+        if isinstance(found, bytes):
+            (fig_dir / f"{key}.png").write_bytes(found)
+        else:
+            mine.append((kind, key, cp, ckey))
+    if any(cp is not None for _, _, cp, _ in mine):
         from hrc.report.gantt import draw_gantt
         from hrc.report.maps import draw_map
 
         bases = figure_bases(task, bases)
-    for kind, key, cp in mine:
+    for kind, key, cp, ckey in mine:
         if cp is None:
             fig = counts_figure(work.counts) if kind == "counts" else makespans_figure(*work.histogram)  # type: ignore[misc]
-            save_png(fig, fig_dir / f"{key}.png")
+            disk_store(folder, ckey, save_png(fig, fig_dir / f"{key}.png"))
             continue
         fig, ax = bases[kind]  # type: ignore[index]
         if kind == "map":
             added = draw_map(ax, task, cp)
         else:
             added = draw_gantt(ax, task, cp, kind.removeprefix("gantt_"))
-        save_png(fig, fig_dir / f"{key}.png", clear=False)
+        disk_store(folder, ckey, save_png(fig, fig_dir / f"{key}.png", clear=False))
         for artist in added:
             artist.remove()
+
+
+def _figure_key(kind: str, payload: object) -> str:
+    """A figure's key in the disk cache (``figures``): everything its bytes depend on. The report's code,
+    matplotlib's and Pillow's versions, matplotlib's settings (``rcParams``, a user's matplotlibrc
+    included) and the font it finds, and what the figure shows (`_content_digest`)."""
+    return repr(("figure-1", _drawing_digest(), kind, _content_digest(payload)))
+
+
+def _content_digest(value: object) -> str:
+    """SHA-256 of `value`'s pickle without the memo (``fast``): equal content gives equal bytes, whether
+    or not its parts are shared objects (a plan compiled in a worker and one from the estimate's sample
+    share different parts)."""
+    buf = io.BytesIO()
+    pickler = pickle.Pickler(buf, protocol=5)
+    pickler.fast = True  # no memo: a shared part is written again, as an equal unshared one is
+    pickler.dump(value)
+    return hashlib.sha256(buf.getvalue()).hexdigest()
+
+
+_DRAWING_CODE = ("hrc.report", "hrc.report.figures", "hrc.report.gantt", "hrc.report.maps", "hrc.report.summary",
+                 "hrc.report.separation", "hrc.compile.temporal_net_creator", "hrc.compile.motion_pattern",
+                 "hrc.motion.separation", "hrc.plans", "hrc.model")
+"""The modules whose code draws a report figure (`_figure_key`)."""
+
+
+@functools.cache
+def _drawing_digest() -> str:
+    import matplotlib
+    import PIL
+    from matplotlib.font_manager import FontProperties, findfont
+
+    settings = repr(sorted((k, repr(v)) for k, v in matplotlib.rcParams.items()))
+    return hashlib.sha256(repr((source_digest(*_DRAWING_CODE),
+                                matplotlib.__version__, PIL.__version__, settings,
+                                findfont(FontProperties()))).encode()).hexdigest()
 
 
 def write_figures(cps: CompiledPlanSet, out_dir: Path) -> dict[str, str]:

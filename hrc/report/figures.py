@@ -53,14 +53,17 @@ def new_figure(width: float, height: float) -> Figure:
     return fig
 
 
-def save_png(fig: Figure, path: Path, clear: bool = True) -> None:
-    """Render `fig` to `path` as a PNG whose bytes depend only on the figure, then (`clear`) free it."""
+def save_png(fig: Figure, path: Path, clear: bool = True) -> bytes:
+    """Render `fig` to `path` as a PNG whose bytes depend only on the figure, then (`clear`) free it;
+    returns the bytes written."""
     buf = io.BytesIO()
     # compress_level 3: a third faster than the default 6 for some 10 % more bytes
     fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None}, pil_kwargs={"compress_level": 3})
     if clear:
         fig.clear()
-    path.write_bytes(buf.getvalue())
+    data = buf.getvalue()
+    path.write_bytes(data)
+    return data
 
 
 def counts_figure(counts: Mapping[str, int]) -> Figure:

@@ -294,7 +294,7 @@ def write_simulation_figures(sim: Simulation, featured: dict[str, RunResult], ou
     fig_dir.mkdir(parents=True, exist_ok=True)
     written: dict[str, str] = {}
     task = sim.context.task
-    todo: list[tuple[float, Callable[[], None]]] = [  # (CPU seconds on the workshop, draw and save)
+    todo: list[tuple[float, Callable[[], object]]] = [  # (CPU seconds on the workshop, draw and save)
         (0.23, lambda: save_png(makespan_figure(sim), fig_dir / "makespans.png"))]
     written["makespans"] = "figures/makespans.png"
     for policy, result in featured.items():
