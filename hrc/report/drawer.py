@@ -1,12 +1,12 @@
 """The report's figures drawn beside the compile, in two processes of their own (issue 38).
 
 Drawing the figures is most of a small compile's report (matplotlib's import and 16 PNGs: about 2 s of
-the workshop's 5), and it needs only what the figures show (`hrc.report.FigureWork`). A `FigureDrawer`
+the workshop's 5), and it needs only what the figures show (`hrc.report.plan_figures.FigureWork`). A `FigureDrawer`
 is started (forked) before the compile plans its paths: while this process plans, it imports matplotlib
 and draws each figure's plan-independent base (axes, the workspace), on the core the path planning
 leaves idle. Once the plans are ranked, `draw` hands it the work; it forks once more, so that the figures
-are drawn half each (`hrc.report.draw_figures`' share) at once on both cores, while this process
-writes the report's text (whose figure names are known in advance: `hrc.report.figure_names`); `wait`
+are drawn half each (`hrc.report.plan_figures.draw_figures`' share) at once on both cores, while this process
+writes the report's text (whose figure names are known in advance: `hrc.report.plan_figures.figure_names`); `wait`
 returns when every file is written. The files are those `hrc.report.write_figures` writes, byte for byte:
 the same functions draw them, each figure on a base drawn the same way (tests/test_report_drawer.py).
 
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from hrc.model import Task
-    from hrc.report import FigureWork
+    from hrc.report.plan_figures import FigureWork
 
 __all__ = ["FigureDrawer", "draw_in_two", "shares"]
 
@@ -88,7 +88,7 @@ def _serve(task: Task, conn: Connection, parent: int) -> None:
     _die_with_parent(parent, direct=True)
     failed: str | None = None
     try:
-        from hrc.report import draw_figures, figure_bases
+        from hrc.report.plan_figures import draw_figures, figure_bases
 
         # the bases every plan's figure is drawn on, drawn once here while the compile runs (with the
         # import, the font cache and the text layouts they warm): both processes below reuse them
