@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 import threading
 
+import pytest
 from conftest import WORKSHOP_TASK
 
 from hrc.caches import make_room
@@ -135,3 +136,45 @@ def test_a_compile_with_a_warm_cache_writes_the_same_bytes(tmp_path, monkeypatch
     for rel in cold_files:
         if rel.parts[0] in ("stnu", "dispatch") or rel.name == "compiled.json":
             assert (cold / rel).read_bytes() == (warm / rel).read_bytes(), rel
+
+
+# -- on disk: detours ------------------------------------------------------------------------------------
+def test_a_cached_detour_is_the_detour_planned_afresh(tmp_path, monkeypatch):
+    """`detour` reads a detour planned by another process (another library: its own per-process cache is
+    empty) from the disk cache, the same route point for point as planned without the cache, without
+    planning it (the planning step made to fail); a moved obstacle is another key; no cache, no files."""
+    import dataclasses
+
+    import hrc.motion.detours as detours
+    from hrc.caches import CACHE_ENV
+    from hrc.io.task_file import load_task
+
+    task = load_task(WORKSHOP_TASK)
+    asked = [("R", "S1"), ("S2", "T"), ("S1", "S5")]
+
+    def ways(task, lib):
+        out = []
+        for o, t in asked:
+            pts = lib.get("robot", o, t).points
+            out.append(detours.detour(task, lib, "robot", o, t, [(tuple(pts[len(pts) // 2]),)], "cube"))
+        return out
+
+    monkeypatch.setenv(CACHE_ENV, "")
+    fresh = ways(task, _library(task, cache=False))
+    assert all(d is not None and d.via == "cube" for d in fresh)
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    assert ways(task, _library(task)) == fresh
+    assert len(list((tmp_path / "detours").iterdir())) == len(asked)
+
+    def planned(*args):
+        raise AssertionError("planned again")
+
+    with monkeypatch.context() as m:
+        m.setattr(detours, "_without", planned)
+        assert ways(task, _library(task)) == fresh  # from the disk, not planned
+        ws = task.workspace
+        ob = ws.obstacles[0]
+        moved = dataclasses.replace(ob, polygon=tuple((x + 0.01, y) for x, y in ob.polygon))
+        shifted = dataclasses.replace(task, workspace=dataclasses.replace(ws, obstacles=(moved, *ws.obstacles[1:])))
+        with pytest.raises(AssertionError, match="planned again"):
+            ways(shifted, _library(shifted))

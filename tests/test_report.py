@@ -489,3 +489,118 @@ def test_paths_plan_lists_each_passing_order_once_in_words(waiting_plan, capsys)
     listed = [line for line in out.splitlines() if re.match(r"  \d+\. The (human|robot) ", line)]
     assert len(listed) == len(words) and "passing order (" not in out
     assert all(" before the " in line for line in listed)
+
+
+# ------------------------------------------------------------ figures drawn beside the compile (issue 38)
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_the_figure_processes_write_what_one_process_writes(cps: CompiledPlanSet, report_dir: Path,
+                                                            tmp_path: Path, monkeypatch) -> None:
+    """`FigureDrawer` (started before the work, figures drawn half each in two processes while the text is
+    written) writes the same files as `write_report` alone: the same names, report text and PNGs byte for
+    byte; and `figure_names` knew every figure's name before any was drawn."""
+    from hrc.caches import CACHE_ENV
+    from hrc.report import figure_names, figure_work
+    from hrc.report.drawer import FigureDrawer
+
+    monkeypatch.setenv(CACHE_ENV, "")  # every figure drawn, none from the disk cache
+    with FigureDrawer(cps.task) as drawer:
+        write_report(cps, tmp_path, drawer=drawer)
+    mine, alone = _files(tmp_path), _files(report_dir)
+    assert sorted(mine) == sorted(alone) and len([n for n in mine if n.startswith("figures/")]) >= 10
+    assert all(mine[name] == alone[name] for name in alone)
+    assert set(figure_names(figure_work(cps)).values()) == {n for n in alone if n.startswith("figures/")}
+
+
+def test_a_figure_process_that_fails_says_why(cps: CompiledPlanSet, tmp_path: Path, monkeypatch) -> None:
+    """A figure that cannot be drawn (here: every map, in the forked processes) fails the report with the
+    figure process's traceback, not a report with a missing picture."""
+    import hrc.report.maps
+    from hrc.caches import CACHE_ENV
+    from hrc.report.drawer import FigureDrawer
+
+    monkeypatch.setenv(CACHE_ENV, "")
+
+    def cannot(*args: object) -> None:
+        raise ValueError("no map today")
+
+    monkeypatch.setattr(hrc.report.maps, "draw_map", cannot)
+    with FigureDrawer(cps.task) as drawer, pytest.raises(RuntimeError, match="(?s)figures failed.*no map today"):
+        write_report(cps, tmp_path, drawer=drawer)
+
+
+def test_the_compile_imports_matplotlib_only_where_it_draws() -> None:
+    """The command's own process never imports matplotlib (its import is a fifth of the start-up): the
+    report's text needs only the figures' names and colours."""
+    import subprocess
+    import sys
+
+    code = ("import sys, hrc.cli.compile, hrc.report, hrc.report.drawer, hrc.compile.stream; "
+            "sys.exit('matplotlib' in sys.modules)")
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_simulation_figures_in_two_processes_are_those_of_one(tmp_path: Path) -> None:
+    """`write_simulation_figures` splits its figures over two processes: the same files, byte for byte,
+    as each figure drawn and saved in this process by the functions that make it."""
+    from hrc.report.figures import save_png
+    from hrc.report.simulation import (
+        animation_gif,
+        makespan_figure,
+        run_gantt_figure,
+        trajectories_figure,
+        write_simulation_figures,
+    )
+    from hrc.sim.human import HumanModel
+    from hrc.sim.montecarlo import simulate
+    from hrc.sim.policies import POLICIES
+    from hrc.sim.run import SimSettings, simulate_run
+
+    task = load_task(Path(__file__).resolve().parents[1] / "tasks" / "cube_stacking.yaml")
+    sim = simulate(task, 2, 0, ["hrc", "fixed"], SimSettings(human=HumanModel()), jobs=1)
+    featured = {p: simulate_run(sim.context, p, 0, record=True) for p in sim.policies}
+    names = write_simulation_figures(sim, featured, tmp_path / "two")
+    one = tmp_path / "one"
+    one.mkdir()
+    save_png(makespan_figure(sim), one / "makespans.png")
+    for policy, result in featured.items():
+        cps = sim.context.compiles[POLICIES[policy].compile]
+        cp = next((c for c in cps.plans if c.plan.id == result.first_plan), None)
+        save_png(run_gantt_figure(task, cp, result), one / f"gantt_{policy}_run0.png")
+        save_png(trajectories_figure(task, result), one / f"trajectories_{policy}_run0.png")
+    animation_gif(task, featured["hrc"], one / "run_hrc_run0.gif")
+    two = _files(tmp_path / "two")
+    assert sorted(names.values()) == sorted(two) and len(two) == 6
+    assert two == {f"figures/{p.name}": p.read_bytes() for p in one.iterdir()}
+
+
+def test_figures_from_the_disk_cache_are_the_figures_drawn(cps: CompiledPlanSet, tmp_path: Path, monkeypatch) -> None:
+    """A report of the same plans again copies every figure from the disk cache (nothing drawn: drawing
+    made to fail), the same bytes; a plan that differs (its schedule a second later) is drawn again; no
+    cache (HRC_CACHE_DIR empty), no files."""
+    import hrc.report.figures
+    from hrc.caches import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    write_report(cps, tmp_path / "first")
+    first = _files(tmp_path / "first")
+    n = len([k for k in first if k.startswith("figures/")])
+    assert len(list((tmp_path / "cache" / "figures").iterdir())) == n >= 10
+
+    def no_drawing(*args, **kwargs):
+        raise AssertionError("drawn")
+
+    monkeypatch.setattr(hrc.report.figures, "save_png", no_drawing)
+    write_report(cps, tmp_path / "again")
+    assert _files(tmp_path / "again") == first
+    cp = cps.plans[0]
+    later = replace(cp, classification=replace(cp.classification, schedule=tuple(
+        (name, t + 1.0) for name, t in cp.classification.schedule)))
+    with pytest.raises(AssertionError, match="drawn"):
+        write_report(replace(cps, plans=(later, *cps.plans[1:])), tmp_path / "later")
+    monkeypatch.undo()
+    monkeypatch.setenv(CACHE_ENV, "")
+    write_report(cps, tmp_path / "none")
+    assert _files(tmp_path / "none") == first and len(list((tmp_path / "cache" / "figures").iterdir())) == n

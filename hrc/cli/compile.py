@@ -30,6 +30,7 @@ uninterrupted run writes, byte for byte.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -441,8 +442,13 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
 
     # an earlier output is not replaced by a partial one (but the one resumed is: it holds fewer plans)
     earlier = Path(out).is_dir() and any(Path(out).iterdir()) and resume is None
+    drawer = None
+    if not args.no_report:  # the figures' process, started now: matplotlib is imported there meanwhile
+        from hrc.report.drawer import FigureDrawer
+
+        drawer = FigureDrawer(task)
     try:
-        with claim.staging(check_earlier=_check_earlier(out)) as stage:
+        with claim.staging(check_earlier=_check_earlier(out)) as stage, drawer or contextlib.nullcontext():
             try:
                 result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
                                         options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
@@ -465,7 +471,8 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                 from hrc.report import write_report
 
                 t1, c1 = time.perf_counter(), time.process_time()
-                write_report(result.plan_set, stage, _margin_compile(task, args.seed, jobs, args.executor, options))
+                write_report(result.plan_set, stage, _margin_compile(task, args.seed, jobs, args.executor, options),
+                             drawer=drawer)
                 stages.append(("report (figures, tables)", time.perf_counter() - t1, time.process_time() - c1))
     except Abandoned as kept:  # the staging folder is gone with nothing written into it
         print(f"error: interrupted after {kept.compiled:,} of {total:,} plans; the earlier output in {out} is kept "

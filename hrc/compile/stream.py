@@ -168,8 +168,8 @@ class Sample:
 
 
 def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], options: CompileOptions,
-            stnu: str, sink: PlanSink, budget: float, taken: frozenset[str] = frozenset()) -> Sample:
-    """Compile sample families here until `budget` seconds pass (at least one family, at most 16 plans),
+            stnu: str, sink: PlanSink, budget: float, taken: frozenset[str] = frozenset(), most: int = 16) -> Sample:
+    """Compile sample families here until `budget` seconds pass (at least one family, at most `most` plans),
     then the same again (`Sample`): the time and disk per plan for the up-front estimate; the first
     time's plans are kept, not wasted (but for those the sink has `taken` already)."""
     t0 = time.perf_counter()
@@ -186,7 +186,7 @@ def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], op
                 size += len(zlib.compress(cp.graphml.encode(), 1))
         n += len(family)
         done += 1
-        if time.perf_counter() - t0 >= budget or n >= 16:
+        if time.perf_counter() - t0 >= budget or n >= most:
             break
     t1 = time.perf_counter()
     compile_records(options, stnu, task, paths, families[:done])  # again, with this process's caches filled
@@ -242,7 +242,10 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
             # the estimate's sample comes from allocations spread over the whole space (the stream's first
             # plans are all of one corner: the human doing everything), and is left out of the stream
             spread = spread_families(task, 16, symmetry)
-            sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken)
+            # at most a quarter of a small compile: this process compiles the sample alone (twice), while
+            # the workers share the rest
+            sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken,
+                             most=max(1, min(16, total // 4)))
             per_plan = sample.seconds_per_plan
             done = {f[0] for f in spread[:sample.families]}
             check()

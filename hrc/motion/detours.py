@@ -11,6 +11,11 @@ shortcutting). The result lies in another homotopy class round the obstacles whe
 cut the shortest one; it is ``None`` when the blocked places enclose the robot's origin or target or
 leave no way through.
 
+Cached per ``(origin, target, blocked places)`` in the library's per-process cache and on disk
+(`hrc.caches.cache_folder` ``detours``, beside the roadmaps), keyed by everything a detour is computed
+from: a compile of the same map and agents (an edited duration, another deadline) plans none again,
+and a worker reads what another worker of the same compile planned first (issue 38).
+
 Deterministic (the roadmap is fixed per seed; no sampling here). Cost: one world (pymunk + FCL) with the
 blocked places, one edge filter (shapely, vectorized) and one roadmap query: a few tens of ms, cached per
 ``(origin, target, blocked places)`` in the library's per-process cache.
@@ -19,6 +24,7 @@ blocked places, one edge filter (shapely, vectorized) and one roadmap query: a f
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
 from collections.abc import Sequence
 
@@ -26,6 +32,7 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, MultiPolygon, Point, Polygon
 
+from hrc.caches import cache_folder, disk_load, disk_store, source_digest
 from hrc.model import Obstacle, Task, Workspace
 from hrc.motion.conflicts import STEP
 from hrc.motion.paths import Path, PathLibrary
@@ -113,6 +120,15 @@ def detour(task: Task, paths: PathLibrary, agent_id: str, origin: str, target: s
     if _within(a, shapes, reach) or _within(b, shapes, reach):
         paths.samples[key] = None
         return None
+    folder = cache_folder("detours")
+    dkey = ""
+    if folder is not None and roadmap is not None:  # on disk, by everything it is computed from (`_disk_key`)
+        dkey = _disk_key(task, paths, roadmap, agent_id, origin, target, tuple(shapes), label)
+        found = disk_load(folder, dkey)
+        if found is not None:
+            result = found[0]
+            paths.samples[key] = result
+            return result
     region = blocked_region(shapes, other.radius + STEP)
     zone = shapely.union_all([p.buffer(clearance) for p in region])
     if roadmap is not None and not (zone.intersects(Point(a)) or zone.intersects(Point(b))):
@@ -124,4 +140,35 @@ def detour(task: Task, paths: PathLibrary, agent_id: str, origin: str, target: s
                 length = sum(math.dist(p, q) for p, q in zip(pts, pts[1:], strict=False))
                 result = Path(agent_id, origin, target, tuple(pts), length, length / agent.speed, label)
     paths.samples[key] = result
+    if dkey:
+        disk_store(folder, dkey, (result,))
     return result
+
+
+def _disk_key(task: Task, paths: PathLibrary, roadmap: Roadmap, agent_id: str, origin: str, target: str,
+              shapes: tuple[Shape, ...], label: str) -> str:
+    """What a detour is computed from: the code, the map's bounds and obstacles, the roadmap (its points
+    and edges, by digest), both agents (radius, speed, margin), the two ends and the blocked shapes
+    (floats by their exact ``repr``)."""
+    ws = task.workspace
+    agents = tuple((a.id, a.radius, a.speed) for a in task.agents)
+    return repr(("detour-1", _code_digest(), ws.bounds, [(o.id, o.polygon) for o in ws.obstacles],
+                 _roadmap_digest(roadmap), task.safety_margin, agents, agent_id, origin, paths.locations[origin],
+                 target, paths.locations[target], shapes, label))
+
+
+_ROADMAP_DIGESTS: dict[int, tuple[Roadmap, str]] = {}  # id -> (the roadmap, kept alive for its id; digest)
+
+
+def _roadmap_digest(roadmap: Roadmap) -> str:
+    held = _ROADMAP_DIGESTS.get(id(roadmap))
+    if held is None or held[0] is not roadmap:
+        digest = hashlib.sha256(repr((roadmap.clearance, roadmap.points, roadmap.edges)).encode()).hexdigest()
+        held = _ROADMAP_DIGESTS[id(roadmap)] = (roadmap, digest)
+    return held[1]
+
+
+@functools.cache
+def _code_digest() -> str:
+    return source_digest("hrc.motion.detours", "hrc.motion.planner", "hrc.motion.world", "hrc.motion.paths",
+                         "hrc.motion.conflicts")

@@ -10,11 +10,12 @@ from __future__ import annotations
 import io
 from collections.abc import Mapping
 from pathlib import Path
-
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
 from hrc.model import Task
+
+if TYPE_CHECKING:  # matplotlib is imported where a figure is made (`new_figure`): the colours come without it
+    from matplotlib.figure import Figure
 
 __all__ = ["AGENT_COLORS", "CLASS_COLORS", "DPI", "HUMAN_COLOR", "ROBOT_COLOR", "agent_color", "counts_figure",
            "makespans_figure", "new_figure", "save_png"]
@@ -44,19 +45,25 @@ def agent_color(task: Task, agent_id: str) -> str:
 
 def new_figure(width: float, height: float) -> Figure:
     """A figure of `width` x `height` inches attached to its own Agg canvas."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(width, height), dpi=DPI)
     FigureCanvasAgg(fig)
     return fig
 
 
-def save_png(fig: Figure, path: Path, clear: bool = True) -> None:
-    """Render `fig` to `path` as a PNG whose bytes depend only on the figure, then (`clear`) free it."""
+def save_png(fig: Figure, path: Path, clear: bool = True) -> bytes:
+    """Render `fig` to `path` as a PNG whose bytes depend only on the figure, then (`clear`) free it;
+    returns the bytes written."""
     buf = io.BytesIO()
     # compress_level 3: a third faster than the default 6 for some 10 % more bytes
     fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None}, pil_kwargs={"compress_level": 3})
     if clear:
         fig.clear()
-    path.write_bytes(buf.getvalue())
+    data = buf.getvalue()
+    path.write_bytes(data)
+    return data
 
 
 def counts_figure(counts: Mapping[str, int]) -> Figure:

@@ -20,7 +20,7 @@ from matplotlib.patches import Polygon, Rectangle
 from matplotlib.ticker import MaxNLocator
 
 from hrc.report.figures import agent_color, new_figure
-from hrc.report.summary import motion_notes
+from hrc.report.summary import plan_motion_notes
 
 if TYPE_CHECKING:
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
@@ -52,7 +52,7 @@ def draw_workspace(ax: Axes, workspace: Workspace) -> None:
     ax.set_ylabel("y (m)")
 
 
-def route_points(cps: CompiledPlanSet, cp: CompiledPlan, agent: str) -> list[tuple[list[tuple[float, float]], bool]]:
+def route_points(cp: CompiledPlan, agent: str) -> list[tuple[list[tuple[float, float]], bool]]:
     """The agent's travelled routes in leg order (legs without travel left out), each with "is a detour"."""
     out = []
     for m in sorted((m for m in cp.motions if m.agent == agent), key=lambda m: m.leg):
@@ -110,9 +110,9 @@ def map_base(task: Task) -> tuple[Figure, Axes]:
     return fig, ax
 
 
-def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
-    """Draw `cp`'s routes, interference points and legend on a `map_base` axes; returns what it added."""
-    task = cps.task
+def draw_map(ax: Axes, task: Task, cp: CompiledPlan) -> list[Artist]:
+    """Draw `cp` (a plan of `task`): its routes, interference points and legend on a `map_base` axes;
+    returns what it added."""
     added: list[Artist] = []
     handles: list[Artist] = []
     n = len(task.agents)
@@ -120,7 +120,7 @@ def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
         color = agent_color(task, agent.id)
         shift = (i - (n - 1) / 2) * _OFFSET * 2
         any_detour = False
-        for pts, is_detour in route_points(cps, cp, agent.id):
+        for pts, is_detour in route_points(cp, agent.id):
             moved = [(x + shift, y - shift) for x, y in pts]
             xs, ys = zip(*moved, strict=True)
             added += ax.plot(xs, ys, color=color, linewidth=1.6, alpha=0.85, solid_capstyle="round", zorder=3,
@@ -134,7 +134,7 @@ def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
                                   label=f"{agent.id} detour"))
     # one X per distinct point; a point several waits share gets one line per wait
     at: dict[tuple[float, float], list[str]] = {}
-    for note in motion_notes(cps, cp)[1]:
+    for note in plan_motion_notes(task, cp)[1]:
         key = (round(float(note.point[0]), 2), round(float(note.point[1]), 2))
         at.setdefault(key, []).append(f"{note.waiting} waits {note.wait:.1f} s")
     # each place numbered on the map, its waits said in the legend: words never overprint routes or each other
@@ -156,5 +156,5 @@ def draw_map(ax: Axes, cps: CompiledPlanSet, cp: CompiledPlan) -> list[Artist]:
 def map_figure(cps: CompiledPlanSet, cp: CompiledPlan) -> Figure:
     """The map of `cp` on a figure of its own (see the module docstring)."""
     fig, ax = map_base(cps.task)
-    draw_map(ax, cps, cp)
+    draw_map(ax, cps.task, cp)
     return fig

@@ -17,9 +17,10 @@ frames quantized by Pillow (no timestamps in either). Only this layer plots (hou
 
 from __future__ import annotations
 
+import functools
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -281,24 +282,43 @@ def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_S
 def write_simulation_figures(sim: Simulation, featured: dict[str, RunResult], out_dir: Path,
                              gif: bool = True) -> dict[str, str]:
     """Write the figures into ``out_dir/figures`` (and ``run.gif``); `featured` maps a policy to a
-    recorded run of it. Returns figure key -> path relative to `out_dir`."""
+    recorded run of it. Returns figure key -> path relative to `out_dir`.
+
+    Drawn in two processes at once (`hrc.report.drawer.draw_in_two`, the figures split by their usual
+    cost: the GIF, each Gantt, each map): this is the last, serial step of ``hrc simulate``, and the
+    files are those one process draws, byte for byte (each figure is drawn on a figure of its own)."""
+    from hrc.report.drawer import draw_in_two, shares
+    from hrc.sim.policies import POLICIES
+
     fig_dir = out_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     written: dict[str, str] = {}
     task = sim.context.task
-    save_png(makespan_figure(sim), fig_dir / "makespans.png")
+    todo: list[tuple[float, Callable[[], object]]] = [  # (CPU seconds on the workshop, draw and save)
+        (0.23, lambda: save_png(makespan_figure(sim), fig_dir / "makespans.png"))]
     written["makespans"] = "figures/makespans.png"
     for policy, result in featured.items():
-        from hrc.sim.policies import POLICIES
-
         cps = sim.context.compiles[POLICIES[policy].compile]
         cp = next((c for c in cps.plans if c.plan.id == result.first_plan), None)
-        save_png(run_gantt_figure(task, cp, result), fig_dir / f"gantt_{policy}_run{result.run}.png")
-        written[f"gantt_{policy}"] = f"figures/gantt_{policy}_run{result.run}.png"
-        save_png(trajectories_figure(task, result), fig_dir / f"trajectories_{policy}_run{result.run}.png")
-        written[f"trajectories_{policy}"] = f"figures/trajectories_{policy}_run{result.run}.png"
+        gantt, traj = f"gantt_{policy}_run{result.run}.png", f"trajectories_{policy}_run{result.run}.png"
+        todo.append((0.35, functools.partial(_save, run_gantt_figure, (task, cp, result), fig_dir / gantt)))
+        written[f"gantt_{policy}"] = f"figures/{gantt}"
+        todo.append((0.13, functools.partial(_save, trajectories_figure, (task, result), fig_dir / traj)))
+        written[f"trajectories_{policy}"] = f"figures/{traj}"
     if gif and featured:
         policy, result = next(iter(featured.items()))
-        animation_gif(task, result, fig_dir / f"run_{policy}_run{result.run}.gif")
-        written["gif"] = f"figures/run_{policy}_run{result.run}.gif"
+        name = f"run_{policy}_run{result.run}.gif"
+        todo.append((0.6, functools.partial(animation_gif, task, result, fig_dir / name)))
+        written["gif"] = f"figures/{name}"
+    groups = shares([w for w, _ in todo])
+
+    def draw(share: tuple[int, int]) -> None:
+        for i in groups[share[0]]:
+            todo[i][1]()
+
+    draw_in_two(draw)
     return dict(sorted(written.items()))
+
+
+def _save(make: Callable[..., Figure], args: tuple, path: Path) -> None:
+    save_png(make(*args), path)

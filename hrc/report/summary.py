@@ -26,7 +26,7 @@ __all__ = ["CLASS_MEANING", "DetourNote", "FEATURED_TOP", "INLINE_LINKS", "MIN_W
            "STATS_HEADER", "agent_letters", "allocation_legend", "binding_orders", "build_report_data",
            "empty_class_reason", "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks",
            "fmt_passing", "fmt_preference", "fmt_sequence", "fmt_stnu", "motion_notes", "occupancy_words",
-           "passing_words", "sensing_sentences", "split_explanation", "stats_rows", "table_scope"]
+           "passing_words", "plan_motion_notes", "sensing_sentences", "split_explanation", "stats_rows", "table_scope"]
 
 PREFERENCE_HEADER = "Preference (higher is better)"
 """The ranked table's preference column: APA's value has no unit (a sum of the task's preference functions)."""
@@ -241,7 +241,12 @@ def motion_notes(cps: CompiledPlanSet, cp: CompiledPlan) -> tuple[tuple[DetourNo
     """The plan's detours, and the passing orders that make an agent wait in the earliest schedule (at
     least `MIN_WAIT`: an order that is tight but makes nobody stand still is not listed;
     a wait at a waiting place on the way counts)."""
-    task, plan = cps.task, cp.plan
+    return plan_motion_notes(cps.task, cp)
+
+
+def plan_motion_notes(task: Task, cp: CompiledPlan) -> tuple[tuple[DetourNote, ...], tuple[PassingNote, ...]]:
+    """`motion_notes` of `cp`, a plan of `task` (what the map figures need: no plan set)."""
+    plan = cp.plan
     legs = {(leg.agent, leg.index): leg for a in task.agents for leg in agent_legs(task, plan, a.id)}
     detours = tuple(
         DetourNote(m.agent, _step(legs[(m.agent, m.leg)].action, legs[(m.agent, m.leg)].phase), m.origin, m.target,

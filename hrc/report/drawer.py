@@ -1,0 +1,160 @@
+"""The report's figures drawn beside the compile, in two processes of their own (issue 38).
+
+Drawing the figures is most of a small compile's report (matplotlib's import and 16 PNGs: about 2 s of
+the workshop's 5), and it needs only what the figures show (`hrc.report.plan_figures.FigureWork`). A `FigureDrawer`
+is started (forked) before the compile plans its paths: while this process plans, it imports matplotlib
+and draws each figure's plan-independent base (axes, the workspace), on the core the path planning
+leaves idle. Once the plans are ranked, `draw` hands it the work; it forks once more, so that the figures
+are drawn half each (`hrc.report.plan_figures.draw_figures`' share) at once on both cores, while this process
+writes the report's text (whose figure names are known in advance: `hrc.report.plan_figures.figure_names`); `wait`
+returns when every file is written. The files are those `hrc.report.write_figures` writes, byte for byte:
+the same functions draw them, each figure on a base drawn the same way (tests/test_report_drawer.py).
+
+Like the compile's pool workers (`hrc.compile.executors`), the drawer ignores SIGINT and SIGTERM (the
+compile alone decides how to stop) and dies with its parent; `close` stops it if the report was never
+asked for (an interrupted compile). A failure in it is raised here as `RuntimeError` with its traceback.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import signal
+import traceback
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from hrc.model import Task
+    from hrc.report.plan_figures import FigureWork
+
+__all__ = ["FigureDrawer", "draw_in_two", "shares"]
+
+
+class FigureDrawer:
+    """A process that draws a report's figures when asked (module docstring). Use as a context manager
+    around the compile; at most one `draw` then `wait`."""
+
+    def __init__(self, task: Task) -> None:
+        ctx = mp.get_context("fork")  # the task and the imports so far come with the fork, not pickled
+        self._conn, theirs = ctx.Pipe()
+        self._proc = ctx.Process(target=_serve, args=(task, theirs, os.getpid()), name="hrc-figures", daemon=True)
+        self._proc.start()
+        theirs.close()
+        self._asked = False
+
+    def __enter__(self) -> FigureDrawer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def draw(self, work: FigureWork, out_dir: Path) -> None:
+        """Start drawing `work`'s figures into ``out_dir/figures``; `wait` for them."""
+        self._conn.send((work, str(out_dir)))
+        self._asked = True
+
+    def wait(self) -> None:
+        """Return once the figures `draw` asked for are written; raise `RuntimeError` if drawing failed."""
+        try:
+            answer = self._conn.recv()
+        except EOFError:
+            answer = f"the figure process ended (exit status {self._proc.exitcode}) before its figures were written"
+        self._asked = False
+        if answer is not None:
+            raise RuntimeError(f"drawing the report's figures failed:\n{answer}")
+
+    def close(self) -> None:
+        """Stop the process (at once if it is still drawing: the staging folder is thrown away then)."""
+        if self._proc.is_alive():
+            if self._asked:
+                self._proc.kill()
+            else:
+                self._conn.send(None)  # nothing to draw: it ends
+        self._conn.close()
+        self._proc.join(timeout=5)
+        if self._proc.is_alive():  # pragma: no cover - it ends on the message above
+            self._proc.kill()
+            self._proc.join()
+
+
+def _serve(task: Task, conn: Connection, parent: int) -> None:
+    from hrc.compile.executors import _die_with_parent
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    _die_with_parent(parent, direct=True)
+    failed: str | None = None
+    try:
+        from hrc.report.plan_figures import draw_figures, figure_bases
+
+        # the bases every plan's figure is drawn on, drawn once here while the compile runs (with the
+        # import, the font cache and the text layouts they warm): both processes below reuse them
+        bases = figure_bases(task)
+        for fig, _ in bases.values():
+            fig.canvas.draw()
+    except BaseException:  # noqa: BLE001 - said when the work is asked for
+        failed = traceback.format_exc()
+    job: Any = conn.recv()
+    if job is None:
+        return
+    if failed is not None:
+        conn.send(failed)
+        return
+    work, out = job
+    conn.send(_draw_in_two(lambda share: draw_figures(work, Path(out), share, bases)))
+
+
+def _draw_in_two(draw: Callable[[tuple[int, int]], None]) -> str | None:
+    """``draw((1, 2))`` in a forked child and ``draw((0, 2))`` here, at once; None, or what went wrong."""
+    read, write = os.pipe()
+    child = os.fork()
+    if child == 0:  # the child: its share, then out without the parent's exit handlers
+        os.close(read)
+        code = 0
+        try:
+            from hrc.compile.executors import _die_with_parent
+
+            _die_with_parent(os.getppid(), direct=True)
+            draw((1, 2))
+        except BaseException:  # noqa: BLE001 - handed to the parent
+            os.write(write, traceback.format_exc().encode())
+            code = 1
+        finally:
+            os.close(write)
+            os._exit(code)
+    os.close(write)
+    failed = None
+    try:
+        draw((0, 2))
+    except BaseException:  # noqa: BLE001 - handed to the caller
+        failed = traceback.format_exc()
+    with os.fdopen(read, "rb") as pipe:
+        theirs = pipe.read().decode()
+    _, status = os.waitpid(child, 0)
+    if theirs or status:
+        failed = (failed or "") + (theirs or f"the second figure process ended with status {status}")
+    return failed
+
+
+def draw_in_two(draw: Callable[[tuple[int, int]], None]) -> None:
+    """``draw(share)`` for the shares ``(0, 2)`` and ``(1, 2)`` at once: the second in a process forked
+    from this one (it has what this one has), the first here; returns when both are done, raises
+    `RuntimeError` with the failure's traceback if either failed."""
+    failed = _draw_in_two(draw)
+    if failed is not None:
+        raise RuntimeError(f"drawing the figures failed:\n{failed}")
+
+
+def shares(weights: list[float], n: int = 2) -> list[list[int]]:
+    """Indices of `weights` in `n` groups of about equal total (longest first, each to the lightest
+    group so far; ties to the first): a fixed split, the same for the same weights."""
+    groups: list[list[int]] = [[] for _ in range(n)]
+    load = [0.0] * n
+    for i in sorted(range(len(weights)), key=lambda i: (-weights[i], i)):
+        k = load.index(min(load))
+        groups[k].append(i)
+        load[k] += weights[i]
+    return [sorted(g) for g in groups]

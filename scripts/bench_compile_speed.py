@@ -1,0 +1,84 @@
+"""Benchmark what a person waits for (issue 38): the workshop compile with its report, cold and warm cache.
+
+    .venv/bin/python scripts/bench_compile_speed.py [--before DIR] [--repeat 3]
+        [--command "compile tasks/cube_stacking.yaml"] [--modes cold warm]
+
+Each run is a fresh ``python -m hrc COMMAND --out OUT -q`` process (start-up, path planning, the worker
+pool and the report counted, as a user sees them), from this checkout and, with ``--before DIR``, from
+another checkout of the code (e.g. ``git archive main | tar -x -C DIR`` with its C core built in place):
+the same hour, the same load. *cold*: the path cache (``HRC_CACHE_DIR``, a temporary folder) emptied
+before each run; *warm*: filled by one untimed run first. The table gives each run's wall time and CPU
+time (user + sys of the whole process tree: the compile, its workers and the figure processes, from
+``getrusage(RUSAGE_CHILDREN)``; less sensitive to a shared machine's load than the wall time), their
+medians, and the load average (1 min) before the first and after the last run of each row.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import shlex
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_once(root: Path, command: list[str], out: Path, cache: Path) -> tuple[float, float]:
+    """Wall and CPU seconds (user + sys of the process tree) of one ``hrc COMMAND --out OUT -q`` from `root`."""
+    shutil.rmtree(out, ignore_errors=True)
+    env = {**os.environ, "PYTHONPATH": str(root), "HRC_CACHE_DIR": str(cache)}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "hrc", *command, "--out", str(out), "-q"], cwd=root, env=env, check=True,
+                   stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    ap.add_argument("--before", type=Path, default=None, metavar="DIR", help="another checkout to compare with")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--command", default="compile tasks/cube_stacking.yaml")
+    ap.add_argument("--modes", nargs="+", default=["cold", "warm"], choices=("cold", "warm"))
+    args = ap.parse_args()
+    roots = ([("before", args.before.resolve())] if args.before else []) + [("after", ROOT)]
+    command = shlex.split(args.command)
+    print(f"`hrc {args.command}`, {args.repeat} runs each, {os.cpu_count()} cores\n")
+    print("| code | cache | wall, s (runs) | wall median | CPU, s (runs) | CPU median | load |")
+    print("|---|---|---|---:|---|---:|---|")
+    with tempfile.TemporaryDirectory(prefix="hrc-bench-speed-") as tmp:
+        for label, root in roots:
+            for mode in args.modes:
+                cache = Path(tmp) / f"cache-{label}"
+                out = Path(tmp) / "out"
+                shutil.rmtree(cache, ignore_errors=True)
+                if mode == "warm":
+                    run_once(root, command, out, cache)
+                load0 = os.getloadavg()[0]
+                walls, cpus = [], []
+                for _ in range(args.repeat):
+                    if mode == "cold":
+                        shutil.rmtree(cache, ignore_errors=True)
+                    wall, cpu = run_once(root, command, out, cache)
+                    walls.append(wall)
+                    cpus.append(cpu)
+                load1 = os.getloadavg()[0]
+                runs = ", ".join(f"{w:.2f}" for w in walls)
+                print(f"| {label} | {mode} | {runs} | **{statistics.median(walls):.2f}** "
+                      f"| {', '.join(f'{c:.2f}' for c in cpus)} | **{statistics.median(cpus):.2f}** "
+                      f"| {load0:.1f}-{load1:.1f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
