@@ -31,7 +31,9 @@ plan shown until they choose otherwise: docs/dispatch.md). Legs under way keep t
 `_on_routes`): the one told when the leg began, or a waiting place where the agent was seen stopping.
 While the person's walk or manipulation is under way, the answer carries their next instruction ahead
 (`_ahead`). A person's event estimated within `bound_tolerance` of their hint's bound is read on it
-(`_on_bound`); one learnt later than `max_observation_delay` voids the guarantee (`_late`).
+(`_on_bound`); one learnt later than `max_observation_delay` voids the guarantee (`_late`). Where the
+sensing may err or be late, the robot's windows hold for every time the person's seen events may truly
+have happened (`_windows`, `_hinted`: docs/dispatch.md, "Windows from what the robot can know").
 
 Nothing here reads a clock: time comes in with the messages, so a run replays from its log to the same
 decisions. A refused message raises `DispatchError` and leaves the dispatcher as it was.
@@ -524,7 +526,8 @@ class Dispatcher:
         or a manipulation under way): their next own step after it, and the robot's last event not yet
         done that the plan's network orders no later than that step (a distance ``T(x) - T(step) <= -gap <= 0``
         in its STN reading: requirement links, contingent links at their bounds, by Bellman-Ford from
-        the step). None when the person is not under way, away, done, or the network has a negative cycle
+        the step); when there is none, the robot's event already done that holds the step back latest, if
+        that is after now. None when the person is not under way, away, done, or the network has a negative cycle
         (no schedule: nothing to promise)."""
         human = history.human
         if not human or history.away:
