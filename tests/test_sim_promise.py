@@ -103,3 +103,17 @@ def test_kitting_under_the_motion_detector_keeps_the_promise_the_old_dispatcher_
             assert r.first_broken == ()
             kept += 1
     assert kept >= 4
+
+
+def test_hrc_simulate_compiles_under_the_stated_sensing_and_reports_the_promise(tmp_path, capsys):
+    from hrc.cli import main
+
+    out = tmp_path / "sim"
+    assert main(["simulate", str(WORKSHOP_TASK), "--policy", "hrc", "--human", "follow", "--runs", "1", "--jobs",
+                 "1", "--no-figures", "--detection-delay", "0.7", "--sensing", "buttons", "--observation-delay",
+                 "0:0.6", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "the promise under buttons (observation delay [0, 0.6] s)" in printed
+    assert "1/1 runs with an observation later than stated" in printed
+    data = json.loads((out / "simulation.json").read_text())
+    assert data["policies"]["hrc"]["aggregate"]["promise"]["runs_with_late_observations"] == 1
