@@ -117,3 +117,26 @@ def test_hrc_simulate_compiles_under_the_stated_sensing_and_reports_the_promise(
     assert "1/1 runs with an observation later than stated" in printed
     data = json.loads((out / "simulation.json").read_text())
     assert data["policies"]["hrc"]["aggregate"]["promise"]["runs_with_late_observations"] == 1
+
+
+@pytest.mark.slow
+def test_without_the_c_core_the_windows_under_the_detector_are_the_same(workshop):
+    """The Python reading of the windows (no C core) takes an estimate's latest possible time after the
+    last message as the core does: the same run, field for field (it used to refuse it and stick)."""
+    import copy
+
+    from hrc.sim.run import make_controller
+
+    task, cps = workshop
+    ctx = _motion(task, cps)
+
+    def python_only(c, policy):
+        ctl = make_controller(c, policy)
+        ranker = copy.copy(ctl.d.ranker)
+        ranker.native = None
+        ctl.d.ranker = ranker
+        return ctl
+
+    native = simulate_run(ctx, "hrc", 1).to_json()
+    plain = simulate_run(_motion(task, cps), "hrc", 1, controller=python_only).to_json()
+    assert plain == native and native["finished"]
