@@ -402,7 +402,8 @@ def _next_events(entry: PlanEntry, agent: str, history: History) -> list[Observa
 def _ahead(entry: PlanEntry, done: dict[str, int], history: History) -> Ahead | None:
     """The person's next own step after the event of theirs now due (nature's), and the robot's last
     event not done whose distance from that step in the STN reading (requirement links both ways,
-    contingent links at their bounds) is at most 0: Bellman-Ford over the link objects, by name."""
+    contingent links at their bounds) is at most 0: Bellman-Ford over the link objects, by name; when
+    there is none, the done robot event at that distance whose time plus the gap is latest, if after now."""
     human = history.human
     if not human or history.away:
         return None
@@ -442,6 +443,12 @@ def _ahead(entry: PlanEntry, done: dict[str, int], history: History) -> Ahead | 
     robot = next(a.id for a in history.task.agents if not a.is_human)
     before = [n for a, p in entry.legs.get(robot, ()) for _, n in entry.leg_points[(robot, a, p)]
               if n not in done and dist[n] <= 0]
+    if not before:  # else the done robot event that holds the step back latest, if after now (ties: by name)
+        now = round(history.now * 1000)
+        held = sorted((done[n] - dist[n], n) for a, p in entry.legs.get(robot, ())
+                      for _, n in entry.leg_points[(robot, a, p)] if n in done and dist[n] <= 0)
+        if held and held[-1][0] > now:
+            before = [held[-1][1]]
     wait = ".".join(entry.events[before[-1]]) if before else None
     gap = round(-dist[before[-1]] / 1000, 3) + 0.0 if before else 0.0
     return Ahead(f"{human}.{pending[0][0]}.{pending[0][1]}.{pending[0][2]}", f"{human}.{step[0]}.{step[1]}.{step[2]}",

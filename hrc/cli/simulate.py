@@ -17,12 +17,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hrc.cli.compile import _Progress
+from hrc.cli.argtypes import delay_range
+from hrc.cli.compile import _Progress, _stated_sensing
 from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
-__all__ = ["add_parser", "format_detection", "format_ssm", "format_table", "run"]
+__all__ = ["add_parser", "format_detection", "format_promise", "format_ssm", "format_table", "run"]
 
 POLICY_NAMES = ("hrc", "motion-blind", "feasible-only", "fixed")  # hrc.sim.policies.POLICIES, not imported here
 
@@ -60,7 +61,14 @@ def add_parser(sub: Any) -> None:
                    help="buttons: the person's events reach the dispatcher (--detection-delay late); motion: their "
                         "tracked position goes to the motion detector (hrc.detect), its events to the dispatcher")
     g.add_argument("--detection-delay", type=float, default=0.0,
-                   help="seconds before the buttons' events are reported")
+                   help="seconds before the buttons' events are reported (each message says so: its delay)")
+    g.add_argument("--sensing", choices=("buttons", "motion"), default=None,
+                   help="compile under this sensing path and its stated observation delay (buttons [0, 0.5] s, "
+                        "motion 2.6 s dated; default: the task's sensing:), as the task's sensing: would; the "
+                        "dispatcher reads a later observation as a deviation, and the report counts the promise")
+    g.add_argument("--observation-delay", metavar="LO:HI", type=delay_range, default=None,
+                   help="the stated observation delay in seconds (D, LO:HI), as hrc compile's; overrides the "
+                        "task's sensing: or --sensing (its path kept)")
     g.add_argument("--sensor-sigma", type=float, default=0.05, metavar="M",
                    help="--detector motion: the tracker's position noise, m per axis (default 0.05)")
     g.add_argument("--sensor-rate", type=float, default=10.0, metavar="HZ",
@@ -136,6 +144,26 @@ def format_table(sim: Any) -> str:
     return "\n".join([lines[0], "  ".join("-" * w for w in widths), *lines[1:]])
 
 
+def format_promise(sim: Any) -> str:
+    """Under a stated sensing (issue 32): per policy, the runs on a plan DC at that sensing, with every
+    observation within the stated delay, keeping every constraint; and the runs with a later observation.
+    Empty when no delay was stated."""
+    from hrc.sim.metrics import aggregate
+
+    sensing = sim.context.task.sensing
+    lines = []
+    for name in sim.policies:
+        p = aggregate(sim.results[name]).get("promise")
+        if p is None:
+            continue
+        n = p["dc_at_sensing_within_delay"]
+        lines.append(f"  {name}: {p['kept_every_constraint']}/{n} runs on a plan DC at the sensing, every observation "
+                     f"within the delay, kept every constraint ({p['dc_at_sensing']} on such a plan); "
+                     f"{p['runs_with_late_observations']}/{len(sim.results[name])} runs with an observation later "
+                     f"than stated ({p['late_observations']} observations)")
+    return "" if not lines else "\n".join([f"the promise under {sensing}:", *lines])
+
+
 def format_detection(sim: Any) -> str:
     """With the motion detector: its measures per policy, and the comparison with buttons as late."""
     from hrc.sim.metrics import aggregate
@@ -196,6 +224,15 @@ def run(args: argparse.Namespace) -> int:
     from hrc.sim.run import SimSettings, simulate_run
 
     task = load_task(args.task)
+    if args.sensing is not None:
+        from dataclasses import replace
+
+        from hrc.model import SENSING_PATHS, Sensing
+
+        delay, dated = SENSING_PATHS[args.sensing]
+        task = replace(task, sensing=Sensing(args.sensing, delay, dated))
+    if args.observation_delay is not None:
+        task = _stated_sensing(task, args.observation_delay)
     out = args.out or f"out/{task.name}-simulation"
     _check_out(out)
     if args.record_runs is not None and (args.record is None or not 1 <= args.record_runs):
@@ -250,6 +287,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"simulated {args.runs} runs x {len(sim.policies)} policies of {task.name} in {elapsed:.1f} s "
               f"(seed {args.seed}, person: {human.choice})")
         print(format_table(sim))
+        promise = format_promise(sim)
+        if promise:
+            print(promise)
         if sim.baseline is not None:
             print(format_detection(sim))
         if task.safety is not None:

@@ -31,7 +31,9 @@ plan shown until they choose otherwise: docs/dispatch.md). Legs under way keep t
 `_on_routes`): the one told when the leg began, or a waiting place where the agent was seen stopping.
 While the person's walk or manipulation is under way, the answer carries their next instruction ahead
 (`_ahead`). A person's event estimated within `bound_tolerance` of their hint's bound is read on it
-(`_on_bound`); one learnt later than `max_observation_delay` voids the guarantee (`_late`).
+(`_on_bound`); one learnt later than `max_observation_delay` voids the guarantee (`_late`). Where the
+sensing may err or be late, the robot's windows hold for every time the person's seen events may truly
+have happened (`_windows`, `_hinted`: docs/dispatch.md, "Windows from what the robot can know").
 
 Nothing here reads a clock: time comes in with the messages, so a run replays from its log to the same
 decisions. A refused message raises `DispatchError` and leaves the dispatcher as it was.
@@ -90,6 +92,7 @@ class _State:
     told: Mapping[tuple[int, int], RouteSig]  # (agent index, leg position) -> the route told (`RouteSig`)
     lead: np.ndarray | None  # per candidate: 1 for a DC plan that gives up the followed person's part
     deviation: Mapping[str, Any] | None  # this answer's: an observation later than the stated delay
+    hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]  # what the person was told (`_hinted`)
 
 
 class Dispatcher:
@@ -304,9 +307,72 @@ class Dispatcher:
         robot = self._robot
         ack = ack_note(state.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
         deviation = self._late(obs)
+        hinted = self._hinted(state, obs)
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
-                                   state, _seen_after(state, history, obs), ack, told, deviation)
+                                   state, _seen_after(state, history, obs), ack, told, deviation, hinted)
         return self._state.decision
+
+    def _hinted(self, state: _State, obs: Observation) -> Mapping[tuple[str, str, str, str], tuple[int, int]]:
+        """`state.hinted` with when `obs` (a person's leg event seen for the first time, through a sensing
+        path that may err or be late) may truly have happened, ``(earliest, latest)`` in ticks (`_windows`):
+
+        - dated (a detector's estimate, `bound_tolerance` > 0): within the tolerance of `obs.t`; and when
+          `obs.t` is the last message's time, the estimate may have been moved up to it (the clock never
+          goes back), so up to `obs.delay` before;
+        - undated (buttons late by up to `max_observation_delay`): between that much before `obs.t` and
+          `obs.t`;
+
+        narrowed to the window the person had been told for it (`_told`). The person does as told: the
+        model the classes are checked in. Unchanged on buttons on time (nothing is uncertain).
+        """
+        hinted = state.hinted
+        history = state.history
+        if obs.event not in LEG_EVENTS or obs.agent != history.human or obs.key in history.times:
+            return hinted
+        at = ticks(obs.t)
+        if self.bound_tolerance > 0:
+            tol = ticks(self.bound_tolerance)
+            back = ticks(obs.delay) if obs.delay is not None and obs.t <= history.now else 0
+            lo, hi = at - tol - back, at + tol
+        elif self.max_observation_delay:
+            lo, hi = at - ticks(self.max_observation_delay), at
+        else:
+            return hinted
+        told = hinted.get(obs.key)  # (`_told`)
+        if told is not None:
+            lo = max(lo, told[0])
+            if told[1] != NO_BOUND:
+                hi = min(hi, told[1])
+        return MappingProxyType({**hinted, obs.key: (min(lo, at), max(hi, at))})
+
+    def _told(self, hinted: Mapping[tuple[str, str, str, str], tuple[int, int]], history: History,
+              decision: Decision) -> Mapping[tuple[str, str, str, str], tuple[int, int]]:
+        """`hinted` with the window `decision` gives the person for their next event, not yet seen: the
+        hint's (`Decision.human`), or the instruction ahead's (`Decision.ahead`: the robot's event seen plus
+        the gap, no latest), widened to every window told for it so far (the person may have acted on an
+        earlier one before the dispatcher learnt it: a hint's earliest moves up with the clock). Kept only
+        where a sensing path may err or be late (`_hinted` reads it)."""
+        if self.bound_tolerance <= 0 and not self.max_observation_delay:
+            return hinted
+        hint, ahead = decision.human, decision.ahead
+        window = None
+        if isinstance(hint, RobotStep):
+            key = (history.human, hint.action, hint.phase, hint.event)
+            window = (ticks(hint.earliest), NO_BOUND if hint.latest is None else ticks(hint.latest))
+        elif hint is None and ahead is not None and ahead.wait_for is not None:
+            seen_t = history.times.get(tuple(ahead.wait_for.split(".")))  # type: ignore[arg-type]
+            key = tuple(ahead.next.split("."))  # type: ignore[assignment]
+            if seen_t is not None:
+                window = (ticks(seen_t + ahead.gap), NO_BOUND)
+        if window is None or key in history.times:
+            return hinted
+        before = hinted.get(key)
+        if before is not None:
+            window = (min(before[0], window[0]), NO_BOUND if NO_BOUND in (before[1], window[1])
+                      else max(before[1], window[1]))
+            if window == before:
+                return hinted
+        return MappingProxyType({**hinted, key: window})
 
     def _on_bound(self, obs: Observation) -> Observation:
         """`obs` read on the bound of the hint the person was given for it when it was estimated within
@@ -404,7 +470,8 @@ class Dispatcher:
     def _settle(self, history: History, accepted: tuple[Observation, ...], effective: tuple[Observation, ...],
                 kept: np.ndarray, do_forms: Any, previous: _State | None,
                 core: tuple[np.ndarray, np.ndarray] | None = None, ack: Any = None,
-                told: Mapping | None = None, deviation: Mapping[str, Any] | None = None) -> _State:
+                told: Mapping | None = None, deviation: Mapping[str, Any] | None = None,
+                hinted: Mapping | None = None) -> _State:
         """Rank `kept` under `history` (set ranking, `Ranker`), decide. A plan's evaluation is taken from
         the `previous` state when what enters it is the same (the seen events and now: a tick at the same
         time, an announced next action, away), else made again. `core`: the history as `seen_arrays`
@@ -438,8 +505,10 @@ class Dispatcher:
             plan_class = CLASS_ORDER[int(cls[at])]
             entry = self.plan_set.entry(best)
             do = dict(do_forms)
+            if hinted is None:
+                hinted = previous.hinted if previous is not None else MappingProxyType({})
             robot, human = self._steps(entry, executed(entry, history), history, plan_class, best, do,
-                                       (seen, legs_seen))
+                                       (seen, legs_seen), hinted)
             do_forms = MappingProxyType(do)
             ahead = self._ahead(entry, best, executed(entry, history), history) if human is None else None
             if self._limits is not None and isinstance(robot, RobotStep):
@@ -447,16 +516,20 @@ class Dispatcher:
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
                                 False, human, ack, deviation, ahead)
         told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told
+        if hinted is None:  # (no plan left: not set above)
+            hinted = previous.hinted if previous is not None else MappingProxyType({})
+        hinted = self._told(hinted, history, decision)
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
                       MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,
-                      deviation)
+                      deviation, hinted)
 
     def _ahead(self, entry: PlanEntry, p: int, done: dict[str, int], history: History) -> Ahead | None:
         """The person's instruction ahead (`Ahead`), while their next event in the plan is nature's (a walk
         or a manipulation under way): their next own step after it, and the robot's last event not yet
         done that the plan's network orders no later than that step (a distance ``T(x) - T(step) <= -gap <= 0``
         in its STN reading: requirement links, contingent links at their bounds, by Bellman-Ford from
-        the step). None when the person is not under way, away, done, or the network has a negative cycle
+        the step); when there is none, the robot's event already done that holds the step back latest, if
+        that is after now. None when the person is not under way, away, done, or the network has a negative cycle
         (no schedule: nothing to promise)."""
         human = history.human
         if not human or history.away:
@@ -497,6 +570,16 @@ class Dispatcher:
         order = [(k, e, n) for k, (a, ph) in enumerate(entry.legs.get(robot, ()))
                  for e, (_, n) in enumerate(entry.leg_points[(robot, a, ph)]) if n not in done]
         before = [n for _, _, n in order if dist[at[n]] <= 0]
+        if not before:
+            # a robot event already done may still hold the step back: ``T(step) >= T(x) + gap`` after now
+            # (issue 32: once the robot had left, "wait 4 s after its departure" fell from the instruction and
+            # the person, told nothing, left at once, breaking the passing order)
+            now = ticks(history.now)
+            bound = [(done[n] - float(dist[at[n]]), n) for a, ph in entry.legs.get(robot, ())
+                     for _, n in entry.leg_points[(robot, a, ph)] if n in done and dist[at[n]] <= 0]
+            bound = [b for b in bound if b[0] > now]
+            if bound:
+                before = [max(bound)[1]]
         wait, gap = None, 0.0
         if before:
             agent, action, phase, event = entry.events[before[-1]]
@@ -522,10 +605,12 @@ class Dispatcher:
         return (dc & ~same).astype(np.int8)
 
     def _steps(self, entry: PlanEntry, done: dict[str, int], history: History, plan_class: str,
-               index: int, do: dict[int, Any], seen: tuple[np.ndarray, np.ndarray]
+               index: int, do: dict[int, Any], seen: tuple[np.ndarray, np.ndarray],
+               hinted: Mapping[tuple[str, str, str, str], tuple[int, int]] | None = None
                ) -> tuple[RobotStep | WaitFor | None, RobotStep | WaitFor | None]:
         """The robot's next step in `entry` (module docstring) and the human's hint (`Decision.human`);
-        `seen`: the history as the core reads it (`seen_arrays`)."""
+        `seen`: the history as the core reads it (`seen_arrays`); `hinted`: what the person was told
+        (`_hinted`)."""
         robot = self._robot
         human = history.human
         now = ticks(history.now)
@@ -558,7 +643,7 @@ class Dispatcher:
             asks.append((slot, agent, action, phase, event, node, uncontrolled))
         if not asks:
             return out[0], out[1]
-        mode, found = self._windows(entry, index, done, history, _MODES[plan_class], asks, seen)
+        mode, found = self._windows(entry, index, done, history, _MODES[plan_class], asks, seen, hinted or {})
         for (slot, agent, action, phase, event, node, _), step in zip(asks, found, strict=True):
             if isinstance(step, tuple):
                 earliest, latest = step
@@ -593,8 +678,73 @@ class Dispatcher:
         return None
 
     def _windows(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
-                 asks: list[tuple[int, str, str, str, str, str, frozenset[str]]], seen: tuple[np.ndarray, np.ndarray]
+                 asks: list[tuple[int, str, str, str, str, str, frozenset[str]]], seen: tuple[np.ndarray, np.ndarray],
+                 hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]
                  ) -> tuple[ExecutionMode, list[tuple[int, int | None] | list[str]]]:
+        """`_windows_at` from what the dispatcher can know of the person's events: with a sensor whose
+        estimates may be `bound_tolerance` off (the motion detector), each seen event of the person
+        happened somewhere in ``[t - tol, t + tol]`` around its estimate ``t``, narrowed to the window they
+        were told (`_hinted`: the person does as told). A window must hold for every such time: the latest
+        from the earliest times, the earliest from the latest (each bound is monotone in every executed
+        time), the waits of either. This is the variable-delay reduction of `hrc.temporal.delay` (an
+        observation point ``C' = t + tol`` telling ``C`` to within ``[C' - 2 tol, C']``) applied at run
+        time, to executable events of the person as well as contingent ones (issue 32: a departure estimated
+        20-90 ms late let the robot pass 20-90 ms late). Where the two do not meet (the error is more than
+        the plan's slack) the window at the estimates, as without the sensor's error."""
+        box = self._estimates(entry, done, history, seen, hinted)
+        if box is None:
+            return self._windows_at(entry, p, done, history, mode, asks, seen)
+        (done_lo, seen_lo), (done_hi, seen_hi) = box
+        mode_lo, early = self._windows_at(entry, p, done_lo, history, mode, asks, seen_lo)
+        mode_hi, late = self._windows_at(entry, p, done_hi, history, mode, asks, seen_hi)
+        used = max(mode_lo, mode_hi, key=_rank)
+        plain: list[tuple[int, int | None] | list[str]] | None = None
+        out: list[tuple[int, int | None] | list[str]] = []
+        for i, (a, b) in enumerate(zip(early, late, strict=True)):
+            if isinstance(a, list) or isinstance(b, list):
+                out.append(a if isinstance(a, list) else b)
+                continue
+            earliest, latest = b[0], a[1]
+            if latest is not None and latest < earliest:
+                if plain is None:
+                    used_plain, plain = self._windows_at(entry, p, done, history, mode, asks, seen)
+                    used = max(used, used_plain, key=_rank)
+                out.append(plain[i])
+                continue
+            out.append((earliest, latest))
+        return used, out
+
+    def _estimates(self, entry: PlanEntry, done: dict[str, int], history: History,
+                   seen: tuple[np.ndarray, np.ndarray], hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]
+                   ) -> tuple[tuple[dict[str, int], tuple[np.ndarray, np.ndarray]],
+                              tuple[dict[str, int], tuple[np.ndarray, np.ndarray]]] | None:
+        """`done` and `seen` with each seen event of the person at the earliest, then at the latest time it
+        may have happened (`_windows`); None without a sensor's error or before any event of the person."""
+        human = history.human
+        if not human or not hinted:
+            return None
+        g = self.task.agent_ids.index(human)
+        legs = history.legs.get(human, ())
+        shift = {key: hinted[key] for key in history.times if key in hinted}
+        if not shift:
+            return None
+        nodes = {key: node for node, key in entry.events.items() if key in shift}
+        out = []
+        for side in (0, 1):
+            arr = seen[0].copy()
+            for key, bounds in shift.items():
+                arr[g, legs.index((key[1], key[2])), LEG_EVENTS.index(key[3])] = bounds[side]
+            moved = dict(done)
+            for key, node in nodes.items():
+                if node in moved:
+                    moved[node] = shift[key][side]
+            out.append((moved, (arr, seen[1])))
+        return out[0], out[1]
+
+    def _windows_at(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
+                    asks: list[tuple[int, str, str, str, str, str, frozenset[str]]],
+                    seen: tuple[np.ndarray, np.ndarray]
+                    ) -> tuple[ExecutionMode, list[tuple[int, int | None] | list[str]]]:
         """The mode (`mode`, or stricter where the residual's own checks say so: the two DC checks never
         disagree, but the stricter reading wins if they did) and, per ask, its timepoint's execution
         window ``(earliest, latest)`` in ticks or the timepoints it must wait for
@@ -612,7 +762,9 @@ class Dispatcher:
                 used, results = got
                 return _FROM_CORE[used], [[names[v] for v in r] if isinstance(r, list)
                                           else (r[0], None if r[1] == NO_BOUND else r[1]) for r in results]
-        state = real_time_state(entry.stnu, done, ticks(history.now))
+        # (a time the person's event may have had can be after the last message's, `_estimates`: the Python
+        # reading wants every executed time at or before now, so reads the clock as at the latest of them)
+        state = real_time_state(entry.stnu, done, max([ticks(history.now), *done.values()]))
         if _rank(state.default_mode()) > _rank(mode):
             mode = state.default_mode()
         out: list[tuple[int, int | None] | list[str]] = []

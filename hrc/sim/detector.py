@@ -5,7 +5,9 @@ action choice and the execution timing" and updates the dispatcher cyclically. H
 event of the person (leaving for a phase, reaching a waiting place and leaving it, arriving, starting
 and ending the manipulation) and their absences, and passes each on `delay` seconds later, stamped
 with the time it is passed on: a detector that needs a while to be sure tells the dispatcher late,
-and the dispatcher believes what it is told. Events keep their order; several due at once go together.
+and the dispatcher believes what it is told, and how late it is (`Happening.delay`, the message's
+``delay``: issue 32, an observation later than the stated maximum voids the guarantee). Events keep
+their order; several due at once go together.
 """
 
 from __future__ import annotations
@@ -20,13 +22,16 @@ __all__ = ["Detector", "Happening"]
 @dataclass(frozen=True, slots=True)
 class Happening:
     """Something that happened on the floor at time `t`: a leg event (`event` in depart / park / unpark /
-    arrive / start / end, with `agent`, `action`, `phase`) or the person's "away" / "back"."""
+    arrive / start / end, with `agent`, `action`, `phase`) or the person's "away" / "back". As passed on
+    late by a `Detector`: `t` the time it was passed on, `delay` how long after it happened (None: on time,
+    or not said)."""
 
     t: float
     agent: str
     event: str
     action: str | None = None
     phase: str | None = None
+    delay: float | None = None
 
     def key(self) -> tuple[str, str | None, str | None, str]:
         return (self.agent, self.action, self.phase, self.event)
@@ -53,7 +58,8 @@ class Detector:
         out = []
         while self._queue and self._queue[0].t + self.delay <= now + 1e-9:
             h = self._queue.popleft()
-            out.append(Happening(max(h.t + self.delay, h.t), h.agent, h.event, h.action, h.phase))
+            out.append(Happening(max(h.t + self.delay, h.t), h.agent, h.event, h.action, h.phase,
+                                 self.delay if self.delay > 0 else None))
         return out
 
     @property

@@ -76,9 +76,27 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         "first_plan_dc": len(dc),
         "first_plan_dc_kept": len(dc_kept),
         "first_plan_dc_kept_all_constraints": sum(1 for r in dc_kept if not r.first_broken),
+        **_promise(runs),
         **_detection(runs),
         **_ssm(runs),
     }
+
+
+def _promise(runs: Sequence[RunResult]) -> dict:
+    """Issue 32's measure, when the dispatcher was given a maximum observation delay (the compile's
+    sensing): runs with an observation later than it (the guarantee void, and said so: the answers'
+    `deviation`) and how many there were; runs on a plan DC at the compile's sensing (the first plan, kept
+    to the end); of those, with every observation within the delay; of those, keeping every constraint of
+    the plan's STNU (`first_broken` empty: the promise kept)."""
+    stated = [r for r in runs if r.late_observations is not None]
+    if not stated:
+        return {}
+    on_dc = [r for r in stated if r.first_sensing_class == "DC" and r.first_kept]
+    within = [r for r in on_dc if r.late_observations == 0]
+    return {"promise": {"runs_with_late_observations": sum(1 for r in stated if r.late_observations),
+                        "late_observations": sum(r.late_observations or 0 for r in stated),
+                        "dc_at_sensing": len(on_dc), "dc_at_sensing_within_delay": len(within),
+                        "kept_every_constraint": sum(1 for r in within if not r.first_broken)}}
 
 
 def _ssm(runs: Sequence[RunResult]) -> dict:

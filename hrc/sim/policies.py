@@ -153,6 +153,9 @@ class DispatchedController(Controller):
         self.detect_refused: list[str] = []
         self.withdrawn = 0  # departures the detector gave and withdrew (undo)
         self.known: list[Happening] = []  # the person's own events, when a motion detector stands between
+        # answers that said an observation came later than the stated maximum delay (`Decision.deviation`);
+        # None when the dispatcher was given no maximum (a compile without `sensing:`)
+        self.late_observations: int | None = None if dispatcher.max_observation_delay is None else 0
         self._times: dict | None = None
         self._ordered: tuple[Any, Order | None] = (None, None)
         dec = dispatcher.decision
@@ -163,7 +166,8 @@ class DispatchedController(Controller):
     def observe(self, h: Happening) -> None:
         from hrc.dispatch import Observation
 
-        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase)
+        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
+                          delay=h.delay)
         t0 = time.perf_counter()
         try:
             dec = self.d.observe(obs)
@@ -172,6 +176,8 @@ class DispatchedController(Controller):
             self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
             return
         self.latencies.append(time.perf_counter() - t0)
+        if dec.deviation is not None and "late" in dec.deviation and self.late_observations is not None:
+            self.late_observations += 1
         self._after(dec)
 
     def position(self, now: float, t: float, x: float, y: float) -> bool:
@@ -193,6 +199,10 @@ class DispatchedController(Controller):
                     self.detected.pop()
                 continue
             self.detected.append((round(now, 3), ev.t, ev.event, ev.action, ev.phase))
+            # the delay the detector said (`DetectingDispatcher.position`) beyond the dispatcher's maximum: its
+            # answer had a deviation (several events of one position: one answer shown, each counted)
+            if self.late_observations is not None and round(max(0.0, t - ev.t), 3) > self.d.max_observation_delay:
+                self.late_observations += 1
         if given:
             self._after(self.d.decision)
         return bool(given)

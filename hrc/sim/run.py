@@ -163,6 +163,8 @@ class RunResult:
     absent: float
     detection: Detection | None = None
     ssm: SsmMeasures | None = None  # speed and separation monitoring's counts (a task with safety:)
+    late_observations: int | None = None  # answers with a deviation (late); None: no delay stated
+    first_sensing_class: str | None = None  # the first plan's class in the compile (under its sensing), with it
     latencies: tuple[float, ...] = field(default=(), compare=False)
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
@@ -183,6 +185,8 @@ class RunResult:
                 "refused": list(self.refused), "late_robot_events": self.late,
                 "robot_travel_excess": r(self.robot_travel_excess), "human_sequence": list(self.human_sequence),
                 "robot_sequence": list(self.robot_sequence), "overruns": self.overruns, "absent": r(self.absent),
+                **({} if self.late_observations is None else {"late_observations": self.late_observations,
+                                                              "first_sensing_class": self.first_sensing_class}),
                 **({} if self.detection is None else {"detection": self.detection.to_json()}),
                 **({} if self.ssm is None else {"ssm": self.ssm.to_json()})}
 
@@ -544,7 +548,9 @@ class _Run(Standoffs):
     def deliver(self) -> bool:
         out = self.detector.release(self.t)
         for h in out:
-            self._tell(Happening(max(h.t, self.last_obs), h.agent, h.event, h.action, h.phase))
+            t = max(h.t, self.last_obs)  # later still when the clock has moved on: as late as it is told
+            delay = None if h.delay is None else round(h.delay + t - h.t, 3)
+            self._tell(Happening(t, h.agent, h.event, h.action, h.phase, delay))
         changed = bool(out)
         if self.sensor is not None:
             assert isinstance(self.ctl, DispatchedController)
@@ -728,6 +734,8 @@ class _Run(Standoffs):
             robot_travel_excess=self.excess, human_sequence=human_seq, robot_sequence=robot_seq,
             overruns=sum(1 for k in self.draws.overrun if times.get(f"{self.h.id}.{k[1]}.{k[0]}.end") is not None),
             absent=self.absent, detection=self._detection(), latencies=tuple(ctl.latencies),
+            late_observations=getattr(ctl, "late_observations", None),
+            first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
             ssm=None if self.floor.ssm is None else self.floor.ssm.measures(),
             happenings=tuple(self.happenings) if self.record else (), frames=tuple(self.frames))
 
