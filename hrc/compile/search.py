@@ -174,12 +174,16 @@ class _State:
 def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds: float | None,
                  compile_family: Callable[[tuple[Plan, ...]], list[tuple]],
                  stop: Callable[[], None] | None = None, state: _State | None = None,
-                 progress: Progress | None = None) -> SearchOutcome:
+                 progress: Progress | None = None,
+                 children: Callable[[Node, tuple[int, ...]], list[Node]] | None = None) -> SearchOutcome:
     """Best-first branch and bound for the `k` best plans (module docstring). `compile_family(family)`
     compiles a family and returns each plan's `rank_key`. Stops (then not closed) once `families` families
     were compiled or ``NODES_PER_FAMILY * families`` nodes expanded (a budget in work: the same output on
-    any machine), or after `seconds` if given (then it depends on the machine's pace)."""
+    any machine), or after `seconds` if given (then it depends on the machine's pace). `children`: the
+    tree below a node (default `NodeBounds.children`; `hrc.compile.extend` gives a subtree): a leaf
+    reached through a non-canonical path is compiled with its family (`hrc.plans.family_of`)."""
     t0 = time.perf_counter()
+    kids_of = children or bounds.children
     state = state or _State()
     groups = identical_actions(task)
     root = bounds.root()
@@ -212,14 +216,15 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
         while True:
             if bounds.is_leaf(node):
                 plan = _plan(task, node)
-                family = relabellings(task, plan, groups) if groups else (plan,)
+                family = (family_of(task, plan) if children is not None else
+                          relabellings(task, plan, groups) if groups else (plan,))
                 _take(state, task, family, compile_family(family), k)
                 if progress is not None:
                     progress("search", len(state.ids), k)
                 break
             nodes += 1
             kids: list[tuple[tuple, int, int, Node, Bound]] = []
-            for child in bounds.children(node, b.ends):
+            for child in kids_of(node, b.ends):
                 cb = bounds.bound(child)
                 if cb is None:
                     continue
