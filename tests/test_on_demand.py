@@ -227,3 +227,25 @@ def test_a_log_whose_plans_record_is_out_of_sequence_is_refused(kit3, tmp_path):
         read_log(log)
     log.write_text(log.read_text().replace('"after": 5', '"after": 1'))
     assert read_log(log).added == ((1, {"after": 1, "for": {}, "ids": [], "sha256": ""}),)
+
+
+@pytest.mark.slow
+def test_kitting_12picks_a_person_off_every_plan_gets_a_fallback_then_a_compiled_plan_and_it_replays(tmp_path):
+    """The issue's "Must show": kitting_12picks compiled by search (best 50 and the person's first two
+    choices covered); the person's third pick is one no plan has."""
+    from hrc.cli import main
+
+    task_file = ROOT / "tasks" / "kitting_12picks.yaml"
+    folder = tmp_path / "out"
+    assert main(["compile", str(task_file), "--out", str(folder), "--no-report", "-q", "--plans", "best:50"]) == 0
+    head = json.loads((folder / "compiled.json").read_text())
+    firsts = {tuple(p["sequences"]["human"][:2]) for p in head["plans"]}
+    thirds = {tuple(p["sequences"]["human"][:3]) for p in head["plans"]}
+    task = load_task(task_file)
+    picks = [a.id for a in task.actions]
+    prefix = next((a, b, c) for a, b in sorted(firsts) if len({a, b}) == 2 for c in picks
+                  if c not in (a, b) and (a, b, c) not in thirds)
+    log = tmp_path / "run.log"
+    answers = run_with_miss(folder, log, _human_steps(prefix, task))
+    _check_run(folder, log, answers, prefix)
+    assert next(a for a in answers if a.get("fallback"))["_ms"] < 2000

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hrc.compile.bounds import Bound, Node, NodeBounds
-from hrc.compile.compiler import CompiledPlanSet, CompileOptions, rank_key
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, rank_key
 from hrc.compile.output import write_input
 from hrc.compile.sink import REPORT_TOP, PlanSink
 from hrc.compile.stream import compile_records
@@ -60,7 +60,7 @@ from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import family_of, identical_actions, relabellings
 
 __all__ = ["COVER_DEPTH", "DEFAULT_K", "DIVE_NODES", "NODES_PER_FAMILY", "SEARCH_FAMILIES", "SearchOutcome",
-           "SearchResult", "compile_search", "search_plans"]
+           "SearchResult", "compile_search", "search_in_memory", "search_plans"]
 
 DEFAULT_K = 50
 """Plans ``hrc compile`` searches for when it switches to the search on its own."""
@@ -345,12 +345,13 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
                    options: CompileOptions | None = None, stnu: str = "graphml", keep: int = REPORT_TOP,
                    families: int | None = None, seconds: float | None = None, cover: int = COVER_DEPTH,
                    progress: Progress | None = None,
-                   stop: Callable[[], None] | None = None, paths: PathLibrary | None = None) -> SearchResult:
+                   stop: Callable[[], None] | None = None, paths: PathLibrary | None = None,
+                   collect: dict[str, CompiledPlan] | None = None) -> SearchResult:
     """Search `task`'s best `k` plans (and the coverage of the person's first `cover` choices) and write
     them into `out_dir` as `hrc.compile.stream.compile_stream` writes a compile. `families`: the best-K
     search's budget in families compiled (default ``SEARCH_FAMILIES * k``); `seconds`: a wall-clock limit
-    for it and as much again for the coverage (the output then depends on the machine's pace). Raises
-    `hrc.errors.HrcError`."""
+    for it and as much again for the coverage (the output then depends on the machine's pace). `collect`:
+    every plan compiled goes in it whole, by id. Raises `hrc.errors.HrcError`."""
     if k < 1:
         raise ValueError(f"k must be at least 1, got {k}")
     options = options or CompileOptions()
@@ -366,6 +367,8 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
         def compile_family(family: tuple[Plan, ...]) -> list[tuple]:
             keys = []
             for cp, tail in compile_records(options, stnu, task, paths, [family]):
+                if collect is not None:  # whole, GraphML and dispatch form record with it (the simulator's)
+                    collect[cp.plan.id] = cp
                 sink.add(cp, tail)
                 keys.append(rank_key(cp, options.rank_by))
             return keys
@@ -385,3 +388,17 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
         sink.abandon()
         raise
     return SearchResult(replace(sink.finish(seed, paths, options), search=outcome.guarantee()), outcome)
+
+
+def search_in_memory(task: Task, k: int = DEFAULT_K, *, seed: int = 0, cover: int = COVER_DEPTH,
+                     families: int | None = None, options: CompileOptions | None = None) -> CompiledPlanSet:
+    """`compile_search` for a caller that needs every plan it compiled in memory, whole (the simulator on a
+    task beyond enumeration): written to a scratch folder (removed), ranked as there."""
+    import tempfile
+
+    found: dict[str, CompiledPlan] = {}
+    with tempfile.TemporaryDirectory(prefix="hrc-search-") as scratch:
+        result = compile_search(task, Path(scratch) / "out", k, seed=seed, options=options, keep=1 << 30,
+                                families=families, cover=cover, collect=found)
+    cps = result.plan_set
+    return replace(cps, plans=tuple(replace(found[cp.plan.id], rank=cp.rank) for cp in cps.plans))

@@ -164,6 +164,8 @@ class RunResult:
     detection: Detection | None = None
     ssm: SsmMeasures | None = None  # speed and separation monitoring's counts (a task with safety:)
     latencies: tuple[float, ...] = field(default=(), compare=False)
+    on_demand: dict | None = None  # compile on demand's misses and recovery (`hrc.sim.on_demand`), or None
+    compile_seconds: tuple[float, ...] = field(default=(), compare=False)  # its compiles' wall times
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
 
@@ -184,7 +186,8 @@ class RunResult:
                 "robot_travel_excess": r(self.robot_travel_excess), "human_sequence": list(self.human_sequence),
                 "robot_sequence": list(self.robot_sequence), "overruns": self.overruns, "absent": r(self.absent),
                 **({} if self.detection is None else {"detection": self.detection.to_json()}),
-                **({} if self.ssm is None else {"ssm": self.ssm.to_json()})}
+                **({} if self.ssm is None else {"ssm": self.ssm.to_json()}),
+                **({} if self.on_demand is None else {"on_demand": self.on_demand})}
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -209,7 +212,18 @@ def make_controller(ctx: SimContext, policy: Policy) -> Controller:
             pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
     # A dispatcher replaces its whole (immutable) state on every message, so a shallow copy of a fresh one
     # is a fresh one: 30 us instead of 0.3 s (workshop) for `from_compiled` (the API has no reset or copy).
-    return DispatchedController(pristine.fork(), cps, ctx.paths, policy.compile == "blind")
+    ctl = DispatchedController(pristine.fork(), cps, ctx.paths, policy.compile == "blind")
+    if cps.search and not motion and not policy.feasible_only:  # a searched compile: compile on demand
+        from hrc.dispatch.on_demand import OnDemandSettings, enable
+        from hrc.sim.on_demand import Compiles, OnDemandRun
+
+        compiles = ctx.cache.get(("compiles", policy.compile))
+        if compiles is None:
+            compiles = ctx.cache[("compiles", policy.compile)] = Compiles(cps)
+        enable(ctl.d, OnDemandSettings(seed=cps.seed, human_waits=cps.options.human_waits,
+                                       rank_by=cps.options.rank_by))
+        ctl.on_demand = OnDemandRun(compiles)
+    return ctl
 
 
 def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
@@ -592,6 +606,9 @@ class _Run(Standoffs):
         o = self.ctl.order()
         if o is not None and o.event in ("depart", "unpark", "start"):
             cands.append(o.earliest)
+        due = self.ctl.due() if isinstance(self.ctl, DispatchedController) else None
+        if due is not None:  # plans compiled on demand come then (`hrc.sim.on_demand`)
+            cands.append(due)
         if isinstance(self.ctl, DispatchedController) and self.ctx.settings.tick > 0 and not self.done():
             if o is None or o.event == "wait" or self.h.mode in ("free", "parked", "arrived"):
                 cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
@@ -658,6 +675,10 @@ class _Run(Standoffs):
                 self.last_tick = nt
                 self.ctl.tick(max(nt, self.last_obs))
                 self.last_obs = max(nt, self.last_obs)
+            elif isinstance(self.ctl, DispatchedController) and (due := self.ctl.due()) is not None and \
+                    nt >= due - _EPS:  # the plans compiled on demand have come: a tick takes them in
+                self.ctl.tick(max(nt, self.last_obs))
+                self.last_obs = max(nt, self.last_obs)
             waiting = any(ag.mover.moving or ag.mode == "aside_wait" for ag in (self.h, self.r))
             if waiting and before == (self.h.mover.xy, self.r.mover.xy, len(self.happenings)):
                 stall_since = self.t if stall_since is None else stall_since
@@ -711,6 +732,7 @@ class _Run(Standoffs):
             broken = tuple(broken_constraints(plan_network(cps, first_cp), times))
         if self.h.mode == "away" and self.away_since is not None:
             self.absent += span - self.away_since
+        od = getattr(ctl, "on_demand", None)  # compile on demand (`hrc.sim.on_demand`), with a searched compile
         min_free, overlaps = self.floor.min_free, self.floor.overlaps
         robot_held, human_held = self.floor.robot.held, self.floor.human.held
         if self.finished_at is not None:  # the floor as it was when the last phase ended (not the drain)
@@ -729,6 +751,8 @@ class _Run(Standoffs):
             overruns=sum(1 for k in self.draws.overrun if times.get(f"{self.h.id}.{k[1]}.{k[0]}.end") is not None),
             absent=self.absent, detection=self._detection(), latencies=tuple(ctl.latencies),
             ssm=None if self.floor.ssm is None else self.floor.ssm.measures(),
+            on_demand=None if od is None else od.to_json(),
+            compile_seconds=() if od is None else tuple(od.compile_seconds),
             happenings=tuple(self.happenings) if self.record else (), frames=tuple(self.frames))
 
     def _detection(self) -> Detection | None:
