@@ -249,3 +249,33 @@ def test_kitting_12picks_a_person_off_every_plan_gets_a_fallback_then_a_compiled
     answers = run_with_miss(folder, log, _human_steps(prefix, task))
     _check_run(folder, log, answers, prefix)
     assert next(a for a in answers if a.get("fallback"))["_ms"] < 2000
+
+
+# -------------------------------------------------------------------------------- simulated runs
+def test_simulated_free_people_off_the_searched_plans_finish_with_plans_compiled_on_demand():
+    """kitting searched for its best 3 plans (the first choice covered): people who choose freely leave the
+    plans, the runs go on from the fallback and the plans compiled on demand, finish, and report misses
+    and recovery; the same seed gives the same simulation.json (the compiles are a function of the run)."""
+    from hrc.compile.search import search_in_memory
+    from hrc.sim.human import HumanModel
+    from hrc.sim.montecarlo import simulate, simulation_json
+    from hrc.sim.on_demand import COMPILE_DELAY
+    from hrc.sim.run import SimSettings
+
+    task = load_task(KITTING)
+    cps = search_in_memory(task, 3, cover=1, families=3)
+    assert cps.search and len(cps.plans) == 7
+    settings = SimSettings(human=HumanModel(choice="free"))
+    sim = simulate(task, 3, 0, ["hrc"], settings, jobs=1, compiles={"motion": cps})
+    runs = sim.results["hrc"]
+    assert all(r.finished and not r.refused for r in runs), [(r.reason, r.refused) for r in runs]
+    assert all(r.on_demand is not None for r in runs)
+    assert sum(r.on_demand["misses"] for r in runs) >= 1  # someone left the 7 plans
+    for r in runs:
+        od = r.on_demand
+        assert len(od["recovery"]) == od["misses"] and not od["unrecovered"]
+        assert all(x >= COMPILE_DELAY - 1e-6 for x in od["recovery"])  # not before the plans came
+        assert od["plans_adopted"] >= od["misses"]  # each miss recovered with at least one new plan
+    again = simulate(task, 3, 0, ["hrc"], settings, jobs=1, compiles={"motion": cps})
+    assert simulation_json(again) == simulation_json(sim)
+    assert '"on_demand"' in simulation_json(sim)

@@ -175,13 +175,22 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
                  compile_family: Callable[[tuple[Plan, ...]], list[tuple]],
                  stop: Callable[[], None] | None = None, state: _State | None = None,
                  progress: Progress | None = None,
-                 children: Callable[[Node, tuple[int, ...]], list[Node]] | None = None) -> SearchOutcome:
+                 children: Callable[[Node, tuple[int, ...]], list[Node]] | None = None,
+                 batch: int = 1,
+                 compile_batch: Callable[[list[tuple[Plan, ...]]], list[list[tuple]]] | None = None
+                 ) -> SearchOutcome:
     """Best-first branch and bound for the `k` best plans (module docstring). `compile_family(family)`
     compiles a family and returns each plan's `rank_key`. Stops (then not closed) once `families` families
     were compiled or ``NODES_PER_FAMILY * families`` nodes expanded (a budget in work: the same output on
     any machine), or after `seconds` if given (then it depends on the machine's pace). `children`: the
     tree below a node (default `NodeBounds.children`; `hrc.compile.extend` gives a subtree): a leaf
-    reached through a non-canonical path is compiled with its family (`hrc.plans.family_of`)."""
+    reached through a non-canonical path is compiled with its family (`hrc.plans.family_of`).
+
+    `batch` > 1 (with `compile_batch`, which compiles a list of families, maybe in parallel, and returns
+    their keys in the same order): the dives collect up to `batch` leaves against the bar of the plans
+    compiled so far, then all are compiled at once and taken in the order they were found. The output is
+    a function of `batch`, not of how many workers compile a batch (sound: a bar that is not yet lowered
+    by the batch's own plans prunes less, never more)."""
     t0 = time.perf_counter()
     kids_of = children or bounds.children
     state = state or _State()
@@ -195,17 +204,35 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
         heap.append((rb.key, 0, counter, root, rb))
     closed = False
     open_bound = None
+    pending: list[tuple[Plan, ...]] = []
+
+    def flush() -> None:
+        if not pending:
+            return
+        found = compile_batch(list(pending)) if compile_batch is not None else [compile_family(f) for f in pending]
+        for family, keys in zip(pending, found, strict=True):
+            _take(state, task, family, keys, k)
+        pending.clear()
+        if progress is not None:
+            progress("search", len(state.ids), k)
+
     while heap:
         if stop is not None:
             stop()
         kth = state.keys[k - 1] if len(state.keys) >= k else None
         key, depth, _, node, b = heap[0]
         if kth is not None and key > kth:
+            if pending:  # the batch's plans may lower the bar further: take them first
+                flush()
+                continue
             closed = True
             open_bound = key
             break
-        if (state.families >= families or nodes >= NODES_PER_FAMILY * families
+        if (state.families + len(pending) >= families or nodes >= NODES_PER_FAMILY * families
                 or (seconds is not None and time.perf_counter() - t0 > seconds)):
+            if pending:
+                flush()
+                continue
             open_bound = key
             break
         heapq.heappop(heap)
@@ -218,9 +245,9 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
                 plan = _plan(task, node)
                 family = (family_of(task, plan) if children is not None else
                           relabellings(task, plan, groups) if groups else (plan,))
-                _take(state, task, family, compile_family(family), k)
-                if progress is not None:
-                    progress("search", len(state.ids), k)
+                pending.append(family)
+                if len(pending) >= batch:
+                    flush()
                 break
             nodes += 1
             kids: list[tuple[tuple, int, int, Node, Bound]] = []
@@ -240,6 +267,7 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
                 heapq.heappush(heap, entry)
             key, depth, _, node, b = kids[0]
             kth = state.keys[k - 1] if len(state.keys) >= k else None
+    flush()
     if not heap:
         closed, open_bound = True, None
     kth = state.keys[k - 1] if len(state.keys) >= k else None
@@ -247,6 +275,12 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
                          seconds=round(time.perf_counter() - t0, 3), closed=closed, kth=kth,
                          best=state.keys[0] if state.keys else None, open_bound=open_bound,
                          seconds_to_best=round(max(0.0, state.best_at - t0), 3))
+
+
+def _compile_leaf(task: Task, paths: PathLibrary, work: tuple) -> tuple[int, list[tuple[CompiledPlan, str]]]:
+    """An executor's unit of work for a batched search: one family (`hrc.compile.stream.compile_records`)."""
+    index, options, stnu, family = work
+    return index, compile_records(options, stnu, task, paths, [family])
 
 
 def _take(state: _State, task: Task, family: tuple[Plan, ...], keys: list[tuple], k: int) -> None:
@@ -346,12 +380,16 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
                    families: int | None = None, seconds: float | None = None, cover: int = COVER_DEPTH,
                    progress: Progress | None = None,
                    stop: Callable[[], None] | None = None, paths: PathLibrary | None = None,
-                   collect: dict[str, CompiledPlan] | None = None) -> SearchResult:
+                   collect: dict[str, CompiledPlan] | None = None, batch: int = 1, jobs: int | None = None,
+                   executor: str | None = None) -> SearchResult:
     """Search `task`'s best `k` plans (and the coverage of the person's first `cover` choices) and write
     them into `out_dir` as `hrc.compile.stream.compile_stream` writes a compile. `families`: the best-K
     search's budget in families compiled (default ``SEARCH_FAMILIES * k``); `seconds`: a wall-clock limit
     for it and as much again for the coverage (the output then depends on the machine's pace). `collect`:
-    every plan compiled goes in it whole, by id. Raises `hrc.errors.HrcError`."""
+    every plan compiled goes in it whole, by id. `batch` > 1: the best-K search compiles up to that many
+    leaves at a time on the executor (`hrc.compile.executors.make_executor(executor, jobs)`: serial, a
+    local pool, or Dask), the same output for any executor and number of workers (`search_plans`).
+    Raises `hrc.errors.HrcError`."""
     if k < 1:
         raise ValueError(f"k must be at least 1, got {k}")
     options = options or CompileOptions()
@@ -364,18 +402,33 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
                                progress=(lambda d, t: progress("motion", d, t)) if progress else None)
         bounds = NodeBounds(task, paths, options.rank_by)
 
-        def compile_family(family: tuple[Plan, ...]) -> list[tuple]:
+        def take(records: list[tuple[CompiledPlan, str]]) -> list[tuple]:
             keys = []
-            for cp, tail in compile_records(options, stnu, task, paths, [family]):
+            for cp, tail in records:
                 if collect is not None:  # whole, GraphML and dispatch form record with it (the simulator's)
                     collect[cp.plan.id] = cp
                 sink.add(cp, tail)
                 keys.append(rank_key(cp, options.rank_by))
             return keys
 
+        def compile_family(family: tuple[Plan, ...]) -> list[tuple]:
+            return take(compile_records(options, stnu, task, paths, [family]))
+
         state = _State()
-        best = search_plans(task, bounds, k, families or SEARCH_FAMILIES * k, seconds, compile_family, stop, state,
-                            progress)
+        budget = families or SEARCH_FAMILIES * k
+        if batch > 1:
+            from hrc.compile.executors import make_executor
+
+            with make_executor(executor, jobs) as ex:
+                def compile_batch(found: list[tuple[Plan, ...]]) -> list[list[tuple]]:
+                    work = [(i, options, stnu, family) for i, family in enumerate(found)]
+                    done = dict(ex.map_chunks(_compile_leaf, task, paths, work, stop))
+                    return [take(done[i]) for i in range(len(found))]  # in the order found: any executor
+
+                best = search_plans(task, bounds, k, budget, seconds, compile_family, stop, state, progress,
+                                    batch=batch, compile_batch=compile_batch)
+        else:
+            best = search_plans(task, bounds, k, budget, seconds, compile_family, stop, state, progress)
         t1 = time.perf_counter()
         deadline = math.inf if seconds is None else t1 + seconds
         found = _State(list(state.keys), state.ids, state.prefixes, state.families)

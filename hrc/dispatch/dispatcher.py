@@ -320,6 +320,9 @@ class Dispatcher:
         self.plan_set = plan_set
         self.ranker = Ranker(plan_set, self.ranker.threads)
         self.routes = RouteIndex(plan_set.form)
+        # the caches by plan index are shared by forks, whose added plans differ: this one's own from here
+        self._nodes = {p: v for p, v in self._nodes.items() if p < n}
+        self._arcs = {p: v for p, v in self._arcs.items() if p < n}
         pool = np.union1d(st.plans, np.arange(n, len(plan_set), dtype=np.int64))
         kept = agreeing(plan_set.form, st.history, pool)
         if not len(kept) and st.history.away:  # as `observe` reads an absence
