@@ -252,3 +252,20 @@ def test_a_batched_closed_search_finds_the_exhaustive_best(tmp_path):
     result = compile_search(task, tmp_path / "out", 5, families=10**6, cover=0, batch=8, jobs=2)
     assert result.outcome.closed
     _search_agrees(ROOT / "tasks" / "cube_stacking.yaml", 5, tmp_path / "out", compile_task(task, seed=0, jobs=1))
+
+
+@pytest.mark.slow
+def test_a_batched_search_on_a_dask_cluster_writes_what_one_worker_writes(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from hrc.cli import main
+
+    args = [str(ROOT / "tasks" / "cube_stacking.yaml"), "--no-report", "-q", "--plans", "best:3", "--cover", "1",
+            "--search-budget", "6", "--search-batch", "3"]
+    assert main(["compile", *args, "--out", str(tmp_path / "one"), "--jobs", "1"]) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        address = cluster.scheduler_address.replace("tcp://", "dask://")
+        assert main(["compile", *args, "--out", str(tmp_path / "dask"), "--executor", address]) == 0
+    for path in sorted((tmp_path / "one").rglob("*")):
+        if path.is_file():
+            assert path.read_bytes() == (tmp_path / "dask" / path.relative_to(tmp_path / "one")).read_bytes(), path

@@ -309,21 +309,23 @@ class Dispatcher:
         return self._state.decision
 
     def adopt(self, plan_set: PlanSet) -> Decision:
-        """Take `plan_set`, this set's plans followed by more (compiled on demand: `hrc.dispatch.on_demand`),
-        and decide again from every plan of it that agrees with what was seen; the new `Decision`. The
-        plans already here keep their indices. `ValueError` when `plan_set` does not start with them."""
+        """Take `plan_set`, this set's plans followed by more (compiled on demand: `hrc.dispatch.on_demand`;
+        or this very set), and decide again from every plan of it that agrees with what was seen, as
+        ``back`` does (a plan set aside for its route alone is one again); the new `Decision`. The plans
+        already here keep their indices. `ValueError` when `plan_set` does not start with them."""
         old, st = self.plan_set, self._state
         n = len(old)
         if len(plan_set) < n or plan_set.task is not old.task or \
                 not np.array_equal(plan_set.form.plans["id"][:n], old.form.plans["id"]):
             raise ValueError("the new plan set must hold this one's plans first")
-        self.plan_set = plan_set
-        self.ranker = Ranker(plan_set, self.ranker.threads)
-        self.routes = RouteIndex(plan_set.form)
-        # the caches by plan index are shared by forks, whose added plans differ: this one's own from here
-        self._nodes = {p: v for p, v in self._nodes.items() if p < n}
-        self._arcs = {p: v for p, v in self._arcs.items() if p < n}
-        pool = np.union1d(st.plans, np.arange(n, len(plan_set), dtype=np.int64))
+        if plan_set is not old:
+            self.plan_set = plan_set
+            self.ranker = Ranker(plan_set, self.ranker.threads)
+            self.routes = RouteIndex(plan_set.form)
+            # the caches by plan index are shared by forks, whose added plans differ: this one's own from here
+            self._nodes = {p: v for p, v in self._nodes.items() if p < n}
+            self._arcs = {p: v for p, v in self._arcs.items() if p < n}
+        pool = np.arange(len(plan_set), dtype=np.int64)
         kept = agreeing(plan_set.form, st.history, pool)
         if not len(kept) and st.history.away:  # as `observe` reads an absence
             kept = agreeing(plan_set.form, _present(st.history), pool)

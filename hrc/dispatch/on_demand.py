@@ -192,8 +192,7 @@ def adopt(dispatcher: Dispatcher, rows: PlanRows) -> tuple[Dispatcher, int]:
     """A fork of `dispatcher` that has taken `rows` (`Dispatcher.adopt`), and how many plans were new."""
     plan_set, n = extended_set(dispatcher.plan_set, rows)
     work = dispatcher.fork()
-    if n:
-        work.adopt(plan_set)
+    work.adopt(plan_set)  # with no new plan too: one already here may agree (set aside for its route)
     return work, n
 
 

@@ -524,7 +524,9 @@ class _Run(Standoffs):
         phase = self.phases[a.action][a.pi]
         mine = o is not None and (o.action, o.phase) == (a.action, phase)
         if a.mode == "parked":
-            if mine and o is not None and o.event == "unpark" and t >= o.earliest - _EPS:
+            # told to arrive: the plan followed now (one compiled on demand, `hrc.sim.on_demand`) has no stop
+            # on this leg, so the robot goes on as if told to leave the waiting place now
+            if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and t >= o.earliest - _EPS)):
                 a.order = o
                 a.mode = "travel"
                 a.mover.resume()
