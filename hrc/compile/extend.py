@@ -26,12 +26,15 @@ is what a compile would have written.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from hrc.compile.bounds import Node, NodeBounds
-from hrc.compile.compiler import CompiledPlan, CompileOptions, compile_family, rank_key
-from hrc.compile.search import SearchOutcome, search_plans
 from hrc.model import Plan, Task
-from hrc.motion import PathLibrary
+
+if TYPE_CHECKING:  # the compile itself only when plans are compiled: a dispatcher imports `Prefix` alone
+    from hrc.compile.bounds import Node, NodeBounds
+    from hrc.compile.compiler import CompiledPlan, CompileOptions
+    from hrc.compile.search import SearchOutcome
+    from hrc.motion import PathLibrary
 
 __all__ = ["EXTEND_FAMILIES", "EXTEND_K", "Extension", "Prefix", "extend_plans"]
 
@@ -96,6 +99,10 @@ def extend_plans(task: Task, paths: PathLibrary, prefix: Prefix, *, k: int = EXT
     per-agent orders extend `prefix` (module docstring); each compiled with its GraphML and dispatch
     form record. `bounds`: `NodeBounds(task, paths, options.rank_by)` when the caller keeps one.
     Deterministic (no clock is read for what is compiled)."""
+    from hrc.compile.bounds import NodeBounds
+    from hrc.compile.compiler import CompileOptions, compile_family, rank_key
+    from hrc.compile.search import search_plans
+
     options = options or CompileOptions()
     bounds = bounds or NodeBounds(task, paths, options.rank_by)
     index = {a: i for i, a in enumerate(task.action_ids)}

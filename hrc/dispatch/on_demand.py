@@ -36,9 +36,8 @@ import multiprocessing
 from collections.abc import Iterator, Mapping
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from hrc.compile.compiler import CompileOptions
 from hrc.compile.dispatch_form import build_form, concat_forms
 from hrc.compile.extend import EXTEND_FAMILIES, EXTEND_K, Prefix, extend_plans
 from hrc.errors import HrcError
@@ -48,6 +47,9 @@ from .dispatcher import Dispatcher
 from .logfile import LogContents
 from .plan_set import PlanSet
 from .protocol import answer, check_header, is_accepted
+
+if TYPE_CHECKING:
+    from hrc.compile.compiler import CompileOptions
 
 __all__ = ["Added", "OnDemand", "OnDemandSettings", "PlanRows", "Replay", "adopt", "announce", "compile_rows",
            "enable", "extended_set", "rows_digest", "wanted"]
@@ -73,6 +75,8 @@ class OnDemandSettings:
 
     @property
     def options(self) -> CompileOptions:
+        from hrc.compile.compiler import CompileOptions
+
         return CompileOptions(self.human_waits, self.rank_by)
 
     @classmethod
