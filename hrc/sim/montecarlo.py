@@ -1,7 +1,9 @@
 """Many simulated runs per policy on the same seeded people: `simulate` and ``simulation.json``.
 
-`simulate` compiles the task once (motion-aware, `hrc.compile.compiler.compile_task`; and motion-blind,
-`hrc.sim.blind`, if that policy is asked for), then runs ``runs`` simulations per policy: run ``i`` of
+`simulate` compiles the task once (motion-aware, `hrc.compile.compiler.compile_task`, or for a task
+beyond ``hrc compile``'s ``--max-plans`` the search compile, whose dispatcher then compiles on demand:
+`hrc.sim.on_demand`; and motion-blind, `hrc.sim.blind`, if that policy is asked for), then runs
+``runs`` simulations per policy: run ``i`` of
 every policy has the same person (`hrc.sim.human.draw_human` from ``(seed, i)``). Runs go to an executor
 as `hrc compile`'s plans do (`hrc.compile.executors`: serial, a local process pool with ``jobs``, or
 Dask), in chunks of one policy; the result does not depend on the executor or the order in which chunks
