@@ -116,6 +116,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--search-seconds", type=real(0.1), default=None, metavar="S",
                    help="also stop the search after S seconds, and the coverage after as much again (the output "
                         "then depends on the machine's pace)")
+    p.add_argument("--search-batch", type=whole(1, 4096), default=1, metavar="B",
+                   help="the search compiles up to B leaves at a time over --jobs workers or --executor (default "
+                        "1: one at a time, in this process); the output depends on B, never on the workers")
     p.add_argument("--cover", type=whole(0), default=COVER_DEPTH, metavar="D",
                    help=f"with the search: a plan for each action the person could start next, at the start and "
                         f"after each of their first D-1 choices (default {COVER_DEPTH}; 0: none)")
@@ -248,7 +251,7 @@ def _search(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, o
     in this process. Options that only the exhaustive compile has are refused, not ignored."""
     for flag, used in (("--resume", args.resume), ("--symmetry", args.symmetry),
                        ("--best-per-allocation", args.best_per_allocation is not None),
-                       ("--executor", args.executor is not None)):
+                       ("--executor without --search-batch", args.executor is not None and args.search_batch == 1)):
         if used:
             raise InputError(args.task, flag, f"not with the search compile (--plans best:{k}); it compiles "
                                               "only the plans it needs")
@@ -264,8 +267,8 @@ def _search(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, o
         try:
             result = compile_search(task, stage, k, seed=args.seed, options=options, stnu=args.stnu,
                                     keep=args.report_top, families=budget, seconds=args.search_seconds,
-                                    cover=args.cover,
-                                    progress=progress, stop=interrupt.check)
+                                    cover=args.cover, batch=args.search_batch, jobs=args.jobs,
+                                    executor=args.executor, progress=progress, stop=interrupt.check)
         finally:
             progress.close()
         if not args.no_report:

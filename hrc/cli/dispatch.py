@@ -16,10 +16,10 @@ import argparse
 import sys
 from typing import Any
 
-from hrc.cli.argtypes import real
+from hrc.cli.argtypes import real, whole
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
-from hrc.errors import HrcError
+from hrc.errors import HrcError, InputError
 
 __all__ = ["add_parser", "run"]
 
@@ -46,6 +46,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="the longest an observation of the person may reach the dispatcher after it happened "
                         "(its \"delay\"); a later one voids the guarantee and the answer says so "
                         "(\"deviation\"); default: none stated")
+    p.add_argument("--on-demand", choices=("auto", "on", "off"), default="auto",
+                   help="when what the person does leaves every compiled plan: answer with the safe fallback "
+                        "and compile plans that extend what was seen in the background (docs/dispatch.md, "
+                        "\"Compile on demand\"); auto (default): on for a searched compile (hrc compile "
+                        "--plans best:K), off (refuse such a message) for an exhaustive one. --replay and "
+                        "--resume take it from the log")
+    p.add_argument("--on-demand-plans", metavar="K", type=whole(1, 1000), default=None,
+                   help="plans asked for per compile on demand (default 3)")
+    p.add_argument("--on-demand-families", metavar="N", type=whole(1, 100000), default=None,
+                   help="budget of one compile on demand, in families compiled (default 6: the same plans on "
+                        "any machine)")
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
                    help="do not narrow the robot's windows to APA's optimal (DO) windows where the task has "
                         "preferences")
@@ -60,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     dispatcher = open_dispatcher(args, "dispatch")
     if dispatcher is None:
         return 2
+    _on_demand(args, dispatcher)
     recording = None
     if args.record:
         from hrc.record import open_folder_recording
@@ -78,6 +90,34 @@ def run(args: argparse.Namespace) -> int:
     return status
 
 
+def _on_demand(args: argparse.Namespace, dispatcher: Any) -> None:
+    """Compile on demand as asked (``--on-demand``), or as the log to replay or resume was written."""
+    from hrc.compile.extend import EXTEND_FAMILIES, EXTEND_K
+    from hrc.compile.output import read_header
+    from hrc.dispatch.on_demand import OnDemandSettings, enable
+
+    plans = args.on_demand_plans or EXTEND_K
+    families = args.on_demand_families or EXTEND_FAMILIES
+    log = args.replay or args.resume
+    if log:
+        from hrc.dispatch.logfile import read_log
+
+        found = read_log(log).header.get("on_demand")
+        if not isinstance(found, dict):
+            return
+        plans, families = found.get("plans", plans), found.get("families", families)
+        if isinstance(plans, bool) or not isinstance(plans, int) or isinstance(families, bool) or \
+                not isinstance(families, int):
+            raise InputError(str(log), "on_demand", "plans and families must be whole numbers")
+    elif args.on_demand == "off" or (args.on_demand == "auto" and "search" not in read_header(args.out_dir)):
+        return
+    if getattr(args, "detect", None) == "motion":  # the detector's belief is over the plans it was given
+        if args.on_demand == "on":
+            raise InputError("--on-demand", "", "compile on demand does not work with --detect motion yet")
+        return
+    enable(dispatcher, OnDemandSettings.of_folder(args.out_dir, plans, families))
+
+
 def _say(text: str) -> None:
     print(f"hrc dispatch: {text}", file=sys.stderr, flush=True)
 
@@ -85,7 +125,7 @@ def _say(text: str) -> None:
 def _run(args: argparse.Namespace, dispatcher: Any, recording: Any) -> int:
     from hrc.dispatch.durable import LoggedDispatcher
     from hrc.dispatch.logfile import read_log
-    from hrc.dispatch.protocol import replay
+    from hrc.dispatch.on_demand import Replay
     from hrc.dispatch.stdio import serve
 
     if args.replay:
@@ -93,7 +133,7 @@ def _run(args: argparse.Namespace, dispatcher: Any, recording: Any) -> int:
         if contents.torn is not None:
             print(f"hrc dispatch: {args.replay}: {contents.torn}", file=sys.stderr, flush=True)
         differ: tuple[int, int] | None = None
-        for number, ((out, was), message) in enumerate(zip(replay(dispatcher, contents, args.replay),
+        for number, ((out, was), message) in enumerate(zip(Replay(dispatcher, contents, args.replay),
                                                            contents.messages, strict=True), 1):
             print(out, flush=True)
             if recording is not None:
@@ -119,7 +159,14 @@ def _run(args: argparse.Namespace, dispatcher: Any, recording: Any) -> int:
         logged = LoggedDispatcher(dispatcher)
     if recording is not None:
         logged.listeners.append(recording.listener)
+    on_demand = None
+    settings = getattr(dispatcher, "on_demand", None)
+    if settings is not None:
+        from hrc.dispatch.on_demand import OnDemand, wanted
+
+        on_demand = OnDemand(dispatcher.task, settings)
+        on_demand.ask(wanted(logged.dispatcher))  # a resumed run may have been left without a plan
     try:
-        return serve(logged, sys.stdin.fileno(), sys.stdout)
+        return serve(logged, sys.stdin.fileno(), sys.stdout, on_demand)
     finally:
         logged.close()

@@ -218,6 +218,30 @@ def format_ssm(sim: Any) -> str:
     return "\n".join(lines)
 
 
+def format_on_demand(sim: Any) -> list[str]:
+    """With a searched compile (a task beyond enumeration): compile on demand's misses, time to recover and
+    the wall time of its compiles (excluded from the dispatcher's latency), per dispatched policy."""
+    import numpy as np
+
+    from hrc.sim.metrics import aggregate, latency_p99
+
+    lines = []
+    for name in sim.policies:
+        runs = sim.results[name]
+        m = aggregate(runs).get("on_demand")
+        if m is None:
+            continue
+        walls = [x for r in runs for x in r.compile_seconds]
+        lat = latency_p99(runs)
+        wall = "no compiles" if not walls else (f"{len(walls)} compiles, wall median {np.median(walls):.2f} s, "
+                                                f"max {max(walls):.2f} s")
+        lines.append(f"compile on demand ({name}): {m['misses']} misses in {m['runs_with_misses']} of {len(runs)} "
+                     f"runs, recovered after {m['recovery_median']} s median / {m['recovery_max']} s max run time, "
+                     f"{m['unrecovered']} unrecovered; {wall} (not in the answers' latency: p99 "
+                     f"{'-' if lat is None else f'{1000 * lat:.0f} ms'})")
+    return lines
+
+
 def run(args: argparse.Namespace) -> int:
     from hrc.sim.human import HumanModel, scaled_truth
     from hrc.sim.montecarlo import simulate, simulation_json
@@ -294,6 +318,8 @@ def run(args: argparse.Namespace) -> int:
             print(format_detection(sim))
         if task.safety is not None:
             print(format_ssm(sim))
+        for line in format_on_demand(sim):
+            print(line)
         print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/")
               + ("" if sim.logs is None else f", {out}/runs/ (one dispatcher log per run)"))
     if args.record is not None:

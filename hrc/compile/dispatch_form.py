@@ -66,7 +66,7 @@ from hrc.temporal.graphml import tool_name
 from hrc.temporal.network import STNU, ContingentLink, RequirementLink
 
 __all__ = ["FORM_FOLDER", "FORM_VERSION", "LEG_EVENTS", "PLAN_DTYPE", "DispatchForm", "FormWriter", "PlanArrays",
-           "build_form", "parse_record", "plan_record", "plan_sequences", "read_form", "task_sizes"]
+           "build_form", "concat_forms", "parse_record", "plan_record", "plan_sequences", "read_form", "task_sizes"]
 
 FORM_FOLDER = "dispatch"
 FORM_VERSION = 1
@@ -502,6 +502,32 @@ def build_form(task: Task, rank_by: str, entries: Iterable[tuple[str, str, float
         e[:, 1].astype(np.uint16), np.ascontiguousarray(e[:, 2]),
         np.cumsum([0, *(len(x) for x in conts)], dtype=np.int64), c[:, 0].astype(np.uint16),
         c[:, 1].astype(np.uint16), np.ascontiguousarray(c[:, 2]), np.ascontiguousarray(c[:, 3]), source)
+
+
+def concat_forms(a: DispatchForm, b: DispatchForm) -> DispatchForm:
+    """`a`'s plans followed by `b`'s (the same task and ``rank_by``), in memory: `b`'s ranks and shape
+    numbers after `a`'s, its edge and contingent-link offsets moved past `a`'s. What a dispatcher takes
+    when plans compiled on demand join its set (`hrc.dispatch.on_demand`): `a`'s plans keep their indices."""
+    if task_sizes(a.task) != task_sizes(b.task) or a.rank_by != b.rank_by:
+        raise ValueError("forms of different tasks or rankings cannot be joined")
+    rows_b = np.array(b.plans, dtype=PLAN_DTYPE)
+    rows_b["rank"] += len(a)
+    rows_b["shape"] += int(np.max(a.plans["shape"], initial=-1)) + 1
+    rows_b["line_at"] = rows_b["line_len"] = 0
+    cat = np.concatenate
+
+    def wide(x: np.ndarray) -> np.ndarray:
+        return np.asarray(x, dtype=np.int64)
+
+    def ptr(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return cat([wide(x), wide(y[1:]) + int(x[-1])])
+
+    return DispatchForm(
+        a.task, a.rank_by, cat([np.asarray(a.plans), rows_b]), cat([a.seq, b.seq]), cat([a.nodes, b.nodes]),
+        ptr(a.edges_ptr, b.edges_ptr), cat([a.edges_u, b.edges_u]), cat([a.edges_v, b.edges_v]),
+        cat([wide(a.edges_w), wide(b.edges_w)]), ptr(a.conts_ptr, b.conts_ptr), cat([a.conts_a, b.conts_a]),
+        cat([a.conts_c, b.conts_c]), cat([wide(a.conts_lb), wide(b.conts_lb)]),
+        cat([wide(a.conts_ub), wide(b.conts_ub)]), a.source)
 
 
 _ARRAYS = ("seq", "nodes", "edges_ptr", "edges_u", "edges_v", "edges_w", "conts_ptr", "conts_a", "conts_c",

@@ -157,6 +157,7 @@ class PoolExecutor:
         self.jobs = jobs
         self.window = 2 * jobs
         self._pool: cf.ProcessPoolExecutor | None = None
+        self._shared: tuple[Any, Any] = (None, None)  # the task and paths its workers were started with
 
     def __enter__(self) -> PoolExecutor:
         return self
@@ -184,11 +185,17 @@ class PoolExecutor:
 
     def map_chunks(self, fn: Callable[..., Any], task: Any, paths: Any, chunks: Iterable[Any],
                    poll: Poll | None = None) -> Iterator[Any]:
-        if self._pool is not None:
-            self._pool.shutdown()
-        pool = self._pool = cf.ProcessPoolExecutor(max_workers=self.jobs, initializer=_init_worker,
-                                                   initargs=(task, paths, os.getpid(),
-                                                             mp.get_start_method() != "forkserver"))
+        """(Called again with the same `task` and `paths` objects, it keeps its workers: the search compile
+        sends a batch per call, `hrc.compile.search`.)"""
+        pool = self._pool
+        if pool is not None and (self._shared[0] is not task or self._shared[1] is not paths):
+            pool.shutdown()
+            pool = None
+        if pool is None:
+            pool = self._pool = cf.ProcessPoolExecutor(max_workers=self.jobs, initializer=_init_worker,
+                                                       initargs=(task, paths, os.getpid(),
+                                                                 mp.get_start_method() != "forkserver"))
+            self._shared = (task, paths)
         pending: set[cf.Future] = set()
         for chunk in chunks:  # at most `window` chunks in flight: plan generation stays a stream
             pending.add(pool.submit(_run_in_worker, fn, chunk))
@@ -218,6 +225,7 @@ class DaskExecutor:
         self.timeout = timeout
         self.window = 4
         self._client: Any = None
+        self._scattered: tuple[Any, ...] | None = None
 
     def __enter__(self) -> DaskExecutor:
         try:
@@ -244,7 +252,9 @@ class DaskExecutor:
 
         client = self._client
         with client.as_current():  # as_completed looks for a current client; ours, not a global default
-            task_f, paths_f = client.scatter([task, paths], broadcast=True, hash=False)
+            if self._scattered is None or self._scattered[0] is not task or self._scattered[1] is not paths:
+                self._scattered = (task, paths, *client.scatter([task, paths], broadcast=True, hash=False))
+            task_f, paths_f = self._scattered[2:]  # once per task: the search sends a batch per call
             done: Any = None
             in_flight = 0
             for chunk in chunks:

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hrc.compile.bounds import Bound, Node, NodeBounds
-from hrc.compile.compiler import CompiledPlanSet, CompileOptions, rank_key
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, rank_key
 from hrc.compile.output import write_input
 from hrc.compile.sink import REPORT_TOP, PlanSink
 from hrc.compile.stream import compile_records
@@ -61,7 +61,7 @@ from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import family_of, identical_actions, relabellings
 
 __all__ = ["COVER_DEPTH", "DEFAULT_K", "DIVE_NODES", "NODES_PER_FAMILY", "SEARCH_FAMILIES", "SearchOutcome",
-           "SearchResult", "compile_search", "search_plans"]
+           "SearchResult", "compile_search", "search_in_memory", "search_plans"]
 
 DEFAULT_K = 50
 """Plans ``hrc compile`` searches for when it switches to the search on its own."""
@@ -175,12 +175,25 @@ class _State:
 def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds: float | None,
                  compile_family: Callable[[tuple[Plan, ...]], list[tuple]],
                  stop: Callable[[], None] | None = None, state: _State | None = None,
-                 progress: Progress | None = None) -> SearchOutcome:
+                 progress: Progress | None = None,
+                 children: Callable[[Node, tuple[int, ...]], list[Node]] | None = None,
+                 batch: int = 1,
+                 compile_batch: Callable[[list[tuple[Plan, ...]]], list[list[tuple]]] | None = None
+                 ) -> SearchOutcome:
     """Best-first branch and bound for the `k` best plans (module docstring). `compile_family(family)`
     compiles a family and returns each plan's `rank_key`. Stops (then not closed) once `families` families
     were compiled or ``NODES_PER_FAMILY * families`` nodes expanded (a budget in work: the same output on
-    any machine), or after `seconds` if given (then it depends on the machine's pace)."""
+    any machine), or after `seconds` if given (then it depends on the machine's pace). `children`: the
+    tree below a node (default `NodeBounds.children`; `hrc.compile.extend` gives a subtree): a leaf
+    reached through a non-canonical path is compiled with its family (`hrc.plans.family_of`).
+
+    `batch` > 1 (with `compile_batch`, which compiles a list of families, maybe in parallel, and returns
+    their keys in the same order): the dives collect up to `batch` leaves against the bar of the plans
+    compiled so far, then all are compiled at once and taken in the order they were found. The output is
+    a function of `batch`, not of how many workers compile a batch (sound: a bar that is not yet lowered
+    by the batch's own plans prunes less, never more)."""
     t0 = time.perf_counter()
+    kids_of = children or bounds.children
     state = state or _State()
     groups = identical_actions(task)
     root = bounds.root()
@@ -192,17 +205,35 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
         heap.append((rb.key, 0, counter, root, rb))
     closed = False
     open_bound = None
+    pending: list[tuple[Plan, ...]] = []
+
+    def flush() -> None:
+        if not pending:
+            return
+        found = compile_batch(list(pending)) if compile_batch is not None else [compile_family(f) for f in pending]
+        for family, keys in zip(pending, found, strict=True):
+            _take(state, task, family, keys, k)
+        pending.clear()
+        if progress is not None:
+            progress("search", len(state.ids), k)
+
     while heap:
         if stop is not None:
             stop()
         kth = state.keys[k - 1] if len(state.keys) >= k else None
         key, depth, _, node, b = heap[0]
         if kth is not None and key > kth:
+            if pending:  # the batch's plans may lower the bar further: take them first
+                flush()
+                continue
             closed = True
             open_bound = key
             break
-        if (state.families >= families or nodes >= NODES_PER_FAMILY * families
+        if (state.families + len(pending) >= families or nodes >= NODES_PER_FAMILY * families
                 or (seconds is not None and time.perf_counter() - t0 > seconds)):
+            if pending:
+                flush()
+                continue
             open_bound = key
             break
         heapq.heappop(heap)
@@ -213,14 +244,15 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
         while True:
             if bounds.is_leaf(node):
                 plan = _plan(task, node)
-                family = relabellings(task, plan, groups) if groups else (plan,)
-                _take(state, task, family, compile_family(family), k)
-                if progress is not None:
-                    progress("search", len(state.ids), k)
+                family = (family_of(task, plan) if children is not None else
+                          relabellings(task, plan, groups) if groups else (plan,))
+                pending.append(family)
+                if len(pending) >= batch:
+                    flush()
                 break
             nodes += 1
             kids: list[tuple[tuple, int, int, Node, Bound]] = []
-            for child in bounds.children(node, b.ends):
+            for child in kids_of(node, b.ends):
                 cb = bounds.bound(child)
                 if cb is None:
                     continue
@@ -236,6 +268,7 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
                 heapq.heappush(heap, entry)
             key, depth, _, node, b = kids[0]
             kth = state.keys[k - 1] if len(state.keys) >= k else None
+    flush()
     if not heap:
         closed, open_bound = True, None
     kth = state.keys[k - 1] if len(state.keys) >= k else None
@@ -243,6 +276,12 @@ def search_plans(task: Task, bounds: NodeBounds, k: int, families: int, seconds:
                          seconds=round(time.perf_counter() - t0, 3), closed=closed, kth=kth,
                          best=state.keys[0] if state.keys else None, open_bound=open_bound,
                          seconds_to_best=round(max(0.0, state.best_at - t0), 3))
+
+
+def _compile_leaf(task: Task, paths: PathLibrary, work: tuple) -> tuple[int, list[tuple[CompiledPlan, str]]]:
+    """An executor's unit of work for a batched search: one family (`hrc.compile.stream.compile_records`)."""
+    index, options, stnu, family = work
+    return index, compile_records(options, stnu, task, paths, [family])
 
 
 def _take(state: _State, task: Task, family: tuple[Plan, ...], keys: list[tuple], k: int) -> None:
@@ -341,12 +380,17 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
                    options: CompileOptions | None = None, stnu: str = "graphml", keep: int = REPORT_TOP,
                    families: int | None = None, seconds: float | None = None, cover: int = COVER_DEPTH,
                    progress: Progress | None = None,
-                   stop: Callable[[], None] | None = None, paths: PathLibrary | None = None) -> SearchResult:
+                   stop: Callable[[], None] | None = None, paths: PathLibrary | None = None,
+                   collect: dict[str, CompiledPlan] | None = None, batch: int = 1, jobs: int | None = None,
+                   executor: str | None = None) -> SearchResult:
     """Search `task`'s best `k` plans (and the coverage of the person's first `cover` choices) and write
     them into `out_dir` as `hrc.compile.stream.compile_stream` writes a compile. `families`: the best-K
     search's budget in families compiled (default ``SEARCH_FAMILIES * k``); `seconds`: a wall-clock limit
-    for it and as much again for the coverage (the output then depends on the machine's pace). Raises
-    `hrc.errors.HrcError`."""
+    for it and as much again for the coverage (the output then depends on the machine's pace). `collect`:
+    every plan compiled goes in it whole, by id. `batch` > 1: the best-K search compiles up to that many
+    leaves at a time on the executor (`hrc.compile.executors.make_executor(executor, jobs)`: serial, a
+    local pool, or Dask), the same output for any executor and number of workers (`search_plans`).
+    Raises `hrc.errors.HrcError`."""
     if k < 1:
         raise ValueError(f"k must be at least 1, got {k}")
     joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
@@ -363,16 +407,33 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
                                progress=(lambda d, t: progress("motion", d, t)) if progress else None)
         bounds = NodeBounds(task, paths, options.rank_by)
 
-        def compile_family(family: tuple[Plan, ...]) -> list[tuple]:
+        def take(records: list[tuple[CompiledPlan, str]]) -> list[tuple]:
             keys = []
-            for cp, tail in compile_records(options, stnu, task, paths, [family]):
+            for cp, tail in records:
+                if collect is not None:  # whole, GraphML and dispatch form record with it (the simulator's)
+                    collect[cp.plan.id] = cp
                 sink.add(cp, tail)
                 keys.append(rank_key(cp, options.rank_by))
             return keys
 
+        def compile_family(family: tuple[Plan, ...]) -> list[tuple]:
+            return take(compile_records(options, stnu, task, paths, [family]))
+
         state = _State()
-        best = search_plans(task, bounds, k, families or SEARCH_FAMILIES * k, seconds, compile_family, stop, state,
-                            progress)
+        budget = families or SEARCH_FAMILIES * k
+        if batch > 1:
+            from hrc.compile.executors import make_executor
+
+            with make_executor(executor, jobs) as ex:
+                def compile_batch(found: list[tuple[Plan, ...]]) -> list[list[tuple]]:
+                    work = [(i, options, stnu, family) for i, family in enumerate(found)]
+                    done = dict(ex.map_chunks(_compile_leaf, task, paths, work, stop))
+                    return [take(done[i]) for i in range(len(found))]  # in the order found: any executor
+
+                best = search_plans(task, bounds, k, budget, seconds, compile_family, stop, state, progress,
+                                    batch=batch, compile_batch=compile_batch)
+        else:
+            best = search_plans(task, bounds, k, budget, seconds, compile_family, stop, state, progress)
         t1 = time.perf_counter()
         deadline = math.inf if seconds is None else t1 + seconds
         found = _State(list(state.keys), state.ids, state.prefixes, state.families)
@@ -385,3 +446,17 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
         sink.abandon()
         raise
     return SearchResult(replace(sink.finish(seed, paths, options), search=outcome.guarantee()), outcome)
+
+
+def search_in_memory(task: Task, k: int = DEFAULT_K, *, seed: int = 0, cover: int = COVER_DEPTH,
+                     families: int | None = None, options: CompileOptions | None = None) -> CompiledPlanSet:
+    """`compile_search` for a caller that needs every plan it compiled in memory, whole (the simulator on a
+    task beyond enumeration): written to a scratch folder (removed), ranked as there."""
+    import tempfile
+
+    found: dict[str, CompiledPlan] = {}
+    with tempfile.TemporaryDirectory(prefix="hrc-search-") as scratch:
+        result = compile_search(task, Path(scratch) / "out", k, seed=seed, options=options, keep=1 << 30,
+                                families=families, cover=cover, collect=found)
+    cps = result.plan_set
+    return replace(cps, plans=tuple(replace(found[cp.plan.id], rank=cp.rank) for cp in cps.plans))

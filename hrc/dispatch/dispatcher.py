@@ -56,6 +56,7 @@ from hrc.motion.separation import limits
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 from hrc.temporal.execution import residual_origin
 
+from .fallback import fallback_decision
 from .messages import LEG_EVENTS, Ahead, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor, ack_note
 from .native import NO_BOUND
 from .plan_set import EventKey, PlanEntry, PlanSet, load_plan_set, plan_set_from_compiled
@@ -119,6 +120,7 @@ class Dispatcher:
         self.plan_set = plan_set
         self.bound_tolerance = bound_tolerance
         self.feasible_only = feasible_only
+        self.fallback = False  # no plan agrees: answer with the fallback, not a refusal (`hrc.dispatch.on_demand`)
         self.use_preferences = use_preferences
         sensing = plan_set.task.sensing
         if max_observation_delay is None and sensing is not None:  # the classes hold up to this delay only
@@ -296,7 +298,7 @@ class Dispatcher:
                 # meanwhile; it goes on with the plans that agree with what was seen, and waits for the
                 # person where they need them (refusing its own arrival left it standing for good)
                 kept = agreeing(form, _present(history), pool)
-        if not len(kept):
+        if not len(kept) and not self.fallback:
             raise DispatchError(f"no remaining plan allows {_describe(obs)} "
                                 f"({len(state.plans)} plans agreed with what was seen before)")
         told = state.told
@@ -373,6 +375,31 @@ class Dispatcher:
             if window == before:
                 return hinted
         return MappingProxyType({**hinted, key: window})
+
+    def adopt(self, plan_set: PlanSet) -> Decision:
+        """Take `plan_set`, this set's plans followed by more (compiled on demand: `hrc.dispatch.on_demand`;
+        or this very set), and decide again from every plan of it that agrees with what was seen, as
+        ``back`` does (a plan set aside for its route alone is one again); the new `Decision`. The plans
+        already here keep their indices. `ValueError` when `plan_set` does not start with them."""
+        old, st = self.plan_set, self._state
+        n = len(old)
+        if len(plan_set) < n or plan_set.task is not old.task or \
+                not np.array_equal(plan_set.form.plans["id"][:n], old.form.plans["id"]):
+            raise ValueError("the new plan set must hold this one's plans first")
+        if plan_set is not old:
+            self.plan_set = plan_set
+            self.ranker = Ranker(plan_set, self.ranker.threads)
+            self.routes = RouteIndex(plan_set.form)
+            # the caches by plan index are shared by forks, whose added plans differ: this one's own from here
+            self._nodes = {p: v for p, v in self._nodes.items() if p < n}
+            self._arcs = {p: v for p, v in self._arcs.items() if p < n}
+        pool = np.arange(len(plan_set), dtype=np.int64)
+        kept = agreeing(plan_set.form, st.history, pool)
+        if not len(kept) and st.history.away:  # as `observe` reads an absence
+            kept = agreeing(plan_set.form, _present(st.history), pool)
+        kept = self._on_routes(kept, st.history, st.told)
+        self._state = self._settle(st.history, st.accepted, st.effective, kept, st.do_forms, st)
+        return self._state.decision
 
     def _on_bound(self, obs: Observation) -> Observation:
         """`obs` read on the bound of the hint the person was given for it when it was estimated within
@@ -496,7 +523,11 @@ class Dispatcher:
         counts = dict(zip(CLASS_ORDER, np.bincount(cls, minlength=3).tolist(), strict=True))
         lead = None if deviation is not None else self._lead(kept, cls, previous)
         at = self.ranker.best(kept, cls, finish, idle, lead)
-        if at < 0:
+        if at < 0 and self.fallback and not self.feasible_only:  # no plan agrees: compile on demand
+            decision = fallback_decision(history, self._robot, None if previous is None else previous.decision.robot,
+                                         counts, ack, deviation)
+            best = -1
+        elif at < 0:
             decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack,
                                 deviation=deviation)
             best = -1

@@ -34,6 +34,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from hrc.compile.extend import Prefix
 from hrc.errors import InputError, LogWriteError
 
 from .dispatcher import Dispatcher
@@ -47,8 +48,10 @@ from .logfile import (
     encode_answer,
     encode_input,
     encode_input_part,
+    encode_plans,
 )
-from .protocol import answer, check_header, is_accepted, log_header
+from .on_demand import Added, PlanRows, Replay, adopt, announce, rows_digest
+from .protocol import answer, is_accepted, log_header
 
 __all__ = ["LoggedDispatcher", "Resumed", "log_refusal"]
 
@@ -91,6 +94,9 @@ class LoggedDispatcher:
         self._sync = False
         self._taken: list[tuple[bytes, str]] = []
         self.listeners: list[Callable[[bytes, str], None]] = []
+        self.messages = 0  # messages taken (the log's count: refusals too)
+        self.announce = 0  # plans adopted on demand that the next accepted answer says (`add_plans`)
+        self._mark = (0, 0)  # both as of the last commit
 
     @classmethod
     def create(cls, dispatcher: Dispatcher, path: str | os.PathLike[str]) -> LoggedDispatcher:
@@ -107,23 +113,32 @@ class LoggedDispatcher:
             if contents.version != LOG_VERSION:
                 raise InputError(str(path), "", f"a version-{contents.version} log cannot be resumed (hrc dispatch "
                                                 "--replay still reads it)")
-            check_header(dispatcher, contents, str(path))
-            for number, message in enumerate(contents.messages, 1):
-                if answer(dispatcher, message.data) != message.answer:
+            replay = Replay(dispatcher, contents, str(path))  # plans compiled on demand: compiled again
+            for number, ((got, was), message) in enumerate(zip(replay, contents.messages, strict=True), 1):
+                if got != was:
                     raise InputError(str(path), "", f"message {number}'s answer differs from the logged one (an "
                                                     "edited log, another hrc, or the compiled folder changed?): "
                                                     "not resuming", message.line or None)
+            dispatcher = replay.dispatcher
             writer.cut_to(contents.size)
             writer.append(json.dumps({"resumed": len(contents.messages)}).encode("ascii") + b"\n", sync=True)
         except BaseException:
             writer.close()
             raise
-        return cls(dispatcher, writer), Resumed(contents.messages, contents.torn, contents.resumed)
+        logged = cls(dispatcher, writer)
+        logged.messages, logged.announce = len(contents.messages), replay.pending
+        logged._mark = (logged.messages, logged.announce)
+        return logged, Resumed(contents.messages, contents.torn, contents.resumed)
 
     @property
     def dispatcher(self) -> Dispatcher:
         """The state as committed (the messages taken since the last `commit` are not in it yet)."""
         return self._committed
+
+    @property
+    def working(self) -> Dispatcher:
+        """The state with the messages taken since the last `commit` (what their answers said)."""
+        return self._work if self._work is not None else self._committed
 
     @property
     def path(self) -> Path | None:
@@ -134,6 +149,9 @@ class LoggedDispatcher:
         work = self._work if self._work is not None else self._committed.fork()
         line = answer(work, data)
         self._work = work
+        self.messages += 1
+        if self.announce and is_accepted(line):
+            line, self.announce = announce(line, self.announce), 0
         if self.log is not None:
             self._records += (encode_input(data), encode_answer(line))
             self._sync = self._sync or is_accepted(line)
@@ -153,7 +171,12 @@ class LoggedDispatcher:
         work, records, sync, taken = self._work, self._records, self._sync, self._taken
         self._work, self._records, self._sync, self._taken = None, [], False, []
         if self.log is not None and records:
-            self.log.append(b"".join(records), sync=sync)
+            try:
+                self.log.append(b"".join(records), sync=sync)
+            except LogWriteError:
+                self.messages, self.announce = self._mark  # those messages never were
+                raise
+        self._mark = (self.messages, self.announce)
         if work is not None:
             self._committed = work
         self._tell(taken)
@@ -171,6 +194,21 @@ class LoggedDispatcher:
         except LogWriteError as err:
             return log_refusal(line, err)
         return line
+
+    def add_plans(self, prefix: Prefix, rows: PlanRows) -> int:
+        """Adopt plans compiled on demand for `prefix` (`hrc.dispatch.on_demand`), between two messages:
+        the messages taken so far committed, the plans' record into the log (synced), then the state takes
+        them; the next accepted answer says ``"new_plans"``. How many were new. `LogWriteError`: they
+        were not adopted (the messages before are committed or refused as `commit` says)."""
+        self.commit()
+        work, n = adopt(self._committed, rows)
+        if self.log is not None:
+            added = Added(self.messages, prefix, tuple(r[0] for r in rows), rows_digest(rows))
+            self.log.append(encode_plans(added.record()["plans"]), sync=True)
+        self._committed = work
+        self.announce = n or self.announce
+        self._mark = (self.messages, self.announce)
+        return n
 
     def take_long(self, chunks: Iterable[bytes]) -> str:
         """Answer a message longer than `MAX_LINE` arriving in `chunks` (all of them are read), logging all
@@ -195,11 +233,15 @@ class LoggedDispatcher:
                 failure = err
         line = answer(self._committed, bytes(first))
         if log is None:
+            self.messages += 1
+            self._mark = (self.messages, self.announce)
             self._tell([(bytes(first), line)])
             return line
         if failure is None:
             try:
                 log.append(encode_input_part(bytes(part), last=True) + encode_answer(line), sync=False)
+                self.messages += 1
+                self._mark = (self.messages, self.announce)
                 self._tell([(bytes(first), line)])
                 return line
             except LogWriteError as err:

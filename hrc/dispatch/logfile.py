@@ -10,6 +10,8 @@ crashed run resumes (`hrc.dispatch.durable`). One JSON record a line; version 2:
     {"in_b64": "/3Q="}                 a message that is not UTF-8: its bytes, base64
     {"in_more": "..."} ... {"in_b64": "..."}     a message longer than MAX_LINE: its bytes in parts
     {"resumed": 12}                    another process took the log over after 12 messages
+    {"plans": {"after": 7, "for": {...}, "ids": [...], "sha256": "..."}}   plans compiled on demand,
+                                       adopted after 7 messages (`hrc.dispatch.on_demand`)
 
 **Lossless.** A message is stored as the bytes received (less its ``\\n``): over-long, not UTF-8, with
 U+2028, U+0085, NUL or anything else in it; records are written with ``ensure_ascii``, so the file is
@@ -50,7 +52,7 @@ import fcntl
 import json
 import os
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -59,13 +61,13 @@ from hrc.errors import InputError, LogWriteError, MessageError
 from .limits import MAX_LINE, read_json
 
 __all__ = ["LOG_VERSION", "PART", "LogContents", "LogWriter", "Message", "Torn", "encode_answer",
-           "encode_header", "encode_input", "encode_input_part", "read_log"]
+           "encode_header", "encode_input", "encode_input_part", "encode_plans", "read_log"]
 
 LOG_VERSION = 2
 PART = 49152
 """Bytes of an over-long message per ``in_more``/``in_b64`` record (65,536 characters of base64)."""
 _RECORD_MAX = 8 * MAX_LINE  # the longest record a writer makes (a MAX_LINE message, each byte escaped)
-_RECORD_KEYS = frozenset({"in", "in_b64", "in_more", "out", "resumed"})  # each record is one of them, alone
+_RECORD_KEYS = frozenset({"in", "in_b64", "in_more", "out", "resumed", "plans"})  # each record is one of them, alone
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,6 +109,7 @@ class LogContents:
     size: int
     torn: Torn | None
     resumed: int
+    added: tuple[tuple[int, Mapping[str, Any]], ...] = ()  # (messages before, the "plans" record's value)
 
     @property
     def version(self) -> int:
@@ -134,6 +137,11 @@ def encode_input_part(data: bytes, last: bool) -> bytes:
 def encode_answer(answer: str) -> bytes:
     """The record of an answer."""
     return _record({"out": answer})
+
+
+def encode_plans(value: Mapping[str, Any]) -> bytes:
+    """The record of plans compiled on demand (`hrc.dispatch.on_demand.Added.record`'s value)."""
+    return _record({"plans": value})
 
 
 def encode_header(header: Mapping[str, Any]) -> bytes:
@@ -206,6 +214,7 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
     header: dict[str, Any] | None = None
     messages: list[Message] = []
     pending: _Pending | None = None
+    added: list[tuple[int, Mapping[str, Any]]] = []
     good = resumed = number = 0
     try:
         for offset, raw in _lines(file):
@@ -229,6 +238,7 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
                     # version 1 appended a header per run: replay the last session; a message left
                     # without its answer before it was never answered
                     header, messages, pending, resumed = rec, [], None, 0
+                    added = []
                     good = offset + len(raw)
                 elif header is None:
                     raise InputError(str(file), "", "not an hrc dispatch log (no header line)", number)
@@ -250,6 +260,13 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
                     messages.append(Message(bytes(pending.first), pending.size, rec["out"], number, pending.line))
                     pending = None
                     good = offset + len(raw)
+                elif "plans" in rec and pending is None:
+                    if not isinstance(rec["plans"], dict) or rec["plans"].get("after") != len(messages):
+                        raise InputError(str(file), "", "records out of sequence: plans added after "
+                                                        f"{str(rec['plans'])[:40]}, but {len(messages)} messages "
+                                                        "came before: the log is damaged", number)
+                    added.append((len(messages), rec["plans"]))
+                    good = offset + len(raw)
                 elif "resumed" in rec and pending is None:
                     if header["hrc_dispatch_log"] == LOG_VERSION and (isinstance(rec["resumed"], bool) or
                                                                       rec["resumed"] != len(messages)):
@@ -261,7 +278,8 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
                 else:
                     raise _Damaged("not a log record")
             except _Damaged as err:
-                return _torn_end(file, header, messages, good, resumed, number, offset, pending, str(err))
+                return replace(_torn_end(file, header, messages, good, resumed, number, offset, pending, str(err)),
+                               added=tuple(added))
     except OSError as err:
         raise InputError(str(file), "", f"cannot read the log ({err.strerror or err})") from err
     if header is None:
@@ -269,7 +287,7 @@ def read_log(path: str | os.PathLike[str]) -> LogContents:
     torn = None
     if pending is not None:
         torn = Torn(pending.line, pending.offset, file.stat().st_size - pending.offset, "a message without its answer")
-    return LogContents(header, tuple(messages), good, torn, resumed)
+    return LogContents(header, tuple(messages), good, torn, resumed, tuple(added))
 
 
 def _torn_end(file: Path, header: dict[str, Any] | None, messages: list[Message], good: int, resumed: int,

@@ -133,7 +133,10 @@ class Decision:
     `deviation`: set when the message voided the guarantee of every class: ``{"late": {"event", "delay",
     "max"}}``, an observation of the human learnt later than the stated maximum delay (the run goes on with
     the best remaining plan, as after an overrun). `ahead`: the person's instruction for the step after
-    the one under way (`Ahead`), so that they know it before it is due."""
+    the one under way (`Ahead`), so that they know it before it is due. `fallback`: no plan agrees with
+    what was seen (the person left every compiled plan) and the robot's step is the safe fallback
+    (`hrc.dispatch.fallback`): ``"continue"`` its leg under way, or ``"wait"`` (robot None) while plans that
+    extend the history are compiled (`hrc.dispatch.on_demand`)."""
 
     t: float
     plan: str | None
@@ -146,6 +149,7 @@ class Decision:
     ack: Mapping[str, Any] | None = None
     deviation: Mapping[str, Any] | None = None
     ahead: Ahead | None = None
+    fallback: str | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
@@ -159,6 +163,8 @@ class Decision:
             out["ahead"] = self.ahead.to_json()
         if self.deviation is not None:
             out["deviation"] = {k: dict(v) if isinstance(v, Mapping) else v for k, v in self.deviation.items()}
+        if self.fallback is not None:
+            out["fallback"] = self.fallback
         return out
 
 

@@ -153,7 +153,15 @@ def log_header(dispatcher: Dispatcher, version: int) -> dict[str, Any]:
         header["detect"] = detect
     if dispatcher.max_observation_delay is not None:  # and one with a stated delay only with the same
         header["max_observation_delay"] = dispatcher.max_observation_delay
+    on_demand = _on_demand(dispatcher)
+    if on_demand is not None:  # and one that compiles on demand only so (`hrc.dispatch.on_demand`)
+        header["on_demand"] = on_demand
     return header
+
+
+def _on_demand(dispatcher: Dispatcher) -> dict[str, Any] | None:
+    settings = getattr(dispatcher, "on_demand", None)  # `hrc.dispatch.on_demand.OnDemandSettings`
+    return None if settings is None else dict(settings.header())
 
 
 def _detect(dispatcher: Dispatcher) -> dict[str, Any] | None:
@@ -171,6 +179,9 @@ def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> No
         raise HrcError(f"{path}: the log was written with other detector settings (the log: "
                        f"{contents.header.get('detect') or 'buttons'}; now: {_detect(dispatcher) or 'buttons'}): "
                        "give the same --detect and --sensor-sigma")
+    if contents.header.get("on_demand") != _on_demand(dispatcher):
+        raise HrcError(f"{path}: the log was written with other compile-on-demand settings (the log: "
+                       f"{contents.header.get('on_demand') or 'off'}; now: {_on_demand(dispatcher) or 'off'})")
     if contents.header.get("max_observation_delay") != dispatcher.max_observation_delay:
         raise HrcError(f"{path}: the log was written with another --max-observation-delay (the log: "
                        f"{contents.header.get('max_observation_delay')}; now: {dispatcher.max_observation_delay})")

@@ -23,10 +23,11 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
-from hrc.errors import LogWriteError
+from hrc.errors import HrcError, LogWriteError
 
 from .durable import LoggedDispatcher, log_refusal
 from .limits import MAX_LINE
+from .on_demand import OnDemand, wanted
 
 __all__ = ["BATCH", "BATCH_WAIT", "LineSource", "serve"]
 
@@ -114,26 +115,50 @@ def _flush(logged: LoggedDispatcher, answers: list[str], out: IO[str]) -> None:
     answers.clear()
 
 
-def serve(logged: LoggedDispatcher, fd_in: int, out: IO[str]) -> int:
-    """Answer every line of `fd_in` on `out` until the end of the input; 0.
+def serve(logged: LoggedDispatcher, fd_in: int, out: IO[str], on_demand: OnDemand | None = None) -> int:
+    """Answer every line of `fd_in` on `out` until the end of the input; 0. `on_demand`: compile plans in
+    the background when no plan agrees with what was seen (`hrc.dispatch.on_demand`), adopted before the
+    first message after they came.
 
     The plan set loaded before moves to the garbage collector's permanent generation while this runs: a
     full collection would scan it (about 100 ms for the workshop's console) in front of an answer.
     """
     gc.freeze()
     try:
-        return _serve(logged, LineSource(fd_in), out)
+        return _serve(logged, LineSource(fd_in), out, on_demand)
     finally:
         gc.unfreeze()
+        if on_demand is not None:
+            on_demand.close()
 
 
-def _serve(logged: LoggedDispatcher, source: LineSource, out: IO[str]) -> int:
+def _adopt(logged: LoggedDispatcher, on_demand: OnDemand | None, answers: list[str], out: IO[str]) -> None:
+    """Plans compiled on demand that have come: the answers before them out, then the plans into the log
+    and the state (`LoggedDispatcher.add_plans`). A failure is said on stderr; the run goes on."""
+    if on_demand is None or not on_demand.running:
+        return
+    try:
+        got = on_demand.done()
+        if got is None:
+            return
+        _flush(logged, answers, out)
+        n = logged.add_plans(*got)
+        print(f"hrc dispatch: compiled on demand: {n} new plans after message {logged.messages}",
+              file=sys.stderr, flush=True)
+        on_demand.ask(wanted(logged.working))  # the person may have gone on meanwhile
+    except (HrcError, LogWriteError) as err:
+        print(f"hrc dispatch: {' '.join(str(err).split())[:300]}", file=sys.stderr, flush=True)
+
+
+def _serve(logged: LoggedDispatcher, source: LineSource, out: IO[str], on_demand: OnDemand | None = None) -> int:
     answers: list[str] = []
     oldest = 0.0
     while True:
         if answers and (len(answers) >= BATCH or time.monotonic() - oldest > BATCH_WAIT):
             _flush(logged, answers, out)
         kind, data = source.next(wait=not answers)
+        if kind in ("line", "long"):
+            _adopt(logged, on_demand, answers, out)
         if kind == "none":
             _flush(logged, answers, out)
         elif kind == "eof":
@@ -147,6 +172,8 @@ def _serve(logged: LoggedDispatcher, source: LineSource, out: IO[str]) -> int:
             if not answers:
                 oldest = time.monotonic()
             answers.append(_take(logged, data))
+            if on_demand is not None:
+                on_demand.ask(wanted(logged.working))
 
 
 def _take(logged: LoggedDispatcher, data: bytes) -> str:

@@ -79,6 +79,7 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         **_promise(runs),
         **_detection(runs),
         **_ssm(runs),
+        **_on_demand(runs),
     }
 
 
@@ -97,6 +98,23 @@ def _promise(runs: Sequence[RunResult]) -> dict:
                         "late_observations": sum(r.late_observations or 0 for r in stated),
                         "dc_at_sensing": len(on_dc), "dc_at_sensing_within_delay": len(within),
                         "kept_every_constraint": sum(1 for r in within if not r.first_broken)}}
+
+
+def _on_demand(runs: Sequence[RunResult]) -> dict:
+    """Compile on demand's measures (`hrc.sim.on_demand`), for a searched compile only: the misses (answers
+    that fell back to the safe fallback after a plan), the runs with one, the time to recover (run seconds
+    from a miss to an answer from a plan again: median, p90, max) and the misses never recovered."""
+    found = [r.on_demand for r in runs if r.on_demand is not None]
+    if not found:
+        return {}
+    recovery = [x for m in found for x in m["recovery"]]
+    return {"on_demand": {
+        "misses": sum(m["misses"] for m in found), "runs_with_misses": sum(1 for m in found if m["misses"]),
+        "misses_mean": _r(float(np.mean([m["misses"] for m in found]))),
+        "recovery_median": _pct(recovery, 50), "recovery_p90": _pct(recovery, 90),
+        "recovery_max": _r(max(recovery)) if recovery else None,
+        "unrecovered": sum(1 for m in found if m["unrecovered"]),
+        "plans_adopted": sum(m["plans_adopted"] for m in found)}}
 
 
 def _ssm(runs: Sequence[RunResult]) -> dict:

@@ -1,7 +1,9 @@
 """Many simulated runs per policy on the same seeded people: `simulate` and ``simulation.json``.
 
-`simulate` compiles the task once (motion-aware, `hrc.compile.compiler.compile_task`; and motion-blind,
-`hrc.sim.blind`, if that policy is asked for), then runs ``runs`` simulations per policy: run ``i`` of
+`simulate` compiles the task once (motion-aware, `hrc.compile.compiler.compile_task`, or for a task
+beyond ``hrc compile``'s ``--max-plans`` the search compile, whose dispatcher then compiles on demand:
+`hrc.sim.on_demand`; and motion-blind, `hrc.sim.blind`, if that policy is asked for), then runs
+``runs`` simulations per policy: run ``i`` of
 every policy has the same person (`hrc.sim.human.draw_human` from ``(seed, i)``). Runs go to an executor
 as `hrc compile`'s plans do (`hrc.compile.executors`: serial, a local process pool with ``jobs``, or
 Dask), in chunks of one policy; the result does not depend on the executor or the order in which chunks
@@ -142,7 +144,7 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     settings.human.check(task)
     compiles = dict(compiles or {})
     if "motion" not in compiles:
-        compiles["motion"] = compile_task(task, seed=compile_seed, jobs=jobs, executor=executor, progress=progress)
+        compiles["motion"] = _compile(task, compile_seed, jobs, executor, progress)
     if "blind" not in compiles and any(POLICIES[p].compile == "blind" for p in chosen):
         from hrc.sim.blind import blind_compile
 
@@ -159,6 +161,20 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     buttons = SimContext(task, compiles, replace(settings, detector="buttons", detection_delay=delay), seed)
     base = _run_all(buttons, dispatched, runs, executor, jobs, progress, "buttons") if dispatched else {}
     return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay, logs)
+
+
+def _compile(task: Task, seed: int, jobs: int | None, executor: str | None, progress: Progress | None
+             ) -> CompiledPlanSet:
+    """The motion-aware compile: every plan, or beyond `hrc.compile.estimate.DEFAULT_MAX_PLANS` (as ``hrc
+    compile --plans auto``) the search's best plans and coverage of the person's first choices, the
+    dispatcher compiling on demand what a run needs beyond them (`hrc.dispatch.on_demand`)."""
+    from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
+
+    if estimate(task).plans.value <= DEFAULT_MAX_PLANS:
+        return compile_task(task, seed=seed, jobs=jobs, executor=executor, progress=progress)
+    from hrc.compile.search import search_in_memory
+
+    return search_in_memory(task, seed=seed)
 
 
 def _outcome(runs: Sequence[RunResult]) -> dict:

@@ -36,6 +36,7 @@ from hrc.model import Task
 from hrc.motion import PathLibrary
 from hrc.plans import agent_legs
 from hrc.sim.detector import Happening
+from hrc.sim.on_demand import OnDemandRun
 
 __all__ = ["POLICIES", "Controller", "DispatchedController", "FixedController", "Order", "Policy", "SimRoute",
            "leg_route"]
@@ -147,6 +148,7 @@ class DispatchedController(Controller):
         self.real = real
         self.blind = blind
         self.by_id = {cp.plan.id: cp for cp in cps.plans}
+        self.on_demand: OnDemandRun | None = None  # compile on demand (`hrc.sim.on_demand`): a searched compile
         self.latencies = []
         self.refused = []
         self.detected: list[tuple[float, float, str, str, str]] = []  # (given at, estimated t, event, action, phase)
@@ -168,6 +170,8 @@ class DispatchedController(Controller):
 
         obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
                           delay=h.delay)
+        if self.on_demand is not None:
+            self._adopt(obs.t)
         t0 = time.perf_counter()
         try:
             dec = self.d.observe(obs)
@@ -179,6 +183,50 @@ class DispatchedController(Controller):
         if dec.deviation is not None and "late" in dec.deviation and self.late_observations is not None:
             self.late_observations += 1
         self._after(dec)
+        if self.on_demand is not None:
+            self._ask(obs.t, dec)
+
+    def _ask(self, t: float, dec: Any) -> None:
+        """After an answer: a miss (the fallback after a plan) counted; plans asked for (`hrc.sim.on_demand`)."""
+        from hrc.dispatch.on_demand import wanted
+        from hrc.sim.on_demand import COMPILE_DELAY
+
+        od = self.on_demand
+        assert od is not None
+        if dec.fallback is None:
+            if od.missed_at is not None:
+                od.recovery.append(t - od.missed_at)
+                od.missed_at = None
+            return
+        if od.missed_at is None:
+            od.misses += 1
+            od.missed_at = t
+        prefix = wanted(self.d)
+        if prefix is not None and od.pending is None:
+            od.pending = (prefix, t + COMPILE_DELAY)
+
+    def _adopt(self, t: float) -> None:
+        """The plans asked for, compiled (`hrc.sim.on_demand.Compiles`), adopted once their time has come."""
+        from hrc.dispatch.on_demand import adopt
+
+        od = self.on_demand
+        assert od is not None
+        if od.pending is None or t < od.pending[1] - 1e-9:
+            return
+        prefix = od.pending[0]
+        od.pending = None
+        plans, seconds = od.compiles.plans(prefix)
+        if seconds is not None:
+            od.compile_seconds.append(seconds)
+        for cp in plans:
+            self.by_id.setdefault(cp.plan.id, cp)
+        self.d, n = adopt(self.d, tuple((cp.plan.id, cp.plan_class.value, cp.preference, cp.plan, bytes(cp.form))
+                                        for cp in plans))
+        od.adopted += n
+
+    def due(self) -> float | None:
+        """When the run must wake this controller (plans compiled on demand come), or None."""
+        return None if self.on_demand is None else self.on_demand.due()
 
     def position(self, now: float, t: float, x: float, y: float) -> bool:
         """The person's position measured at `t` reaches the motion detector at run time `now`
@@ -226,7 +274,9 @@ class DispatchedController(Controller):
         if decision is self._ordered[0]:  # asked every step of the floor: made once per decision
             return self._ordered[1]
         robot = decision.robot
-        if robot is None:
+        if robot is None and decision.fallback == "wait":  # no plan yet: stay, do not go home
+            order = Order("", "", "wait")
+        elif robot is None:
             order = None
         elif hasattr(robot, "earliest"):
             order = Order(robot.action, robot.phase, robot.event, float(robot.earliest),

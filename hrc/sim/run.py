@@ -166,6 +166,8 @@ class RunResult:
     late_observations: int | None = None  # answers with a deviation (late); None: no delay stated
     first_sensing_class: str | None = None  # the first plan's class in the compile (under its sensing), with it
     latencies: tuple[float, ...] = field(default=(), compare=False)
+    on_demand: dict | None = None  # compile on demand's misses and recovery (`hrc.sim.on_demand`), or None
+    compile_seconds: tuple[float, ...] = field(default=(), compare=False)  # its compiles' wall times
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
 
@@ -188,7 +190,8 @@ class RunResult:
                 **({} if self.late_observations is None else {"late_observations": self.late_observations,
                                                               "first_sensing_class": self.first_sensing_class}),
                 **({} if self.detection is None else {"detection": self.detection.to_json()}),
-                **({} if self.ssm is None else {"ssm": self.ssm.to_json()})}
+                **({} if self.ssm is None else {"ssm": self.ssm.to_json()}),
+                **({} if self.on_demand is None else {"on_demand": self.on_demand})}
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -213,7 +216,18 @@ def make_controller(ctx: SimContext, policy: Policy) -> Controller:
             pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
     # A dispatcher replaces its whole (immutable) state on every message, so a shallow copy of a fresh one
     # is a fresh one: 30 us instead of 0.3 s (workshop) for `from_compiled` (the API has no reset or copy).
-    return DispatchedController(pristine.fork(), cps, ctx.paths, policy.compile == "blind")
+    ctl = DispatchedController(pristine.fork(), cps, ctx.paths, policy.compile == "blind")
+    if cps.search and not motion and not policy.feasible_only:  # a searched compile: compile on demand
+        from hrc.dispatch.on_demand import OnDemandSettings, enable
+        from hrc.sim.on_demand import Compiles, OnDemandRun
+
+        compiles = ctx.cache.get(("compiles", policy.compile))
+        if compiles is None:
+            compiles = ctx.cache[("compiles", policy.compile)] = Compiles(cps)
+        enable(ctl.d, OnDemandSettings(seed=cps.seed, human_waits=cps.options.human_waits,
+                                       rank_by=cps.options.rank_by))
+        ctl.on_demand = OnDemandRun(compiles)
+    return ctl
 
 
 def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
@@ -514,7 +528,9 @@ class _Run(Standoffs):
         phase = self.phases[a.action][a.pi]
         mine = o is not None and (o.action, o.phase) == (a.action, phase)
         if a.mode == "parked":
-            if mine and o is not None and o.event == "unpark" and t >= o.earliest - _EPS:
+            # told to arrive: the plan followed now (one compiled on demand, `hrc.sim.on_demand`) has no stop
+            # on this leg, so the robot goes on as if told to leave the waiting place now
+            if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and t >= o.earliest - _EPS)):
                 a.order = o
                 a.mode = "travel"
                 a.mover.resume()
@@ -598,6 +614,9 @@ class _Run(Standoffs):
         o = self.ctl.order()
         if o is not None and o.event in ("depart", "unpark", "start"):
             cands.append(o.earliest)
+        due = self.ctl.due() if isinstance(self.ctl, DispatchedController) else None
+        if due is not None:  # plans compiled on demand come then (`hrc.sim.on_demand`)
+            cands.append(due)
         if isinstance(self.ctl, DispatchedController) and self.ctx.settings.tick > 0 and not self.done():
             if o is None or o.event == "wait" or self.h.mode in ("free", "parked", "arrived"):
                 cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
@@ -664,6 +683,10 @@ class _Run(Standoffs):
                 self.last_tick = nt
                 self.ctl.tick(max(nt, self.last_obs))
                 self.last_obs = max(nt, self.last_obs)
+            elif isinstance(self.ctl, DispatchedController) and (due := self.ctl.due()) is not None and \
+                    nt >= due - _EPS:  # the plans compiled on demand have come: a tick takes them in
+                self.ctl.tick(max(nt, self.last_obs))
+                self.last_obs = max(nt, self.last_obs)
             waiting = any(ag.mover.moving or ag.mode == "aside_wait" for ag in (self.h, self.r))
             if waiting and before == (self.h.mover.xy, self.r.mover.xy, len(self.happenings)):
                 stall_since = self.t if stall_since is None else stall_since
@@ -717,6 +740,7 @@ class _Run(Standoffs):
             broken = tuple(broken_constraints(plan_network(cps, first_cp), times))
         if self.h.mode == "away" and self.away_since is not None:
             self.absent += span - self.away_since
+        od = getattr(ctl, "on_demand", None)  # compile on demand (`hrc.sim.on_demand`), with a searched compile
         min_free, overlaps = self.floor.min_free, self.floor.overlaps
         robot_held, human_held = self.floor.robot.held, self.floor.human.held
         if self.finished_at is not None:  # the floor as it was when the last phase ended (not the drain)
@@ -737,6 +761,8 @@ class _Run(Standoffs):
             late_observations=getattr(ctl, "late_observations", None),
             first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
             ssm=None if self.floor.ssm is None else self.floor.ssm.measures(),
+            on_demand=None if od is None else od.to_json(),
+            compile_seconds=() if od is None else tuple(od.compile_seconds),
             happenings=tuple(self.happenings) if self.record else (), frames=tuple(self.frames))
 
     def _detection(self) -> Detection | None:
