@@ -64,7 +64,7 @@ def add_parser(sub: Any) -> None:
                    help="seconds before the buttons' events are reported (each message says so: its delay)")
     g.add_argument("--sensing", choices=("buttons", "motion"), default=None,
                    help="compile under this sensing path and its stated observation delay (buttons [0, 0.5] s, "
-                        "motion 2.6 s dated; default: the task's sensing:), as the task's sensing: would; the "
+                        "motion 7 s dated; default: the task's sensing:), as the task's sensing: would; the "
                         "dispatcher reads a later observation as a deviation, and the report counts the promise")
     g.add_argument("--observation-delay", metavar="LO:HI", type=delay_range, default=None,
                    help="the stated observation delay in seconds (D, LO:HI), as hrc compile's; overrides the "
