@@ -498,3 +498,13 @@ def test_hrc_check_observation_delay_on_heatlab_decimals(capsys: pytest.CaptureF
         verdicts.append(json.loads(capsys.readouterr().out)["verdict"])
     assert verdicts[0] == "DC"
     assert verdicts[2] in ("DC", "not DC") and (verdicts[1] == "DC" or verdicts[2] == "not DC")
+
+
+def test_a_link_squeezed_onto_its_root_is_explained_by_its_negative_loop() -> None:
+    """Found by hypothesis: [1, 2] contingent, the robot within [0, 1] of its activation, the delay [0, 1]
+    telling nothing: the substitution leaves a link of T0 to itself; the explanation is its negative loop
+    alone (the loop of weight >= 0 beside it made a 'cycle' summing to 0)."""
+    stnu = STNU(("T0", "T1"), (R("T1", "T0", -1, 0),), (C("T0", "T1", 1, 2),))
+    result = check_delay(stnu, {"T1": ObservationDelay(0, 1)})
+    assert result.verdict is Verdict.NOT_DC
+    assert result.cycle and sum(e.value for e in result.cycle) < 0

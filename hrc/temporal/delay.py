@@ -244,8 +244,10 @@ def delayed_network(stnu: STNU, delays: Delays) -> DelayedNetwork:
         crossed = lb is not None and ub is not None and lb > ub
         if s == t or crossed:
             if crossed or (ub is not None and ub < 0) or (lb is not None and lb > 0):
-                broken.append(tuple(e for e in (Edge(s, t, ub) if ub is not None else None,
-                                                Edge(t, s, -lb) if lb is not None else None) if e is not None))
+                # the negative cycle: both edges of a crossed link; of a link to itself, the edge that is
+                # negative on its own (the other, a loop of weight >= 0, is no part of it)
+                pair = (Edge(s, t, ub) if ub is not None else None, Edge(t, s, -lb) if lb is not None else None)
+                broken.append(tuple(e for e in pair if e is not None and (s != t or e.value < 0)))
             continue  # a condition on nature alone, or a link nature breaks (in `broken`)
         reqs.append(RequirementLink(s, t, lb, ub))
     conts: list[ContingentLink] = []
