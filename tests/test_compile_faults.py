@@ -260,21 +260,22 @@ def test_signals_at_many_random_moments(tmp_path, truth):
 
 def test_the_workers_die_with_their_parent_and_the_next_compile_cleans_up(tmp_path, truth):
     """kill -9 of the compile while its two workers compile: they are gone within seconds (they were
-    left blocked for ever, ~120 MB each), the staging folder is left, and the next compile into the same
-    folder removes it, says so, and writes the uninterrupted run's bytes."""
+    left blocked for ever, ~120 MB each), and so is the report's figure drawer (`hrc.report.drawer`, forked
+    before the paths); the staging folder is left, and the next compile into the same folder removes it,
+    says so, and writes the uninterrupted run's bytes."""
     case = tmp_path / "case"
     case.mkdir()
     out = case / "out"
     proc, mark = _start(out)
     deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:  # until both workers are there and have written plans
+    while time.monotonic() < deadline:  # until the drawer and both workers are there, the workers with plans
         spools = list(case.glob(".out.staging-*/.plans.*.spool"))
-        if len(_marked(mark)) >= 3 and spools and all(p.stat().st_size for p in spools):
+        if len(_marked(mark)) >= 4 and spools and all(p.stat().st_size for p in spools):
             break
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.02)
     workers = [pid for pid in _marked(mark) if pid != proc.pid]
-    assert len(workers) == 2
+    assert len(workers) == 3
     t0 = time.monotonic()
     proc.kill()
     proc.wait(30)

@@ -130,9 +130,12 @@ def test_a_run_stopped_by_a_signal_leaves_a_whole_recording(folder: Path, sessio
                                                             sig: int) -> None:
     """The stdin stays open (a live run): half the messages, their answers read, then the signal."""
     log, path = tmp_path / "run.log", tmp_path / "run.mcap"
+    # SIGINT as a terminal gives it: a test run started in the background of a shell inherits SIGINT
+    # ignored, and Python (as any Unix program) leaves an inherited ignore in place
     proc = subprocess.Popen([sys.executable, "-m", "hrc", "dispatch", str(folder), "--log", str(log), "--record",
                              str(path)], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert proc.stdin is not None and proc.stdout is not None
     half = session[:len(session) // 2]
     for line in half:

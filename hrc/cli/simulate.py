@@ -23,7 +23,7 @@ from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
-__all__ = ["add_parser", "format_detection", "format_promise", "format_ssm", "format_table", "run"]
+__all__ = ["add_parser", "format_detection", "format_on_demand", "format_promise", "format_ssm", "format_table", "run"]
 
 POLICY_NAMES = ("hrc", "motion-blind", "feasible-only", "fixed")  # hrc.sim.policies.POLICIES, not imported here
 
