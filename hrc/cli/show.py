@@ -1,14 +1,21 @@
-"""`hrc show TASK.yaml [--json]`: the loaded task, its map and how many plans it admits."""
+"""`hrc show TASK.yaml [--json]`: the loaded task, its map and how many plans it admits.
+`hrc show OUT [--json]`: an `hrc compile` output at a glance (task, counts, the best plans);
+`hrc show OUT --plan ID [--json]`: one plan's detail, read from where it lies (`hrc.compile.output.read_plan`:
+one line of ``compiled.json`` or ``plans.jsonl``, whatever the plan count)."""
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
+from pathlib import Path
 from typing import Any
 
 from hrc.compile.estimate import DEFAULT_MAX_PLANS, FIXED_SECONDS, estimate, fmt_bytes, fmt_span
 from hrc.compile.executors import default_jobs
+from hrc.compile.output import read_header, read_plan
+from hrc.errors import InputError
 from hrc.io.task_file import load_task
 from hrc.model import Task
 from hrc.motion.separation import describe as model_words
@@ -18,8 +25,12 @@ __all__ = ["add_parser", "run", "task_summary"]
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser("show", help="print a task, its map and its plan count")
-    p.add_argument("task", help="task YAML file")
+    p = sub.add_parser("show", help="print a task, its map and its plan count; or a compile output, or one of "
+                                    "its plans")
+    p.add_argument("task", help="task YAML file, or an hrc compile output folder")
+    p.add_argument("--plan", metavar="ID", help="with an output folder: that plan's detail (allocation, order, class, "
+                                                "makespan, motions, passing orders, waiting places, STNU)")
+    p.add_argument("--top", type=int, default=10, metavar="N", help="with an output folder: the N best plans (10)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.set_defaults(run=run)
 
@@ -120,6 +131,135 @@ def _text(s: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if Path(args.task).is_dir():
+        return _run_output(args)
+    if args.plan is not None:
+        raise InputError(args.task, "", "--plan reads an output folder of hrc compile, not a task file")
     summary = task_summary(load_task(args.task))
     print(json.dumps(summary, indent=2) if args.json else _text(summary))
     return 0
+
+
+# ------------------------------------------------------------------------------------- an output folder
+def _run_output(args: argparse.Namespace) -> int:
+    folder = Path(args.task)
+    header = read_header(folder)
+    if args.plan is None:
+        top = _top(folder, max(args.top, 0))
+        print(json.dumps({"header": header, "top": top}, indent=2) if args.json else _output_text(folder, header, top))
+        return 0
+    plan = read_plan(folder, args.plan)
+    if plan is None:
+        total = sum(header.get("counts", {}).values())
+        raise InputError(str(folder / "compiled.json"), "plans", f"no plan {args.plan!r} among its {total:,} plans "
+                                                                 f"(hrc show {folder} lists the best)")
+    where = _stnu_where(folder, header, plan)
+    if args.json:
+        print(json.dumps(plan | {"stnu_location": where}, indent=2))
+    else:
+        print(_plan_text(folder, header, plan, where))
+    return 0
+
+
+def _top(folder: Path, n: int) -> list[dict[str, Any]]:
+    """The first `n` plans of ``compiled.json`` (rank order) as its lines give them: whole entries, or a
+    split output's rows (id, rank, class, sequences, makespan, preference); read line by line."""
+    out = []
+    with open(folder / "compiled.json", "rb") as f:
+        for line in itertools.islice((x for x in f if x.startswith(b'{"id":')), n):
+            row = json.loads(line.rstrip(b",\n"))
+            out.append({k: row[k] for k in ("id", "rank", "class", "sequences", "makespan", "preference") if k in row})
+    return out
+
+
+def _stnu_where(folder: Path, header: dict[str, Any], plan: dict[str, Any]) -> str | None:
+    """Where the plan's STNU is: its file, its member of the archive, or None (not written)."""
+    rel = plan.get("stnu")
+    if not rel:
+        return None
+    if header.get("stnu_files") == "archive":
+        return f"{folder / str(header.get('stnu_archive', 'stnu.zip'))}: member {rel}"
+    return str(folder / rel)
+
+
+def _secs(x: Any) -> str:
+    return "-" if x is None else f"{x:g} s"
+
+
+def _span(m: Any) -> str:
+    return "no schedule" if not m else f"{m[0]:g}-{m[1]:g} s"
+
+
+def _output_text(folder: Path, header: dict[str, Any], top: list[dict[str, Any]]) -> str:
+    task, counts = header["task"], header.get("counts", {})
+    total = sum(counts.values())
+    lines = [f"compiled {task['name']} ({folder}): {total:,} plans, "
+             + ", ".join(f"{v:,} {k}" for k, v in counts.items())
+             + (" (partial: the compile was interrupted)" if header.get("partial") else "")]
+    lines.append(f"  task digest {task['digest']}, seed {header.get('seed')}, "
+                 f"options {json.dumps(header.get('options'))}")
+    if "sensing" in header:
+        lines.append(f"  sensing: {json.dumps(header['sensing'])}")
+    where = header.get("plan_lines")
+    lines.append("  each plan's detail: " + (f"{folder / where['path']} (one line a plan, rank order), "
+                                              "compiled.json lists a row per plan" if isinstance(where, dict)
+                                              else "in compiled.json"))
+    if top:
+        lines.append(f"best {len(top)}:")
+        for r in top:
+            seqs = "; ".join(f"{a}: {' -> '.join(s) or '-'}" for a, s in r.get("sequences", {}).items())
+            lines.append(f"  {r['rank']:>4}. {r['id']}  {r['class']:<12} {_span(r.get('makespan')):<16} {seqs}")
+    lines.append(f"one plan: hrc show {folder} --plan ID")
+    return "\n".join(lines)
+
+
+def _occupancy(o: dict[str, Any]) -> str:
+    if o.get("kind") == "travel":
+        return f"leg {o.get('leg')} {o.get('from')} -> {o.get('to')}"
+    return f"at {o.get('at')} (leg {o.get('leg')})"
+
+
+def _plan_text(folder: Path, header: dict[str, Any], p: dict[str, Any], stnu: str | None) -> str:
+    total = sum(header.get("counts", {}).values())
+    lines = [f"plan {p['id']} of {header['task']['name']} ({folder}): rank {p['rank']:,} of {total:,}, {p['class']}"
+             + (f" (at observation delay 0: {p['class_at_delay_0']})" if "class_at_delay_0" in p else "")]
+    if p.get("explanation"):
+        lines.append(f"  why: {p['explanation']}")
+    lines.append(f"  makespan {_span(p.get('makespan'))} (earliest-worst case), "
+                 f"nominal {_secs(p.get('nominal_makespan'))}; idle "
+                 + ", ".join(f"{a} {t:g} s" for a, t in p.get("idle", {}).items())
+                 + (f"; preference {p['preference']:g}" if p.get("preference") is not None else ""))
+    by_agent: dict[str, list[str]] = {}
+    for action, agent in p.get("allocation", {}).items():
+        by_agent.setdefault(agent, []).append(action)
+    lines.append("  allocation: " + "; ".join(f"{a}: {', '.join(sorted(acts))}" for a, acts in by_agent.items()))
+    lines.append("  order:")
+    lines.extend(f"    {a}: {' -> '.join(seq) or '(nothing)'}" for a, seq in p.get("sequences", {}).items())
+    motions = p.get("motions", [])
+    lines.append(f"  motions ({len(motions)}):")
+    for m in motions:
+        extra = []
+        if m.get("detour"):
+            extra.append(f"detour {m['detour']['round']}")
+        if m.get("park"):
+            extra.append(f"waits at {m['park']['at']}")
+        if m.get("speed"):
+            extra.append(f"speed {m['speed']}")
+        lines.append(f"    {m['agent']:<6} leg {m['leg']:>2} {m['from']} -> {m['to']} for {m['action']}.{m['phase']}: "
+                     f"{m['time']:g} s (free {m['free_time']:g} s)" + (f", {', '.join(extra)}" if extra else ""))
+    parks = [m for m in motions if m.get("park")]
+    lines.append("  waiting places: " + ("; ".join(f"{m['agent']} waits at {m['park']['at']} on leg {m['leg']} "
+                                                    f"({m['from']} -> {m['to']}; {m['park']['time']:g} s of its moving "
+                                                    "time to get there)" for m in parks) or "none"))
+    passing = p.get("passing", [])
+    pat = p.get("pattern", {})
+    lines.append(f"  passing orders ({len(passing)} in the STNU; {pat.get('implied', 0)} implied by the plan, "
+                 f"{pat.get('conflicts', 0)} conflicts, {pat.get('candidates', 0)} candidate patterns"
+                 + ("" if pat.get("exhaustive", True) else ", search not exhaustive") + "):")
+    for o in passing:
+        c = o.get("constraint", {})
+        x, y = o.get("point", [0, 0])
+        lines.append(f"    {o['first']} first ({o['how']}) at ({x:g}, {y:g}): robot {_occupancy(o['robot'])}, human "
+                     f"{_occupancy(o['human'])}; T({c.get('to')}) - T({c.get('from')}) >= {c.get('min') or 0.0:g} s")
+    lines.append(f"  STNU: {stnu or 'not written (--stnu none)'}")
+    return "\n".join(lines)
