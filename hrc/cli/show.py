@@ -12,10 +12,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-from hrc.compile.estimate import DEFAULT_MAX_PLANS, FIXED_SECONDS, estimate, fmt_bytes, fmt_span
+from hrc.compile.estimate import DEFAULT_MAX_PLANS, FIXED_SECONDS, calibrate, estimate, fmt_bytes, fmt_seconds, fmt_span
 from hrc.compile.executors import default_jobs
-from hrc.compile.output import read_header, read_plan
-from hrc.errors import InputError
+from hrc.compile.output import INLINE_MAX_BYTES, ROWS_MAX, read_header, read_plan
+from hrc.errors import HrcError, InputError
 from hrc.io.task_file import load_task
 from hrc.model import Task
 from hrc.motion.separation import describe as model_words
@@ -32,6 +32,9 @@ def add_parser(sub: Any) -> None:
                                                 "makespan, motions, passing orders, waiting places, STNU)")
     p.add_argument("--top", type=int, default=10, metavar="N", help="with an output folder: the N best plans (10)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.add_argument("--no-calibrate", action="store_true",
+                   help="estimate the compile from the task's size alone (a wide range) instead of compiling a sample "
+                        "of its plans here (a few seconds once, then cached)")
     p.set_defaults(run=run)
 
 
@@ -39,12 +42,30 @@ def _bound(x: float) -> float | str:
     return "inf" if math.isinf(x) else x  # JSON has no infinity
 
 
-def task_summary(task: Task) -> dict[str, Any]:
+def task_summary(task: Task, calibrated: bool = False) -> dict[str, Any]:
     """A JSON-ready summary of `task`, including ``plan_count`` (exact, or an upper bound when
     ``plan_count_exact`` is false: counting would be slow) and the up-front ``estimate`` of a compile
-    (bytes on disk per ``--stnu`` mode, CPU seconds low and high, `hrc.compile.estimate`)."""
+    (bytes on disk per ``--stnu`` mode, CPU seconds low and high, `hrc.compile.estimate`; with
+    `calibrated`, a sample of plans compiled here and the wall seconds of ``hrc compile`` on this
+    machine's cores it implies, ``wall_seconds``, and what the sample measured, ``calibration``)."""
     ws = task.workspace
     est = estimate(task)
+    measured: dict[str, Any] = {}
+    if calibrated:
+        try:
+            cal = calibrate(task)
+        except HrcError as err:  # e.g. an unreachable location: the compile would say so too
+            measured = {"calibration_error": str(err)}
+        else:
+            jobs = default_jobs()
+            n = est.plans.value
+            measured = {"wall_seconds": round(cal.wall(n, jobs), 1), "workers": jobs,
+                        "wall_seconds_archive_no_report": round(cal.wall(n, jobs, "archive", report=False), 1),
+                        "calibration": {"plans": cal.plans, "seconds_per_plan": round(cal.pace, 5),
+                                        "first_seconds_per_plan": round(cal.first_pace, 5),
+                                        "line_bytes": round(cal.line_bytes),
+                                        "paths_seconds": round(cal.paths_seconds, 2)},
+                        "compiled_json_bytes": _json_bytes(n, cal.line_bytes)}
     return {
         "task": task.name,
         "file": task.source,
@@ -69,7 +90,7 @@ def task_summary(task: Task) -> dict[str, Any]:
         "estimate": {"disk_bytes": {mode: est.disk(mode) for mode in est.stnu_bytes},
                      "cpu_seconds": [round(est.cpu_seconds[0], 1), round(est.cpu_seconds[1], 1)],
                      "fixed_seconds": list(FIXED_SECONDS),
-                     "max_plans_default": DEFAULT_MAX_PLANS},
+                     "max_plans_default": DEFAULT_MAX_PLANS} | measured,
         "identical_actions": [list(g) for g in identical_actions(task)],
         "symmetry_factor": symmetry_factor(task),
     } | ({} if task.safety is None else {"separation": model_words(task)})  # a task with safety: only
@@ -112,9 +133,20 @@ def _text(s: dict[str, Any]) -> str:
     jobs = default_jobs()
     lo, hi = (f + t / jobs for f, t in zip(e["fixed_seconds"], e["cpu_seconds"], strict=True))
     disk = e["disk_bytes"]
-    lines.append(f"compile estimate: {fmt_span(lo, hi, ' - ', about=True)} on {jobs} core{'s' * (jobs > 1)} "
-                 "(start-up, path planning and the report included; longer on a busy machine); on disk "
-                 f"{fmt_bytes(disk['graphml'])} (--stnu archive: {fmt_bytes(disk['archive'])}, none: "
+    cores = f"{jobs} core{'s' * (jobs > 1)}"
+    if "wall_seconds" in e:
+        c = e["calibration"]
+        bare = fmt_seconds(e["wall_seconds_archive_no_report"])
+        lines.append(f"compile estimate: about {fmt_seconds(e['wall_seconds'])} on {cores} (start-up, path planning "
+                     f"and the report included; --stnu archive --no-report: {bare}), from {c['plans']} sample plans "
+                     f"compiled here at {1000 * c['seconds_per_plan']:.1f} ms each "
+                     "(within +-50 % on an idle machine; longer on a busy one); compiled.json "
+                     f"{fmt_bytes(e['compiled_json_bytes'])}")
+    else:
+        why = f" ({e['calibration_error']})" if "calibration_error" in e else ""
+        lines.append(f"compile estimate: {fmt_span(lo, hi, ' - ', about=True)} on {cores} "
+                     f"(start-up, path planning and the report included; longer on a busy machine; no sample{why})")
+    lines.append(f"  on disk about {fmt_bytes(disk['graphml'])} (--stnu archive: {fmt_bytes(disk['archive'])}, none: "
                  f"{fmt_bytes(disk['none'])})")
     if s["plan_count"] > e["max_plans_default"]:
         lines.append(f"  more than {e['max_plans_default']:,} plans: `hrc compile` searches for the best plans "
@@ -135,9 +167,16 @@ def run(args: argparse.Namespace) -> int:
         return _run_output(args)
     if args.plan is not None:
         raise InputError(args.task, "", "--plan reads an output folder of hrc compile, not a task file")
-    summary = task_summary(load_task(args.task))
+    summary = task_summary(load_task(args.task), calibrated=not args.no_calibrate)
     print(json.dumps(summary, indent=2) if args.json else _text(summary))
     return 0
+
+
+def _json_bytes(plans: int, line: float) -> int:
+    """``compiled.json``'s size for `plans` lines of `line` bytes: all of them up to `INLINE_MAX_BYTES`,
+    else a row each (about 200 bytes, at most `ROWS_MAX`) and the lines in ``plans.jsonl``."""
+    whole = int(plans * line)
+    return whole if whole <= INLINE_MAX_BYTES else 200 * min(plans, ROWS_MAX)
 
 
 # ------------------------------------------------------------------------------------- an output folder
