@@ -138,7 +138,8 @@ def test_show_plan_prints_one_plans_detail(tmp_path, capsys):
     assert "  allocation: human: cube1, cube3, triangle; robot: cube2, cube4" in lines
     entry = next(p for p in iter_plans(out) if p["id"] == "e636cb797a")
     assert f"  motions ({len(entry['motions'])}):" in lines
-    assert sum(x.startswith("    robot first") or x.startswith("    human first") for x in lines) == len(entry["passing"])
+    orders = [x for x in lines if x.startswith(("    robot first", "    human first"))]
+    assert len(orders) == len(entry["passing"])
     assert lines[-1] == f"  STNU: {out / 'stnu' / 'e636cb797a.graphml'}"
     assert main(["show", str(out), "--plan", "e636cb797a", "--json"]) == 0
     assert json.loads(capsys.readouterr().out) == entry | {"stnu_location": str(out / "stnu" / "e636cb797a.graphml")}
@@ -164,7 +165,8 @@ def test_a_bad_plan_id_is_one_line_and_exit_2(kits, capsys):
     for folder in kits:
         assert main(["show", str(folder), "--plan", "nosuchplan"]) == 2
         err = capsys.readouterr().err
-        assert err.startswith(f"error: {folder / 'compiled.json'}: plans: no plan 'nosuchplan'") and err.count("\n") == 1
+        assert err.startswith(f"error: {folder / 'compiled.json'}: plans: no plan 'nosuchplan'")
+        assert err.count("\n") == 1
     assert main(["show", str(WORKSHOP_TASK), "--plan", "e636cb797a"]) == 2
     err = capsys.readouterr().err
     assert "--plan reads an output folder" in err and err.count("\n") == 1

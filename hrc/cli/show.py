@@ -60,9 +60,11 @@ def task_summary(task: Task, calibrated: bool = False) -> dict[str, Any]:
             jobs = default_jobs()
             n = est.plans.value
             measured = {"wall_seconds": round(cal.wall(n, jobs), 1), "workers": jobs,
+                        "wall_seconds_now": round(cal.wall(n, jobs, now=True), 1),
                         "wall_seconds_archive_no_report": round(cal.wall(n, jobs, "archive", report=False), 1),
                         "calibration": {"plans": cal.plans, "seconds_per_plan": round(cal.pace, 5),
                                         "first_seconds_per_plan": round(cal.first_pace, 5),
+                                        "wall_ratio": round(cal.wall_ratio, 2),
                                         "line_bytes": round(cal.line_bytes),
                                         "paths_seconds": round(cal.paths_seconds, 2)},
                         "compiled_json_bytes": _json_bytes(n, cal.line_bytes)}
@@ -139,9 +141,10 @@ def _text(s: dict[str, Any]) -> str:
         bare = fmt_seconds(e["wall_seconds_archive_no_report"])
         lines.append(f"compile estimate: about {fmt_seconds(e['wall_seconds'])} on {cores} (start-up, path planning "
                      f"and the report included; --stnu archive --no-report: {bare}), from {c['plans']} sample plans "
-                     f"compiled here at {1000 * c['seconds_per_plan']:.1f} ms each "
-                     "(within +-50 % on an idle machine; longer on a busy one); compiled.json "
-                     f"{fmt_bytes(e['compiled_json_bytes'])}")
+                     f"compiled here at {1000 * c['seconds_per_plan']:.1f} ms each (within +-50 % on an idle "
+                     "machine" + (f"; at the load the sample saw, about {fmt_seconds(e['wall_seconds_now'])}"
+                                  if c["wall_ratio"] >= 1.3 else "")
+                     + f"); compiled.json {fmt_bytes(e['compiled_json_bytes'])}")
     else:
         why = f" ({e['calibration_error']})" if "calibration_error" in e else ""
         lines.append(f"compile estimate: {fmt_span(lo, hi, ' - ', about=True)} on {cores} "

@@ -103,21 +103,21 @@ def estimate(task: Task, symmetry: bool = False) -> Estimate:
                     cpu_seconds=(n * SECONDS_PER_PLAN[0], n * SECONDS_PER_PLAN[1]))
 
 
-CALIBRATION_FAMILIES = 24
+CALIBRATION_FAMILIES = 16
 """Families `calibrate` compiles at most (spread over the allocations), within `CALIBRATION_SECONDS`."""
-CALIBRATION_SECONDS = 2.0
+CALIBRATION_SECONDS = 1.0
 
 START_SECONDS = 1.2
 """Wall seconds before a compile's first plan: interpreter, imports, reading the task (`hrc compile -v`)."""
 SAMPLE_SECONDS = 1.0
 """The compile's own up-front sample (`hrc.compile.stream`, ``sample_seconds``), in its parent process."""
-PACE_FACTOR = 1.0
+PACE_FACTOR = 1.2
 """A long run's CPU per plan over `calibrate`'s second pace (fitted: docs/benchmarks.md)."""
 PARALLEL = 0.85
 """What each further worker adds (kitting_7picks: 1.71 on 2 workers)."""
-WARMUP_PLANS = 4.0
-"""Each worker pays the first pace instead of the second for about this many families' worth of plans
-(its detours, conflict geometry and text layouts made once)."""
+WARMUP_PLANS = 64
+"""Each worker pays the first pace instead of the second for about this many plans (its detours,
+conflict geometry and text layouts made once: the workshop's 32 plans all pay it)."""
 WRITE_RATE = 400e6
 """Bytes a second the parent writes at the end (the lines copied in rank order, the archive deflated)."""
 FILE_SECONDS = 60e-6
@@ -138,14 +138,26 @@ class Calibration:
     paths_seconds: float
     line_bytes: float
     graphml_bytes: float
+    wall_ratio: float = 1.0
+    """Wall over CPU seconds of the sample: 1 on an idle machine, 3 when two other jobs share each core."""
+    cores: int = 2
+    """The machine's cores when the sample ran."""
 
-    def wall(self, total: int, workers: int, stnu: str = "graphml", report: bool = True) -> float:
-        """Wall seconds of ``hrc compile`` on `total` plans with `workers` worker processes (the module
-        docstring's model)."""
+    def wall(self, total: int, workers: int, stnu: str = "graphml", report: bool = True, now: bool = False) -> float:
+        """Wall seconds of ``hrc compile`` on `total` plans with `workers` worker processes on an idle
+        machine (the module docstring's model); `now`: at the load the sample saw, read as L other
+        runnable processes (the sample got ``cores / (L + 1)`` of a core: `wall_ratio`), which leave the
+        serial parts `wall_ratio` times slower and the workers ``(L + workers) / cores`` times (a rough
+        guide: the load moves from minute to minute)."""
         workers = max(1, workers)
-        per_family = self.plans / max(self.families, 1)
-        warm = min(total, workers * WARMUP_PLANS * per_family) * max(self.first_pace - self.pace, 0.0)
-        plans = total * self.pace * PACE_FACTOR / (1 + PARALLEL * (workers - 1)) + warm / workers
+        warm = min(total, workers * WARMUP_PLANS) * max(self.first_pace - self.pace, 0.0)
+        plans = (total * self.pace * PACE_FACTOR + warm) / (1 + PARALLEL * (workers - 1))
+        serial, parallel = 1.0, 1.0
+        if now:
+            others = max(0.0, self.wall_ratio * self.cores - 1) if self.wall_ratio > 1 else 0.0
+            serial = self.wall_ratio
+            parallel = max(1.0, (others + workers) / self.cores) * min(workers, self.cores) / workers
+        plans *= parallel
         lines = total * self.line_bytes
         if stnu == "graphml":
             write = lines / WRITE_RATE + total * FILE_SECONDS
@@ -153,8 +165,8 @@ class Calibration:
             write = (lines + total * self.graphml_bytes) / WRITE_RATE
         else:
             write = lines / WRITE_RATE
-        return (START_SECONDS + self.paths_seconds + min(SAMPLE_SECONDS, total * self.first_pace) + plans + write
-                + (REPORT_SECONDS if report else 0.0))
+        return plans + serial * (START_SECONDS + self.paths_seconds + min(SAMPLE_SECONDS, total * self.first_pace)
+                                 + write + (REPORT_SECONDS if report else 0.0))
 
 
 def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
@@ -169,7 +181,7 @@ def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
     from hrc.motion import plan_paths
     from hrc.plans import spread_families
 
-    key = ":".join(("calibration-1", task_digest(task), str(seed), platform.node(), str(os.cpu_count()),
+    key = ":".join(("calibration-3", task_digest(task), str(seed), platform.node(), str(os.cpu_count()),
                     source_digest("hrc.compile.estimate", "hrc.compile.compiler", "hrc.compile.motion_pattern",
                                   "hrc.compile.stream", "hrc.compile.output", "hrc.compile.classify")))
     folder = cache_folder("calibration") if cache else None
@@ -181,7 +193,7 @@ def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
     paths_seconds = time.perf_counter() - t0
     options = CompileOptions()
     spread = spread_families(task, families)
-    c0 = time.process_time()
+    w0, c0 = time.perf_counter(), time.process_time()
     n = done = 0
     line = graphml = 0
     for family in spread:
@@ -194,9 +206,10 @@ def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
             break
     c1 = time.process_time()
     compile_records(options, "graphml", task, paths, spread[:done])
-    c2 = time.process_time()
+    w2, c2 = time.perf_counter(), time.process_time()
     out = Calibration(plans=n, families=done, first_pace=(c1 - c0) / max(n, 1), pace=(c2 - c1) / max(n, 1),
-                      paths_seconds=paths_seconds, line_bytes=line / max(n, 1), graphml_bytes=graphml / max(n, 1))
+                      paths_seconds=paths_seconds, line_bytes=line / max(n, 1), graphml_bytes=graphml / max(n, 1),
+                      wall_ratio=max(1.0, (w2 - w0) / max(c2 - c0, 1e-9)), cores=os.cpu_count() or 1)
     disk_store(folder, key, out)
     return out
 
