@@ -198,3 +198,21 @@ def test_the_in_memory_writer_splits_as_the_stream_does(picks4, tmp_path, monkey
     monkeypatch.setattr(PlanSink, "inline_max", 0)
     compile_stream(task, b, count_plans(task), jobs=1, sample_seconds=0.0)
     assert _tree(a) == _tree(b) and (a / PLAN_LINES).is_file()
+
+
+def test_a_split_output_lists_at_most_rows_max_rows(picks4, tmp_path, monkeypatch, capsys):  # noqa: F811
+    """Past `ROWS_MAX` plans `compiled.json` lists the best that many and says so (``plans_listed``);
+    every plan's line is still in plans.jsonl, and one beyond the rows is read by id."""
+    import hrc.compile.output as output
+    from hrc.compile.output import write_compiled
+
+    task, full, _ = picks4
+    monkeypatch.setattr(output, "ROWS_MAX", 5)
+    write_compiled(full, tmp_path, inline_max=0)
+    data = json.loads((tmp_path / "compiled.json").read_text())
+    assert data["plans_listed"] == 5 == len(data["plans"]) and sum(data["counts"].values()) == 120
+    every = list(iter_plans(tmp_path))
+    assert len(every) == 120 and [r["id"] for r in data["plans"]] == [p["id"] for p in every[:5]]
+    assert read_plan(tmp_path, every[-1]["id"]) == every[-1]
+    assert main(["show", str(tmp_path), "--top", "3"]) == 0
+    assert capsys.readouterr().out.count("\n  ") >= 3

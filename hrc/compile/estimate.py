@@ -29,12 +29,16 @@ spread over the allocations, twice (the second time with this process's caches f
 run's workers), measuring CPU time (not wall: another job on the machine slows the wall clock, not the
 work). The compile's wall time is then modelled as
 
-    start-up + paths + the compile's own sample + plans x pace x `PACE_FACTOR` / (workers x `PARALLEL`)
-    + per-worker warm-up + writing (bytes / `WRITE_RATE`, plus `FILE_SECONDS` per GraphML file) + report
+    start-up + paths + the compile's own sample
+    + (plans x pace x `PACE_FACTOR` + min(plans, workers x `WARMUP_PLANS`) x (first pace - pace))
+      / (1 + `PARALLEL` x (workers - 1))
+    + writing (bytes / `WRITE_RATE`, plus `FILE_SECONDS` per GraphML file) + report
 
 with the constants fitted on the bundled tasks (workshop, kitting, kitting_6picks, kitting_7picks;
-docs/benchmarks.md) and said to within +-50 % on an idle machine. The result is kept in the cache folder
-(`hrc.caches`, ``calibration``) by task digest, seed, machine and source, so asking again is instant.
+docs/benchmarks.md, tests/test_estimate_model.py): within +-50 % of the compile's work and of its wall
+time at the load the sample saw (`Calibration.wall` with ``now``). The result is kept in the cache
+folder (`hrc.caches`, ``calibration``) by task digest, seed, machine and source, so asking again is
+instant (its load figure is then the first sample's).
 """
 
 from __future__ import annotations
