@@ -14,7 +14,6 @@ from typing import Any
 
 from hrc.compile.estimate import DEFAULT_MAX_PLANS, FIXED_SECONDS, calibrate, estimate, fmt_bytes, fmt_seconds, fmt_span
 from hrc.compile.executors import default_jobs
-from hrc.compile.output import INLINE_MAX_BYTES, ROWS_MAX, read_header, read_plan
 from hrc.errors import HrcError, InputError
 from hrc.io.task_file import load_task
 from hrc.model import Task
@@ -178,12 +177,16 @@ def run(args: argparse.Namespace) -> int:
 def _json_bytes(plans: int, line: float) -> int:
     """``compiled.json``'s size for `plans` lines of `line` bytes: all of them up to `INLINE_MAX_BYTES`,
     else a row each (about 200 bytes, at most `ROWS_MAX`) and the lines in ``plans.jsonl``."""
+    from hrc.compile.output import INLINE_MAX_BYTES, ROWS_MAX  # lazily: every hrc command imports this module
+
     whole = int(plans * line)
     return whole if whole <= INLINE_MAX_BYTES else 200 * min(plans, ROWS_MAX)
 
 
 # ------------------------------------------------------------------------------------- an output folder
 def _run_output(args: argparse.Namespace) -> int:
+    from hrc.compile.output import read_header, read_plan  # lazily: every hrc command imports this module
+
     folder = Path(args.task)
     header = read_header(folder)
     if args.plan is None:
