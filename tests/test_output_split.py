@@ -216,3 +216,17 @@ def test_a_split_output_lists_at_most_rows_max_rows(picks4, tmp_path, monkeypatc
     assert read_plan(tmp_path, every[-1]["id"]) == every[-1]
     assert main(["show", str(tmp_path), "--top", "3"]) == 0
     assert capsys.readouterr().out.count("\n  ") >= 3
+
+
+def test_the_rows_of_a_task_with_preferences_are_its_lines_values(tmp_path, monkeypatch):
+    """The workshop (an APA preference, so every plan has a preference value) split: each row's values
+    (from the sink's rank-key columns: the preference negated and rounded there) as its full line has them."""
+    from hrc.io.task_file import load_task
+
+    task = load_task(WORKSHOP_TASK)
+    monkeypatch.setattr(PlanSink, "inline_max", 0)
+    compile_stream(task, tmp_path, count_plans(task), jobs=1, sample_seconds=0.0)
+    rows = json.loads((tmp_path / "compiled.json").read_text())["plans"]
+    full = list(iter_plans(tmp_path))
+    assert sum(p["preference"] is not None for p in full) == 32
+    assert rows == [{k: p[k] for k in rows[0]} for p in full]
