@@ -61,9 +61,17 @@ def test_the_split_lines_are_the_single_files_lines_and_the_rows_their_summary(k
     assert new.pop("plan_lines") == {"path": PLAN_LINES, "bytes": len(text)}
     assert (new.pop("schema_version"), old.pop("schema_version")) == (3, 2)
     assert new.pop("dispatch_form")["path"] == old.pop("dispatch_form")["path"]
+    summary = new.pop("ranking_summary")
     assert new == old
     rows = json.loads((split / "compiled.json").read_text())["plans"]
     full = [json.loads(x) for x in whole]
+    for cls, said in summary.items():  # the ranking at a glance, against the full lines
+        mine = [p for p in full if p["class"] == cls]
+        timed = [p["makespan"] for p in mine if p["makespan"] is not None]
+        assert said["plans"] == len(mine) and said["no_schedule"] == len(mine) - len(timed)
+        if timed:
+            assert said["worst"][0] == min(w for _, w in timed) and said["worst"][-1] == max(w for _, w in timed)
+            assert said["earliest"][2] == round(float(np.median([e for e, _ in timed])), 3)
     assert [list(r) for r in rows] == [["id", "rank", "class", "sequences", "makespan", "preference"]] * n
     assert rows == [{k: p[k] for k in rows[0]} for p in full]
     assert (split / "compiled.json").stat().st_size < 250 * n + 1000  # about 200 bytes a plan

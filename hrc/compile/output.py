@@ -50,7 +50,8 @@ each line goes instead to ``plans.jsonl`` (`PLAN_LINES`) beside it, one per line
 is rank k), byte for byte the line schema 2 puts in ``plans`` (JSON lines: `grep`, `head` and `jq -c`
 read it a plan at a time; the dispatch form's ``line_at``/``line_len`` point into it, so one plan is
 read without reading the rest: `read_plan`). ``compiled.json`` then says ``"schema_version": 3`` and
-``"plan_lines": {"path": "plans.jsonl", "bytes": N}`` (the file's size, checked), and its ``plans``
+``"plan_lines": {"path": "plans.jsonl", "bytes": N}`` (the file's size), ``"ranking_summary"`` (per
+class: plans, plans without a schedule, quantiles of the earliest and worst-case makespans), and its ``plans``
 holds one short row per plan (about 200 bytes; the first `ROWS_MAX` plans, ``"plans_listed": n``
 when that is fewer than all)::
 
@@ -76,6 +77,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import shutil
 from collections.abc import Iterable, Iterator, Sequence
@@ -102,7 +104,8 @@ from hrc.temporal.graphml import tool_name
 __all__ = ["FORM_PLACEHOLDER", "INLINE_MAX_BYTES", "JSON_TAIL", "PLAN_LINES", "ROWS_MAX", "SCHEMA_VERSION",
            "SPLIT_SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json", "compiled_to_dict", "header_dict",
            "iter_plans", "json_head", "line_head", "line_places", "lines_path", "load_compiled_task", "plan_dict",
-           "plan_line", "plan_row", "read_header", "read_plan", "write_compiled", "write_form", "write_input"]
+           "plan_line", "plan_row", "ranking_summary", "read_header", "read_plan", "write_compiled", "write_form",
+           "write_input"]
 
 SCHEMA_VERSION = 2
 SPLIT_SCHEMA_VERSION = 3
@@ -296,7 +299,7 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
                 stnu: str = "graphml", partial: tuple[int, int] | None = None,
                 symmetric: tuple[tuple[str, ...], ...] = (), best: tuple[int, int] | None = None,
                 form: str | None = None, extra: dict[str, Any] | None = None,
-                lines: tuple[int, int] | None = None) -> dict[str, Any]:
+                lines: tuple[int, int] | None = None, summary: dict[str, Any] | None = None) -> dict[str, Any]:
     """``compiled.json`` without its plans. The optional keys appear only when they say something:
     ``stnu_files`` ("none" or "archive") and ``stnu_archive`` when the STNUs are not one GraphML file per
     plan; ``partial`` and ``plans_expected`` when the run was interrupted (`partial`: plans written, plans
@@ -306,7 +309,8 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
     plans compiled; ``hrc compile --best-per-allocation``); ``dispatch_form`` when the dispatch form was
     written (`form`: the SHA-256 of its ``form.json``, `hrc.compile.dispatch_form`); ``plan_lines`` (and
     ``"schema_version": 3``) when the plans' lines are in `PLAN_LINES` (`lines`: its size in bytes and the
-    rows ``compiled.json`` lists, ``plans_listed`` when fewer than the plans); `extra`'s entries last (a
+    rows ``compiled.json`` lists, ``plans_listed`` when fewer than the plans; `summary`: the ranking at a
+    glance, per class its plans and makespan quantiles, `ranking_summary`); `extra`'s entries last (a
     search compile's ``search``: what it guarantees, `hrc.compile.search.SearchOutcome.header`)."""
     out: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION if lines is None else SPLIT_SCHEMA_VERSION,
@@ -335,6 +339,8 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
         out["plan_lines"] = {"path": PLAN_LINES, "bytes": lines[0]}
         if lines[1] < sum(counts.values()):
             out["plans_listed"] = lines[1]
+        if summary is not None:
+            out["ranking_summary"] = summary
     if form is not None:
         out["dispatch_form"] = {"path": FORM_FOLDER, "sha256": form}
     if extra:
@@ -415,8 +421,13 @@ def write_compiled(cps: CompiledPlanSet, out_dir: Path, inline_max: int = INLINE
     rows = None if split is None else [plan_row(cp.plan.id, cp.rank, cp.plan_class.value, cp.plan.sequences,
                                                 cp.classification.makespan, cp.preference)
                                        for cp in cps.plans[:ROWS_MAX]]
+    summary = None
+    if split is not None:
+        spans = [cp.classification.makespan or (math.inf, math.inf) for cp in cps.plans]
+        summary = ranking_summary(np.array([cp.plan_class.order for cp in cps.plans]),
+                                  np.array([round(a, 6) for a, _ in spans]), np.array([round(b, 6) for _, b in spans]))
     data = header_dict(cps.task, cps.seed, cps.digest, cps.options, cps.counts(), form=FORM_PLACEHOLDER,
-                       lines=None if split is None else (split[0], len(rows or ())))
+                       lines=None if split is None else (split[0], len(rows or ())), summary=summary)
     places = line_places(data, (len(x) for x in lines)) if split is None else split[1]
     data["dispatch_form"]["sha256"] = write_form(out_dir, cps, places)
     if rows is not None:
@@ -424,6 +435,22 @@ def write_compiled(cps: CompiledPlanSet, out_dir: Path, inline_max: int = INLINE
         lines = [r.encode("utf-8") for r in rows]
     (out_dir / "compiled.json").write_bytes(json_head(data).encode("utf-8") + b",\n".join(lines)
                                             + JSON_TAIL.encode("utf-8"))
+
+
+def ranking_summary(cls: np.ndarray, early: np.ndarray, worst: np.ndarray) -> dict[str, Any]:
+    """A split ``compiled.json``'s ``ranking_summary`` from every listed plan's class order (0 DC, 1
+    consistent, 2 inconsistent) and makespans (rounded to 6 decimals as `hrc.compile.compiler.rank_key`
+    keeps them; infinite: no schedule): per class its plans, those without a schedule, and the quantiles
+    (min, 25 %, median, 75 %, max) of the earliest and worst-case makespans (None without any)."""
+    out: dict[str, Any] = {}
+    for order, name in enumerate(("DC", "consistent", "inconsistent")):
+        mine = cls == order
+        ok = mine & np.isfinite(worst)
+        q = (0, 25, 50, 75, 100)
+        out[name] = {"plans": int(mine.sum()), "no_schedule": int((mine & ~np.isfinite(worst)).sum()),
+                     "earliest": [round(float(x), 3) for x in np.percentile(early[ok], q)] if ok.any() else None,
+                     "worst": [round(float(x), 3) for x in np.percentile(worst[ok], q)] if ok.any() else None}
+    return out
 
 
 def split_lines(sizes: Sequence[int], inline_max: int) -> tuple[int, list[tuple[int, int]]] | None:
