@@ -140,9 +140,9 @@ def _text(s: dict[str, Any]) -> str:
         bare = fmt_seconds(e["wall_seconds_archive_no_report"])
         lines.append(f"compile estimate: about {fmt_seconds(e['wall_seconds'])} on {cores} (start-up, path planning "
                      f"and the report included; --stnu archive --no-report: {bare}), from {c['plans']} sample plans "
-                     f"compiled here at {1000 * c['seconds_per_plan']:.1f} ms each (within +-50 % on an idle "
-                     "machine" + (f"; at the load the sample saw, about {fmt_seconds(e['wall_seconds_now'])}"
-                                  if c["wall_ratio"] >= 1.3 else "")
+                     f"compiled here at {1000 * c['seconds_per_plan']:.1f} ms each (an idle machine"
+                     + (f"; at the load the sample saw, about {fmt_seconds(e['wall_seconds_now'])}"
+                        if c["wall_ratio"] >= 1.3 else "")
                      + f"); compiled.json {fmt_bytes(e['compiled_json_bytes'])}")
     else:
         why = f" ({e['calibration_error']})" if "calibration_error" in e else ""
