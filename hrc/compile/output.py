@@ -104,8 +104,8 @@ from hrc.temporal.graphml import tool_name
 __all__ = ["FORM_PLACEHOLDER", "INLINE_MAX_BYTES", "JSON_TAIL", "PLAN_LINES", "ROWS_MAX", "SCHEMA_VERSION",
            "SPLIT_SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json", "compiled_to_dict", "header_dict",
            "iter_plans", "json_head", "line_head", "line_places", "lines_path", "load_compiled_task", "plan_dict",
-           "plan_line", "plan_row", "ranking_summary", "read_header", "read_plan", "write_compiled", "write_form",
-           "write_input"]
+           "plan_line", "plan_row", "ranking_summary", "read_header", "read_plan", "split_lines", "write_compiled",
+           "write_form", "write_input"]
 
 SCHEMA_VERSION = 2
 SPLIT_SCHEMA_VERSION = 3
