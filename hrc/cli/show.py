@@ -212,7 +212,11 @@ def _top(folder: Path, n: int) -> list[dict[str, Any]]:
     out = []
     with open(folder / "compiled.json", "rb") as f:
         for line in itertools.islice((x for x in f if x.startswith(b'{"id":')), n):
-            row = json.loads(line.rstrip(b",\n"))
+            try:
+                row = json.loads(line.rstrip(b",\n"))
+            except ValueError as err:
+                raise InputError(str(folder / "compiled.json"), "plans",
+                                 f"a line is not a plan's JSON ({err})") from err
             out.append({k: row[k] for k in ("id", "rank", "class", "sequences", "makespan", "preference") if k in row})
     return out
 
