@@ -178,6 +178,9 @@ def test_a_bad_plan_id_is_one_line_and_exit_2(kits, capsys):
     assert main(["show", str(WORKSHOP_TASK), "--plan", "e636cb797a"]) == 2
     err = capsys.readouterr().err
     assert "--plan reads an output folder" in err and err.count("\n") == 1
+    assert main(["show", str(ROOT / "tasks"), "--plan", "e636cb797a"]) == 2  # a folder, but no output
+    err = capsys.readouterr().err
+    assert "not an hrc compile output" in err and err.count("\n") == 1
 
 
 def test_resume_reads_either_schema(picks4, tmp_path):  # noqa: F811
