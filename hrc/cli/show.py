@@ -50,7 +50,10 @@ def task_summary(task: Task, calibrated: bool = False) -> dict[str, Any]:
     ws = task.workspace
     est = estimate(task)
     measured: dict[str, Any] = {}
-    if calibrated:
+    if calibrated and not est.plans.exact:
+        measured = {"calibration_error": "the plan count is only bounded (too many plans to count, let alone "
+                                         "compile each)"}
+    elif calibrated:
         try:
             cal = calibrate(task)
         except HrcError as err:  # e.g. an unreachable location: the compile would say so too

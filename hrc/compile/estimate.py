@@ -110,6 +110,8 @@ def estimate(task: Task, symmetry: bool = False) -> Estimate:
 CALIBRATION_FAMILIES = 16
 """Families `calibrate` compiles at most (spread over the allocations), within `CALIBRATION_SECONDS`."""
 CALIBRATION_SECONDS = 1.0
+MAX_FAMILY = 64
+"""Plans of a family `calibrate` compiles at most (kitting_7picks' are 4)."""
 
 START_SECONDS = 1.2
 """Wall seconds before a compile's first plan: interpreter, imports, reading the task (`hrc compile -v`)."""
@@ -181,6 +183,7 @@ def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
     from hrc.caches import cache_folder, disk_load, disk_store, source_digest
     from hrc.compile.compiler import CompileOptions
     from hrc.compile.stream import compile_records
+    from hrc.errors import HrcError
     from hrc.io.task_file import task_digest
     from hrc.motion import plan_paths
     from hrc.plans import spread_families
@@ -196,7 +199,11 @@ def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
     paths = plan_paths(task, seed=seed)
     paths_seconds = time.perf_counter() - t0
     options = CompileOptions()
-    spread = spread_families(task, families)
+    # a family is compiled whole (one motion search, its relabelled twins after it): one of thousands of
+    # twins (16 picks in 5 groups of identical ones) would take minutes, so only small families are sampled
+    spread = [f for f in spread_families(task, families) if len(f) <= MAX_FAMILY]
+    if not spread:
+        raise HrcError(f"every sampled family has more than {MAX_FAMILY} plans (identical actions)")
     w0, c0 = time.perf_counter(), time.process_time()
     n = done = 0
     line = graphml = 0
