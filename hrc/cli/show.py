@@ -12,7 +12,16 @@ import math
 from pathlib import Path
 from typing import Any
 
-from hrc.compile.estimate import DEFAULT_MAX_PLANS, FIXED_SECONDS, calibrate, estimate, fmt_bytes, fmt_seconds, fmt_span
+from hrc.compile.estimate import (
+    CALIBRATION_MAX_PLANS,
+    DEFAULT_MAX_PLANS,
+    FIXED_SECONDS,
+    calibrate,
+    estimate,
+    fmt_bytes,
+    fmt_seconds,
+    fmt_span,
+)
 from hrc.compile.executors import default_jobs
 from hrc.errors import HrcError, InputError
 from hrc.io.task_file import load_task
@@ -50,9 +59,9 @@ def task_summary(task: Task, calibrated: bool = False) -> dict[str, Any]:
     ws = task.workspace
     est = estimate(task)
     measured: dict[str, Any] = {}
-    if calibrated and not est.plans.exact:
-        measured = {"calibration_error": "the plan count is only bounded (too many plans to count, let alone "
-                                         "compile each)"}
+    if calibrated and (not est.plans.exact or est.plans.value > CALIBRATION_MAX_PLANS):
+        # a compile of every plan is out of reach (and finding a spread sample among billions is slow itself)
+        measured = {"calibration_error": f"more than {CALIBRATION_MAX_PLANS:,} plans: no sample"}
     elif calibrated:
         try:
             cal = calibrate(task)
