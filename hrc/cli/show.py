@@ -177,8 +177,9 @@ def _text(s: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    if Path(args.task).is_dir():
-        return _run_output(args)
+    path = Path(args.task)
+    if path.is_dir() and (args.plan is not None or (path / "compiled.json").exists()):
+        return _run_output(args)  # else a folder given as a task: that error, as before
     if args.plan is not None:
         raise InputError(args.task, "", "--plan reads an output folder of hrc compile, not a task file")
     summary = task_summary(load_task(args.task), calibrated=not args.no_calibrate)
