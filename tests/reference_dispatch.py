@@ -27,14 +27,13 @@ against the definitions in docs/dispatch.md.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from hrc.compile.output import load_compiled_task
+from hrc.compile.output import iter_plans, load_compiled_task, read_header
 from hrc.dispatch import UNDO_SECONDS
 from hrc.dispatch.dispatcher import _rank
 from hrc.dispatch.messages import (
@@ -63,11 +62,11 @@ def read_entries(folder: str | Path) -> tuple[Any, list[PlanEntry], str]:
     """The task, every plan's `PlanEntry` from ``compiled.json`` and the GraphML files, and ``rank_by``."""
     folder = Path(folder)
     task = load_compiled_task(folder)
-    data = json.loads((folder / "compiled.json").read_text(encoding="utf-8"))
+    data = read_header(folder)  # the plans' full entries: from compiled.json or plans.jsonl (iter_plans)
     archive = (_Archive(folder, str(folder / "compiled.json"), data.get("stnu_archive", "stnu.zip"))
                if data.get("stnu_files") == "archive" else None)
     entries = []
-    for i, p in enumerate(data["plans"]):
+    for i, p in enumerate(iter_plans(folder)):
         plan = Plan(tuple((a.id, p["allocation"][a.id]) for a in task.actions),
                     tuple((g.id, tuple(p["sequences"][g.id])) for g in task.agents))
         stnu = archive.read(p["stnu"], f"plans[{i}]") if archive else read_network(folder / p["stnu"])

@@ -21,7 +21,7 @@ def _strict_json(text: str):
 
 
 def test_show_text(capsys):
-    assert main(["show", str(WORKSHOP_TASK)]) == 0
+    assert main(["show", str(WORKSHOP_TASK), "--no-calibrate"]) == 0
     captured = capsys.readouterr()
     assert captured.err == ""
     out = captured.out
@@ -82,3 +82,20 @@ def test_show_floorplan_demo(capsys):
     out = capsys.readouterr().out
     assert "3 obstacles (floor plan floorplan.dxf)" in out
     assert "plans: 4 " in out
+
+
+def test_the_calibrated_estimate_is_said_and_kept(capsys):
+    """`hrc show` compiles a sample of the workshop's plans here and says the wall time it implies (the
+    model's constants: tests/test_estimate_model.py); asked again, the kept calibration answers alike."""
+    assert main(["show", str(WORKSHOP_TASK), "--json"]) == 0
+    first = _strict_json(capsys.readouterr().out)["estimate"]
+    c = first["calibration"]
+    assert 0 < c["seconds_per_plan"] <= c["first_seconds_per_plan"] * 1.5 and 8 <= c["plans"] <= 32
+    assert 3000 < c["line_bytes"] < 30000  # the workshop's lines are about 9 kB
+    assert 2 < first["wall_seconds"] < 30 and first["wall_seconds_now"] >= first["wall_seconds"]
+    assert main(["show", str(WORKSHOP_TASK), "--json"]) == 0
+    assert _strict_json(capsys.readouterr().out)["estimate"] == first  # from the cache folder
+    assert main(["show", str(WORKSHOP_TASK)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("compile estimate: "))
+    assert line.startswith(f"compile estimate: about {round(first['wall_seconds'])} s on ")
+    assert " sample plans compiled here at " in line

@@ -14,7 +14,6 @@ another copy.
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 from pathlib import Path
@@ -26,6 +25,7 @@ from conftest import ROOT
 from hrc.cli import main
 from hrc.compile.compiler import CompileOptions, compile_family, compile_plan
 from hrc.compile.motion_pattern import pattern_network
+from hrc.compile.output import iter_plans
 from hrc.io.task_file import load_task
 from hrc.motion import plan_paths
 from hrc.plans import generate_plans, plan_families
@@ -81,8 +81,7 @@ def _agree(tool: Path, classes: dict[Path, str]) -> dict[str, int]:
 
 
 def _compiled_classes(out: Path) -> dict[Path, str]:
-    plans = json.loads((out / "compiled.json").read_text("utf-8"))["plans"]
-    return {out / p["stnu"]: p["class"] for p in plans}
+    return {out / p["stnu"]: p["class"] for p in iter_plans(out)}  # kitting's lines are in plans.jsonl
 
 
 def _compile(task: str, out: Path) -> dict[Path, str]:

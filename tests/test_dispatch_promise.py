@@ -28,6 +28,7 @@ import pytest
 from conftest import ROOT, compiled_folder
 from dispatch_client import Run, broken_links
 
+from hrc.compile.output import iter_plans
 from hrc.dispatch import Dispatcher, Observation
 from hrc.dispatch.plan_set import PlanSet, load_plan_set
 from hrc.dispatch.protocol import handle_line
@@ -48,9 +49,8 @@ def kitting_part(tmp_path_factory) -> Path:
 
 def _routes(folder: Path) -> dict[tuple[str, str, str, str], tuple]:
     """(plan, agent, action, phase) -> (detour, waiting place) from compiled.json's motions."""
-    data = json.loads((folder / "compiled.json").read_text(encoding="utf-8"))
     return {(p["id"], m["agent"], m["action"], m["phase"]): (m["detour"], m["park"])
-            for p in data["plans"] for m in p["motions"]}
+            for p in iter_plans(folder) for m in p["motions"]}
 
 
 def _follow(plan_set: PlanSet, seed: int, **options) -> tuple:

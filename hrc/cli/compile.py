@@ -505,7 +505,8 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                   + "; ".join(f"{agent}: {' -> '.join(seq) or '-'}" for agent, seq in best.plan.sequences))
         stnu = {"graphml": f"{out}/stnu/ ({cps.total} GraphML)", "archive": f"{out}/stnu.zip",
                 "none": "no STNU files"}[args.stnu]
-        print(f"wrote {out}/compiled.json, {stnu}"
+        lines = f" (a row per plan), {out}/plans.jsonl" if (Path(out) / "plans.jsonl").is_file() else ""
+        print(f"wrote {out}/compiled.json{lines}, {stnu}"
               + ("" if args.no_report else f", {out}/report.md, {out}/report.html"))
     if args.verbose:
         print(_times(start_cpu, stages), file=sys.stderr, flush=True)

@@ -20,17 +20,41 @@ Per plan, with ``L`` legs (one per phase of every action) and ``T = 1 + 4 L`` ti
 
 `hrc compile` then says what it measured on a sample of plans from allocations spread over the task
 (`hrc.plans.spread_families`, `hrc.compile.stream.Sample`): time and disk per plan.
+
+**The calibrated estimate** (`calibrate`, `Calibration.wall`; what ``hrc show TASK`` says): the range
+above spans 60 times (52 s - 51 min for kitting_7picks' 45 s) because a plan's CPU time ranges over two
+orders of magnitude from task to task. So `calibrate` compiles a sample for real on this machine: the
+task's paths (with the roadmap cache, as the compile will), then up to `CALIBRATION_FAMILIES` families
+spread over the allocations, twice (the second time with this process's caches filled, as in a long
+run's workers), measuring CPU time (not wall: another job on the machine slows the wall clock, not the
+work). The compile's wall time is then modelled as
+
+    start-up + paths + the compile's own sample
+    + (plans x pace x `PACE_FACTOR` + min(plans, workers x `WARMUP_PLANS`) x (first pace - pace)
+       + `FILE_SECONDS` per GraphML file) / (1 + `PARALLEL` x (workers - 1))
+    + writing the lines (and the archive) at `WRITE_RATE` + report
+
+with the constants fitted on the bundled tasks (workshop, kitting, kitting_6picks, kitting_7picks;
+docs/benchmarks.md, tests/test_estimate_model.py): within +-50 % of the compile's work and of its wall
+time at the load the sample saw (`Calibration.wall` with ``now``). The result is kept in the cache
+folder (`hrc.caches`, ``calibration``) by task digest, seed, machine and source, so asking again is
+instant (its load figure is then the first sample's).
 """
 
 from __future__ import annotations
 
+import os
+import platform
+import time
+import zlib
 from dataclasses import dataclass
 
 from hrc.model import Task
 from hrc.plans import PlanCount, estimate_plan_count
 
-__all__ = ["DEFAULT_MAX_PLANS", "FIXED_SECONDS", "GRAPHML_BYTES", "JSON_BYTES", "SECONDS_PER_PLAN", "ZIP_RATIO",
-           "Estimate", "estimate", "fmt_bytes", "fmt_seconds", "fmt_span"]
+__all__ = ["CALIBRATION_FAMILIES", "CALIBRATION_MAX_PLANS", "DEFAULT_MAX_PLANS", "FIXED_SECONDS", "GRAPHML_BYTES",
+           "JSON_BYTES", "SECONDS_PER_PLAN", "ZIP_RATIO", "Calibration", "Estimate", "calibrate", "estimate",
+           "fmt_bytes", "fmt_seconds", "fmt_span"]
 
 DEFAULT_MAX_PLANS = 50_000
 """``hrc compile --max-plans`` default: the 40,320 plans of 7 independent picks pass, 8 picks
@@ -81,6 +105,127 @@ def estimate(task: Task, symmetry: bool = False) -> Estimate:
     return Estimate(plans=count, json_bytes=n * line,
                     stnu_bytes={"graphml": n * blocks, "archive": int(n * graphml * ZIP_RATIO), "none": 0},
                     cpu_seconds=(n * SECONDS_PER_PLAN[0], n * SECONDS_PER_PLAN[1]))
+
+
+CALIBRATION_FAMILIES = 16
+"""Families `calibrate` compiles at most (spread over the allocations), within `CALIBRATION_SECONDS`."""
+CALIBRATION_SECONDS = 1.0
+CALIBRATION_MAX_PLANS = 1_000_000
+"""``hrc show`` samples a task of at most this many plans (kitting_8picks' 362,880 in 2 s; kitting_12picks'
+6.2 billion: finding spread families alone took minutes)."""
+MAX_FAMILY = 64
+"""Plans of a family `calibrate` compiles at most (kitting_7picks' are 4)."""
+
+START_SECONDS = 1.2
+"""Wall seconds before a compile's first plan: interpreter, imports, reading the task (`hrc compile -v`)."""
+SAMPLE_SECONDS = 1.0
+"""The compile's own up-front sample (`hrc.compile.stream`, ``sample_seconds``), in its parent process."""
+PACE_FACTOR = 1.2
+"""A long run's CPU per plan over `calibrate`'s second pace (fitted: docs/benchmarks.md)."""
+PARALLEL = 0.85
+"""What each further worker adds (kitting_7picks: 1.71 on 2 workers)."""
+WARMUP_PLANS = 64
+"""Each worker pays the first pace instead of the second for about this many plans (its detours,
+conflict geometry and text layouts made once: the workshop's 32 plans all pay it)."""
+WRITE_RATE = 400e6
+"""Bytes a second the parent writes at the end (the lines copied in rank order, the archive deflated)."""
+FILE_SECONDS = 0.5e-3
+"""CPU seconds per GraphML file a worker writes (``--stnu graphml``: the file system's create and write,
+system time; 3.4 s of kitting_6picks' 5,040 files)."""
+REPORT_SECONDS = 2.0
+"""The report: 16 figures and the tables (`hrc compile -v`: 2.1 s of CPU on the workshop)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Calibration:
+    """What `calibrate` measured for a task on this machine: the plans compiled, CPU seconds per plan
+    the first time and the second, the paths' wall seconds, bytes per plan of its line and GraphML."""
+
+    plans: int
+    families: int
+    first_pace: float
+    pace: float
+    paths_seconds: float
+    line_bytes: float
+    graphml_bytes: float
+    wall_ratio: float = 1.0
+    """Wall over CPU seconds of the sample: 1 on an idle machine, 3 when two other jobs share each core."""
+    cores: int = 2
+    """The machine's cores when the sample ran."""
+
+    def wall(self, total: int, workers: int, stnu: str = "graphml", report: bool = True, now: bool = False) -> float:
+        """Wall seconds of ``hrc compile`` on `total` plans with `workers` worker processes on an idle
+        machine (the module docstring's model); `now`: at the load the sample saw, read as L other
+        runnable processes (the sample got ``cores / (L + 1)`` of a core: `wall_ratio`), which leave the
+        serial parts `wall_ratio` times slower and the workers ``(L + workers) / cores`` times (a rough
+        guide: the load moves from minute to minute)."""
+        workers = max(1, workers)
+        warm = min(total, workers * WARMUP_PLANS) * max(self.first_pace - self.pace, 0.0)
+        files = total * FILE_SECONDS if stnu == "graphml" else 0.0  # written by the workers
+        plans = (total * self.pace * PACE_FACTOR + warm + files) / (1 + PARALLEL * (workers - 1))
+        serial, parallel = 1.0, 1.0
+        if now:
+            others = max(0.0, self.wall_ratio * self.cores - 1) if self.wall_ratio > 1 else 0.0
+            serial = self.wall_ratio
+            parallel = max(1.0, (others + workers) / self.cores) * min(workers, self.cores) / workers
+        plans *= parallel
+        lines = total * self.line_bytes
+        if stnu == "archive":
+            write = (lines + total * self.graphml_bytes) / WRITE_RATE
+        else:
+            write = lines / WRITE_RATE
+        return plans + serial * (START_SECONDS + self.paths_seconds + min(SAMPLE_SECONDS, total * self.first_pace)
+                                 + write + (REPORT_SECONDS if report else 0.0))
+
+
+def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
+              seconds: float = CALIBRATION_SECONDS, cache: bool = True) -> Calibration:
+    """Compile a spread sample of `task`'s plans here, twice, and say what it cost (`Calibration`; the
+    module docstring). Kept in the cache folder by task digest, seed, machine and the compiler's source
+    (`cache`). Cost: the paths (from the roadmap cache after the first time) and about `seconds` twice."""
+    from hrc.caches import cache_folder, disk_load, disk_store, source_digest
+    from hrc.compile.compiler import CompileOptions
+    from hrc.compile.stream import compile_records
+    from hrc.errors import HrcError
+    from hrc.io.task_file import task_digest
+    from hrc.motion import plan_paths
+    from hrc.plans import spread_families
+
+    key = ":".join(("calibration-4", task_digest(task), str(seed), platform.node(), str(os.cpu_count()),
+                    source_digest("hrc.compile.estimate", "hrc.compile.compiler", "hrc.compile.motion_pattern",
+                                  "hrc.compile.stream", "hrc.compile.output", "hrc.compile.classify")))
+    folder = cache_folder("calibration") if cache else None
+    found = disk_load(folder, key)
+    if isinstance(found, Calibration):
+        return found
+    t0 = time.perf_counter()
+    paths = plan_paths(task, seed=seed)
+    paths_seconds = time.perf_counter() - t0
+    options = CompileOptions()
+    # a family is compiled whole (one motion search, its relabelled twins after it): one of thousands of
+    # twins (16 picks in 5 groups of identical ones) would take minutes, so only small families are sampled
+    spread = [f for f in spread_families(task, families) if len(f) <= MAX_FAMILY]
+    if not spread:
+        raise HrcError(f"every sampled family has more than {MAX_FAMILY} plans (identical actions)")
+    w0, c0 = time.perf_counter(), time.process_time()
+    n = done = 0
+    line = graphml = 0
+    for family in spread:
+        for cp, tail in compile_records(options, "graphml", task, paths, [family]):
+            line += len(tail.encode()) + 24
+            graphml += len(zlib.compress(cp.graphml.encode(), 1))
+            n += 1
+        done += 1
+        if time.process_time() - c0 >= seconds:
+            break
+    c1 = time.process_time()
+    compile_records(options, "graphml", task, paths, spread[:done])
+    w2, c2 = time.perf_counter(), time.process_time()
+    out = Calibration(plans=n, families=done, first_pace=(c1 - c0) / max(n, 1), pace=(c2 - c1) / max(n, 1),
+                      paths_seconds=paths_seconds, line_bytes=line / max(n, 1), graphml_bytes=graphml / max(n, 1),
+                      wall_ratio=max(1.0, (w2 - w0) / max(c2 - c0, 1e-9)), cores=os.cpu_count() or 1)
+    disk_store(folder, key, out)
+    return out
 
 
 def fmt_bytes(n: float) -> str:

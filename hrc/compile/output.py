@@ -44,6 +44,27 @@ they come in this order, by agent then position, was compiled).
 The file is written streaming by `hrc.compile.stream` (header, then one plan per line in rank order,
 so that it diffs plan by plan); it is one JSON document for `json.load`.
 
+**Large compiles: schema version 3.** When the plans' lines would total more than `INLINE_MAX_BYTES`
+(16 MiB: kitting's 2,880 plans are 46 MB, kitting_7picks' 40,320 are 656 MB, mostly passing orders),
+each line goes instead to ``plans.jsonl`` (`PLAN_LINES`) beside it, one per line in rank order (line k
+is rank k), byte for byte the line schema 2 puts in ``plans`` (JSON lines: `grep`, `head` and `jq -c`
+read it a plan at a time; the dispatch form's ``line_at``/``line_len`` point into it, so one plan is
+read without reading the rest: `read_plan`). ``compiled.json`` then says ``"schema_version": 3`` and
+``"plan_lines": {"path": "plans.jsonl", "bytes": N}`` (the file's size), ``"ranking_summary"`` (per
+class: plans, plans without a schedule, quantiles of the earliest and worst-case makespans), and its ``plans``
+holds one short row per plan (about 200 bytes; the first `ROWS_MAX` plans, ``"plans_listed": n``
+when that is fewer than all)::
+
+    {"id", "rank", "class", "sequences": {AGENT: [ACTION, ...]}, "makespan": [earliest, worst] | null,
+     "preference": value | null}
+
+each value as the plan's full line has it. Why a threshold and not always: a small compile's single
+file (the workshop's 300 kB) is what people and tools open, and it stays the same bytes as before;
+why JSON lines and not a columnar or compressed file: the lines are already written as text by the
+workers (`hrc.compile.spool`) and only copied into place in rank order (no encoding, no new
+dependency), and every line stays a JSON document a tool reads alone. `iter_plans` reads every full
+entry of either layout.
+
 The file is deterministic for a given task and seed: no timestamps, no host names, sorted keys where
 order carries no meaning.
 
@@ -56,12 +77,14 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import shutil
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from hrc import __version__
@@ -78,11 +101,22 @@ from hrc.motion import Conflict, Motion, Occupancy, TimeRef
 from hrc.plans import Leg, agent_legs
 from hrc.temporal.graphml import tool_name
 
-__all__ = ["FORM_PLACEHOLDER", "JSON_TAIL", "SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json",
-           "compiled_to_dict", "header_dict", "json_head", "line_head", "line_places", "load_compiled_task",
-           "plan_dict", "plan_line", "read_header", "write_compiled", "write_form", "write_input"]
+__all__ = ["FORM_PLACEHOLDER", "INLINE_MAX_BYTES", "JSON_TAIL", "PLAN_LINES", "ROWS_MAX", "SCHEMA_VERSION",
+           "SPLIT_SCHEMA_VERSION", "STNU_ARCHIVE", "STNU_MODES", "compiled_json", "compiled_to_dict", "header_dict",
+           "iter_plans", "json_head", "line_head", "line_places", "lines_path", "load_compiled_task", "plan_dict",
+           "plan_line", "plan_row", "ranking_summary", "read_header", "read_plan", "split_lines", "write_compiled",
+           "write_form", "write_input"]
 
 SCHEMA_VERSION = 2
+SPLIT_SCHEMA_VERSION = 3
+"""``compiled.json`` with its plans' lines in `PLAN_LINES` and a short row per plan (module docstring)."""
+
+PLAN_LINES = "plans.jsonl"
+INLINE_MAX_BYTES = 16 << 20
+"""Plan lines (bytes, all together) ``compiled.json`` holds itself; above, they go to `PLAN_LINES`."""
+
+ROWS_MAX = 50_000
+"""Rows ``compiled.json`` lists at most in the split layout (about 10 MB; the rest only in `PLAN_LINES`)."""
 
 STNU_MODES = ("graphml", "archive", "none")
 """How the plans' STNUs are written (``hrc compile --stnu``): one GraphML file per plan in ``stnu/`` (the
@@ -264,7 +298,8 @@ def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n
 def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, counts: dict[str, int],
                 stnu: str = "graphml", partial: tuple[int, int] | None = None,
                 symmetric: tuple[tuple[str, ...], ...] = (), best: tuple[int, int] | None = None,
-                form: str | None = None, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+                form: str | None = None, extra: dict[str, Any] | None = None,
+                lines: tuple[int, int] | None = None, summary: dict[str, Any] | None = None) -> dict[str, Any]:
     """``compiled.json`` without its plans. The optional keys appear only when they say something:
     ``stnu_files`` ("none" or "archive") and ``stnu_archive`` when the STNUs are not one GraphML file per
     plan; ``partial`` and ``plans_expected`` when the run was interrupted (`partial`: plans written, plans
@@ -272,10 +307,13 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
     relabelling of identical actions was compiled (``hrc compile --symmetry``); ``best_per_allocation`` and
     ``plans_compiled`` when only the best plans of each allocation are listed (`best`: how many, and the
     plans compiled; ``hrc compile --best-per-allocation``); ``dispatch_form`` when the dispatch form was
-    written (`form`: the SHA-256 of its ``form.json``, `hrc.compile.dispatch_form`); `extra`'s entries last
-    (a search compile's ``search``: what it guarantees, `hrc.compile.search.SearchOutcome.header`)."""
+    written (`form`: the SHA-256 of its ``form.json``, `hrc.compile.dispatch_form`); ``plan_lines`` (and
+    ``"schema_version": 3``) when the plans' lines are in `PLAN_LINES` (`lines`: its size in bytes and the
+    rows ``compiled.json`` lists, ``plans_listed`` when fewer than the plans; `summary`: the ranking at a
+    glance, per class its plans and makespan quantiles, `ranking_summary`); `extra`'s entries last (a
+    search compile's ``search``: what it guarantees, `hrc.compile.search.SearchOutcome.header`)."""
     out: dict[str, Any] = {
-        "schema_version": SCHEMA_VERSION,
+        "schema_version": SCHEMA_VERSION if lines is None else SPLIT_SCHEMA_VERSION,
         "generator": f"hrc {__version__}",
         "seed": seed,
         "options": {"human_waits": options.human_waits, "rank_by": options.rank_by},
@@ -297,6 +335,12 @@ def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, cou
     if partial is not None:
         out["partial"] = True
         out["plans_expected"] = partial[1]
+    if lines is not None:
+        out["plan_lines"] = {"path": PLAN_LINES, "bytes": lines[0]}
+        if lines[1] < sum(counts.values()):
+            out["plans_listed"] = lines[1]
+        if summary is not None:
+            out["ranking_summary"] = summary
     if form is not None:
         out["dispatch_form"] = {"path": FORM_FOLDER, "sha256": form}
     if extra:
@@ -363,20 +407,127 @@ def load_compiled_task(out_dir: str | os.PathLike[str]) -> Task:
     return task
 
 
-def write_compiled(cps: CompiledPlanSet, out_dir: Path) -> None:
+def write_compiled(cps: CompiledPlanSet, out_dir: Path, inline_max: int = INLINE_MAX_BYTES) -> None:
     """Write ``compiled.json``, the STNUs, the dispatch form and ``input/`` into `out_dir` (a staging
-    folder: `atomic_dir`): the same bytes as a streamed compile of the same plans."""
+    folder: `atomic_dir`): the same bytes as a streamed compile of the same plans. The plans' lines go
+    to `PLAN_LINES` when they total more than `inline_max` bytes (the module docstring)."""
     write_input(cps.task, out_dir)
     (out_dir / "stnu").mkdir(parents=True, exist_ok=True)
     for cp in cps.plans:
         (out_dir / "stnu" / f"{cp.plan.id}.graphml").write_text(cp.graphml, encoding="utf-8")
     data = compiled_to_dict(cps)
     lines = [json.dumps(p, separators=(",", ":")).encode("utf-8") for p in data.pop("plans")]
-    data = header_dict(cps.task, cps.seed, cps.digest, cps.options, cps.counts(), form=FORM_PLACEHOLDER)
-    places = line_places(data, (len(x) for x in lines))
+    split = split_lines([len(x) for x in lines], inline_max)
+    rows = None if split is None else [plan_row(cp.plan.id, cp.rank, cp.plan_class.value, cp.plan.sequences,
+                                                cp.classification.makespan, cp.preference)
+                                       for cp in cps.plans[:ROWS_MAX]]
+    summary = None
+    if split is not None:
+        spans = [cp.classification.makespan or (math.inf, math.inf) for cp in cps.plans]
+        summary = ranking_summary(np.array([cp.plan_class.order for cp in cps.plans]),
+                                  np.array([round(a, 6) for a, _ in spans]), np.array([round(b, 6) for _, b in spans]))
+    data = header_dict(cps.task, cps.seed, cps.digest, cps.options, cps.counts(), form=FORM_PLACEHOLDER,
+                       lines=None if split is None else (split[0], len(rows or ())), summary=summary)
+    places = line_places(data, (len(x) for x in lines)) if split is None else split[1]
     data["dispatch_form"]["sha256"] = write_form(out_dir, cps, places)
+    if rows is not None:
+        (out_dir / PLAN_LINES).write_bytes(b"".join(x + b"\n" for x in lines))
+        lines = [r.encode("utf-8") for r in rows]
     (out_dir / "compiled.json").write_bytes(json_head(data).encode("utf-8") + b",\n".join(lines)
                                             + JSON_TAIL.encode("utf-8"))
+
+
+def ranking_summary(cls: np.ndarray, early: np.ndarray, worst: np.ndarray) -> dict[str, Any]:
+    """A split ``compiled.json``'s ``ranking_summary`` from every listed plan's class order (0 DC, 1
+    consistent, 2 inconsistent) and makespans (rounded to 6 decimals as `hrc.compile.compiler.rank_key`
+    keeps them; infinite: no schedule): per class its plans, those without a schedule, and the quantiles
+    (min, 25 %, median, 75 %, max) of the earliest and worst-case makespans (None without any)."""
+    out: dict[str, Any] = {}
+    for order, name in enumerate(("DC", "consistent", "inconsistent")):
+        mine = cls == order
+        ok = mine & np.isfinite(worst)
+        q = (0, 25, 50, 75, 100)
+        out[name] = {"plans": int(mine.sum()), "no_schedule": int((mine & ~np.isfinite(worst)).sum()),
+                     "earliest": [round(float(x), 3) for x in np.percentile(early[ok], q)] if ok.any() else None,
+                     "worst": [round(float(x), 3) for x in np.percentile(worst[ok], q)] if ok.any() else None}
+    return out
+
+
+def split_lines(sizes: Sequence[int], inline_max: int) -> tuple[int, list[tuple[int, int]]] | None:
+    """None when plan lines of `sizes` bytes (rank order) stay in ``compiled.json`` (together, with the
+    ``,\n`` between them, at most `inline_max` bytes); else the size of `PLAN_LINES` holding them and the
+    ``(offset, length)`` of each line in it (each line followed by a newline)."""
+    if sum(sizes) + 2 * max(len(sizes) - 1, 0) <= inline_max:
+        return None
+    places, at = [], 0
+    for size in sizes:
+        places.append((at, size))
+        at += size + 1
+    return at, places
+
+
+def plan_row(plan_id: str, rank: int, cls: str, sequences: Iterable[tuple[str, Sequence[str]]],
+             makespan: tuple[float, float] | None, preference: float | None) -> str:
+    """A plan's row in a split ``compiled.json`` (schema version 3, the module docstring): its id, rank,
+    class, sequences, makespan and preference, each as its full line has it."""
+    return _json({"id": plan_id, "rank": rank, "class": cls,
+                  "sequences": {agent: list(seq) for agent, seq in sequences},
+                  "makespan": None if makespan is None else [_s(makespan[0]), _s(makespan[1])],
+                  "preference": None if preference is None else round(preference, 6)})
+
+
+def lines_path(out_dir: str | os.PathLike[str], header: dict[str, Any] | None = None) -> Path:
+    """The file holding the plans' full lines of an output folder: `PLAN_LINES` when its
+    ``compiled.json`` (`header`, read if not given) names it, else ``compiled.json`` itself."""
+    header = read_header(out_dir) if header is None else header
+    named = header.get("plan_lines")
+    return Path(out_dir) / (PLAN_LINES if isinstance(named, dict) else "compiled.json")
+
+
+def iter_plans(out_dir: str | os.PathLike[str]) -> Iterator[dict[str, Any]]:
+    """Every plan's full entry (schema version 2's, `plan_dict`) of an output folder in rank order, from
+    ``compiled.json`` or `PLAN_LINES`, one line at a time. Raises `InputError` naming the file when a
+    line is not JSON."""
+    path = lines_path(out_dir)
+    with open(path, "rb") as f:
+        for number, line in enumerate(f, 1):
+            if line.startswith(b'{"id":'):
+                try:
+                    yield json.loads(line.rstrip(b",\n"))
+                except ValueError as err:
+                    raise InputError(str(path), f"line {number}", f"not a plan's entry ({err})") from err
+
+
+def read_plan(out_dir: str | os.PathLike[str], plan_id: str) -> dict[str, Any] | None:
+    """One plan's full entry (`plan_dict`) by id, None when the output has no such plan: read at the
+    place the dispatch form gives (its ``plans.npy`` memory-mapped, one line read: milliseconds at 40,320
+    plans), or found line by line in an output without a form (``--stnu none``). Raises `InputError`
+    naming the file when the output or the line is not what it should be."""
+    folder = Path(out_dir)
+    header = read_header(folder)
+    path = lines_path(folder, header)
+    where: tuple[int, int] | None = None
+    form = folder / FORM_FOLDER / "plans.npy"
+    if isinstance(header.get("dispatch_form"), dict) and form.is_file():
+        try:
+            rows = np.load(form, mmap_mode="r", allow_pickle=False)
+            hit = np.flatnonzero(rows["id"] == plan_id.encode("ascii", "replace"))
+        except (OSError, ValueError) as err:
+            raise InputError(str(form), "", f"cannot read it ({err})") from err
+        if not len(hit):
+            return None
+        where = int(rows["line_at"][hit[0]]), int(rows["line_len"][hit[0]])
+    try:
+        if where is not None and where[1]:
+            with open(path, "rb") as f:
+                f.seek(where[0])
+                line = json.loads(f.read(where[1]))
+            if not isinstance(line, dict) or line.get("id") != plan_id:
+                raise ValueError(f"plan {plan_id}'s line is not where the dispatch form says")
+            return line
+    except (OSError, ValueError) as err:
+        raise InputError(str(path), "", f"cannot read plan {plan_id} ({err})") from err
+    return next((p for p in iter_plans(folder) if p.get("id") == plan_id), None)
 
 
 def write_form(out_dir: Path, cps: CompiledPlanSet, places: Sequence[tuple[int, int]]) -> str:

@@ -4,7 +4,8 @@ Beside a partial ``compiled.json`` (an interrupted compile, ``"partial": true``)
 ``resume.npy`` (`RESUME_FILE`): one row per plan compiled, with its exact rank key (`KEY_COLUMNS`), its
 id and its `hrc.plans.plan_code`, in a structured numpy array (no pickle, deterministic bytes).
 `read_resume` checks that a folder is a partial output of the same task and options before any work;
-`line_tails` finds where each plan's line sits in the old ``compiled.json``, so that the resumed run
+`line_tails` finds where each plan's line sits in the old ``compiled.json`` (or ``plans.jsonl`` beside a
+large one, `hrc.compile.output.lines_path`), so that the resumed run
 copies the old lines instead of compiling their plans again (`hrc.compile.sink.PlanSink.restore`).
 """
 
@@ -16,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from hrc.compile.compiler import CompileOptions
-from hrc.compile.output import header_dict
+from hrc.compile.output import SCHEMA_VERSION, SPLIT_SCHEMA_VERSION, header_dict
 from hrc.errors import InputError
 from hrc.io.task_file import task_digest
 from hrc.model import Task
@@ -36,9 +37,10 @@ def resume_dtype(width: int) -> np.dtype:
     return np.dtype([*((name, "<f8") for name in KEY_COLUMNS), ("id", "S16"), ("code", "<u2", (width,))])
 
 
-_RESUMED_KEYS = ("schema_version", "generator", "seed", "options", "task", "stnu_files", "stnu_archive",
-                 "identical_actions", "best_per_allocation")
-"""What an interrupted run's ``compiled.json`` must say as the resumed run would (`read_resume`)."""
+_RESUMED_KEYS = ("generator", "seed", "options", "task", "stnu_files", "stnu_archive", "identical_actions",
+                 "best_per_allocation")
+"""What an interrupted run's ``compiled.json`` must say as the resumed run would (`read_resume`); its
+``schema_version`` may be either layout's (its lines are the same wherever they are: `line_tails`)."""
 
 
 def read_resume(folder: Path, task: Task, seed: int, options: CompileOptions, stnu: str, symmetry: bool,
@@ -58,6 +60,9 @@ def read_resume(folder: Path, task: Task, seed: int, options: CompileOptions, st
             raise ValueError("not an object")
     except (OSError, ValueError) as err:
         raise InputError(str(compiled), "", f"--resume: not an hrc compile output ({err})") from err
+    if old.get("schema_version") not in (SCHEMA_VERSION, SPLIT_SCHEMA_VERSION):
+        raise InputError(str(compiled), "schema_version", f"--resume: {json.dumps(old.get('schema_version'))} is no "
+                                                          "schema this hrc writes; compile into a new --out")
     if not old.get("partial"):
         raise InputError(str(compiled), "partial", "--resume: this output is complete, nothing to resume")
     for key in _RESUMED_KEYS:
@@ -83,8 +88,9 @@ def read_resume(folder: Path, task: Task, seed: int, options: CompileOptions, st
 
 
 def line_tails(path: Path) -> dict[str, tuple[int, int]]:
-    """Where each plan line of ``compiled.json`` has its tail (after its id and rank, `line_head`): offset
-    and length, by plan id. Read line by line: a partial output's lines can be gigabytes in all."""
+    """Where each plan line of ``compiled.json`` or ``plans.jsonl`` (`path`) has its tail (after its id and
+    rank, `line_head`): offset and length, by plan id. Read line by line: a partial output's lines can be
+    gigabytes in all."""
     out: dict[str, tuple[int, int]] = {}
     at = 0
     with open(path, "rb") as f:

@@ -23,6 +23,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -39,14 +40,21 @@ from hrc.compile.compiler import (
 from hrc.compile.dispatch_form import FormWriter, plan_record, plan_sequences, read_form
 from hrc.compile.output import (
     FORM_PLACEHOLDER,
+    INLINE_MAX_BYTES,
     JSON_TAIL,
+    PLAN_LINES,
+    ROWS_MAX,
     STNU_ARCHIVE,
     STNU_MODES,
     header_dict,
     json_head,
     line_head,
     line_places,
+    lines_path,
+    plan_row,
+    ranking_summary,
     read_header,
+    split_lines,
 )
 from hrc.compile.resume import KEY_COLUMNS, RESUME_FILE, line_tails, resume_dtype
 from hrc.compile.spool import Spooled, Written, kernel_copy, link_or_copy, open_folder, write_stnu_file
@@ -81,7 +89,10 @@ wrote it itself, None for a file of ``stnu/`` or `Written` for a spool), its lin
 class PlanSink:
     """Where compiled plans go, in any order: spooled to `out_dir`, a compact rank record each, the full
     record only for the `keep` best and the best of each class. A mutable builder (see the module
-    docstring); `finish` writes ``compiled.json`` and returns what the report needs."""
+    docstring); `finish` writes ``compiled.json`` (and ``plans.jsonl`` when the lines total more than
+    `inline_max` bytes: `hrc.compile.output`'s schema version 3) and returns what the report needs."""
+
+    inline_max: int = INLINE_MAX_BYTES
 
     def __init__(self, task: Task, out_dir: Path, stnu: str = "graphml", keep: int = REPORT_TOP,
                  rank_by: str = "worst", symmetric: tuple[tuple[str, ...], ...] = (),
@@ -240,42 +251,40 @@ class PlanSink:
         cls_col = np.frombuffer(self._cols["cls"], dtype=np.float64)[order]
         counts = {c.value: int(np.count_nonzero(cls_col == c.order)) for c in PlanClass}
         digest = task_digest(self.task)
+        ranked = order.tolist()
+        lines = self._lines
+        sizes = [len(self._head_of(i, k + 1)) + lines.size[i] for k, i in enumerate(ranked)]
+        split = split_lines(sizes, self.inline_max)  # large: the lines to plans.jsonl, rows in compiled.json
+        rows = None if split is None else self._rows(ranked[:ROWS_MAX])
+        listed = {name: np.frombuffer(self._cols[name], dtype=np.float64)[order] for name in ("early", "worst")}
 
         def header_of(form: str | None) -> dict:
             return header_dict(self.task, seed, digest, options, counts, self.stnu,
                                None if partial is None else (n, partial), self.symmetric,
-                               None if self.best is None else (self.best, compiled), form, self.extra)
+                               None if self.best is None else (self.best, compiled), form, self.extra,
+                               None if split is None else (split[0], len(rows or ())),
+                               None if split is None else ranking_summary(cls_col, listed["early"], listed["worst"]))
 
         form = None
         if self._form is not None:  # first: compiled.json's header names it, and it names the lines' places
-            lines = self._lines
-            sizes = [len(self._head_of(i, k + 1)) + lines.size[i] for k, i in enumerate(order.tolist())]
-            form = self._write_form(order, line_places(header_of(FORM_PLACEHOLDER), sizes), options.rank_by)
+            places = line_places(header_of(FORM_PLACEHOLDER), sizes) if split is None else split[1]
+            form = self._write_form(order, places, options.rank_by)
         header = header_of(form)
         # the archive (deflating, which frees the GIL) or the kept files in a thread while compiled.json is
         # copied: two files from two spools, so a second core shortens the end of a large compile
         with ThreadPoolExecutor(max_workers=1) as pool:
             writer = self._write_archive if self.stnu == "archive" else self._write_files
             archive = pool.submit(writer, order) if self._graphml is not None else None
-            lines = self._lines
-            fds = lines.fds()
             with open(self.out_dir / "compiled.json", "wb") as out:
                 out.write(json_head(header).encode("utf-8"))
-                copy = kernel_copy if hasattr(os, "copy_file_range") else None
-                for k, i in enumerate(order.tolist()):
-                    head = (b",\n" if k else b"") + self._head_of(i, k + 1)
-                    fd, start, size = fds[lines.file[i]], lines.at[i], lines.size[i]
-                    if copy is not None:  # the line's tail copied from spool to file in the kernel
-                        out.write(head)
-                        out.flush()
-                        if copy(fd, out.fileno(), size, start):
-                            continue
-                        copy = None  # not on this file system: read and write from here on
-                        out.seek(0, os.SEEK_END)
-                    else:
-                        out.write(head)
-                    out.write(os.pread(fd, size, start))
+                if rows is None:
+                    self._copy_lines(out, ranked, b",\n", b"")
+                else:
+                    out.write(",\n".join(rows).encode("utf-8"))
                 out.write(JSON_TAIL.encode("utf-8"))
+            if rows is not None:
+                with open(self.out_dir / PLAN_LINES, "wb") as out:
+                    self._copy_lines(out, ranked, b"", b"\n")
             if archive is not None:
                 archive.result()
         self._close()
@@ -295,6 +304,44 @@ class PlanSink:
                               rank=int(rank[i])) for i in sorted(wanted, key=lambda i: rank[i]))
         return CompiledPlanSet(task=self.task, seed=seed, digest=digest, paths=paths, plans=plans, options=options,
                                summary=self._summary(counts, np.sort(order)), stnu_files=self.stnu)
+
+    def _copy_lines(self, out: BinaryIO, ranked: list[int], between: bytes, after: bytes) -> None:
+        """Write the lines of the plans `ranked` (indices, rank order) to `out`, `between` before each but
+        the first and `after` after each: each line's head, then its tail copied from its spool (in the
+        kernel where the file system can)."""
+        lines = self._lines
+        fds = lines.fds()
+        copy = kernel_copy if hasattr(os, "copy_file_range") else None
+        for k, i in enumerate(ranked):
+            head = (between if k else b"") + self._head_of(i, k + 1)
+            fd, start, size = fds[lines.file[i]], lines.at[i], lines.size[i]
+            if copy is not None:  # the line's tail copied from spool to file in the kernel
+                out.write(head)
+                out.flush()
+                if copy(fd, out.fileno(), size, start):
+                    if after:
+                        out.write(after)
+                    continue
+                copy = None  # not on this file system: read and write from here on
+                out.seek(0, os.SEEK_END)
+            else:
+                out.write(head)
+            out.write(os.pread(fd, size, start) + after)
+
+    def _rows(self, ranked: list[int]) -> list[str]:
+        """The rows of a split ``compiled.json`` for the plans `ranked` (indices, rank order), from the
+        compact records: class, makespans and preference from the rank key's columns (makespans are whole
+        ticks, so the columns' six decimals round to the line's three alike), sequences from the code."""
+        width = self._width
+        cols = {name: np.frombuffer(self._cols[name], dtype=np.float64) for name in ("cls", "pref", "early", "worst")}
+        out = []
+        for k, i in enumerate(ranked):
+            plan = plan_from_code(self.task, bytes(self._codes[width * i:width * (i + 1)]))
+            early, worst, pref = float(cols["early"][i]), float(cols["worst"][i]), float(cols["pref"][i])
+            out.append(plan_row(self._id(i), k + 1, _CLASS_NAMES[int(cols["cls"][i])], plan.sequences,
+                                (early, worst) if math.isfinite(worst) else None,
+                                None if math.isinf(pref) else -pref))
+        return out
 
     def _resume_rows(self) -> np.ndarray:
         """Every plan taken so far as one row of `resume_dtype`, in the order taken."""
@@ -320,10 +367,11 @@ class PlanSink:
         any other plan is added. Returns the ids taken (not to be compiled again)."""
         if len(self):
             raise ValueError("restore before any plan is added")
-        tails = line_tails(old / "compiled.json")
-        # the old lines are copied from the old compiled.json as from a worker's spool (linked here)
+        source = lines_path(old)  # compiled.json, or plans.jsonl beside a split one
+        tails = line_tails(source)
+        # the old lines are copied from the old file as from a worker's spool (linked here)
         spool = ".plans.resumed.spool"
-        link_or_copy(old / "compiled.json", self.out_dir / spool)
+        link_or_copy(source, self.out_dir / spool)
         classes = {c.order: c.value for c in PlanClass}
         archive = zipfile.ZipFile(old / STNU_ARCHIVE) if (old / STNU_ARCHIVE).is_file() else None
         old_form = self._old_form(old)
@@ -366,7 +414,7 @@ class PlanSink:
         def from_graphml(pid: str, code: bytes, place: tuple[int, int]) -> bytes:
             where = f"{old}/stnu/{pid}.graphml"
             text = archive.read(f"stnu/{pid}.graphml") if archive is not None else Path(where).read_bytes()
-            with open(old / "compiled.json", "rb") as f:
+            with open(lines_path(old, header), "rb") as f:
                 f.seek(place[0])
                 line = json.loads(b'{"id":"","rank":0,' + f.read(place[1]).rstrip(b",\n"))
             blocked = line.get("pattern", {}).get("candidates") == 0

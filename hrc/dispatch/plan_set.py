@@ -121,8 +121,8 @@ class PlanSet:
         self.use = use
         """The output folder held while this set lives (`hrc.io.folder_use`: no compile replaces it)."""
         self.compiled = compiled
-        """That folder's ``compiled.json``, open: read from at the form's offsets (a plan's motions),
-        whatever is at its path later."""
+        """That folder's file of the plans' lines (``compiled.json``, or ``plans.jsonl`` beside a large
+        one), open: read from at the form's offsets (a plan's motions), whatever is at its path later."""
         self._content = content
         self._index: dict[str, int] | None = None
         self._entries: OrderedDict[int, tuple[PlanEntry, dict[str, int]]] = OrderedDict()
@@ -306,18 +306,22 @@ def load_plan_set(out_dir: str | os.PathLike[str], *, allow_partial: bool = Fals
     dispatch form that does not match ``compiled.json`` (truncated, swapped, from another compile).
 
     The set holds the folder as long as it lives (`PlanSet.use`, `hrc.io.folder_use`), taken before
-    anything in it is read: a compile into it is refused meanwhile, and ``compiled.json`` stays open
+    anything in it is read: a compile into it is refused meanwhile, and the file of the plans' lines
+    (``compiled.json``, or ``plans.jsonl`` beside a large one: `hrc.compile.output.lines_path`) stays open
     (`PlanSet.compiled`) for what is read from it later."""
+    from hrc.compile.output import lines_path, read_header
+
     folder = Path(out_dir)
     if not folder.is_dir():
         raise InputError(str(folder), "", "not a folder (give the --out folder of hrc compile)")
     use = FolderUse(folder).acquire()
     try:
         plan_set = _load(folder, allow_partial)
+        name = lines_path(folder, read_header(folder)).name
         try:
-            plan_set.compiled = use.open("compiled.json")
+            plan_set.compiled = use.open(name)
         except OSError as err:
-            raise InputError(str(folder / "compiled.json"), "", f"cannot read: {err.strerror or err}") from err
+            raise InputError(str(folder / name), "", f"cannot read: {err.strerror or err}") from err
     except BaseException:
         use.release()
         raise
@@ -353,14 +357,13 @@ def _load(folder: Path, allow_partial: bool) -> PlanSet:
 def _from_graphml(folder: Path, task: Task, rank_by: str, header: Mapping[str, Any]) -> PlanSet:
     """An output without a dispatch form (written before there was one): ``compiled.json`` and every
     STNU file read, and the form built from them in memory."""
-    from hrc.compile.output import STNU_ARCHIVE
+    from hrc.compile.output import STNU_ARCHIVE, iter_plans, lines_path
 
-    file = str(folder / "compiled.json")
+    file = str(lines_path(folder, dict(header)))
     try:
-        data = json.loads((folder / "compiled.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
+        plans = list(iter_plans(folder))
+    except OSError as err:
         raise InputError(file, "", f"cannot read: {err}") from err
-    plans = _need(data, "plans", list, file, "")
     mode = header.get("stnu_files", "graphml")
     archive = _Archive(folder, file, str(header.get("stnu_archive", STNU_ARCHIVE))) if mode == "archive" else None
     agents = {a.id for a in task.agents}

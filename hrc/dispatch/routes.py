@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Callable, Iterable
-from pathlib import Path
 from typing import Any
 
 from hrc.dispatch.plan_set import PlanSet
@@ -28,12 +27,14 @@ def _xy(p: Iterable[float]) -> list[float]:
 
 
 def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable[[str], list[dict[str, Any]] | None]:
-    """A plan's ``motions`` from ``compiled.json``, by plan id (None: no such plan), read when asked for:
-    its one line, where the dispatch form says it lies (a large compile's file is gigabytes); for an
-    output without a form, the file is read once. Read from the file the plan set holds open
-    (`PlanSet.compiled`: the one its form was checked with, whatever a later compile puts at its path;
-    one opened now for a set that holds none)."""
-    path = Path(out_dir) / "compiled.json"
+    """A plan's ``motions`` from ``compiled.json`` (or ``plans.jsonl`` beside a large one), by plan id
+    (None: no such plan), read when asked for: its one line, where the dispatch form says it lies (a
+    large compile's lines are gigabytes); for an output without a form, the file is read once. Read from
+    the file the plan set holds open (`PlanSet.compiled`: the one its form was checked with, whatever a
+    later compile puts at its path; one opened now for a set that holds none)."""
+    from hrc.compile.output import iter_plans, lines_path
+
+    path = lines_path(out_dir)
     rows = plan_set.form.plans
     everything: dict[str, Any] | None = None
     held = plan_set.compiled
@@ -58,20 +59,12 @@ def plan_motions(out_dir: str | os.PathLike[str], plan_set: PlanSet) -> Callable
                     return list(line.get("motions", []))
                 raise ValueError(f"plan {plan_id}'s line is not where the dispatch form says")
             if everything is None:
-                everything = {p["id"]: p for p in json.loads(_read_all(fd))["plans"]}
+                everything = {p["id"]: p for p in iter_plans(out_dir)}
             return list(everything[plan_id]["motions"]) if plan_id in everything else None
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise InputError(str(path), "", f"cannot read plan {plan_id}'s motions ({err})") from err
 
     return motions
-
-
-def _read_all(fd: int) -> bytes:
-    chunks, at = [], 0
-    while chunk := os.pread(fd, 1 << 20, at):
-        chunks.append(chunk)
-        at += len(chunk)
-    return b"".join(chunks)
 
 
 class PlanRoutes:
