@@ -79,10 +79,18 @@ def _runtime(name: str) -> str:
 
 
 def self_check(env: dict[str, str]) -> None:
-    """The sanitizer build is the one loaded, and reports: an out-of-range index handed to the STN core
-    directly (the Python callers never do) must be a heap-buffer-overflow. Raises SystemExit otherwise."""
-    probe = ("from hrc.temporal.native_stn import native_distances\n"
-             "native_distances(2, [0, 1], [1, 7], [1, 1], 0)\n")
+    """The sanitizer build is the one loaded, and reports: the STN core called through ctypes with an
+    output array shorter than the network (64 timepoints, room for 2; the core checks its indices, but
+    cannot know the caller's buffer) must be a heap-buffer-overflow. Raises SystemExit otherwise."""
+    probe = ("import ctypes\n"
+             "import numpy as np\n"
+             "from hrc.temporal.rul import native_library\n"
+             "f = native_library().hrc_stn_distances\n"
+             "p = ctypes.c_void_p\n"
+             "f.argtypes = [ctypes.c_int, ctypes.c_int, p, p, p, ctypes.c_int, p]\n"
+             "src, dst = np.array([0], dtype=np.int32), np.array([1], dtype=np.int32)\n"
+             "wt, out = np.array([1], dtype=np.int64), np.empty(2, dtype=np.int64)\n"
+             "f(64, 1, src.ctypes.data, dst.ctypes.data, wt.ctypes.data, 0, out.ctypes.data)\n")
     done = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True)
     if "AddressSanitizer: heap-buffer-overflow" not in done.stderr:
         raise SystemExit(f"the ASan build did not report the planted overflow: {done.stderr[-2000:]}")
