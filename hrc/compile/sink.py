@@ -256,14 +256,16 @@ class PlanSink:
         sizes = [len(self._head_of(i, k + 1)) + lines.size[i] for k, i in enumerate(ranked)]
         split = split_lines(sizes, self.inline_max)  # large: the lines to plans.jsonl, rows in compiled.json
         rows = None if split is None else self._rows(ranked[:ROWS_MAX])
-        listed = {name: np.frombuffer(self._cols[name], dtype=np.float64)[order] for name in ("early", "worst")}
+        summary = None
+        if split is not None:  # the ranking at a glance, once for both headers
+            early, worst = (np.frombuffer(self._cols[name], dtype=np.float64)[order] for name in ("early", "worst"))
+            summary = ranking_summary(cls_col, early, worst)
 
         def header_of(form: str | None) -> dict:
             return header_dict(self.task, seed, digest, options, counts, self.stnu,
                                None if partial is None else (n, partial), self.symmetric,
                                None if self.best is None else (self.best, compiled), form, self.extra,
-                               None if split is None else (split[0], len(rows or ())),
-                               None if split is None else ranking_summary(cls_col, listed["early"], listed["worst"]))
+                               None if split is None else (split[0], len(rows or ())), summary)
 
         form = None
         if self._form is not None:  # first: compiled.json's header names it, and it names the lines' places

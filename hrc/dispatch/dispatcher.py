@@ -504,6 +504,8 @@ class Dispatcher:
         time, an announced next action, away), else made again. `core`: the history as `seen_arrays`
         makes it, when the caller has it."""
         form = self.plan_set.form
+        if hinted is None:  # what the person was told, as the previous state had it
+            hinted = previous.hinted if previous is not None else MappingProxyType({})
         seen, legs_seen = core if core is not None else seen_arrays(history, form.nodes.shape[2])
         now = ticks(history.now)
         if previous is not None and previous.now == now and np.array_equal(previous.seen, seen) and \
@@ -536,8 +538,6 @@ class Dispatcher:
             plan_class = CLASS_ORDER[int(cls[at])]
             entry = self.plan_set.entry(best)
             do = dict(do_forms)
-            if hinted is None:
-                hinted = previous.hinted if previous is not None else MappingProxyType({})
             robot, human = self._steps(entry, executed(entry, history), history, plan_class, best, do,
                                        (seen, legs_seen), hinted)
             do_forms = MappingProxyType(do)
@@ -547,8 +547,6 @@ class Dispatcher:
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
                                 False, human, ack, deviation, ahead)
         told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told
-        if hinted is None:  # (no plan left: not set above)
-            hinted = previous.hinted if previous is not None else MappingProxyType({})
         hinted = self._told(hinted, history, decision)
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
                       MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,

@@ -33,7 +33,7 @@ from __future__ import annotations
 import hashlib
 import json
 import multiprocessing
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -49,13 +49,18 @@ from .plan_set import PlanSet
 from .protocol import answer, check_header, is_accepted
 
 if TYPE_CHECKING:
-    from hrc.compile.compiler import CompileOptions
+    from hrc.compile.compiler import CompiledPlan, CompileOptions
 
 __all__ = ["Added", "OnDemand", "OnDemandSettings", "PlanRows", "Replay", "adopt", "announce", "compile_rows",
-           "enable", "extended_set", "rows_digest", "wanted"]
+           "enable", "extended_set", "plan_rows", "rows_digest", "wanted"]
 
 PlanRows = tuple[tuple[str, str, float | None, Plan, bytes], ...]
 """Plans as `hrc.compile.dispatch_form.build_form` takes them: (id, class, preference, plan, form record)."""
+
+
+def plan_rows(plans: Iterable[CompiledPlan]) -> PlanRows:
+    """Compiled plans (`hrc.compile.extend.extend_plans`') as `PlanRows`."""
+    return tuple((cp.plan.id, cp.plan_class.value, cp.preference, cp.plan, bytes(cp.form)) for cp in plans)
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,7 +132,7 @@ class _Compiler:
         s = self.settings
         ext = extend_plans(self.task, self.paths, prefix, k=s.plans, families=s.families, options=s.options,
                            bounds=self.bounds)
-        return tuple((cp.plan.id, cp.plan_class.value, cp.preference, cp.plan, bytes(cp.form)) for cp in ext.plans)
+        return plan_rows(ext.plans)
 
 
 _WORKER: _Compiler | None = None

@@ -207,7 +207,7 @@ class DispatchedController(Controller):
 
     def _adopt(self, t: float) -> None:
         """The plans asked for, compiled (`hrc.sim.on_demand.Compiles`), adopted once their time has come."""
-        from hrc.dispatch.on_demand import adopt
+        from hrc.dispatch.on_demand import adopt, plan_rows
 
         od = self.on_demand
         assert od is not None
@@ -220,8 +220,7 @@ class DispatchedController(Controller):
             od.compile_seconds.append(seconds)
         for cp in plans:
             self.by_id.setdefault(cp.plan.id, cp)
-        self.d, n = adopt(self.d, tuple((cp.plan.id, cp.plan_class.value, cp.preference, cp.plan, bytes(cp.form))
-                                        for cp in plans))
+        self.d, n = adopt(self.d, plan_rows(plans))
         od.adopted += n
 
     def due(self) -> float | None:
