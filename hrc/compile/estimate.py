@@ -43,14 +43,19 @@ instant (its load figure is then the first sample's).
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import time
 import zlib
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from hrc.model import Task
 from hrc.plans import PlanCount, estimate_plan_count
+
+if TYPE_CHECKING:
+    from hrc.compile.compiler import CompiledPlan
 
 __all__ = ["CALIBRATION_FAMILIES", "CALIBRATION_MAX_PLANS", "DEFAULT_MAX_PLANS", "FIXED_SECONDS", "GRAPHML_BYTES",
            "JSON_BYTES", "SECONDS_PER_PLAN", "ZIP_RATIO", "Calibration", "Estimate", "calibrate", "estimate",
@@ -185,7 +190,7 @@ def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
     (`cache`). Cost: the paths (from the roadmap cache after the first time) and about `seconds` twice."""
     from hrc.caches import cache_folder, disk_load, disk_store, source_digest
     from hrc.compile.compiler import CompileOptions
-    from hrc.compile.stream import compile_records
+    from hrc.compile.stream import sample_twice
     from hrc.errors import HrcError
     from hrc.io.task_file import task_digest
     from hrc.motion import plan_paths
@@ -207,23 +212,20 @@ def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
     spread = [f for f in spread_families(task, families) if len(f) <= MAX_FAMILY]
     if not spread:
         raise HrcError(f"every sampled family has more than {MAX_FAMILY} plans (identical actions)")
-    w0, c0 = time.perf_counter(), time.process_time()
-    n = done = 0
     line = graphml = 0
-    for family in spread:
-        for cp, tail in compile_records(options, "graphml", task, paths, [family]):
-            line += len(tail.encode()) + 24
-            graphml += len(zlib.compress(cp.graphml.encode(), 1))
-            n += 1
-        done += 1
-        if time.process_time() - c0 >= seconds:
-            break
-    c1 = time.process_time()
-    compile_records(options, "graphml", task, paths, spread[:done])
-    w2, c2 = time.perf_counter(), time.process_time()
-    out = Calibration(plans=n, families=done, first_pace=(c1 - c0) / max(n, 1), pace=(c2 - c1) / max(n, 1),
+
+    def each(cp: CompiledPlan, tail: str) -> None:
+        nonlocal line, graphml
+        line += len(tail.encode()) + 24
+        graphml += len(zlib.compress(cp.graphml.encode(), 1))
+
+    w0 = time.perf_counter()
+    done, n, first, second = sample_twice(options, "graphml", task, paths, spread, seconds, math.inf, each,
+                                          clock=time.process_time)
+    w2 = time.perf_counter()
+    out = Calibration(plans=n, families=done, first_pace=first / max(n, 1), pace=second / max(n, 1),
                       paths_seconds=paths_seconds, line_bytes=line / max(n, 1), graphml_bytes=graphml / max(n, 1),
-                      wall_ratio=max(1.0, (w2 - w0) / max(c2 - c0, 1e-9)), cores=os.cpu_count() or 1)
+                      wall_ratio=max(1.0, (w2 - w0) / max(first + second, 1e-9)), cores=os.cpu_count() or 1)
     disk_store(folder, key, out)
     return out
 

@@ -50,7 +50,7 @@ from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import generate_plans, identical_actions, plan_code, plan_families, spread_families, symmetry_factor
 
 __all__ = ["OUTPUT_FILES", "Abandoned", "Sample", "StreamResult", "chunk_size", "compact_records", "compile_records",
-           "compile_stream"]
+           "compile_stream", "sample_twice"]
 
 OUTPUT_FILES = ("compiled.json", "input", "stnu", STNU_ARCHIVE, RESUME_FILE, FORM_FOLDER)
 """Every name `compile_stream` may write into an output folder (``hrc compile`` adds the report's,
@@ -167,31 +167,47 @@ class Sample:
     bytes_per_plan: float
 
 
+def sample_twice(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
+                 families: Sequence[tuple[Plan, ...]], budget: float, most: float,
+                 each: Callable[[CompiledPlan, str], None], clock: Callable[[], float] = time.perf_counter
+                 ) -> tuple[int, int, float, float]:
+    """Compile `families` here in order, each plan and its line tail to `each`, until `budget` seconds of
+    `clock` pass or `most` plans are compiled (at least one family); then the same families again, with
+    this process's caches filled. Returns the families and plans compiled, and the seconds the first time
+    and the second (the up-front estimate's `_sample`; ``hrc show``'s `hrc.compile.estimate.calibrate`)."""
+    t0 = clock()
+    n = done = 0
+    for family in families:
+        for cp, tail in compile_records(options, stnu, task, paths, [family]):
+            each(cp, tail)
+        n += len(family)
+        done += 1
+        if clock() - t0 >= budget or n >= most:
+            break
+    t1 = clock()
+    compile_records(options, stnu, task, paths, list(families[:done]))  # again, with the caches filled
+    return done, n, t1 - t0, clock() - t1
+
+
 def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], options: CompileOptions,
             stnu: str, sink: PlanSink, budget: float, taken: frozenset[str] = frozenset(), most: int = 16) -> Sample:
     """Compile sample families here until `budget` seconds pass (at least one family, at most `most` plans),
     then the same again (`Sample`): the time and disk per plan for the up-front estimate; the first
     time's plans are kept, not wasted (but for those the sink has `taken` already)."""
-    t0 = time.perf_counter()
-    n = done = 0
     size = 0.0
-    for family in families:
-        for cp, tail in compile_records(options, stnu, task, paths, [family]):
-            if cp.plan.id not in taken:
-                sink.add(cp, tail)
-            size += len(tail.encode()) + 32
-            if stnu == "graphml":
-                size += -(-len(cp.graphml.encode()) // 4096) * 4096
-            elif stnu == "archive":
-                size += len(zlib.compress(cp.graphml.encode(), 1))
-        n += len(family)
-        done += 1
-        if time.perf_counter() - t0 >= budget or n >= most:
-            break
-    t1 = time.perf_counter()
-    compile_records(options, stnu, task, paths, families[:done])  # again, with this process's caches filled
-    t2 = time.perf_counter()
-    return Sample(done, n, (t2 - t1) / max(n, 1), (t1 - t0) / max(n, 1), size / max(n, 1))
+
+    def each(cp: CompiledPlan, tail: str) -> None:
+        nonlocal size
+        if cp.plan.id not in taken:
+            sink.add(cp, tail)
+        size += len(tail.encode()) + 32
+        if stnu == "graphml":
+            size += -(-len(cp.graphml.encode()) // 4096) * 4096
+        elif stnu == "archive":
+            size += len(zlib.compress(cp.graphml.encode(), 1))
+
+    done, n, first, second = sample_twice(options, stnu, task, paths, families, budget, most, each)
+    return Sample(done, n, second / max(n, 1), first / max(n, 1), size / max(n, 1))
 
 
 def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs: int | None = None,
