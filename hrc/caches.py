@@ -8,7 +8,9 @@ builds per task); hashing those frozen objects by value would cost more than wha
 On disk (`cache_folder`, `disk_load`, `disk_store`): what does not change between runs on the same map,
 such as the roadmaps of `hrc.motion.paths.plan_paths`, keyed by everything they are computed from (the
 inputs, and the digest of the code that computes them: `source_digest`), in a folder the user may delete
-at any time (``~/.cache/hrc``; ``HRC_CACHE_DIR`` moves it, or turns it off when empty).
+at any time (``~/.cache/hrc``; ``HRC_CACHE_DIR`` moves it, or turns it off when empty). Each kind's
+folder is bounded (``HRC_CACHE_MAX_MB``, default 256 MB a kind): past the bound, the entries used least
+recently are deleted until it is down to three quarters (a hit refreshes an entry's time).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-__all__ = ["CACHE_ENV", "cache_folder", "disk_load", "disk_store", "make_room", "source_digest"]
+__all__ = ["CACHE_ENV", "CACHE_MAX_ENV", "cache_folder", "disk_load", "disk_store", "make_room", "source_digest"]
 
 
 def make_room(cache: dict, cap: int) -> None:
@@ -40,6 +42,15 @@ def make_room(cache: dict, cap: int) -> None:
 # ---------------------------------------------------------------------------------------------- on disk
 CACHE_ENV = "HRC_CACHE_DIR"
 """The environment variable naming the folder of hrc's caches on disk (empty: no cache on disk)."""
+
+
+CACHE_MAX_ENV = "HRC_CACHE_MAX_MB"
+"""The environment variable bounding each kind's folder, in MB (default `_DEFAULT_MAX_MB`)."""
+_DEFAULT_MAX_MB = 256
+
+_sizes: dict[Path, int] = {}
+"""Each folder's bytes as this process last knew them: scanned at its first store, then added to, so
+that a store costs one folder scan per process, not one per store."""
 
 
 def cache_folder(kind: str) -> Path | None:
@@ -77,7 +88,11 @@ def disk_load(folder: Path | None, key: str) -> Any:
         stored_key, value = pickle.loads(path.read_bytes())
     except Exception:  # noqa: BLE001 - missing, truncated, another format: recompute
         return None
-    return value if stored_key == key else None
+    if stored_key != key:
+        return None
+    with contextlib.suppress(OSError):
+        os.utime(path)  # used now: the last to be trimmed
+    return value
 
 
 def disk_store(folder: Path | None, key: str, value: Any) -> None:
@@ -93,7 +108,42 @@ def disk_store(folder: Path | None, key: str, value: Any) -> None:
         with os.fdopen(fd, "wb") as f:
             f.write(pickle.dumps((key, value), protocol=pickle.HIGHEST_PROTOCOL))
         os.replace(tmp, path)
+        tmp = None
+        _bound(folder, path.stat().st_size)
     except OSError:
         if tmp is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+
+
+def _max_bytes() -> int:
+    try:
+        return max(0, int(float(os.environ.get(CACHE_MAX_ENV, _DEFAULT_MAX_MB)) * 2**20))
+    except ValueError:  # a malformed bound is the default, never an error: the cache is an optimisation
+        return _DEFAULT_MAX_MB * 2**20
+
+
+def _bound(folder: Path, added: int) -> None:
+    """Keep `folder` within the bound: when this process's count of its bytes passes it, rescan and delete
+    the least recently used entries down to three quarters of it. Another process trimming at once only
+    makes some deletions fail quietly."""
+    cap = _max_bytes()
+    known = _sizes.get(folder)
+    if known is not None and known + added <= cap:
+        _sizes[folder] = known + added
+        return
+    entries = []
+    for entry in os.scandir(folder):
+        with contextlib.suppress(OSError):
+            if entry.name.endswith(".pickle") and entry.is_file():
+                st = entry.stat()
+                entries.append((st.st_mtime_ns, entry.name, st.st_size))
+    total = sum(size for _, _, size in entries)
+    if total > cap:
+        for _, name, size in sorted(entries):
+            if total <= cap * 3 // 4:
+                break
+            with contextlib.suppress(OSError):
+                os.unlink(folder / name)
+                total -= size
+    _sizes[folder] = total

@@ -178,3 +178,33 @@ def test_a_cached_detour_is_the_detour_planned_afresh(tmp_path, monkeypatch):
         shifted = dataclasses.replace(task, workspace=dataclasses.replace(ws, obstacles=(moved, *ws.obstacles[1:])))
         with pytest.raises(AssertionError, match="planned again"):
             ways(shifted, _library(shifted))
+
+
+
+def test_a_disk_cache_past_its_bound_forgets_the_least_recently_used(tmp_path, monkeypatch):
+    """Each kind's folder stays within ``HRC_CACHE_MAX_MB``: past it, the entries used least recently go
+    first, down to three quarters of the bound; a hit counts as a use; what is kept still loads."""
+    import hashlib
+    import os
+
+    from hrc import caches
+
+    monkeypatch.setenv(caches.CACHE_MAX_ENV, str(9_000 / 2**20))  # 9 kB
+    monkeypatch.setattr(caches, "_sizes", {})
+    folder = tmp_path / "kind"
+
+    def path(key: str):
+        return folder / f"{hashlib.sha256(key.encode()).hexdigest()}.pickle"
+
+    blob = b"x" * 2000  # 2,025 bytes a pickle: four fit, five do not
+    for n in range(4):
+        caches.disk_store(folder, f"k{n}", blob)
+    for n, when in enumerate([40, 10, 20, 30]):  # k1 stored first ... k0 last (times any file system keeps)
+        os.utime(path(f"k{n}"), ns=(when * 10**9,) * 2)
+    before = path("k1").stat().st_mtime_ns
+    assert caches.disk_load(folder, "k1") == blob and path("k1").stat().st_mtime_ns > before  # a hit: now used
+    os.utime(path("k1"), ns=(10 * 10**9,) * 2)  # and back to least recently used, for the order below
+    caches.disk_store(folder, "k4", blob)  # 5 x 2,025 > 9,000: down to 6,750, k1 then k2 go
+    caches.disk_store(folder, "k5", blob)  # 4 x 2,025: within the bound, nothing goes
+    assert [n for n in range(6) if caches.disk_load(folder, f"k{n}") == blob] == [0, 3, 4, 5]
+    assert sum(p.stat().st_size for p in folder.iterdir()) <= 9_000
