@@ -16,6 +16,7 @@ temporary folder `setup` makes.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -62,10 +63,8 @@ def task_yaml(data: bytes) -> None:
     for name in ("workshop.yaml", "floorplan.dxf"):
         if not (folder / name).exists():
             shutil.copy(ROOT / "maps" / name, folder / name)
-    try:
+    with contextlib.suppress(HrcError):
         load_task(_write("task.yaml", data))
-    except HrcError:
-        pass
 
 
 def map_yaml(data: bytes) -> None:
@@ -76,10 +75,8 @@ def map_yaml(data: bytes) -> None:
     folder = _scratch()
     if not (folder / "floorplan.dxf").exists():
         shutil.copy(ROOT / "maps" / "floorplan.dxf", folder / "floorplan.dxf")
-    try:
+    with contextlib.suppress(HrcError):
         load_workspace(_write("map.yaml", data))
-    except HrcError:
-        pass
 
 
 def dxf(data: bytes) -> None:
@@ -90,10 +87,8 @@ def dxf(data: bytes) -> None:
     _write("fuzzed.dxf", data)
     map_file = _write("dxfmap.yaml", b"name: fuzz\nbounds: [0, 0, 40, 30]\nfloorplan: fuzzed.dxf\n"
                                      b"locations:\n  A: [1, 1]\n")
-    try:
+    with contextlib.suppress(HrcError):
         load_workspace(map_file)
-    except HrcError:
-        pass
 
 
 def stnu_text(data: bytes) -> None:
@@ -103,10 +98,8 @@ def stnu_text(data: bytes) -> None:
 
     text = _text(data)
     if text is not None:
-        try:
+        with contextlib.suppress(HrcError):
             read_stnu_text(text)
-        except HrcError:
-            pass
 
 
 def graphml(data: bytes) -> None:
@@ -114,10 +107,8 @@ def graphml(data: bytes) -> None:
     from hrc.errors import HrcError
     from hrc.temporal.graphml import read_graphml
 
-    try:
+    with contextlib.suppress(HrcError):
         read_graphml(data)
-    except HrcError:
-        pass
 
 
 def heatlab(data: bytes) -> None:
@@ -127,10 +118,8 @@ def heatlab(data: bytes) -> None:
 
     text = _text(data)
     if text is not None:
-        try:
+        with contextlib.suppress(HrcError):
             read_heatlab(text)
-        except HrcError:
-            pass
 
 
 def network_file(data: bytes) -> None:
@@ -138,10 +127,8 @@ def network_file(data: bytes) -> None:
     from hrc.errors import HrcError
     from hrc.temporal.graphml import read_network
 
-    try:
+    with contextlib.suppress(HrcError):
         read_network(_write("net.stnu", data))
-    except HrcError:
-        pass
 
 
 def apa(data: bytes) -> None:
@@ -151,10 +138,8 @@ def apa(data: bytes) -> None:
 
     text = _text(data)
     if text is not None:
-        try:
+        with contextlib.suppress(HrcError):
             parse_stpp(text)
-        except HrcError:
-            pass
 
 
 # --- protocols --------------------------------------------------------------------------------------
@@ -250,10 +235,8 @@ def detect_trace(data: bytes) -> None:
 
     lines = _lines(data, 40)
     for line in lines:
-        try:
+        with contextlib.suppress(DispatchError):
             read_line(line)
-        except DispatchError:
-            pass
     if "detector" not in _STATE:
         _STATE["detector"] = DetectingDispatcher(_plan_set())
     d = _STATE["detector"].__class__(_plan_set())
