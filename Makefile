@@ -8,6 +8,9 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 ROS2   := $(VENV)/.installed-ros2
 OUT    ?= out/cube_stacking
+# `make test` runs the suite in TEST_JOBS processes (pytest-xdist; a file's tests stay in one process, so
+# its fixtures are built once), then the tests marked `serial` (latency bounds) alone
+TEST_JOBS ?= 2
 
 .PHONY: demo test lint bench clean browser oracle fuzz fuzz-short
 
@@ -28,7 +31,8 @@ demo: $(STAMP)
 test: $(ROS2) browser oracle
 	$(BIN)/ruff check hrc tests scripts fuzz
 	$(BIN)/mypy hrc
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile -m "not slow and not serial"
+	$(BIN)/python -m pytest -q -m "serial and not slow"
 
 # The console's browser tests drive Debian's Chromium: installed here when missing and run as root (as CI
 # runs); otherwise those tests skip and say why.

@@ -120,6 +120,7 @@ _FLOOD = """([n, hseq]) => { const ws = window.hrcConsole.ws, flood = window.flo
   } })(); }"""
 
 
+@pytest.mark.serial  # a latency bound: measured with nothing else running (Makefile)
 def test_a_flood_of_impossible_presses_never_delays_the_robot_and_memory_stays_flat(workshop: Path,
                                                                                       tmp_path: Path) -> None:
     console = ConsoleProcess(workshop, tmp_path / "run.jsonl", "--tick", "0", "--speed", str(SPEED))
