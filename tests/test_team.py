@@ -261,10 +261,9 @@ def test_the_team_tasks_load_and_count() -> None:
     assert tw.lead("load") == "robot"
 
 
-def test_two_workers_compiles_with_people_meetings_in_its_record(tmp_path: Path) -> None:
+def test_two_workers_compiles_with_people_meetings_in_its_record_and_report(tmp_path: Path) -> None:
     out = tmp_path / "tw"
-    assert main(["compile", str(ROOT / "tasks" / "two_workers.yaml"), "--out", str(out), "--no-report", "-q",
-                 "--stnu", "none"]) == 0
+    assert main(["compile", str(ROOT / "tasks" / "two_workers.yaml"), "--out", str(out), "-q", "--stnu", "none"]) == 0
     import json
 
     data = json.loads((out / "compiled.json").read_text("utf-8"))
@@ -277,6 +276,8 @@ def test_two_workers_compiles_with_people_meetings_in_its_record(tmp_path: Path)
             assert o["robot"]["agent"] == "robot" and o["human"]["agent"] in ("alice", "bob")
         for m in p["people_meet"]:
             assert {m["first"]["agent"], m["second"]["agent"]} == {"alice", "bob"}
+    report = (out / "report.md").read_text("utf-8")
+    assert "**Where the people may meet**" in report and "- alice " in report
 
 
 # ------------------------------------------------------------------------------ the online side refuses

@@ -153,7 +153,7 @@ def _xy(p: tuple[float, float]) -> list[float]:
     return [round(p[0], 3), round(p[1], 3)]
 
 
-_ORDER_TEXTS: dict[tuple[int, str, str], tuple[Conflict, tuple[str, str]]] = {}
+_ORDER_TEXTS: dict[tuple[int, str, str, bool], tuple[Conflict, tuple[str, str]]] = {}
 _ORDER_TEXTS_CAP = 50_000  # entries kept per process (a few hundred bytes each, and their conflicts)
 
 
