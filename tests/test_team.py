@@ -250,6 +250,39 @@ def test_the_robot_person_pair_is_as_before_and_two_people_are_only_reported(cro
     assert cp.pattern.meetings == met and cp.pattern.orders == ()
 
 
+def test_a_joint_action_of_two_robots_and_a_person(tmp_path: Path) -> None:
+    """tests/test_joint.py's lift (J 4 m from the person, who walks 1 m/s, and from the robot, which drives
+    0.5 m/s) with a second robot r2 steadying it, from B (9, 3.5), 4.27 m away: one start and one end for
+    all three, the phase contingent (a person takes part: the roles' maxima, 3-5 s). Co-work at the spot
+    is per pair (`_coworking`): every robot's drive in keeps its separation from whoever already stands
+    there, so the first robot in task order arrives first, then r2, then the person, each order forced."""
+    from test_joint import LIFT, _write
+
+    raw = LIFT | {"agents": [*LIFT["agents"], {"id": "r2", "kind": "robot", "radius": 0.35, "speed": 0.5,
+                                               "start": "B"}]}
+    lift = dict(LIFT["actions"][0], roles={**LIFT["actions"][0]["roles"], "steady": "r2"})
+    lift["phases"] = [dict(lift["phases"][0], duration={**lift["phases"][0]["duration"], "steady": [2, 3]})]
+    task = load_task(_write(tmp_path, raw | {"actions": [lift]}))
+    (plan,) = list(generate_plans(task))
+    assert plan.sequences == (("human", ("lift",)), ("robot", ("lift",)), ("r2", ("lift",)))
+    assert plan.allocation == (("lift", "robot"),)  # its lead: the first robot
+    cp = compile_plan(task, plan, plan_paths(task, seed=0))
+    assert cp.plan_class is PlanClass.DC
+    orders = {(o.conflict.robot.agent, o.conflict.robot.kind, o.conflict.human.agent, o.conflict.human.kind): o
+              for o in cp.pattern.orders}
+    assert set(orders) == {("robot", "travel", "human", "travel"), ("robot", "travel", "human", "stay"),
+                           ("r2", "travel", "human", "travel"), ("r2", "travel", "human", "stay"),
+                           ("robot", "travel", "r2", "travel"), ("robot", "travel", "r2", "stay")}
+    assert all(o.first == "robot" and o.how == "forced" for o in orders.values())
+    net = pattern_network(task, plan, cp.pattern).stnu
+    assert sorted((c.source, c.target, c.lb, c.ub) for c in net.contingents) == [
+        ("human.hold.lift.depart", "human.hold.lift.arrive", 4000, 5000),
+        ("robot.hold.lift.start", "robot.hold.lift.end", 3000, 5000)]
+    times = dict(cp.classification.schedule)
+    start = times["robot.hold.lift.start"]
+    assert times["robot.hold.lift.arrive"] <= times["r2.hold.lift.arrive"] <= times["human.hold.lift.arrive"] <= start
+
+
 # ------------------------------------------------------------------------------------ the bundled tasks
 def test_the_team_tasks_load_and_count() -> None:
     k2 = load_task(ROOT / "tasks" / "kitting_2robots.yaml")
