@@ -147,9 +147,10 @@ class Conflict:
 
     @property
     def key(self) -> tuple:
-        """Identifies the conflict within a plan (stable across runs)."""
-        return (self.robot.kind, self.robot.leg, self.robot.part, self.human.kind, self.human.leg, self.human.part,
-                self.component)
+        """Identifies the conflict within a plan (stable across runs), the pair's agents first (a task of more
+        than two agents has several pairs, `floor_pairs`)."""
+        return (self.robot.agent, self.human.agent, self.robot.kind, self.robot.leg, self.robot.part, self.human.kind,
+                self.human.leg, self.human.part, self.component)
 
 
 def occupancies(task: Task, plan: Plan, agent: Agent, routes: Routes | None = None) -> tuple[Occupancy, ...]:
