@@ -283,6 +283,63 @@ def test_a_joint_action_of_two_robots_and_a_person(tmp_path: Path) -> None:
     assert times["robot.hold.lift.arrive"] <= times["r2.hold.lift.arrive"] <= times["human.hold.lift.arrive"] <= start
 
 
+# --------------------------------------------------------------------------- an independent referee
+def _closest(task: Task, cp: Any, times: dict[str, float], a: str, b: str, pace: str, dt: float = 0.01) -> float:
+    """The smallest distance between agents `a` and `b` over a dispatched run (every `dt` s), each moved
+    along its routes as the run's times say (tests/referee.py's `trajectory`: no conflict model)."""
+    from referee import trajectory
+
+    pa = trajectory(task, cp.plan, cp.motions, times, a, pace)
+    pb = trajectory(task, cp.plan, cp.motions, times, b, pace)
+    best = math.inf
+    for k in range(int(max(times.values()) / dt) + 2):
+        x, y = pa(k * dt), pb(k * dt)
+        if x is not None and y is not None:
+            best = min(best, math.dist(x, y))
+    return best
+
+
+def test_two_robots_and_a_person_keep_apart_in_dispatched_runs() -> None:
+    """kitting_2robots cut to three picks (60 plans): the DC plans in which both robots work, each
+    dispatched by its STNU's real-time execution strategy (tests/referee.py: nature's durations at the
+    bounds or random, the strategy's ticks early, late or random), every agent moved along its routes:
+    every robot stays ``r_a + r_b + margin`` from every other agent at every instant (the person at an
+    even pace, rushing or dawdling), and no task constraint is broken. Nothing here reads the passing
+    orders or the conflict model."""
+    import random
+
+    from referee import broken_constraints, dispatch
+
+    from hrc.compile.compiler import compile_task
+    from hrc.temporal.graphml import read_graphml
+
+    full = load_task(ROOT / "tasks" / "kitting_2robots.yaml")
+    task = replace(full, actions=full.actions[:3])
+    cps = compile_task(task, seed=0, jobs=1)
+    assert len(cps.plans) == 60  # 3! C(5, 2)
+    both = [cp for cp in cps.plans if cp.plan_class is PlanClass.DC and cp.plan.sequence("robot")
+            and cp.plan.sequence("robot2")]
+    assert len(both) >= 6
+    rng = random.Random(0)
+    picks = [lambda e, hi: e, lambda e, hi: e if hi is None else hi,
+             lambda e, hi: rng.randint(e, e + 3000 if hi is None else hi)]
+    pairs = [(r.id, o.id, r.radius + o.radius + task.safety_margin) for r, o in floor_pairs(task)]
+    robot_pairs = 0
+    for cp in both[:6]:
+        stnu = read_graphml(cp.graphml.encode())
+        for run in range(3):
+            durations = {c.target: rng.choice([c.lb, c.ub, rng.randint(c.lb, c.ub)]) for c in stnu.contingents}
+            times = {k: v / 1000 for k, v in dispatch(stnu, durations, picks[run]).items()}
+            assert broken_constraints(task, cp.plan, times) == [], cp.plan.id
+            for a, b, reach in pairs:
+                person = task.agent(b).is_human
+                for pace in ("even", "rush", "dawdle") if person else ("even",):
+                    d = _closest(task, cp, times, a, b, pace)
+                    assert d >= reach - 1e-3, (cp.plan.id, a, b, pace, d)
+                robot_pairs += not person
+    assert robot_pairs == 18
+
+
 # ------------------------------------------------------------------------------------ the bundled tasks
 def test_the_team_tasks_load_and_count() -> None:
     k2 = load_task(ROOT / "tasks" / "kitting_2robots.yaml")
