@@ -351,6 +351,22 @@ def test_the_team_tasks_load_and_count() -> None:
     assert tw.lead("load") == "robot"
 
 
+def test_a_team_task_round_trips(tmp_path: Path) -> None:
+    from hrc.io.task_file import dump_task
+
+    import shutil
+
+    (tmp_path / "tasks").mkdir()
+    (tmp_path / "maps").mkdir()
+    shutil.copy(ROOT / "maps" / "kitting_cell.yaml", tmp_path / "maps")  # the tasks/ + maps/ layout
+    for name in ("two_workers", "kitting_2robots"):
+        shutil.copy(ROOT / "tasks" / f"{name}.yaml", tmp_path / "tasks")
+        task = load_task(tmp_path / "tasks" / f"{name}.yaml")
+        out = tmp_path / "tasks" / f"{name}-again.yaml"
+        dump_task(task, out)
+        assert load_task(out) == task
+
+
 def test_two_workers_compiles_with_people_meetings_in_its_record_and_report(tmp_path: Path, capsys) -> None:
     out = tmp_path / "tw"
     assert main(["compile", str(ROOT / "tasks" / "two_workers.yaml"), "--out", str(out), "-q", "--stnu", "none"]) == 0
