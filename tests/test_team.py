@@ -352,9 +352,9 @@ def test_the_team_tasks_load_and_count() -> None:
 
 
 def test_a_team_task_round_trips(tmp_path: Path) -> None:
-    from hrc.io.task_file import dump_task
-
     import shutil
+
+    from hrc.io.task_file import dump_task
 
     (tmp_path / "tasks").mkdir()
     (tmp_path / "maps").mkdir()
