@@ -156,6 +156,38 @@ def test_the_tool_reads_every_joint_workshop_stnu_and_agrees(tool: Path, tmp_pat
     assert counts["DC"] and counts["NOT_DC"]
 
 
+def test_the_tool_agrees_on_the_hand_worked_robot_robot_crossing(tool: Path, tmp_path: Path) -> None:
+    """Issue 37: the two robots crossing of tests/test_team.py, the passing order the plan chose between
+    them a requirement link: DC with room for it (deadline 10.5 s), not DC without (10 s: inconsistent)."""
+    from test_team import CROSS, CROSS_MAP, write_task
+
+    classes = {}
+    for deadline in (10.5, 10):
+        folder = tmp_path / str(deadline)
+        folder.mkdir()
+        task = load_task(write_task(folder, CROSS | {"deadline": deadline}, CROSS_MAP))
+        (plan,) = list(generate_plans(task))
+        cp = compile_plan(task, plan, plan_paths(task, seed=0))
+        path = tmp_path / f"deadline{deadline:g}-{plan.id}.graphml"  # the tool's verdicts are by file name
+        path.write_text(cp.graphml, "utf-8")
+        classes[path] = cp.plan_class.value
+    assert sorted(classes.values()) == ["DC", "inconsistent"]
+    assert _agree(tool, classes) == {"DC": 1, "NOT_DC": 1}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("task", "plans"), [("two_workers.yaml", 120), ("kitting_2robots.yaml", 2520)])
+def test_the_tool_reads_every_team_stnu_and_agrees(tool: Path, tmp_path: Path, task: str, plans: int) -> None:
+    """Issue 37: tasks of more than one person or robot (two people and a robot, with a joint action of one
+    person and the robot; two robots and a person): every person's durations contingent, the passing
+    orders between every robot and every other agent requirement links; every file read and judged as
+    hrc classed it."""
+    classes = _compile(task, tmp_path / "team")
+    assert len(classes) == plans
+    counts = _agree(tool, classes)
+    assert counts["DC"] and counts["NOT_DC"]
+
+
 @pytest.fixture(scope="module")
 def blocked_plans() -> list:
     """Kitting with the person never waiting for the robot's sake (``human_waits=False``): most plans'

@@ -141,7 +141,7 @@ def test_a_bad_joint_action_is_one_line_naming_file_and_key(why, edit, key, tmp_
 
 
 def test_two_people_cannot_share_a_joint_action_without_a_robot_to_start_it(tmp_path: Path, capsys) -> None:
-    # (one human and one robot per task: the loader's rule; this asks for a role with no robot in it)
+    # (a role given twice to the one person; two people alone: tests/test_team.py)
     task = copy.deepcopy(LIFT)
     task["actions"][0]["roles"] = {"holder": "human", "second": "human"}
     assert main(["show", str(_write(tmp_path, task))]) == 2

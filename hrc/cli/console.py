@@ -18,6 +18,7 @@ from typing import Any
 from hrc.cli.argtypes import real, whole
 from hrc.cli.detect import add_detect_options, detect_params
 from hrc.cli.record import add_record_format
+from hrc.cli.team import refuse_team
 from hrc.errors import HrcError
 
 __all__ = ["add_parser", "run"]
@@ -57,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
     from hrc.console.access import Credentials, is_loopback, load_or_create_token, new_token
     from hrc.console.run import open_console, serve
 
+    if refuse_team("console", args.out_dir):
+        return 2
     if not is_loopback(args.host) and not args.allow_remote:
         print(f"error: hrc console: --host {args.host} is not this machine's loopback: other machines could "
               "reach the console (over plain HTTP); add --allow-remote if that is meant", file=sys.stderr)

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from hrc.cli.argtypes import real
+from hrc.cli.team import refuse_team
 
 __all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "run"]
 
@@ -73,6 +74,8 @@ def run(args: argparse.Namespace) -> int:
     from hrc.errors import InputError
     from hrc.io.atomic import write_text_atomic
 
+    if refuse_team("detect", args.out_dir):
+        return 2
     params = detect_params(args)
     d = DetectingDispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial, params=params)
     assert isinstance(d, DetectingDispatcher)

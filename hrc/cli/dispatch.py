@@ -19,6 +19,7 @@ from typing import Any
 from hrc.cli.argtypes import real, whole
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
+from hrc.cli.team import refuse_team
 from hrc.errors import HrcError, InputError
 
 __all__ = ["add_parser", "run"]
@@ -67,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
     given = [f"--{name}" for name in ("log", "resume", "replay") if getattr(args, name)]
     if len(given) > 1:
         print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
+        return 2
+    if refuse_team("dispatch", args.out_dir):
         return 2
     dispatcher = open_dispatcher(args, "dispatch")
     if dispatcher is None:

@@ -20,6 +20,7 @@ from typing import Any
 from hrc.cli.argtypes import real
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
+from hrc.cli.team import refuse_team
 from hrc.errors import HrcError
 
 __all__ = ["INSTALL", "add_parser", "run"]
@@ -70,6 +71,8 @@ def _next_log(out_dir: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    if refuse_team("ros2", args.out_dir):
+        return 2
     try:
         from hrc.ros2 import node as ros_node
     except ImportError as err:  # no extra, or its libraries not found

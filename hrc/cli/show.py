@@ -325,7 +325,15 @@ def _plan_text(folder: Path, header: dict[str, Any], p: dict[str, Any], stnu: st
     for o in passing:
         c = o.get("constraint", {})
         x, y = o.get("point", [0, 0])
-        lines.append(f"    {o['first']} first ({o['how']}) at ({x:g}, {y:g}): robot {_occupancy(o['robot'])}, human "
-                     f"{_occupancy(o['human'])}; T({c.get('to')}) - T({c.get('from')}) >= {c.get('min') or 0.0:g} s")
+        # a task of more than two agents names each occupancy's agent (issue 37): the slot name otherwise
+        who = {k: o[k].get("agent", k) for k in ("robot", "human")}
+        lines.append(f"    {who[o['first']]} first ({o['how']}) at ({x:g}, {y:g}): {who['robot']} "
+                     f"{_occupancy(o['robot'])}, {who['human']} {_occupancy(o['human'])}; T({c.get('to')}) - "
+                     f"T({c.get('from')}) >= {c.get('min') or 0.0:g} s")
+    meet = p.get("people_meet")
+    if meet is not None:
+        lines.append(f"  where two people may meet ({len(meet)}; left to them, no order planned):")
+        lines.extend(f"    {m['first']['agent']} {_occupancy(m['first'])}, {m['second']['agent']} "
+                     f"{_occupancy(m['second'])} near ({m['point'][0]:g}, {m['point'][1]:g})" for m in meet)
     lines.append(f"  STNU: {stnu or 'not written (--stnu none)'}")
     return "\n".join(lines)

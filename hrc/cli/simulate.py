@@ -19,6 +19,7 @@ from typing import Any
 
 from hrc.cli.argtypes import delay_range
 from hrc.cli.compile import _Progress, _stated_sensing
+from hrc.cli.team import refuse_team
 from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
@@ -248,6 +249,8 @@ def run(args: argparse.Namespace) -> int:
     from hrc.sim.run import SimSettings, simulate_run
 
     task = load_task(args.task)
+    if refuse_team("simulate", task=task):
+        return 2
     if args.sensing is not None:
         from dataclasses import replace
 

@@ -75,6 +75,7 @@ from hrc.compile.temporal_net_creator import (
 )
 from hrc.model import Plan, Task
 from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detour, find_conflicts, plan_motions
+from hrc.motion.conflicts import people_meetings
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs, per_plan
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_consistency, check_dc
@@ -93,7 +94,9 @@ RANK_BY = ("worst", "earliest", "nominal")
 @dataclass(frozen=True, slots=True)
 class PassingOrder:
     """At `conflict`, `first` ("robot" | "human") goes first; `how` it was decided: "implied" (the plan
-    orders them anyway), "forced" (the other order cannot hold) or "chosen" (by the search)."""
+    orders them anyway), "forced" (the other order cannot hold) or "chosen" (by the search). For two
+    robots (`hrc.motion.conflicts.floor_pairs`), "robot" is the conflict's `robot` slot and "human" its
+    other slot, the second robot."""
 
     conflict: Conflict
     first: str
@@ -112,12 +115,15 @@ class PassingOrder:
 
 @dataclass(frozen=True, slots=True)
 class MotionPattern:
-    """The routes (`motions`), the passing order at every conflict, and how the search went."""
+    """The routes (`motions`), the passing order at every conflict, and how the search went; `meetings`:
+    where two people may meet on these routes (`hrc.motion.conflicts.people_meetings`: reported, never
+    constrained; none with fewer than two people)."""
 
     motions: tuple[Motion, ...]
     orders: tuple[PassingOrder, ...]
     candidates: int  # complete patterns classified
     exhaustive: bool  # False when a cap stopped the search
+    meetings: tuple[Conflict, ...] = ()
 
     @property
     def detours(self) -> tuple[Motion, ...]:
@@ -729,19 +735,19 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
       driven at the reduced speed (a smaller protective separation, so fewer and shorter conflicts, for
       a longer drive: ISO/TS 15066, 5.5.4), then every such leg together.
     """
-    robot = next(a for a in task.agents if not a.is_human)
     shortest = shortest or _Routing(task, plan, paths, {}, human_waits)
     motions = shortest.motions
     open_conflicts = [c for c, done in zip(shortest.conflicts, shortest.settled, strict=True) if not done]
     trials: list[Routes] = []
     # detours
-    places: dict[int, list[Conflict]] = {}
+    places: dict[tuple[str, int], list[Conflict]] = {}  # by robot (one per task but for issue 37's) and leg
     for c in open_conflicts:
         if c.robot.kind == "travel":
-            places.setdefault(c.robot.leg, []).append(c)
+            places.setdefault((c.robot.agent, c.robot.leg), []).append(c)
+    order = {a.id: n for n, a in enumerate(task.agents)}
     firsts: Routes = {}
-    for leg, found in sorted(places.items()):
-        m = next(m for m in motions if m.agent == robot.id and m.leg == leg)
+    for (robot_id, leg), found in sorted(places.items(), key=lambda p: (order[p[0][0]], p[0][1])):
+        m = next(m for m in motions if m.agent == robot_id and m.leg == leg)
         seen: set[tuple] = set()
         for group in (found, [c for c in found if c.human.kind == "stay"]):
             shapes = tuple(dict.fromkeys(c.shape for c in group))
@@ -749,17 +755,17 @@ def _route_trials(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool,
                 continue
             seen.add(shapes)
             label = ", ".join(dict.fromkeys(c.human.describe() for c in group))
-            path = detour(task, paths, robot.id, m.origin, m.target, shapes, label)
+            path = detour(task, paths, robot_id, m.origin, m.target, shapes, label)
             if path is not None:
-                trials.append({(robot.id, leg): Route(path)})
-                firsts.setdefault((robot.id, leg), Route(path))
+                trials.append({(robot_id, leg): Route(path)})
+                firsts.setdefault((robot_id, leg), Route(path))
     if len(firsts) > 1:
         trials.append(firsts)
     reduced = task.safety.reduced_speed if task.safety is not None else None
     if reduced:
-        slow: Routes = {(robot.id, leg): Route(paths.get(robot.id, m.origin, m.target), speed=reduced)
-                        for leg in sorted(places)
-                        for m in motions if m.agent == robot.id and m.leg == leg}
+        slow: Routes = {(robot_id, leg): Route(paths.get(robot_id, m.origin, m.target), speed=reduced)
+                        for robot_id, leg in sorted(places, key=lambda p: (order[p[0]], p[1]))
+                        for m in motions if m.agent == robot_id and m.leg == leg}
         trials.extend({key: route} for key, route in slow.items())
         if len(slow) > 1:
             trials.append(slow)
@@ -832,13 +838,25 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
         return PlanChoice(MotionPattern(shortest.motions, (), count, exhaustive), shortest.base, _BLOCKED)
     kept = best()
     pattern = kept.pattern
-    found = MotionPattern(pattern.motions, pattern.orders, count, exhaustive)
+    found = MotionPattern(pattern.motions, pattern.orders, count, exhaustive, _meetings(task, plan, paths, pattern))
     if kept.classification.plan_class is PlanClass.DC:
         # the search's verdict (on the same links): measured in full, nothing to explain, so no words
         return PlanChoice(found, kept.net, classify(task, kept.net, known=DCResult(Verdict.DC, True)))
     net = _worded(task, plan, kept.net, pattern.orders)
     check = check_dc(net.stnu)  # again, for the negative cycle that the explanation reads
     return PlanChoice(found, net, classify(task, net, known=check), check)
+
+
+def _meetings(task: Task, plan: Plan, paths: PathLibrary, pattern: MotionPattern) -> tuple[Conflict, ...]:
+    """`people_meetings` on the pattern's routes (a person's are the shortest, or a stop at a waiting
+    place, `_route_trials`); () with fewer than two people, without looking."""
+    if sum(a.is_human for a in task.agents) < 2:
+        return ()
+    humans = {a.id for a in task.agents if a.is_human}
+    routes: Routes = {(m.agent, m.leg): Route(paths.get(m.agent, m.origin, m.park), m.park,
+                                              paths.get(m.agent, m.park, m.target))
+                      for m in pattern.motions if m.agent in humans and m.park}
+    return people_meetings(task, plan, paths, routes)
 
 
 def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: bool = True,

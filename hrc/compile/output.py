@@ -21,7 +21,9 @@ Schema version 2 (times in seconds, rounded to the millisecond; plans in rank or
                 "pattern": {"conflicts": n, "implied": n, "candidates": n, "exhaustive": bool}}]}
 
 An OCCUPANCY is ``{"kind": "travel", "leg": i, "from": LOC, "to": LOC}`` or ``{"kind": "stay", "leg": i,
-"at": LOC}`` (leg indices as in `hrc.plans.agent_legs`, -1 for the start location). ``passing`` lists
+"at": LOC}`` (leg indices as in `hrc.plans.agent_legs`, -1 for the start location), with ``"agent": ID``
+first when the task has more than two agents (issue 37: "robot" is then the robot of the pair, "human"
+the person or, for two robots, the second robot in task order; ``first`` names the slot). ``passing`` lists
 the passing orders the plan's STNU carries (``T(to) - T(from) >= min``, timepoints named as the node ids
 of the written STNU file: `hrc.temporal.graphml.tool_name` of `hrc.compile.temporal_net_creator`'s
 names); orders the plan implies anyway are only counted (``implied``).
@@ -39,7 +41,10 @@ STNU written, every ``stnu`` is null): `hrc compile --stnu`; ``"partial": true``
 ``"plans_expected": N`` (the run was interrupted: ``plans`` holds the plans compiled by then, ranked
 among themselves, and ``counts`` counts them); ``"identical_actions": [[ACTION, ...], ...]`` (`hrc compile
 --symmetry`: of the plans that differ only by swapping the actions of a group, only the one in which
-they come in this order, by agent then position, was compiled).
+they come in this order, by agent then position, was compiled); ``"people_meet": [{"first": OCCUPANCY,
+"second": OCCUPANCY, "point": [x, y]}, ...]`` per plan of a task with two or more people (where two of
+them may meet on the plan's routes, whatever the timing: people give way to each other, so these are
+reported, never constrained; `hrc.motion.conflicts.people_meetings`).
 
 The file is written streaming by `hrc.compile.stream` (header, then one plan per line in rank order,
 so that it diffs plan by plan); it is one JSON document for `json.load`.
@@ -130,30 +135,38 @@ def _s(x: float) -> float:
     return round(float(x), 3)
 
 
-def _occupancy(o: Occupancy) -> dict[str, Any]:
+def _occupancy(o: Occupancy, named: bool = False) -> dict[str, Any]:
+    """An occupancy's entry; `named` (a task of more than two agents) adds whose it is, first."""
+    who = {"agent": o.agent} if named else {}
     if o.kind == "travel":
-        return {"kind": "travel", "leg": o.leg, "from": o.origin, "to": o.location}
-    return {"kind": "stay", "leg": o.leg, "at": o.location}
+        return who | {"kind": "travel", "leg": o.leg, "from": o.origin, "to": o.location}
+    return who | {"kind": "stay", "leg": o.leg, "at": o.location}
+
+
+def _named(task: Task) -> bool:
+    """Whether `compiled.json` names the agent of each occupancy: with more than one person or robot (issue
+    37), "robot" and "human" no longer say whose it is; a 1+1 task's files stay as they were."""
+    return len(task.agents) > 2
 
 
 def _xy(p: tuple[float, float]) -> list[float]:
     return [round(p[0], 3), round(p[1], 3)]
 
 
-_ORDER_TEXTS: dict[tuple[int, str, str], tuple[Conflict, tuple[str, str]]] = {}
+_ORDER_TEXTS: dict[tuple[int, str, str, bool], tuple[Conflict, tuple[str, str]]] = {}
 _ORDER_TEXTS_CAP = 50_000  # entries kept per process (a few hundred bytes each, and their conflicts)
 
 
-def _order_text(o: PassingOrder) -> tuple[str, str]:
+def _order_text(o: PassingOrder, named: bool = False) -> tuple[str, str]:
     """A passing order's ``compiled.json`` entry as JSON text before and after its constraint's two
     timepoint names (the rest names no action). Kept per conflict, by identity (the entry holds the
     conflict, so its id is not reused while it is here): conflicts come from `hrc.motion.find_conflicts`'
     per-process cache, so the same few thousand recur across the plans of a task."""
-    key = (id(o.conflict), o.first, o.how)
+    key = (id(o.conflict), o.first, o.how, named)
     hit = _ORDER_TEXTS.get(key)
     if hit is not None and hit[0] is o.conflict:
         return hit[1]
-    robot, human, point, gap = _order_values(o)
+    robot, human, point, gap = _order_values(o, named)
     text = (f'{{"robot":{_json(robot)},"human":{_json(human)},"first":{_json(o.first)},"how":{_json(o.how)},'
             f'"point":{_json(point)},"constraint":{{"from":', f',"min":{_json(gap)}}}}}')
     if len(_ORDER_TEXTS) >= _ORDER_TEXTS_CAP:
@@ -162,22 +175,24 @@ def _order_text(o: PassingOrder) -> tuple[str, str]:
     return text
 
 
-def _order_values(o: PassingOrder) -> tuple[dict, dict, list[float], float]:
+def _order_values(o: PassingOrder, named: bool = False) -> tuple[dict, dict, list[float], float]:
     """The parts of a passing order's entry that name no action: its occupancies, point and gap."""
-    return _occupancy(o.conflict.robot), _occupancy(o.conflict.human), _xy(o.conflict.point), _s(o.separation.gap)
+    return (_occupancy(o.conflict.robot, named), _occupancy(o.conflict.human, named), _xy(o.conflict.point),
+            _s(o.separation.gap))
 
 
 _PARTS: list[tuple[MotionPattern, list[tuple[str, str]], list[tuple[TimeRef, TimeRef]]]] = []
 
 
-def _pattern_parts(pattern: MotionPattern) -> tuple[list[tuple[str, str]], list[tuple[TimeRef, TimeRef]]]:
+def _pattern_parts(pattern: MotionPattern, named: bool = False) -> tuple[list[tuple[str, str]],
+                                                                         list[tuple[TimeRef, TimeRef]]]:
     """Per passing order of `pattern` (not implied): its `_order_text` and its constraint's two
     timepoints (as references, which each plan names). A family's plans share one pattern
     (`hrc.compile.compiler.compile_family`), so these are gathered once, for the last pattern seen."""
     entry = _PARTS[0] if _PARTS else None  # read once: another thread may replace it meanwhile
     if entry is None or entry[0] is not pattern:
         orders = pattern.constrained
-        entry = (pattern, [_order_text(o) for o in orders],
+        entry = (pattern, [_order_text(o, named) for o in orders],
                  [(o.separation.earlier, o.separation.later) for o in orders])
         _PARTS[:] = [entry]
     return entry[1], entry[2]
@@ -208,7 +223,7 @@ def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str
     """``json.dumps(plan_dict(task, cp, stnu), separators=(",", ":"))``, the plan's ``compiled.json``
     line (tested equal), built faster: the passing orders, nine tenths of a line, are spliced in from
     their text parts (`_pattern_parts`) with this plan's names, not built as dicts and encoded."""
-    texts, refs = _pattern_parts(cp.pattern)
+    texts, refs = _pattern_parts(cp.pattern, _named(task))
     entries = [f"{before}{a},\"to\":{b}{after}"
                for (before, after), (a, b) in zip(texts, _constraint_names(task, cp, refs), strict=True)]
     text = _json(_plan_fields(task, cp, stnu, _PASSING, len(entries), _MOTIONS))
@@ -244,7 +259,7 @@ def plan_dict(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> dic
     name = ref_namer(task, cp.plan)
     passing = []
     for o in cp.pattern.constrained:
-        robot, human, point, gap = _order_values(o)
+        robot, human, point, gap = _order_values(o, _named(task))
         passing.append({"robot": robot, "human": human, "first": o.first, "how": o.how, "point": point,
                         "constraint": {"from": tool_name(name(o.separation.earlier)),
                                        "to": tool_name(name(o.separation.later)), "min": gap}})
@@ -292,7 +307,12 @@ def _plan_fields(task: Task, cp: CompiledPlan, stnu: str | None, passing: Any, n
         "passing": passing,
         "pattern": {"conflicts": len(pattern.orders), "implied": len(pattern.orders) - n_passing,
                     "candidates": pattern.candidates, "exhaustive": pattern.exhaustive},
-    }
+    } | ({"people_meet": [{"first": _occupancy(c.robot, True), "second": _occupancy(c.human, True),
+                           "point": _xy(c.point)} for c in pattern.meetings]} if _people(task) > 1 else {})
+
+
+def _people(task: Task) -> int:
+    return sum(a.is_human for a in task.agents)
 
 
 def header_dict(task: Task, seed: int, digest: str, options: CompileOptions, counts: dict[str, int],

@@ -70,6 +70,13 @@ choose the person's departure late enough that both meet without idling long; th
 phase's end stay contingent. The CSTNU Tool reads these networks as they are (one contingent link per
 person's walk, one per joint phase) and agrees on every one of `tasks/cube_stacking_joint.yaml`.
 
+**More agents** (issue 37). Nothing here counts to two: every agent's legs get their timepoints, every
+person's travels and manipulations are contingent links and every robot's requirements, whoever else is
+on the floor; a person's "waits for the robot" (``human_waits=False``) reads "waits for another agent's
+step"; the deadline bounds every agent's last end. The passing orders between two robots
+(`hrc.motion.conflicts.floor_pairs`) are requirement links like those between a robot and a person; two
+people get none (`hrc.motion.conflicts.people_meetings`). A joint action's lead is its first robot.
+
 **One tick.** A person's action that may take no time at all (a duration ``[0, ub]`` with ``ub > 0``)
 gets the contingent link ``[1 ms, ub]``: a person's action takes at least a millisecond. The CSTNU Tool
 reads contingent links only with ``0 < lb`` (`hrc.temporal.graphml`), and this keeps every STNU the

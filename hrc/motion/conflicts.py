@@ -47,6 +47,12 @@ This module turns that into constraints the temporal net can carry, for every hu
 joint action's spot are no conflicts (`_coworking`: the robot's stay there against the person's walk up,
 stay and walk away); the robot's drives keep their separations, so it arrives first and leaves last.
 
+**More agents** (issue 37): every pair of agents that shares the floor (`floor_pairs`). A robot and a
+person as above; two robots alike, both controllable, so the plan chooses which passes first as it does
+for a robot and a person (the second robot in the person's place: its exact motion is a special case of
+the person's model, and the two separations are then exact); two people are left to themselves, their
+meeting places reported (`people_meetings`), never constrained.
+
 **Exactness.** Routes are sampled every `STEP` metres; a pair closer than `reach` has samples within
 ``STEP / 2`` of each, so the sampled set uses ``reach + STEP`` and every gap is widened by the time
 ``STEP / 2`` takes at each agent's speed: the separations are sufficient for the true (continuous)
@@ -69,8 +75,8 @@ from hrc.motion.motions import Route, Routes
 from hrc.motion.paths import Path, PathLibrary
 from hrc.plans import Leg, agent_legs
 
-__all__ = ["STEP", "Conflict", "Occupancy", "Separation", "TimeRef", "find_conflicts", "occupancies",
-           "route_samples"]
+__all__ = ["STEP", "Conflict", "Occupancy", "Separation", "TimeRef", "find_conflicts", "floor_pairs", "occupancies",
+           "people_meetings", "route_samples"]
 
 STEP = 0.02  # m, arc-length spacing of route samples
 
@@ -125,7 +131,10 @@ class Occupancy:
 
 @dataclass(frozen=True, slots=True)
 class Conflict:
-    """A place where `robot` and `human` occupancies would overlap, and the two ways to avoid it."""
+    """A place where `robot` and `human` occupancies would overlap, and the two ways to avoid it.
+
+    With more than one robot (`floor_pairs`), `human` is the other agent's occupancy: a person's, or a
+    second robot's; "robot first" and "human first" then mean the first and the second robot first."""
 
     robot: Occupancy
     human: Occupancy
@@ -138,9 +147,10 @@ class Conflict:
 
     @property
     def key(self) -> tuple:
-        """Identifies the conflict within a plan (stable across runs)."""
-        return (self.robot.kind, self.robot.leg, self.robot.part, self.human.kind, self.human.leg, self.human.part,
-                self.component)
+        """Identifies the conflict within a plan (stable across runs), the pair's agents first (a task of more
+        than two agents has several pairs, `floor_pairs`)."""
+        return (self.robot.agent, self.human.agent, self.robot.kind, self.robot.leg, self.robot.part, self.human.kind,
+                self.human.leg, self.human.part, self.component)
 
 
 def occupancies(task: Task, plan: Plan, agent: Agent, routes: Routes | None = None) -> tuple[Occupancy, ...]:
@@ -262,17 +272,56 @@ def _boxes_meet(a: np.ndarray, b: np.ndarray, reach: float) -> bool:
     return bool(np.all(lo_a - reach < hi_b) and np.all(lo_b - reach < hi_a))
 
 
+def floor_pairs(task: Task) -> tuple[tuple[Agent, Agent], ...]:
+    """The pairs of agents whose conflicts a plan must settle, as ``(robot, other)``: every robot with every
+    person, then every two robots (the first in task order in the `Conflict.robot` slot), robots in task
+    order. A 1+1 task has one pair, ``(robot, human)``. Two people are left to themselves
+    (`people_meetings`)."""
+    robots = [a for a in task.agents if not a.is_human]
+    humans = [a for a in task.agents if a.is_human]
+    out = [(r, h) for r in robots for h in humans]
+    out += [(r, q) for i, r in enumerate(robots) for q in robots[i + 1:]]
+    return tuple(out)
+
+
 def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | None = None) -> tuple[Conflict, ...]:
-    """Every conflict between the robot's and the human's occupancies in `plan` (see the docstring).
+    """Every conflict between a robot's occupancies and another agent's in `plan` (see the docstring), for
+    every pair of `floor_pairs`: robot and person as the module docstring says; two robots alike, the
+    second in the person's slot (`Conflict.human`) with its exact motion (a robot's travel lasts exactly
+    its route at its speed, which the person's model contains: ``T(arrive) - T(depart) = L / v``, so the
+    two separations are exact) and the plain reach ``r_a + r_b + safety_margin`` (the protective
+    separation keeps robots from people, `separation.reach`). Both orders of two robots are the plan's
+    to choose, as the person-robot order is (`hrc.compile.motion_pattern`).
 
     `routes` maps ``(agent, leg)`` to the `Route` taken there (default: the library's shortest route).
-    Deterministic; ordered by robot then human occupancy (time order) and component.
+    Deterministic; ordered by pair (`floor_pairs`), then robot then other occupancy (time order) and
+    component.
     """
-    human = next(a for a in task.agents if a.is_human)
-    robot = next(a for a in task.agents if not a.is_human)
+    out: list[Conflict] = []
+    for robot, other in floor_pairs(task):
+        out.extend(_pair_conflicts(task, plan, paths, routes or {}, robot, other))
+    return tuple(out)
+
+
+def people_meetings(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | None = None) -> tuple[Conflict, ...]:
+    """Where two people's occupancies in `plan` come within ``r_a + r_b + safety_margin`` of each other:
+    the `Conflict`s of every two people (task order: the first in the `Conflict.robot` slot, read with
+    the person's model on both sides). Not constraints: people give way to each other as they always do
+    (issue 37, "human-human left to the people"); the compile reports them with the plan."""
+    humans = [a for a in task.agents if a.is_human]
+    out: list[Conflict] = []
+    for i, a in enumerate(humans):
+        for b in humans[i + 1:]:
+            out.extend(_pair_conflicts(task, plan, paths, routes or {}, a, b))
+    return tuple(out)
+
+
+def _pair_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, robot: Agent,
+                    human: Agent) -> list[Conflict]:
+    """The conflicts of one pair (`robot` in the robot's slot, `human` in the other: a person, or a second
+    robot, or for `people_meetings` two people)."""
     # the robot driving keeps the protective separation at its speed, standing at speed 0 (`separation`)
-    reach = (separation.reach(task, robot.speed), separation.reach(task, 0.0))
-    routes = routes or {}
+    reach = (separation.reach(task, robot.speed, human, robot), separation.reach(task, 0.0, human, robot))
     locs = paths.locations
 
     def route(occ: Occupancy) -> Path:
@@ -341,10 +390,11 @@ def find_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes | 
             found = cache.get(rk | hk)
             if found is None:
                 vr = speed(r) if r.kind == "travel" else robot.speed
-                reaches = reach if vr == robot.speed else (separation.reach(task, vr), reach[1])
-                found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reaches, vr, human.speed, paths))
+                reaches = reach if vr == robot.speed else (separation.reach(task, vr, human, robot), reach[1])
+                vh = speed(h) if h.kind == "travel" else human.speed
+                found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reaches, vr, vh, paths))
             out.extend(found)
-    return tuple(out)
+    return out
 
 
 def _at_spot(legs: tuple[Leg, ...], first: int, last: int, spot: str) -> bool:

@@ -109,7 +109,8 @@ def detour(task: Task, paths: PathLibrary, agent_id: str, origin: str, target: s
     if key in paths.samples:
         return paths.samples[key]
     agent = task.agent(agent_id)
-    other = next(a for a in task.agents if a.id != agent_id)
+    # the co-worker whose places these are: the widest of the others (the one other agent of a 1+1 task)
+    other = max((a for a in task.agents if a.id != agent_id), key=lambda a: a.radius)
     clearance = agent.radius + task.safety_margin
     roadmap = paths.roadmaps.get(clearance)
     result = None

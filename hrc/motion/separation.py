@@ -41,7 +41,7 @@ from __future__ import annotations
 import bisect
 from dataclasses import dataclass
 
-from hrc.model import Safety, Task
+from hrc.model import Agent, Safety, Task
 
 __all__ = ["SeparationTerms", "describe", "limits", "protective_separation", "reach", "stopping"]
 
@@ -91,12 +91,14 @@ def protective_separation(safety: Safety, speed: float) -> SeparationTerms:
                            sensor=safety.sensor_uncertainty, robot_position=safety.robot_uncertainty, stop_time=t_s)
 
 
-def reach(task: Task, speed: float) -> float:
+def reach(task: Task, speed: float, human: Agent | None = None, robot: Agent | None = None) -> float:
     """The centre distance (m) under which the person and the robot driving at `speed` conflict:
-    ``r_h + r_r + S_p(speed)``, or ``r_h + r_r + safety_margin`` for a task without `safety`."""
-    human = next(a for a in task.agents if a.is_human)
-    robot = next(a for a in task.agents if not a.is_human)
-    if task.safety is None:
+    ``r_h + r_r + S_p(speed)``, or ``r_h + r_r + safety_margin`` for a task without `safety`. `human` and
+    `robot` name the pair (default: the task's first of each); for two robots, or two people, the
+    protective separation does not apply (it keeps a robot from a person): ``r_a + r_b + safety_margin``."""
+    human = human or next(a for a in task.agents if a.is_human)
+    robot = robot or next(a for a in task.agents if not a.is_human)
+    if task.safety is None or human.is_human == robot.is_human:
         return human.radius + robot.radius + task.safety_margin  # as it always was, to the last bit
     return human.radius + robot.radius + protective_separation(task.safety, speed).total
 

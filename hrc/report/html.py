@@ -243,6 +243,10 @@ def render_html(data: ReportData, figures: dict[str, str]) -> str:
         if not detours and not passing:
             out.append('<p class="small">No interference: neither agent waits for the other to pass, and no '
                        "detour is taken.</p>")
+        if dict(data.meetings).get(plan_id):
+            out += ["<b>Where the people may meet</b>",
+                    '<p class="small">They give way to each other as people do: no order is planned there.</p>',
+                    '<ul class="motions">'] + [f"<li>{e(m)}</li>" for m in dict(data.meetings)[plan_id]] + ["</ul>"]
         out += ["</div>", "</div>", "</section>"]
     out += ["</main>", "</body>", "</html>"]
     return "\n".join(out) + "\n"

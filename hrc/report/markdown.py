@@ -125,6 +125,7 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
     rows = {r.plan_id: r for r in data.rows}
     notes = dict(data.notes)
     explanations = dict(data.explanations)
+    meetings = dict(data.meetings)
     out += ["## Featured plans", "", "The three best plans and the best plan of each class.", ""]
     for pid in data.featured:
         r = rows[pid]
@@ -155,4 +156,7 @@ def render_markdown(data: ReportData, figures: dict[str, str]) -> str:
                     "schedule):", ""] + [f"- {fmt_passing(p)}" for p in passing] + [""]
         if not detours and not passing:
             out += ["No interference: neither agent waits for the other to pass, and no detour is taken.", ""]
+        if meetings.get(pid):
+            out += ["**Where the people may meet** (they give way to each other as people do: no order is "
+                    "planned there):", ""] + [f"- {m}" for m in meetings[pid]] + [""]
     return "\n".join(out).rstrip("\n") + "\n"

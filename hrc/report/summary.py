@@ -25,8 +25,9 @@ __all__ = ["CLASS_MEANING", "DetourNote", "FEATURED_TOP", "INLINE_LINKS", "MIN_W
            "PASSING_HOW", "PREFERENCE_HEADER", "PREFERENCE_MEANING", "PassingNote", "ReportData", "Row",
            "STATS_HEADER", "agent_letters", "allocation_legend", "binding_orders", "build_report_data",
            "empty_class_reason", "featured_plans", "fmt_detour", "fmt_idle", "fmt_makespan", "fmt_motion_marks",
-           "fmt_passing", "fmt_preference", "fmt_sequence", "fmt_stnu", "motion_notes", "occupancy_words",
-           "passing_words", "plan_motion_notes", "sensing_sentences", "split_explanation", "stats_rows", "table_scope"]
+           "fmt_passing", "fmt_preference", "fmt_sequence", "fmt_stnu", "meeting_words", "motion_notes",
+           "occupancy_words", "passing_words", "plan_motion_notes", "sensing_sentences", "split_explanation",
+           "stats_rows", "table_scope"]
 
 PREFERENCE_HEADER = "Preference (higher is better)"
 """The ranked table's preference column: APA's value has no unit (a sum of the task's preference functions)."""
@@ -138,6 +139,7 @@ class ReportData:
     sensing_moves: tuple[tuple[int, str, str, str, str], ...] = ()  # (rank, plan, at delay 0, now, why)
     separation: tuple[SeparationCost, ...] = ()  # per plan, against the fixed margin (a task with safety:)
     margin_counts: tuple[tuple[str, int], ...] = ()  # class -> plans with the fixed margin (likewise)
+    meetings: tuple[tuple[str, tuple[str, ...]], ...] = ()  # featured id -> where two people may meet (issue 37)
 
     @property
     def truncated(self) -> bool:
@@ -323,7 +325,15 @@ def build_report_data(cps: CompiledPlanSet, margin: CompiledPlanSet | None = Non
                             if cp.classification.class_at_delay_0 not in (None, cp.plan_class)),
         separation=() if margin is None else separation_costs(cps, margin),
         margin_counts=() if margin is None else tuple(margin.counts().items()),
+        meetings=tuple((cp.plan.id, meeting_words(cp)) for cp in featured if cp.pattern.meetings),
     )
+
+
+def meeting_words(cp: CompiledPlan) -> tuple[str, ...]:
+    """Where two people may meet in the plan (`hrc.motion.conflicts.people_meetings`), one line each,
+    each place once: "alice K->C and bob at K, near (6.0, 4.6)"."""
+    return tuple(dict.fromkeys(f"{m.robot.describe()} and {m.human.describe()}, near ({m.point[0]:.1f}, "
+                               f"{m.point[1]:.1f})" for m in cp.pattern.meetings))
 
 
 def sensing_sentences(cps: CompiledPlanSet) -> tuple[str, ...]:
