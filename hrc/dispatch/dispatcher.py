@@ -336,6 +336,9 @@ class Dispatcher:
             tol = ticks(self.bound_tolerance)
             back = ticks(obs.delay) if obs.delay is not None and obs.t <= history.now else 0
             lo, hi = at - tol - back, at + tol
+            span = self._span(obs)
+            if span is not None:  # the detector's own statement for this estimate, where wider
+                lo, hi = min(lo, ticks(span[0])), max(hi, ticks(span[1]))
         elif self.max_observation_delay:
             lo, hi = at - ticks(self.max_observation_delay), at
         else:
@@ -403,9 +406,10 @@ class Dispatcher:
 
     def _on_bound(self, obs: Observation) -> Observation:
         """`obs` read on the bound of the hint the person was given for it when it was estimated within
-        `bound_tolerance` of it (before its earliest, or after its latest but not before now): a sensor's
-        estimate that close cannot tell the person from one who did as told, and reading it as a violation
-        turned DC plans inconsistent (issue 32: departures estimated 2-40 ms before a hinted earliest)."""
+        `bound_tolerance` of it, or within the span its sensing path states for it (`_span`), before its
+        earliest, or after its latest but not before now: a sensor's estimate that close cannot tell the
+        person from one who did as told, and reading it as a violation turned DC plans inconsistent (issue
+        32: departures estimated 2-40 ms before a hinted earliest)."""
         tol = self.bound_tolerance
         state = self._state
         hint = state.decision.human
@@ -413,13 +417,22 @@ class Dispatcher:
                 not isinstance(hint, RobotStep) or (hint.action, hint.phase, hint.event) != (obs.action, obs.phase,
                                                                                                  obs.event):
             return obs
-        from dataclasses import replace
-
-        if hint.earliest - tol <= obs.t < hint.earliest:
+        above = below = tol
+        span = self._span(obs)
+        if span is not None:  # the detector's own statement for this estimate, where wider
+            above, below = max(tol, span[1] - obs.t), max(tol, obs.t - span[0])
+        if hint.earliest - above <= obs.t < hint.earliest:
             return replace(obs, t=hint.earliest)
-        if hint.latest is not None and hint.latest < obs.t <= hint.latest + tol and hint.latest >= state.history.now:
+        if hint.latest is not None and hint.latest < obs.t <= hint.latest + below and hint.latest >= state.history.now:
             return replace(obs, t=hint.latest)
         return obs
+
+    def _span(self, obs: Observation) -> tuple[float, float] | None:
+        """Where `obs` may truly have happened, ``(earliest, latest)`` in seconds, as its sensing path states
+        it beyond `bound_tolerance` (`hrc.detect.online.DetectingDispatcher`: a change point's confidence
+        interval); None here: the tolerance alone."""
+        del obs
+        return None
 
     def _late(self, obs: Observation) -> Mapping[str, Any] | None:
         """The deviation of an observation of the human that reached the dispatcher later than the stated
