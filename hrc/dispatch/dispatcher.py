@@ -686,6 +686,7 @@ class Dispatcher:
         if not asks:
             return out[0], out[1]
         mode, found = self._windows(entry, index, done, history, _MODES[plan_class], asks, seen, hinted or {})
+        found = self._unlock(entry, index, done, history, mode, asks, found, seen, hinted or {})
         for (slot, agent, action, phase, event, node, _), step in zip(asks, found, strict=True):
             if isinstance(step, tuple):
                 earliest, latest = step
@@ -699,6 +700,28 @@ class Dispatcher:
             w_agent, w_action, w_phase, w_event = entry.events.get(waits[0], ("", "", "", waits[0]))
             out[slot] = WaitFor(w_agent, w_action, w_phase, w_event)
         return out[0], out[1]
+
+    def _unlock(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
+                asks: list[tuple[int, str, str, str, str, str, frozenset[str]]],
+                found: list[tuple[int, int | None] | list[str]], seen: tuple[np.ndarray, np.ndarray],
+                hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]
+                ) -> list[tuple[int, int | None] | list[str]]:
+        """`found` with a mutual wait undone: the robot's next timepoint X waits for the person's next one
+        V (``d(X, V) <= 0``: V no later than X, and V is the person's own, `uncontrolled`) while V waits
+        for X (``d(V, X) <= 0``): the two must go at the same instant, and each agent waiting for the other
+        stalls the run (issue 37: the joint workshop's seed 186, a deadline with no slack left forcing the
+        robot's end of a put and the person's next start together). The robot, the one the dispatcher
+        drives, goes first: X's window read without V as uncontrolled (executing X at a tick of it keeps
+        the rest DC, `hrc.temporal.execution`: V may then go at that same tick), and the person is told to
+        wait for X, as before. Unchanged everywhere else."""
+        if len(asks) != 2 or not isinstance(found[0], list) or not isinstance(found[1], list):
+            return found
+        robot, human = asks
+        if robot[0] != 0 or robot[5] not in found[1] or human[5] not in found[0]:
+            return found
+        freed = (*robot[:6], robot[6] - {human[5]})
+        _, again = self._windows(entry, p, done, history, mode, [freed], seen, hinted)
+        return [again[0], found[1]]
 
     def _joint_hold(self, entry: PlanEntry, agent: str, nxt: tuple[str, str, str, str],
                     done: dict[str, int]) -> WaitFor | None:
