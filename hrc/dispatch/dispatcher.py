@@ -581,9 +581,27 @@ class Dispatcher:
                    for e, n in entry.leg_points[(human, a, ph)] if n not in done]
         if not pending or pending[0][3] not in contingent:
             return None
-        step = next((x for x in pending if x[3] not in contingent), None)
-        if step is None:
+        at_step = next((k for k, x in enumerate(pending) if x[3] not in contingent), None)
+        if at_step is None:
             return None
+        step = pending[at_step]
+        # the person's stay where the step begins (issue 32): when the step is a departure for a leg
+        # without a walk (depart -> arrive in [0, 0] where the person stands), the legs of that place after
+        # it with their work, up to the departure that walks away; no sensor tells these steps apart (on
+        # kitting the detector learnt inspect's end only when the person walked away after label and
+        # deliver's take, and the person, told when to "depart" for label but nothing of the rest, waited
+        # for the chart's planned times, 5.7 and 6.8 s). The bound is the stay's latest: every step of it
+        # holds by it (the first goes no earlier than the rest), so the person may go through the stay as
+        # told for its first step (the simulated person does: `hrc.sim.policies`)
+        sources = [step]
+        if step[2] == "depart" and at_step + 1 < len(pending) and pending[at_step + 1][3] not in contingent:
+            for k in range(at_step + 1, len(pending)):
+                x = pending[k]
+                if x[3] in contingent:
+                    if x[2] == "arrive":  # a walk: the stay ended with the departure before it
+                        break
+                    continue  # the work of a leg here
+                sources.append(x)
         arcs = self._arcs.get(p)
         if arcs is None:  # shared by forks: a function of the plan alone; a few hundred plans at most
             if len(self._arcs) >= 256:
@@ -598,7 +616,7 @@ class Dispatcher:
         n, u, w, heads, starts = arcs
         at = self.plan_set.node_index(p)
         dist = np.full(n, np.inf)
-        dist[at[step[3]]] = 0.0
+        dist[[at[x[3]] for x in sources]] = 0.0
         for _ in range(n + 1):
             relaxed = dist.copy()
             if len(u):
