@@ -400,7 +400,8 @@ def _next_events(entry: PlanEntry, agent: str, history: History) -> list[Observa
 
 def _ahead(entry: PlanEntry, done: dict[str, int], history: History) -> Ahead | None:
     """The person's next own step after the event of theirs now due (nature's), and the robot's last
-    event not done whose distance from that step in the STN reading (requirement links both ways,
+    event not done whose distance from that step (from any step of the stay it begins, when it is a
+    departure for a leg without a walk) in the STN reading (requirement links both ways,
     contingent links at their bounds) is at most 0: Bellman-Ford over the link objects, by name; when
     there is none, the done robot event at that distance whose time plus the gap is latest, if after now."""
     human = history.human
@@ -412,9 +413,19 @@ def _ahead(entry: PlanEntry, done: dict[str, int], history: History) -> Ahead | 
                if n not in done]
     if not pending or pending[0][3] not in contingent:
         return None
-    step = next((x for x in pending if x[3] not in contingent), None)
-    if step is None:
+    at_step = next((k for k, x in enumerate(pending) if x[3] not in contingent), None)
+    if at_step is None:
         return None
+    step = pending[at_step]
+    # a departure for a leg without a walk: the stay there (those legs and their work, up to the walk away)
+    # is bound as one, from each of its own steps (issue 32)
+    sources = [step[3]]
+    if step[2] == "depart" and at_step + 1 < len(pending) and pending[at_step + 1][3] not in contingent:
+        for x in pending[at_step + 1:]:
+            if x[3] in contingent and x[2] == "arrive":
+                break
+            if x[3] not in contingent:
+                sources.append(x[3])
     arcs = []  # (u, v, w): T(v) - T(u) <= w
     for r in stnu.requirements:
         if r.ub is not None:
@@ -426,7 +437,8 @@ def _ahead(entry: PlanEntry, done: dict[str, int], history: History) -> Ahead | 
     origin = stnu.timepoints[0]
     arcs += [(x, origin, 0) for x in stnu.timepoints if x != origin]  # every timepoint at or after the origin
     dist = {x: float("inf") for x in stnu.timepoints}
-    dist[step[3]] = 0.0
+    for x in sources:
+        dist[x] = 0.0
     for _ in range(len(dist) + 1):
         changed = False
         new = dict(dist)

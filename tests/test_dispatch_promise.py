@@ -237,3 +237,42 @@ def test_a_person_following_the_first_plan_keeps_its_promise_on_the_whole_task(t
         out, log = _follow(plan_set, seed)
         _kept(plan_set, out)
         _route_checks(folder, log)
+
+
+class _Spanned(Dispatcher):
+    """A dispatcher whose sensing path states a span for some of the person's events (as the motion
+    detector does for a change point: `hrc.detect.online.DetectingDispatcher._span`)."""
+
+    spans: dict = {}
+
+    def _span(self, obs):
+        return self.spans.get(obs.key)
+
+
+def test_an_event_estimated_early_but_within_its_stated_span_is_read_on_the_bound(kitting_part):
+    """A person who left when told, estimated 300 ms early (beyond a 50 ms tolerance) by a detector that
+    states the departure lies in [t - 0.1, t + 0.4] (issue 32: the hinge's profile interval): the
+    dispatcher answers as for the person seen on the bound; without the span the early time stands."""
+    plan_set = load_plan_set(kitting_part)
+    _, log = _follow(plan_set, 0)
+    hinted = None
+    for k in range(1, len(log)):
+        msg, before = json.loads(log[k][0]), json.loads(log[k - 1][1])
+        h = before.get("human") or {}
+        if msg.get("agent") == "human" and h.get("event") == msg["event"] and h.get("action") == msg["action"] \
+                and msg["t"] == h["earliest"] and h["earliest"] >= before["t"] + 0.35:
+            hinted = k
+            break
+    assert hinted is not None
+    lines = [line for line, _ in log]
+    early = json.loads(lines[hinted])
+    early["t"] = round(early["t"] - 0.3, 3)
+    moved = [*lines[:hinted], json.dumps(early), *lines[hinted + 1:]]
+    key = ("human", early["action"], early["phase"], early["event"])
+    _Spanned.spans = {key: (early["t"] - 0.1, early["t"] + 0.4)}
+    tolerant = _Spanned(plan_set, threads=1, bound_tolerance=0.05)
+    on_bound = _Spanned(plan_set, threads=1, bound_tolerance=0.05)
+    assert [handle_line(tolerant, line) for line in moved] == [handle_line(on_bound, line) for line in lines]
+    plain = Dispatcher(plan_set, threads=1, bound_tolerance=0.05)
+    answers = [handle_line(plain, line) for line in moved[:hinted + 1]]
+    assert json.loads(answers[-1])["t"] == early["t"] and answers[-1] != log[hinted][1]

@@ -33,7 +33,7 @@ from hrc.compile.compiler import CompileOptions, compile_plan, compile_task
 from hrc.compile.motion_pattern import pattern_network
 from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.dispatch import Dispatcher
-from hrc.dispatch.messages import Observation, RobotStep
+from hrc.dispatch.messages import Observation, RobotStep, WaitFor
 from hrc.errors import DispatchError, HrcError
 from hrc.io.task_file import dump_task, load_task
 from hrc.model import Action, Interval, Phase, PhaseRef, Plan, Precedence, Task
@@ -361,6 +361,24 @@ def test_the_dispatcher_on_the_joint_workshop(joint_workshop, seed) -> None:
     run = JointRun(joint_workshop.fork(), random.Random(seed))
     run.play()
     _check_run(run, "support", "hold")
+
+
+def test_seed_186_of_the_joint_workshop_finishes(joint_workshop) -> None:
+    """Regression (issue 37's 200 histories): with seed 186 the deadline left no slack, forcing the robot's
+    end of the put of cube 3 and the person's start of the put of cube 4 at one instant; the robot waited
+    for the person's start (a co-worker's own start, `uncontrolled`) while the person was told to wait
+    for the robot's end, and the run stalled. The robot now goes first (`Dispatcher._unlock`): the run
+    ends, on a DC plan, every link of its STNU kept."""
+    run = JointRun(joint_workshop.fork(), random.Random(186))
+    run.play()
+    assert ("robot", "support", "hold", "end") in run.times
+    assert run.times[("human", "cube4", "put", "start")] >= run.times[("robot", "cube3", "put", "end")]
+    assert run.answers[-1][0].plan_class == "DC"
+    _check_run(run, "support", "hold")
+    for dec, _ in run.answers:  # never the robot waiting for the person's own step while they wait for it
+        r, h = dec.robot, dec.human
+        assert not (isinstance(r, WaitFor) and r.agent == "human" and r.event in ("depart", "start")
+                    and isinstance(h, WaitFor) and h.agent == "robot"), dec
 
 
 @pytest.fixture(scope="module")

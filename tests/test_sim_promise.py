@@ -88,6 +88,44 @@ def test_without_a_stated_delay_simulation_json_has_no_promise_counts(workshop):
     assert "promise" not in out["aggregate"] and "late_observations" not in out["runs"][0]
 
 
+# Runs of the workshop that broke a passing order before the detector stated a change point's span: the
+# person left S5 at the hinted earliest, the hinge dated it 127-154 ms early (0.05 m) or 376-508 ms (0.15 m /
+# 5 Hz / 5 % dropouts), beyond 3 sigma: read as leaving early, the plan turned inconsistent and the robot,
+# told no latest, ended its put of cube 4 up to 1 s too late (issue 32's 1.5-2.5 % of runs).
+SPAN_BROKE = ((50, 0.05, 10.0, 0.0), (98, 0.05, 10.0, 0.0), (110, 0.05, 10.0, 0.0), (40, 0.15, 5.0, 0.05),
+              (126, 0.15, 5.0, 0.05))
+
+
+@pytest.mark.parametrize("index, sigma, rate, dropout", SPAN_BROKE)
+def test_an_estimate_beyond_three_sigma_but_within_its_span_keeps_the_promise(workshop, index, sigma, rate,
+                                                                               dropout):
+    task, cps = workshop
+    task = replace(task, sensing=Sensing("motion", *SENSING_PATHS["motion"]))
+    settings = SimSettings(human=FOLLOW, detector="motion", sensor=SensorModel(sigma=sigma, rate=rate,
+                                                                               dropout=dropout))
+    r = simulate_run(SimContext(task, {"motion": cps}, settings, 0), "hrc", index)
+    assert r.first_class == "DC" and r.first_kept and not r.late_observations
+    assert r.first_broken == ()
+
+
+@pytest.mark.slow
+def test_kitting_under_the_motion_detector_costs_little_makespan():
+    """Kitting's stay at Q (inspect, label, deliver's take: no step between them for a tracker to see):
+    the person goes through it as the instruction ahead says for its first step, instead of waiting for
+    the chart's planned times (issue 32: +8-9 % median makespan against buttons on time before). Runs
+    0-7: median within 3 % of buttons on time, every DC run keeping every constraint."""
+    import statistics
+
+    task = load_task(ROOT / "tasks" / "kitting.yaml")
+    cps = compile_task(task, seed=0, jobs=1)
+    on = SimContext(task, {"motion": cps}, SimSettings(human=FOLLOW), 0)
+    motion = _motion(replace(task, sensing=Sensing("motion", *SENSING_PATHS["motion"])), cps)
+    base = [simulate_run(on, "hrc", i).makespan for i in range(8)]
+    runs = [simulate_run(motion, "hrc", i) for i in range(8)]
+    assert all(r.first_broken == () for r in runs if r.first_class == "DC" and r.first_kept)
+    assert statistics.median(r.makespan for r in runs) <= 1.03 * statistics.median(base)
+
+
 @pytest.mark.slow
 def test_kitting_under_the_motion_detector_keeps_the_promise_the_old_dispatcher_broke():
     """Kitting, fine sensor: on main every run on the DC first plan broke a passing order (the instruction

@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .changepoint import arrived_at, left_at
+from .changepoint import arrived_at, arrived_span, left_at, left_span
 from .model import DetectorModel
 from .situation import Future, Situation
 
@@ -60,12 +60,15 @@ def _late(model: DetectorModel) -> float:
 @dataclass(frozen=True, slots=True)
 class Detected:
     """An event given out: the person's `event` of `action`.`phase` at `t` (its estimated time, s); or
-    ``undo`` (no action, phase): the person's last event, a departure for the wrong place, withdrawn."""
+    ``undo`` (no action, phase): the person's last event, a departure for the wrong place, withdrawn.
+    `span`: where a departure or an arrival timed by a change point may truly have happened,
+    ``(earliest, latest)`` (`hrc.detect.changepoint.hinge_span`); None for the events timed otherwise."""
 
     t: float
     event: str
     action: str
     phase: str
+    span: tuple[float, float] | None = None
 
     def to_json(self, agent: str = "human") -> dict[str, object]:
         if self.event == "undo":
@@ -107,6 +110,7 @@ class Track:
     given_at: float = 0.0
     stuck: float | None = None
     belief: Belief = Belief("idle")
+    left_span: tuple[float, float] | None = None  # where the departure in `left` may truly be (`Detected.span`)
 
     @property
     def t(self) -> float | None:
@@ -195,7 +199,8 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
             if dist <= here and sit.allows(*leg, "arrive"):
                 arrived = arrived_at(model, track.samples, sit.since)
                 if arrived <= t - _STANDING:  # standing, not still coming
-                    return track, [Detected(_at(arrived, track, sit), "arrive", *leg)]
+                    span = arrived_span(model, track.samples, sit.since, arrived)
+                    return track, [Detected(_at(arrived, track, sit), "arrive", *leg, span)]
             wrong = _wrong_way(model, track, sit, place, x, y, here)
             if wrong is not None:
                 return wrong
@@ -215,8 +220,9 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
         lb, ub = model.durations.get(leg, (0.0, 0.0))
         if dist > gone or (track.left is not None and track.left[0] == place):
             if track.left is None or track.left[0] != place:
-                track = replace(track, left=(place, left_at(model, track.samples, place, sit.start)),
-                                prior=_next_place(sit))
+                left = left_at(model, track.samples, place, sit.start)
+                track = replace(track, left=(place, left), prior=_next_place(sit),
+                                left_span=left_span(model, track.samples, place, sit.start, left))
             assert track.left is not None
             left = track.left[1]
             if any(len(f.legs) > 1 and _could_stay(model, sit, leg, f, left) for f in sit.futures):
@@ -255,8 +261,9 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
                     return track, [Detected(at, "depart", *first), Detected(at, "arrive", *first),
                                    Detected(at, "start", *first)]
             return replace(track, belief=Belief("idle")), []
-        track = replace(track, left=(place, left_at(model, track.samples, place, sit.since)),
-                        prior=track.prior or _next_place(sit))
+        left = left_at(model, track.samples, place, sit.since)
+        track = replace(track, left=(place, left), prior=track.prior or _next_place(sit),
+                        left_span=left_span(model, track.samples, place, sit.since, left))
     elif dist <= here:  # back where they were: no walk after all
         return replace(track, left=None, prior=None, belief=Belief("idle")), []
     return _leaving(model, track, sit, x, y, here, None)
@@ -307,7 +314,7 @@ def _wrong_way(model: DetectorModel, track: Track, sit: Situation, goal: str, x:
     for loc in sorted(set(model.place.values()) - {goal, sit.place}):
         lx, ly = model.xy[loc]
         if math.hypot(x - lx, y - ly) <= here and arrived_at(model, track.samples, sit.since) <= t - _WRONG:
-            track = replace(track, left=(sit.place, sit.since), prior=None, stuck=sit.since)
+            track = replace(track, left=(sit.place, sit.since), prior=None, stuck=sit.since, left_span=None)
             return track, [Detected(round(t, 3), "undo", "", "")]
     return None
 
@@ -413,5 +420,5 @@ def _leaving(model: DetectorModel, track: Track, sit: Situation, x: float, y: fl
             at += d
             events.append(Detected(_at(at, track, sit), "end", *leg))
     if future.destination is not None:
-        events.append(Detected(_at(left_t, track, sit), "depart", *future.legs[-1]))
+        events.append(Detected(_at(left_t, track, sit), "depart", *future.legs[-1], track.left_span))
     return replace(track, left=None, prior=None), events

@@ -90,6 +90,12 @@ class DetectingDispatcher(Dispatcher):
             detector_model(plan_set.task, params)
         self.track = Track()
         self._situation: tuple[object, Situation] | None = None
+        self._pending: tuple[float, float] | None = None  # the span of the event being given (`_span`)
+
+    def _span(self, obs: Observation) -> tuple[float, float] | None:
+        """Where the event being given may truly have happened, as the detector states it
+        (`hrc.detect.filter.Detected.span`), or None (the dispatcher's `bound_tolerance` alone)."""
+        return self._pending if obs.agent == self.model.human else None
 
     def detect_settings(self) -> dict[str, Any]:
         """What a log records of the detector (`hrc.dispatch.protocol.log_header`): a replay needs the same."""
@@ -128,8 +134,12 @@ class DetectingDispatcher(Dispatcher):
                         self.observe(Observation(at, "undo"))
                     else:
                         # learnt now, from the position measured at t: how late it is said (`delay`)
-                        self.observe(Observation(at, ev.event, human, ev.action, ev.phase,
-                                                 delay=round(max(0.0, t - ev.t), 3)))
+                        self._pending = ev.span
+                        try:
+                            self.observe(Observation(at, ev.event, human, ev.action, ev.phase,
+                                                     delay=round(max(0.0, t - ev.t), 3)))
+                        finally:
+                            self._pending = None
                 except DispatchError as err:
                     what = ev.event if ev.event == "undo" else f"{ev.event} {ev.action}.{ev.phase}"
                     refused.append(f"{what}: {str(err).splitlines()[0]}")

@@ -317,7 +317,8 @@ class DispatchedController(Controller):
                 return float(hint.earliest)
         human = _human(self.cps.task)
         ahead = getattr(decision, "ahead", None)
-        if hint is None and ahead is not None and ahead.next == f"{human}.{action}.{phase}.{event}":
+        if hint is None and ahead is not None and (ahead.next == f"{human}.{action}.{phase}.{event}"
+                                                   or self._in_stay(ahead.next, action, phase, event)):
             if ahead.wait_for is None:
                 return None
             seen = self.d.seen.times.get(tuple(ahead.wait_for.split(".")))
@@ -326,6 +327,22 @@ class DispatchedController(Controller):
             self._times = dict(self.d.planned_times())
         t = self._times.get((human, action, phase, event))
         return None if t is None or not math.isfinite(t) else float(t)
+
+    def _in_stay(self, named: str, action: str, phase: str, event: str) -> bool:
+        """Whether the person's `event` of `action`.`phase` is a step of the stay whose first step, a
+        departure for a leg without a walk, the instruction ahead names (`named`): a start at that place,
+        or a departure from it (the person's last own event was there), while the dispatcher has not learnt
+        them past it (a motion detector cannot tell steps apart at one place). `Dispatcher._ahead` gives
+        the stay's bound then: the person goes through the stay as told for its first step."""
+        if event not in ("depart", "start") or not self.known or not named.endswith(".depart"):
+            return False
+        task = self.cps.task
+        _, n_action, n_phase, _ = named.split(".")
+        here = task.action(n_action).phase(n_phase).location
+        last = self.known[-1]
+        if last.action is None or last.phase is None or task.action(last.action).phase(last.phase).location != here:
+            return False
+        return event == "depart" or task.action(action).phase(phase).location == here
 
     def route(self, agent: str, action: str, phase: str) -> SimRoute | None:
         cp = self.current()
