@@ -369,12 +369,10 @@ def joint_workshop():
 
 
 def test_what_does_not_take_joint_actions_yet_refuses_in_one_line(lift_task, tmp_path: Path) -> None:
-    """The search compile and the simulator (docs/search.md, docs/simulate.md) refuse before any work (the
-    CLI prints such an error as its one line, exit 2), writing nothing."""
+    """The search compile (docs/search.md) refuses before any work (the CLI prints such an error as its one
+    line, exit 2), writing nothing. (The simulator runs joint tasks: tests/test_joint_sim.py.)"""
     from hrc.compile.search import compile_search
-    from hrc.sim.montecarlo import simulate
 
-    for call in (lambda: compile_search(lift_task, tmp_path / "out", 3), lambda: simulate(lift_task, 1, 0)):
-        with pytest.raises(HrcError, match=r"actions\[0\]\.roles: 'lift' is a joint action: the \w+ "):
-            call()
+    with pytest.raises(HrcError, match=r"actions\[0\]\.roles: 'lift' is a joint action: the \w+ "):
+        compile_search(lift_task, tmp_path / "out", 3)
     assert not (tmp_path / "out").exists()
