@@ -34,7 +34,7 @@ from hrc.compile.motion_pattern import pattern_network
 from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.messages import Observation, RobotStep
-from hrc.errors import DispatchError, HrcError
+from hrc.errors import DispatchError
 from hrc.io.task_file import dump_task, load_task
 from hrc.model import Action, Interval, Phase, PhaseRef, Plan, Precedence, Task
 from hrc.motion import plan_paths
@@ -366,13 +366,3 @@ def test_the_dispatcher_on_the_joint_workshop(joint_workshop, seed) -> None:
 @pytest.fixture(scope="module")
 def joint_workshop():
     return Dispatcher.from_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking_joint.yaml"), jobs=1))
-
-
-def test_what_does_not_take_joint_actions_yet_refuses_in_one_line(lift_task, tmp_path: Path) -> None:
-    """The search compile (docs/search.md) refuses before any work (the CLI prints such an error as its one
-    line, exit 2), writing nothing. (The simulator runs joint tasks: tests/test_joint_sim.py.)"""
-    from hrc.compile.search import compile_search
-
-    with pytest.raises(HrcError, match=r"actions\[0\]\.roles: 'lift' is a joint action: the \w+ "):
-        compile_search(lift_task, tmp_path / "out", 3)
-    assert not (tmp_path / "out").exists()
