@@ -533,7 +533,7 @@ class _Run(Standoffs):
         self.joint_spots = frozenset(p.location for a in task.actions if a.joint for p in a.phases)
         self.joined: set[str] = set()  # joint actions the person has left for
         self.person_arrived: set[tuple[str, str]] = set()  # (action, phase) the person has arrived at
-        self.robot_last: tuple[str, str] | None = None  # the robot's last phase ended
+        self.last: dict[str, tuple[str, str]] = {}  # agent -> its last phase ended (a joint one: both agents')
         self.told: set[tuple[str, str]] = set()  # joint phases the robot was told to start
         self.told_early: set[tuple[str, str]] = set()  # ... before the person had arrived there
         self.cowork_frames: list[bool] = []  # recorded with the frames (`RunResult.cowork_frames`)
@@ -551,8 +551,10 @@ class _Run(Standoffs):
                 self.joined.add(action)
             elif event == "arrive" and phase is not None:
                 self.person_arrived.add((action, phase))
-        elif event == "end" and phase is not None:
-            self.robot_last = (action, phase)
+        if event == "end" and phase is not None:
+            self.last[agent.id] = (action, phase)
+            if action in self.joint:
+                self.last[self.h.id] = (action, phase)
 
     def _joint_told(self, o: object) -> None:
         """Each new order: a joint phase the robot is told to start, and told early when the person has not
@@ -578,19 +580,34 @@ class _Run(Standoffs):
     def _joint_at(self, step: tuple[str, str], spot: str) -> bool:
         return step[0] in self.joint and self.task.action(step[0]).phase(step[1]).location == spot
 
-    def _robot_next(self, step: tuple[str, str]) -> tuple[str, str] | None:
-        """The robot's phase after `step` in its current plan (None: none, or no plan)."""
+    def _next_of(self, agent: AgentState, step: tuple[str, str]) -> tuple[str, str] | None:
+        """`agent`'s phase after `step` in the current plan (None: none, or no plan)."""
         action, phase = step
         phases = self.phases[action]
         i = phases.index(phase)
         if i + 1 < len(phases):
             return (action, phases[i + 1])
         cp = self.ctl.current()
-        seq = () if cp is None else cp.plan.sequence(self.r.id)
+        seq = () if cp is None else cp.plan.sequence(agent.id)
         if action not in seq or seq.index(action) + 1 >= len(seq):
             return None
         nxt = seq[seq.index(action) + 1]
         return (nxt, self.phases[nxt][0])
+
+    def _covers(self, agent: AgentState, step: tuple[str, str] | None, spot: str) -> bool:
+        """Whether `agent`'s stay at `spot` for `step` covers a joint phase there: `step` is one, or the
+        agent's next phase is one at the same spot (it stays)."""
+        if step is None:
+            return False
+        nxt = None if self._joint_at(step, spot) else self._next_of(agent, step)
+        return self._joint_at(step, spot) or (nxt is not None and self.task.action(step[0]).phase(step[1]).location
+                                             == spot and self._joint_at(nxt, spot))
+
+    def _now(self, agent: AgentState) -> tuple[str, str] | None:
+        """The phase `agent` is at (or on its way to), else the last it ended."""
+        if agent.action is not None:
+            return (agent.action, self.phases[agent.action][agent.pi])
+        return self.last.get(agent.id)
 
     def _cowork_spot(self) -> str | None:
         """The joint spot where the robot stands over a stay that covers a joint phase there, or None."""
@@ -598,25 +615,27 @@ class _Run(Standoffs):
         spot = r.loc
         if spot is None or spot not in self.joint_spots or r.mover.moving:
             return None
-        now = (r.action, self.phases[r.action][r.pi]) if r.action is not None and r.mode in ("arrived", "work") \
-            else self.robot_last
-        if now is None or not (self._joint_at(now, spot) or ((nxt := self._robot_next(now)) is not None
-                                                              and self._joint_at(nxt, spot))):
-            return None
-        return spot
+        now = self._now(r) if r.mode in ("arrived", "work") else self.last.get(r.id)
+        return spot if self._covers(r, now, spot) else None
 
     def _cowork(self) -> bool:
-        """Whether the two co-work now (the comment above): the separation is not asked for between them."""
+        """Whether the two co-work now (the comment above): the robot stands at the spot over its joint stay,
+        and the person walks up to it for their own stay there that covers the joint phase, stays there
+        over it, or walks away from it after it. The separation is not asked for between them."""
         h = self.h
         spot = self._cowork_spot()
         if spot is None or not h.mover.present:
             return False
         if h.loc == spot:
-            return True
-        if h.loc is not None or h.mode not in ("travel", "parked", "home", "returning"):
+            return self._covers(h, self._now(h), spot)
+        if h.loc is not None:
             return False
         xy = self.ctx.paths.locations[spot]
-        return math.dist(h.mover.points[-1], xy) < 1e-6 or math.dist(h.mover.points[0], xy) < 1e-6
+        if h.mode in ("travel", "parked", "returning") and math.dist(h.mover.points[-1], xy) < 1e-6 \
+                and self._covers(h, self._now(h), spot):
+            return True  # walking up (or back, after making room) for the joint stay
+        return h.mode in ("travel", "parked", "home") and math.dist(h.mover.points[0], xy) < 1e-6 \
+            and self._covers(h, self.last.get(h.id), spot)  # walking away after it
 
     def _coworks_at(self, a: AgentState, target: tuple[float, float]) -> bool:
         """`Standoffs`: the person, after making room, goes back or on to where the robot co-works with them
