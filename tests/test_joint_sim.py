@@ -127,9 +127,14 @@ def test_a_person_following_a_dc_plan_shares_the_lift_and_every_link_is_kept(lif
         assert broken_links(stnu, dict(ctl.d.seen.times)) == [], i
         # the separation wherever the robot does not stand at the joint spot (co-work: only there)
         assert r.overlaps == 0 and r.min_distance is not None and r.min_distance >= margin - 1e-6
+        # co-work only from the person's departure for the lift to their next arrival elsewhere (or home)
+        (h_depart,) = _at(r.happenings, "human", "lift", "depart")
+        after = [h.t for h in r.happenings if h.agent == "human" and h.event == "arrive" and h.t > end]
+        until = after[0] if after else math.inf
         for f, shared in zip(r.frames, r.cowork_frames, strict=True):
             robot_at_j = math.dist((f[3], f[4]), J) < 1e-6
             assert robot_at_j or not shared
+            assert not shared or h_depart <= f[0] <= until + 1e-9, (i, f[0], h_depart, until)
             if not robot_at_j:
                 assert math.dist((f[1], f[2]), (f[3], f[4])) - 0.65 >= margin - 1e-6, (i, f)
         assert any(r.cowork_frames) and r.joint is not None and r.joint["cowork_seconds"] > 0

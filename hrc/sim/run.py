@@ -427,6 +427,8 @@ class _Run(Standoffs):
         decide."""
         if a.mode == "home" and not a.mover.moving:
             a.mode, a.loc = "free", a.home
+            if self.joint:  # home: a walk away from a joint spot is over
+                self.joint_stay.pop(a.id, None)
             return True
         if self._give_way(a, other):
             return True
@@ -534,6 +536,7 @@ class _Run(Standoffs):
         self.joined: set[str] = set()  # joint actions the person has left for
         self.person_arrived: set[tuple[str, str]] = set()  # (action, phase) the person has arrived at
         self.last: dict[str, tuple[str, str]] = {}  # agent -> its last phase ended (a joint one: both agents')
+        self.joint_stay: dict[str, str] = {}  # agent -> the spot of a joint phase of its stay (until it is elsewhere)
         self.told: set[tuple[str, str]] = set()  # joint phases the robot was told to start
         self.told_early: set[tuple[str, str]] = set()  # ... before the person had arrived there
         self.cowork_frames: list[bool] = []  # recorded with the frames (`RunResult.cowork_frames`)
@@ -555,6 +558,13 @@ class _Run(Standoffs):
             self.last[agent.id] = (action, phase)
             if action in self.joint:
                 self.last[self.h.id] = (action, phase)
+        if phase is None:
+            return
+        where = self.task.action(action).phase(phase).location
+        if event == "start" and action in self.joint:  # both agents' stays there cover it
+            self.joint_stay[self.h.id] = self.joint_stay[self.r.id] = where
+        elif event == "arrive" and self.joint_stay.get(agent.id) != where:  # its walk away is over
+            self.joint_stay.pop(agent.id, None)
 
     def _joint_told(self, o: object) -> None:
         """Each new order: a joint phase the robot is told to start, and told early when the person has not
@@ -616,7 +626,7 @@ class _Run(Standoffs):
         if spot is None or spot not in self.joint_spots or r.mover.moving:
             return None
         now = self._now(r) if r.mode in ("arrived", "work") else self.last.get(r.id)
-        return spot if self._covers(r, now, spot) else None
+        return spot if self.joint_stay.get(r.id) == spot or self._covers(r, now, spot) else None
 
     def _cowork(self) -> bool:
         """Whether the two co-work now (the comment above): the robot stands at the spot over its joint stay,
@@ -626,8 +636,8 @@ class _Run(Standoffs):
         spot = self._cowork_spot()
         if spot is None or not h.mover.present:
             return False
-        if h.loc == spot:
-            return self._covers(h, self._now(h), spot)
+        if h.loc == spot:  # their stay there: over the joint phase, or before it
+            return self.joint_stay.get(h.id) == spot or self._covers(h, self._now(h), spot)
         if h.loc is not None:
             return False
         xy = self.ctx.paths.locations[spot]
@@ -635,7 +645,7 @@ class _Run(Standoffs):
                 and self._covers(h, self._now(h), spot):
             return True  # walking up (or back, after making room) for the joint stay
         return h.mode in ("travel", "parked", "home") and math.dist(h.mover.points[0], xy) < 1e-6 \
-            and self._covers(h, self.last.get(h.id), spot)  # walking away after it
+            and self.joint_stay.get(h.id) == spot  # walking away after it
 
     def _coworks_at(self, a: AgentState, target: tuple[float, float]) -> bool:
         """`Standoffs`: the person, after making room, goes back or on to where the robot co-works with them
