@@ -34,7 +34,7 @@ from hrc.compile.motion_pattern import pattern_network
 from hrc.compile.temporal_net_creator import ORIGIN
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.messages import Observation, RobotStep, WaitFor
-from hrc.errors import DispatchError, HrcError
+from hrc.errors import DispatchError
 from hrc.io.task_file import dump_task, load_task
 from hrc.model import Action, Interval, Phase, PhaseRef, Plan, Precedence, Task
 from hrc.motion import plan_paths
@@ -384,15 +384,3 @@ def test_seed_186_of_the_joint_workshop_finishes(joint_workshop) -> None:
 @pytest.fixture(scope="module")
 def joint_workshop():
     return Dispatcher.from_compiled(compile_task(load_task(ROOT / "tasks" / "cube_stacking_joint.yaml"), jobs=1))
-
-
-def test_what_does_not_take_joint_actions_yet_refuses_in_one_line(lift_task, tmp_path: Path) -> None:
-    """The search compile and the simulator (docs/search.md, docs/simulate.md) refuse before any work (the
-    CLI prints such an error as its one line, exit 2), writing nothing."""
-    from hrc.compile.search import compile_search
-    from hrc.sim.montecarlo import simulate
-
-    for call in (lambda: compile_search(lift_task, tmp_path / "out", 3), lambda: simulate(lift_task, 1, 0)):
-        with pytest.raises(HrcError, match=r"actions\[0\]\.roles: 'lift' is a joint action: the \w+ "):
-            call()
-    assert not (tmp_path / "out").exists()

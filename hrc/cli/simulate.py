@@ -24,7 +24,8 @@ from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
-__all__ = ["add_parser", "format_detection", "format_on_demand", "format_promise", "format_ssm", "format_table", "run"]
+__all__ = ["add_parser", "format_detection", "format_joint", "format_on_demand", "format_promise", "format_ssm",
+           "format_table", "run"]
 
 POLICY_NAMES = ("hrc", "motion-blind", "feasible-only", "fixed")  # hrc.sim.policies.POLICIES, not imported here
 
@@ -219,6 +220,26 @@ def format_ssm(sim: Any) -> str:
     return "\n".join(lines)
 
 
+def format_joint(sim: Any) -> list[str]:
+    """A task with joint actions (issue 37): per policy, the joint starts the robot was told before the
+    person had arrived (the target: none), the runs on a DC first plan that kept it and every constraint of
+    its STNU, the closest approach outside the co-work at the joint spot, and the co-work's seconds."""
+    from hrc.sim.metrics import aggregate
+
+    lines = []
+    for name in sim.policies:
+        m = aggregate(sim.results[name])
+        j = m.get("joint")
+        if j is None:
+            continue
+        lines.append(f"joint actions ({name}): told to start {j['told_to_start']}, before the person was there "
+                     f"{j['told_before_arrival']} (in {j['runs_told_before_arrival']} runs); DC first plan "
+                     f"{m['first_plan_dc']} runs, kept {m['first_plan_dc_kept']}, every constraint kept "
+                     f"{m['first_plan_dc_kept_all_constraints']}; closest outside co-work {m['min_distance']} m, "
+                     f"co-work {j['cowork_seconds_mean']} s per run")
+    return lines
+
+
 def format_on_demand(sim: Any) -> list[str]:
     """With a searched compile (a task beyond enumeration): compile on demand's misses, time to recover and
     the wall time of its compiles (excluded from the dispatcher's latency), per dispatched policy."""
@@ -321,7 +342,7 @@ def run(args: argparse.Namespace) -> int:
             print(format_detection(sim))
         if task.safety is not None:
             print(format_ssm(sim))
-        for line in format_on_demand(sim):
+        for line in format_on_demand(sim) + format_joint(sim):
             print(line)
         print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/")
               + ("" if sim.logs is None else f", {out}/runs/ (one dispatcher log per run)"))

@@ -46,6 +46,11 @@ under ``--rank-by worst`` (a DC plan's worst case is measured with every human d
 and the ``lo`` bound otherwise (a plan whose upper reading has no schedule measures its worst case as
 its earliest). The preference term is unbounded (minus infinity) when the task has preferences.
 
+**Joint actions** (issue 37): allocated to their lead only, in the sequence of each agent of them; their
+first phase starts when the last of them is there (one edge or time per agent in the critical path), each
+phase lasts the roles' ``[max lb, max ub]`` (the ``hi`` reading takes the upper end when a person takes part:
+the STNU's contingent link, `hrc.compile.temporal_net_creator`), and it loads every agent of it.
+
 Cost: O(phases + precedence + agents * actions) per node.
 """
 
@@ -127,7 +132,14 @@ class NodeBounds:
         self.n, self.m = len(task.actions), len(task.agents)
         self.agent_ids = task.agent_ids
         self.index = {a: i for i, a in enumerate(task.action_ids)}
-        self.may = [[ag for ag, agent in enumerate(task.agents) if agent.id in a.agents] for a in task.actions]
+        # a joint action (issue 37) is allocated to its lead (`Task.lead`, as `hrc.plans` does) and is in the
+        # sequence of every agent of it (`takers`); `does`: who may work on each action (allocated or taking part)
+        self.takers = [tuple(ag for ag, agent in enumerate(task.agents) if agent.id in a.agents) if a.joint else ()
+                       for a in task.actions]
+        self.may = [[task.agent_ids.index(task.lead(a.id))] if a.joint else
+                    [ag for ag, agent in enumerate(task.agents) if agent.id in a.agents] for a in task.actions]
+        self.does = [list(t) if t else may for t, may in zip(self.takers, self.may, strict=True)]
+        self.slots = sum(max(1, len(t)) for t in self.takers)  # a leaf's sequence entries, all agents together
         self.phases = [[p.location for p in a.phases] for a in task.actions]
         self.at = [0]  # each action's first phase's number among all phases (task order); at[n]: the count
         for ph in self.phases:
@@ -143,7 +155,8 @@ class NodeBounds:
             clearance = agent.radius + task.safety_margin
             if clearance not in planners:
                 planners[clearance] = ExactPlanner(task.workspace, clearance, quad_segs=2)
-            wanted = sorted({agent.start} | {loc for i in range(self.n) if ag in self.may[i] for loc in self.phases[i]})
+            wanted = sorted({agent.start} | {loc for i in range(self.n) if ag in self.does[i]
+                                             for loc in self.phases[i]})
             exact = _all_pairs(planners[clearance], {w: locs[w] for w in wanted})
             for o in wanted:
                 for t in wanted:
@@ -162,15 +175,22 @@ class NodeBounds:
                     slack = agent.travel_slack if agent.is_human else 1.0
                     self.travel[1][ag][(o, t)] = math.floor(secs * slack * _TICKS)
         # step durations per reading, action, phase and agent (ticks; None: the agent may not do it)
+        # (a joint phase lasts until its last role is done: ``[max lb, max ub]``, contingent with a person in it,
+        # `hrc.compile.temporal_net_creator`; the same for each of its agents)
         self.dur: list[list[list[list[int | None]]]] = [[], []]
         for r in range(2):
             for a in task.actions:
                 rows = []
+                people = a.joint and any(task.agent(x).is_human for x in a.agents)
                 for p in a.phases:
                     row: list[int | None] = []
                     for agent in task.agents:
                         if agent.id not in a.agents:
                             row.append(None)
+                            continue
+                        if a.joint:
+                            ivs = [p.duration(x) for x in a.agents]
+                            row.append(math.floor(max(iv.ub if r and people else iv.lb for iv in ivs) * _TICKS))
                             continue
                         iv = p.duration(agent.id)
                         row.append(math.floor((iv.ub if r and agent.is_human else iv.lb) * _TICKS))
@@ -182,9 +202,9 @@ class NodeBounds:
         self.way_in = [[[0] * self.n for _ in range(self.m)] for _ in range(2)]
         for r in range(2):
             for ag, agent in enumerate(task.agents):
-                places = {agent.start} | {self.phases[j][-1] for j in range(self.n) if ag in self.may[j]}
+                places = {agent.start} | {self.phases[j][-1] for j in range(self.n) if ag in self.does[j]}
                 for i in range(self.n):
-                    if ag not in self.may[i]:
+                    if ag not in self.does[i]:
                         continue
                     steps = sum(d[ag] or 0 for d in self.dur[r][i])
                     inside = sum(self.travel[r][ag][(x, y)] for x, y in itertools.pairwise(self.phases[i]))
@@ -216,40 +236,46 @@ class NodeBounds:
         n, alloc, seqs = self.n, node.alloc, node.seqs
         full = len(alloc) == n
         travel, dur, way_in, at = self.travel[r], self.dur[r], self.way_in[r], self.at
-        # per action's first phase: where its agent's sequence lets it start, as (phase it follows, gap)
-        # or a time from 0; actions of an agent not in its prefix follow the prefix's last phase
-        follows: dict[int, tuple[int, int]] = {}
+        takers = self.takers
+        # per action's first phase: where its agents' sequences let it start, as (phase it follows, gap)
+        # or a time from 0; actions of an agent not in its prefix follow the prefix's last phase (a joint
+        # action, issue 37, starts when every agent of it is there: one such edge or time per agent)
+        follows: dict[int, list[tuple[int, int]]] = {}
         from_zero: dict[int, int] = {}
-        in_prefix = set()
         for ag, seq in enumerate(seqs):
             here = self.task.agents[ag].start
             prev = -1
             for x in seq:
                 gap = travel[ag][(here, self.phases[x][0])]
                 if prev < 0:
-                    from_zero[x] = gap
+                    from_zero[x] = max(from_zero.get(x, 0), gap)
                 else:
-                    follows[x] = (at[prev] + len(self.phases[prev]) - 1, gap)
+                    follows.setdefault(x, []).append((at[prev] + len(self.phases[prev]) - 1, gap))
                 prev, here = x, self.phases[x][-1]
-                in_prefix.add(x)
         if full:
+            placed = [set(seq) for seq in seqs]
             for i in range(n):
-                if i not in in_prefix:
-                    own = seqs[alloc[i]]
+                for ag in takers[i] or (alloc[i],):
+                    if i in placed[ag]:
+                        continue
+                    own = seqs[ag]
                     if own:
-                        follows[i] = (at[own[-1]] + len(self.phases[own[-1]]) - 1, way_in[alloc[i]][i])
+                        follows.setdefault(i, []).append((at[own[-1]] + len(self.phases[own[-1]]) - 1, way_in[ag][i]))
                     else:
-                        from_zero[i] = way_in[alloc[i]][i]
+                        from_zero[i] = max(from_zero.get(i, 0), way_in[ag][i])
         total = at[n]
         preds: list[list[tuple[int, int]]] = [[] for _ in range(total)]  # phase -> (phase, gap)
         for i in range(n):
             agent = alloc[i] if i < len(alloc) else -1
             base = at[i]
             if i in follows:
-                preds[base].append(follows[i])
+                preds[base].extend(follows[i])
             for k in range(1, len(self.phases[i])):
                 a, b = self.phases[i][k - 1], self.phases[i][k]
-                gap = travel[agent][(a, b)] if agent >= 0 else min(travel[ag][(a, b)] for ag in self.may[i])
+                if takers[i]:  # every agent of a joint action goes on to its next phase
+                    gap = max(travel[ag][(a, b)] for ag in takers[i])
+                else:
+                    gap = travel[agent][(a, b)] if agent >= 0 else min(travel[ag][(a, b)] for ag in self.may[i])
                 preds[base + k].append((base + k - 1, gap))
             for k, j, ph in self.prec[i]:
                 preds[base + k].append((at[j] + ph, 0))
@@ -263,6 +289,8 @@ class NodeBounds:
             agent = alloc[i] if i < len(alloc) else -1
             if i in from_zero:
                 start[at[i]] = from_zero[i]
+            elif takers[i] and i not in follows:  # a joint action no agent has sequenced yet: all must come
+                start[at[i]] = max(way_in[ag][i] for ag in takers[i])
             elif i not in follows:  # allocated but not sequenced yet, or not allocated
                 start[at[i]] = way_in[agent][i] if agent >= 0 else min(way_in[ag][i] for ag in self.may[i])
         end = [0] * total
@@ -298,6 +326,11 @@ class NodeBounds:
         spare = 0
         work, way_in = self.work[r], self.way_in[r]
         for i in range(n):
+            if self.takers[i]:  # a joint action: each of its agents works it (allocated or not)
+                for ag in self.takers[i]:
+                    if i not in seqs[ag]:
+                        load[ag] += work[ag][i] + way_in[ag][i]
+                continue
             if i in in_prefix:
                 continue
             if i < len(alloc):
@@ -336,18 +369,24 @@ class NodeBounds:
         if len(alloc) < n:
             i = len(alloc)
             out = []
+            takes = who in self.takers[i]  # a joint action of the covered agent: in its sequence, whoever leads
             for ag in self.may[i]:
                 prev = None if cover is not None else self.group_prev.get(i)
                 if prev is not None and alloc[prev] > ag:
                     continue  # identical actions: agents in task order
-                if i in forced and ag != who:
+                if i in forced and ag != who and not takes:
                     continue
-                if ag == who and not self._fits(alloc + (ag,), i, who, forced):
+                if (ag == who or takes) and not self._fits(alloc + (ag,), i, who, forced):
                     continue  # the forced prefix would need an action of its agent before it that it lacks
                 out.append(Node(alloc + (ag,), seqs))
             return out
-        placed = {x for seq in seqs for x in seq}
-        busy = [ag for ag in range(self.m) if any(alloc[i] == ag and i not in placed for i in range(n))]
+        takers = self.takers
+        placed = [set(seq) for seq in seqs]  # per agent (a joint action is placed once per agent of it)
+
+        def todo(i: int, ag: int) -> bool:  # action i is for agent ag's sequence and not in it yet
+            return (alloc[i] == ag if not takers[i] else ag in takers[i]) and i not in placed[ag]
+
+        busy = [ag for ag in range(self.m) if any(todo(i, ag) for i in range(n))]
         if not busy:
             return []
         if who >= 0 and len(seqs[who]) < len(forced):  # the covered agent's prefix first
@@ -355,13 +394,13 @@ class NodeBounds:
             options = [forced[len(seqs[who])]]
         else:
             ag = min(busy, key=lambda a: (ends[a], a))
-            options = [i for i in range(n) if alloc[i] == ag and i not in placed]
+            options = [i for i in range(n) if todo(i, ag)]
         out = []
         for i in options:
-            if any(alloc[j] == ag and j not in placed for j in self.preds[i]):
+            if any(todo(j, ag) for j in self.preds[i]):
                 continue  # a must-precede action of the same agent is still to come
             prev = None if cover is not None else self.group_prev.get(i)
-            if prev is not None and alloc[prev] == ag and prev not in placed:
+            if prev is not None and todo(prev, ag):
                 continue  # identical actions: in task order within an agent
             out.append(Node(alloc, seqs[:ag] + (seqs[ag] + (i,),) + seqs[ag + 1:]))
         return out
@@ -375,10 +414,10 @@ class NodeBounds:
         for p, x in enumerate(forced):
             if (i, x) in self.before_idx and i not in forced[:p]:
                 return False
-            if x == i and any(alloc[j] == who and (j, i) in self.before_idx and j not in forced[:p]
-                              for j in range(len(alloc))):
+            if x == i and any((alloc[j] == who or who in self.takers[j]) and (j, i) in self.before_idx
+                              and j not in forced[:p] for j in range(len(alloc))):
                 return False
         return True
 
     def is_leaf(self, node: Node) -> bool:
-        return len(node.alloc) == self.n and sum(len(s) for s in node.seqs) == self.n
+        return len(node.alloc) == self.n and sum(len(s) for s in node.seqs) == self.slots

@@ -112,7 +112,7 @@ def extend_plans(task: Task, paths: PathLibrary, prefix: Prefix, *, k: int = EXT
     for agent, seq in prefix.sequences:
         g = agents[agent]
         forced[g] = tuple(index[a] for a in seq)
-        owner.update((i, g) for i in forced[g])
+        owner.update((i, g) for i in forced[g] if not task.actions[i].joint)  # a joint one: every agent's
     # `cover` lifts the canonical order of identical actions (the prefix names the very actions done) and
     # prunes allocations of the most constrained agent's prefix early; the filter keeps every agent's prefix
     lead = max(range(len(forced)), key=lambda g: (len(forced[g]), -g))

@@ -13,7 +13,9 @@ one, it extends the sequence of the agent whose sequence prefix ends first in th
 task order). Which agent is extended is a function of the node, so every plan has exactly one path
 from the root: no plan is reached twice. Identical actions (`hrc.plans.identical_actions`) are taken
 in their canonical order only, and a leaf's whole family (its relabellings) is compiled, as
-`hrc.plans.plan_families` groups them.
+`hrc.plans.plan_families` groups them. A joint action (issue 37) is not allocated: its node fixes its lead
+(`hrc.model.Task.lead`, as `hrc.plans` names it) and it enters the sequence of every agent of it, each in
+its turn; orders that disagree on when close a cycle, which the bound finds (no plan below).
 
 **Bounds.** `hrc.compile.bounds.NodeBounds`: a relaxation in which the co-worker costs nothing
 (interference only ever adds time: that module says where in the code this holds), per-agent loads
@@ -55,7 +57,6 @@ from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, 
 from hrc.compile.output import write_input
 from hrc.compile.sink import REPORT_TOP, PlanSink
 from hrc.compile.stream import compile_records
-from hrc.errors import InputError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import family_of, identical_actions, relabellings
@@ -340,7 +341,7 @@ def _cover(task: Task, bounds: NodeBounds, state: _State, depth: int, deadline: 
     if human is None or depth < 1:
         return 0, 0, 0, 0
     h = task.agent_ids.index(human)
-    mine = [i for i in range(bounds.n) if h in bounds.may[i]]
+    mine = [i for i in range(bounds.n) if h in bounds.does[i]]  # (a joint action of theirs too)
     choices = covered = impossible = given_up = 0
     level: list[tuple[int, ...]] = [()]
     for _ in range(depth):
@@ -393,10 +394,6 @@ def compile_search(task: Task, out_dir: Path, k: int = DEFAULT_K, *, seed: int =
     Raises `hrc.errors.HrcError`."""
     if k < 1:
         raise ValueError(f"k must be at least 1, got {k}")
-    joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
-    if joint is not None:  # issue 37: its plan tree allocates every action to one agent (`hrc.compile.bounds`)
-        raise InputError(task.source, f"actions[{joint}].roles", f"'{task.actions[joint].id}' is a joint action: "
-                         "the search compile does not take joint actions yet (--plans all compiles every plan)")
     options = options or CompileOptions()
     out_dir = Path(out_dir)
     write_input(task, out_dir)

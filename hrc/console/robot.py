@@ -7,6 +7,10 @@ phase's start plus its shortest duration, therefore comes after a duration insid
 When the decision changes before the event is due (the person pressed something), the pending event
 is dropped and the new decision's is scheduled. Acknowledgements go through the same
 `ConsoleSession.robot_message` as a real controller's.
+
+A joint action (issue 37) the robot has started ends when its last role is done, which a real controller
+senses; told to wait for that end, the simulated robot reports it at the earliest the step can end (its
+start plus the largest of the roles' shortest durations), as it does every event at its window's start.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import json
 from collections.abc import Callable
 
 from hrc.console.session import ConsoleSession
+from hrc.dispatch.messages import WaitFor
 
 __all__ = ["SimulatedRobot"]
 
@@ -32,14 +37,28 @@ class SimulatedRobot:
 
     def update(self) -> None:
         step = self.session.robot_step()
-        key = None if step is None else (step.action, step.phase, step.event, step.earliest)
+        key = self._joint_end() if step is None else (step.action, step.phase, step.event, step.earliest)
         if key == self._key:
             return
         self.stop()
         self._key = key
-        if step is not None and key is not None and self.session.clock.started:
-            delay = self.session.clock.real_delay(step.earliest) + 0.002  # never a hair early
+        if key is not None and self.session.clock.started:
+            delay = self.session.clock.real_delay(key[3]) + 0.002  # never a hair early
             self._handle = asyncio.get_running_loop().call_later(delay, self._act, key)
+
+    def _joint_end(self) -> tuple[str, str, str, float] | None:
+        """Told to wait for its own end of a joint phase it started: that end, at the earliest it can be."""
+        d = self.session.dispatcher
+        wait = d.decision.robot
+        if not isinstance(wait, WaitFor) or wait.event != "end" or not d.task.action(wait.action).joint \
+                or d.task.lead(wait.action) != wait.agent:
+            return None
+        started = d.seen.times.get((wait.agent, wait.action, wait.phase, "start"))
+        if started is None:
+            return None
+        phase = d.task.action(wait.action).phase(wait.phase)
+        shortest = max(iv.lb for _, iv in phase.durations)
+        return (wait.action, wait.phase, "end", round(started + shortest, 3))
 
     def stop(self) -> None:
         if self._handle is not None:

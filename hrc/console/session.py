@@ -93,6 +93,7 @@ class ConsoleSession:
         self.log_error: str | None = None  # why the log could not be written, until it can again
         self.recording: Any = None  # an `hrc.record.Recording` fed by the log's listener (``--record``), or None
         self._phases = {(a.id, p.id) for a in logged.dispatcher.task.actions for p in a.phases}
+        self._joint = {a.id: a.agents for a in logged.dispatcher.task.actions if a.joint}  # issue 37
 
     @property
     def dispatcher(self) -> Dispatcher:
@@ -271,11 +272,11 @@ class ConsoleSession:
             "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,
             "decision": decision,
             "options": [{"action": o.action, "phase": o.phase, "event": o.event} for o in d.human_options()],
-            "under_way": [list(x) for x in under_way(d.history, "human")],
+            "under_way": [list(x) for x in under_way(d.history, "human", self._joint)],
             "undo": self._undo(now),
             "best": None if best is None else {"plan": best.plan, "class": best.plan_class,
                                                "makespan": best.makespan, "sequences": dict(best.sequences)},
-            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now),
+            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now, self._joint),
             "routes": self.routes.routes(plan),
             "log": list(self.entries), "log_total": self.total, "log_error": self.log_error,
             "robot_link": self.robot_link, "where": self._where(), **self._tracked(),

@@ -53,13 +53,17 @@ def map_view(task: Task) -> dict[str, Any]:
     }
 
 
-def gantt_bars(planned: Times, history: Iterable[_Observed], now: float) -> dict[str, list[dict[str, Any]]]:
+def gantt_bars(planned: Times, history: Iterable[_Observed], now: float,
+               joint: Mapping[str, tuple[str, ...]] | None = None) -> dict[str, list[dict[str, Any]]]:
     """Planned and actual bars: ``{"planned": [...], "actual": [...]}``, each bar
     ``{"agent", "action", "phase", "kind": "travel" | "wait" | "work", "from": s, "to": s}``.
 
     A planned bar joins two events of `planned`; an actual bar joins two observed events, and an event
-    begun but not yet ended is drawn up to `now` (``"open": true``).
+    begun but not yet ended is drawn up to `now` (``"open": true``). A `joint` action (action -> its agents,
+    issue 37) has one start and one end, its lead's: its work bar is drawn for each of its agents.
     """
+    if joint:
+        planned = _shared(planned, joint)
     planned_bars = []
     keys = sorted({(a, act, ph) for (a, act, ph, _e) in planned})
     for agent, action, phase in keys:
@@ -73,6 +77,8 @@ def gantt_bars(planned: Times, history: Iterable[_Observed], now: float) -> dict
     for o in history:
         if o.agent and o.action and o.phase:
             seen[(o.agent, o.action, o.phase, o.event)] = o.t
+    if joint:
+        seen = _shared(seen, joint)
     actual = []
     for (agent, action, phase, event), t0 in sorted(seen.items(), key=lambda kv: kv[1]):
         for kind, first, last in _BAR_EVENTS:
@@ -83,11 +89,24 @@ def gantt_bars(planned: Times, history: Iterable[_Observed], now: float) -> dict
     return {"planned": planned_bars, "actual": actual}
 
 
-def under_way(history: Iterable[_Observed], agent: str) -> list[tuple[str, str]]:
-    """The `agent`'s phases started and not yet ended, as (action, phase), oldest first."""
+def _shared(times: Times, joint: Mapping[str, tuple[str, ...]]) -> dict[tuple[str, str, str, str], float]:
+    """`times` with a joint action's start and end (its lead's) given to each of its agents too."""
+    out = dict(times)
+    for (_, action, phase, event), t in times.items():
+        if action in joint and event in ("start", "end"):
+            for other in joint[action]:
+                out.setdefault((other, action, phase, event), t)
+    return out
+
+
+def under_way(history: Iterable[_Observed], agent: str,
+              joint: Mapping[str, tuple[str, ...]] | None = None) -> list[tuple[str, str]]:
+    """The `agent`'s phases started and not yet ended, as (action, phase), oldest first (a `joint` action of
+    the agent's: started and ended by its lead)."""
     started: dict[tuple[str, str], None] = {}
+    joint = joint or {}
     for o in history:
-        if o.agent == agent and o.action and o.phase:
+        if o.action and o.phase and (o.agent == agent or agent in joint.get(o.action, ())):
             if o.event == "start":
                 started[(o.action, o.phase)] = None
             elif o.event == "end":

@@ -5,9 +5,9 @@
   box, the deadline-met rate and the unfinished runs;
 - ``gantt_run.png``: one run, for each agent the *planned* bars (the first plan's earliest schedule,
   `hrc.report.gantt.gantt_bars`) above what *happened* (travel, manipulation, waiting, from the run's
-  happenings), so that where the run fell behind its plan shows;
+  happenings), so that where the run fell behind its plan shows; a joint phase on each agent's rows;
 - ``trajectories.png``: the workspace (`hrc.report.maps.draw_workspace`) with the path each agent's
-  disc actually took, and the place where they came closest;
+  disc actually took, and the place where they came closest (outside co-work at a joint spot, issue 37);
 - ``run.gif``: the run animated, both discs at every half second of simulated time, with the time and
   what each agent is doing.
 
@@ -89,18 +89,22 @@ def _box(values: Sequence[float]) -> dict:
     return {"whislo": q[0], "q1": q[1], "med": q[2], "q3": q[3], "whishi": q[4], "fliers": []}
 
 
-def actual_bars(result: RunResult, agent: str) -> list[tuple[str, float, float]]:
+def actual_bars(result: RunResult, agent: str, joint: frozenset[str] = frozenset()) -> list[tuple[str, float, float]]:
     """What `agent` did in the run: ``(kind, start, end)`` with kind travel / work / wait / away."""
-    return [(kind, start, end) for kind, start, end, _ in actual_spans(result, agent)]
+    return [(kind, start, end) for kind, start, end, _ in actual_spans(result, agent, joint)]
 
 
-def actual_spans(result: RunResult, agent: str) -> list[tuple[str, float, float, str]]:
-    """`actual_bars` with a label each: the action and phase of a manipulation (``cube2 fetch``)."""
+def actual_spans(result: RunResult, agent: str, joint: frozenset[str] = frozenset()
+                 ) -> list[tuple[str, float, float, str]]:
+    """`actual_bars` with a label each: the action and phase of a manipulation (``cube2 fetch``). A `joint`
+    action (issue 37) the agent went to is drawn on its row too, from its one start to its one end (its
+    lead's happenings)."""
     out: list[tuple[str, float, float, str]] = []
     since = 0.0  # when the agent last finished something (or started moving)
     moving_since: float | None = None
+    mine = {h.action for h in result.happenings if h.agent == agent and h.event == "depart"} & joint
     for h in result.happenings:
-        if h.agent != agent:
+        if h.agent != agent and not (h.action in mine and h.event in ("start", "end")):
             continue
         if h.event in ("depart", "unpark", "start", "away"):
             if h.t > since + 1e-6:
@@ -129,7 +133,8 @@ def run_gantt_figure(task: Task, cp: CompiledPlan | None, result: RunResult) -> 
     ax = fig.add_axes((0.13, bottom / height, 0.85, per_row * len(rows) / height))
     planned = gantt_bars(task, cp) if cp is not None and cp.classification.schedule else {}
     alpha = {"travel": 0.3, "work": 1.0}
-    spans = {(agent, kind): (planned.get(agent, []) if kind == "planned" else actual_spans(result, agent))
+    joint = frozenset(a.id for a in task.actions if a.joint)
+    spans = {(agent, kind): (planned.get(agent, []) if kind == "planned" else actual_spans(result, agent, joint))
              for agent, kind in rows}
     horizon = max([1.0, task.deadline or 0.0, result.makespan or 0.0]
                   + [e for bars in spans.values() for _, _, e, _ in bars])
@@ -198,7 +203,9 @@ def trajectories_figure(task: Task, result: RunResult) -> Figure:
         ys = [f[cols[1]] for f in frames]
         ax.plot(xs, ys, color=color, linewidth=1.4, alpha=0.8, zorder=3)  # type: ignore[attr-defined]
         handles.append(Line2D([], [], color=color, linewidth=1.4, label=f"{agent.id}"))
-    close = [(math.hypot(f[1] - f[3], f[2] - f[4]) - human.radius - robot.radius, f) for f in frames if f[5]]
+    cowork = result.cowork_frames or (False,) * len(frames)  # a joint task's co-work: not a separation (issue 37)
+    close = [(math.hypot(f[1] - f[3], f[2] - f[4]) - human.radius - robot.radius, f)
+             for f, shared in zip(frames, cowork, strict=True) if f[5] and not shared]
     if close:
         d, f = min(close, key=lambda c: c[0])
         for (x, y), agent in (((f[1], f[2]), human), ((f[3], f[4]), robot)):

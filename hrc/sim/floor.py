@@ -23,6 +23,14 @@ length) and how far along it is; `Floor.advance(h)` moves both for `h` seconds:
 
 A route that ends where it starts (the next phase at the same place) is over at once (`moving` False).
 
+**Co-work at a joint spot** (issue 37, docs/motion.md, "Joint actions"): while `cowork` is set (by the run
+loop, `hrc.sim.run`: the robot stands at the spot of a joint action over its stay there, and the person
+walks up to that spot, stays at it or walks away from it), the separation is not asked for between the two:
+the person walks on through the robot's reach to the spot (a location is a point: both stand at it), the
+robot stands. Those steps take no part in `min_free` and `overlaps` (the separation outside the co-work
+spot, as motion acquisition keeps it); `cowork_time` counts their seconds. The robot never moves in
+co-work: the run loop clears the flag before it drives.
+
 Each step moves the bodies in the pymunk space (velocity set, ``space.step``, position set exactly
 on the route) and asks pymunk for contacts between the two discs: `overlaps` counts the steps in which
 they touched, an independent check of the rule above. `min_free` is the smallest free distance seen (at
@@ -131,6 +139,8 @@ class Floor:
         self._radii = human.radius + robot.radius
         self.min_free = math.inf
         self.overlaps = 0
+        self.cowork = False  # the person and the standing robot co-work at a joint spot (module docstring)
+        self.cowork_time = 0.0
         self._pair_filter = pymunk.ShapeFilter()
         self.ssm = None if task.safety is None else SsmTally(task.safety)
         if task.safety is not None:  # the robot keeps S_p(0) at least; driving, the band up to S_p at its speed
@@ -168,7 +178,7 @@ class Floor:
         few steps, not hundreds) - unless the robot slows down near the person (`slowdown` > 0), which
         is a rule of the gap at each step's start and so is sampled as when both move."""
         hm, rm = self.human, self.robot
-        if not (hm.present and hm.moving and rm.moving) and self.slowdown == 0 and self.ssm is None:
+        if self.cowork or (not (hm.present and hm.moving and rm.moving) and self.slowdown == 0 and self.ssm is None):
             return MAX_STEP
         gap = self.free() - self.margin - (self.slowdown if self.ssm is None else self._band)
         closing = hm.agent.speed + rm.agent.speed
@@ -178,6 +188,9 @@ class Floor:
         """Move both agents for `h` seconds (person first, then the robot's response)."""
         hm, rm = self.human, self.robot
         radii = self._radii
+        if self.cowork:
+            self._cowork_step(h)
+            return
         if hm.present and hm.moving:
             want = min(hm.speed * h, hm.remaining)
             free_before = self.free()
@@ -215,6 +228,22 @@ class Floor:
                 rm.held += h * (1 - max(0.0, got) / full)
             rm.blocked_for = rm.blocked_for + h if full > 0 and got < full / 2 else 0.0
         self._sync(h)
+
+    def _cowork_step(self, h: float) -> None:
+        """`advance` in co-work (module docstring): the person walks on at their pace with no regard to the
+        standing robot; nothing is measured but the time, the bodies are moved."""
+        hm, rm = self.human, self.robot
+        assert not rm.moving, "the robot drives in co-work"
+        if hm.present and hm.moving:
+            hm.s = min(hm.s + hm.speed * h, hm.stop_at)
+            if hm.s >= hm.stop_at - 1e-9:
+                hm.s, hm.moving = hm.stop_at, False
+            hm.xy = hm.at(hm.s)
+            hm.travelled += h
+            hm.blocked_for = 0.0
+        self.cowork_time += h
+        for m in (hm, rm):
+            m.body.position = m.xy
 
     def _walk(self, m: Mover, want: float, centre: Point | None, reach: float) -> float:
         """Advance `m` by up to `want` metres, stopping where its centre would first come closer than

@@ -80,7 +80,21 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         **_detection(runs),
         **_ssm(runs),
         **_on_demand(runs),
+        **_joint(runs),
     }
+
+
+def _joint(runs: Sequence[RunResult]) -> dict:
+    """A task with joint actions (issue 37): the runs in which the robot was told to start a joint phase
+    before the person had arrived there (the target: none), how often, and the co-work at the joint spots
+    (seconds per run: the time `min_distance` and `overlaps` leave out, docs/simulate.md)."""
+    found = [r.joint for r in runs if r.joint is not None]
+    if not found:
+        return {}
+    return {"joint": {"told_to_start": sum(j["told_to_start"] for j in found),
+                      "told_before_arrival": sum(j["told_before_arrival"] for j in found),
+                      "runs_told_before_arrival": sum(1 for j in found if j["told_before_arrival"]),
+                      "cowork_seconds_mean": _r(float(np.mean([j["cowork_seconds"] for j in found])))}}
 
 
 def _promise(runs: Sequence[RunResult]) -> dict:

@@ -135,12 +135,12 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     a dispatcher log too (`Simulation.logs`, for ``hrc learn``; the runs themselves are the same)."""
     if runs < 1:
         raise SimulationError(f"--runs must be at least 1, found {runs}")
-    joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
-    if joint is not None:  # issue 37: compiled and dispatched, not yet simulated (docs/simulate.md)
-        raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
-                              f"the simulator does not run joint actions yet (hrc compile and hrc dispatch do)")
     chosen = check_policies(policies)
     settings = settings or SimSettings()
+    joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
+    if joint is not None and settings.motion:  # issue 37: the detector finds a person's start and end of each step
+        raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
+                              f"--detector motion does not take joint actions yet (the robot starts and ends them)")
     settings.human.check(task)
     compiles = dict(compiles or {})
     if "motion" not in compiles:

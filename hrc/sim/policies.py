@@ -91,7 +91,7 @@ class SimRoute:
 def leg_route(task: Task, cp: CompiledPlan, real: PathLibrary, agent: str, action: str, phase: str,
               blind: bool) -> SimRoute | None:
     """The route of `agent` for `action.phase` in plan `cp` (None when the plan does not give it the phase)."""
-    legs = agent_legs(task, cp.plan, agent) if cp.plan.agent_of(action) == agent else ()
+    legs = agent_legs(task, cp.plan, agent) if action in cp.plan.sequence(agent) else ()  # a joint one: both
     leg = next((lg for lg in legs if (lg.action, lg.phase) == (action, phase)), None)
     if leg is None:
         return None
@@ -382,8 +382,8 @@ class FixedController(Controller):
 
     def _next_order(self) -> Order | None:
         for leg in self.legs:
-            if self.seen.get(leg.action, self.robot) != self.robot:
-                continue  # the person took it: skip
+            if self.seen.get(leg.action, self.robot) != self.robot and not self.task.action(leg.action).joint:
+                continue  # the person took it: skip (a joint action is both agents')
             motion = next(m for m in self.cp.motions if m.agent == self.robot and m.leg == leg.index)
             events = ["depart"] + (["park", "unpark"] if motion.park else []) + ["arrive", "start", "end"]
             for ev in events:
@@ -400,7 +400,7 @@ class FixedController(Controller):
 
     def guide_time(self, action: str, phase: str, event: str) -> float | None:
         human = _human(self.task)
-        if self.cp.plan.agent_of(action) != human:
+        if action not in self.cp.plan.sequence(human):  # not theirs (a joint action is in both sequences)
             return None
         leg = next(lg for lg in agent_legs(self.task, self.cp.plan, human) if (lg.action, lg.phase) == (action, phase))
         return self.schedule.get(leg_timepoint(leg, event))

@@ -54,6 +54,7 @@ from hrc.sim.policies import (
     Controller,
     DispatchedController,
     FixedController,
+    Order,
     Policy,
     SimRoute,
 )
@@ -167,9 +168,11 @@ class RunResult:
     first_sensing_class: str | None = None  # the first plan's class in the compile (under its sensing), with it
     latencies: tuple[float, ...] = field(default=(), compare=False)
     on_demand: dict | None = None  # compile on demand's misses and recovery (`hrc.sim.on_demand`), or None
+    joint: dict | None = None  # a task with joint actions only: co-work and the joint starts (`_Run._joint_result`)
     compile_seconds: tuple[float, ...] = field(default=(), compare=False)  # its compiles' wall times
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
+    cowork_frames: tuple[bool, ...] = field(default=(), compare=False)  # per frame, a joint task's: in co-work
 
     def to_json(self) -> dict:
         def r(x: float | None) -> float | None:
@@ -191,7 +194,8 @@ class RunResult:
                                                               "first_sensing_class": self.first_sensing_class}),
                 **({} if self.detection is None else {"detection": self.detection.to_json()}),
                 **({} if self.ssm is None else {"ssm": self.ssm.to_json()}),
-                **({} if self.on_demand is None else {"on_demand": self.on_demand})}
+                **({} if self.on_demand is None else {"on_demand": self.on_demand}),
+                **({} if self.joint is None else {"joint": self.joint})}
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -271,6 +275,7 @@ class _Run(Standoffs):
             self.preds.setdefault((pr.after.action, pr.after.phase), []).append((pr.before.action, pr.before.phase))
         self.before = must_precede(task)
         self.total = sum(len(v) for v in self.phases.values())
+        self._joint_init()
         self.choices = 0
         self.last_obs = 0.0
         self.last_tick = 0.0
@@ -294,6 +299,8 @@ class _Run(Standoffs):
         self.happenings.append(h)
         if action is not None and event == "depart":
             self.started.setdefault(action, agent.id)
+        if self.joint and action is not None:
+            self._joint_emit(agent, event, action, phase)
         if event == "end" and action is not None and phase is not None:
             self.ended.add((action, phase))
         if agent is self.h:
@@ -385,17 +392,18 @@ class _Run(Standoffs):
     def allowed(self) -> list[str]:
         """Actions the task graph allows the person to take now (module docstring of hrc.sim.human)."""
         out = []
+        taken = self._taken()
         for action in self.task.actions:
-            if action.id in self.started or self.h.id not in action.agents:
+            if action.id in taken or self.h.id not in action.agents:
                 continue
-            if all(b in self.started for b, a in self.before if a == action.id):
+            if all(b in taken for b, a in self.before if a == action.id):  # (a joint one: when they joined it)
                 out.append(action.id)
         return out
 
     def choose(self) -> str | None:
         m = self.model
         if m.choice == "follow" and not self.ctl.stopped:
-            return self.ctl.human_next(self.started)  # the plan's order is valid: no need to filter it
+            return self.ctl.human_next(self._taken())  # the plan's order is valid: no need to filter it
         allowed = self.allowed()
         if not allowed:
             return None
@@ -419,6 +427,8 @@ class _Run(Standoffs):
         decide."""
         if a.mode == "home" and not a.mover.moving:
             a.mode, a.loc = "free", a.home
+            if self.joint:  # home: a walk away from a joint spot is over
+                self.joint_stay.pop(a.id, None)
             return True
         if self._give_way(a, other):
             return True
@@ -486,6 +496,11 @@ class _Run(Standoffs):
                 self.emit(a, "unpark", a.action, phase)
                 return True
             return False
+        if self.joint and a.action in self.joint:  # the robot starts and ends it (`_joint_start`)
+            if a.mode == "work" and (a.action, phase) in self.ended:
+                self._next_phase(a)
+                return True
+            return False
         if a.mode == "arrived":
             if self.ready(a.action, phase) and t >= self.guide(a.action, phase, "start") - _EPS:
                 a.mode, a.work_start = "work", t
@@ -506,16 +521,162 @@ class _Run(Standoffs):
             a.action, a.pi = None, 0
         a.mode = "free"
 
+    # -- joint actions (issue 37) ----------------------------------------------------------------------
+    # A joint action is on both agents' legs: each walks or drives there (depart, arrive); the robot starts
+    # it when both are there and ends it when both roles are done (the person's drawn time and its own: the
+    # duration is contingent); the person works from the robot's start and goes on when it ends. Co-work
+    # at its spot (`Floor.cowork`, docs/motion.md "Joint actions"): the robot standing there over a stay
+    # that covers the joint phase, the person walking up to the spot, staying at it or walking away.
+    # A task without joint actions takes none of these paths (`self.joint` empty).
+
+    def _joint_init(self) -> None:
+        task = self.task
+        self.joint = frozenset(a.id for a in task.actions if a.joint)
+        self.joint_spots = frozenset(p.location for a in task.actions if a.joint for p in a.phases)
+        self.joined: set[str] = set()  # joint actions the person has left for
+        self.person_arrived: set[tuple[str, str]] = set()  # (action, phase) the person has arrived at
+        self.last: dict[str, tuple[str, str]] = {}  # agent -> its last phase ended (a joint one: both agents')
+        self.joint_stay: dict[str, str] = {}  # agent -> the spot of a joint phase of its stay (until it is elsewhere)
+        self.told: set[tuple[str, str]] = set()  # joint phases the robot was told to start
+        self.told_early: set[tuple[str, str]] = set()  # ... before the person had arrived there
+        self.cowork_frames: list[bool] = []  # recorded with the frames (`RunResult.cowork_frames`)
+        self._told: object = None
+
+    def _taken(self) -> dict[str, str]:
+        """`started` as the person reads it: a joint action the robot has left for is still theirs to go to."""
+        if not self.joint:
+            return self.started
+        return {a: ag for a, ag in self.started.items() if a not in self.joint or a in self.joined}
+
+    def _joint_emit(self, agent: AgentState, event: str, action: str, phase: str | None) -> None:
+        if agent is self.h:
+            if event == "depart" and action in self.joint:
+                self.joined.add(action)
+            elif event == "arrive" and phase is not None:
+                self.person_arrived.add((action, phase))
+        if event == "end" and phase is not None:
+            self.last[agent.id] = (action, phase)
+            if action in self.joint:
+                self.last[self.h.id] = (action, phase)
+        if phase is None:
+            return
+        where = self.task.action(action).phase(phase).location
+        if event == "start" and action in self.joint:  # both agents' stays there cover it
+            self.joint_stay[self.h.id] = self.joint_stay[self.r.id] = where
+        elif event == "arrive" and self.joint_stay.get(agent.id) != where:  # its walk away is over
+            self.joint_stay.pop(agent.id, None)
+
+    def _joint_told(self, o: object) -> None:
+        """Each new order: a joint phase the robot is told to start, and told early when the person has not
+        arrived there (the target: never; the dispatcher waits for the observed arrival)."""
+        self._told = o
+        assert isinstance(o, Order)
+        if o.event == "start" and o.action in self.joint:
+            self.told.add((o.action, o.phase))
+            if (o.action, o.phase) not in self.person_arrived:
+                self.told_early.add((o.action, o.phase))
+
+    def _person_there(self, action: str, phase: str) -> bool:
+        h = self.h
+        return h.mode == "arrived" and h.action == action and self.phases[action][h.pi] == phase
+
+    def _joint_start(self, action: str, phase: str) -> None:
+        """The robot started the joint phase: the person works their role's drawn time; the phase ends when
+        the later of the two is done (the robot reports it)."""
+        h, d = self.h, self.draws.durations[(action, phase)]
+        h.mode, h.work_start, h.work_end = "work", self.t, self.t + d
+        self.r.duration = max(self.r.duration, d)
+
+    def _joint_at(self, step: tuple[str, str], spot: str) -> bool:
+        return step[0] in self.joint and self.task.action(step[0]).phase(step[1]).location == spot
+
+    def _next_of(self, agent: AgentState, step: tuple[str, str]) -> tuple[str, str] | None:
+        """`agent`'s phase after `step` in the current plan (None: none, or no plan)."""
+        action, phase = step
+        phases = self.phases[action]
+        i = phases.index(phase)
+        if i + 1 < len(phases):
+            return (action, phases[i + 1])
+        cp = self.ctl.current()
+        seq = () if cp is None else cp.plan.sequence(agent.id)
+        if action not in seq or seq.index(action) + 1 >= len(seq):
+            return None
+        nxt = seq[seq.index(action) + 1]
+        return (nxt, self.phases[nxt][0])
+
+    def _covers(self, agent: AgentState, step: tuple[str, str] | None, spot: str) -> bool:
+        """Whether `agent`'s stay at `spot` for `step` covers a joint phase there: `step` is one, or the
+        agent's next phase is one at the same spot (it stays)."""
+        if step is None:
+            return False
+        nxt = None if self._joint_at(step, spot) else self._next_of(agent, step)
+        return self._joint_at(step, spot) or (nxt is not None and self.task.action(step[0]).phase(step[1]).location
+                                             == spot and self._joint_at(nxt, spot))
+
+    def _now(self, agent: AgentState) -> tuple[str, str] | None:
+        """The phase `agent` is at (or on its way to), else the last it ended."""
+        if agent.action is not None:
+            return (agent.action, self.phases[agent.action][agent.pi])
+        return self.last.get(agent.id)
+
+    def _cowork_spot(self) -> str | None:
+        """The joint spot where the robot stands over a stay that covers a joint phase there, or None."""
+        r = self.r
+        spot = r.loc
+        if spot is None or spot not in self.joint_spots or r.mover.moving:
+            return None
+        now = self._now(r) if r.mode in ("arrived", "work") else self.last.get(r.id)
+        return spot if self.joint_stay.get(r.id) == spot or self._covers(r, now, spot) else None
+
+    def _cowork(self) -> bool:
+        """Whether the two co-work now (the comment above): the robot stands at the spot over its joint stay,
+        and the person walks up to it for their own stay there that covers the joint phase, stays there
+        over it, or walks away from it after it. The separation is not asked for between them."""
+        h = self.h
+        spot = self._cowork_spot()
+        if spot is None or not h.mover.present:
+            return False
+        if h.loc == spot:  # their stay there: over the joint phase, or before it
+            return self.joint_stay.get(h.id) == spot or self._covers(h, self._now(h), spot)
+        if h.loc is not None:
+            return False
+        xy = self.ctx.paths.locations[spot]
+        if h.mode in ("travel", "parked", "returning") and math.dist(h.mover.points[-1], xy) < 1e-6 \
+                and self._covers(h, self._now(h), spot):
+            return True  # walking up (or back, after making room) for the joint stay
+        return h.mode in ("travel", "parked", "home") and math.dist(h.mover.points[0], xy) < 1e-6 \
+            and self.joint_stay.get(h.id) == spot  # walking away after it
+
+    def _coworks_at(self, a: AgentState, target: tuple[float, float]) -> bool:
+        """`Standoffs`: the person, after making room, goes back or on to where the robot co-works with them
+        (it stands there for the joint action: not in their way)."""
+        spot = self._cowork_spot() if self.joint and a is self.h else None
+        return spot is not None and math.dist(self.ctx.paths.locations[spot], target) < 1e-6
+
+    def _end_name(self, action: str, phase: str) -> str:
+        """The timepoint of the person's end of `action.phase` (a joint phase's is the robot's)."""
+        return f"{self.r.id if action in self.joint else self.h.id}.{phase}.{action}.end"
+
+    def _joint_result(self) -> dict | None:
+        if not self.joint:
+            return None
+        return {"told_to_start": len(self.told), "told_before_arrival": len(self.told_early),
+                "cowork_seconds": round(self.floor.cowork_time, 3)}
+
     # -- the robot -------------------------------------------------------------------------------------
 
     def robot(self) -> bool:
         a, t = self.r, self.t
         o = self.ctl.order()
+        if self.joint and o is not None and o is not self._told:
+            self._joint_told(o)
         moved = self._home_or_aside(a, self.h)
         if moved is not None:
             return moved
         if a.mode == "free":
             if o is None:
+                if self.joint and self._cowork() and self.floor.free() < self.floor.margin:
+                    return False  # done at the joint spot: it stands until the person is out of reach
                 return False if self.ctl.stopped else self.go_home(a)
             if o.event != "depart" or t < o.earliest - _EPS:
                 return False
@@ -539,17 +700,22 @@ class _Run(Standoffs):
             return False
         if a.mode == "arrived":
             if mine and o is not None and o.event == "start" and t >= o.earliest - _EPS and self.ready(a.action, phase):
+                joint = bool(self.joint) and a.action in self.joint
+                if joint and not self._person_there(a.action, phase):
+                    return False  # a joint action starts when both are there
                 bounds = self.task.action(a.action).phase(phase).duration(a.id)
                 a.order, a.mode, a.work_start = o, "work", t
                 a.duration = bounds.lb + self.draws.robot[(a.action, phase)] * (bounds.ub - bounds.lb)
                 self.emit(a, "start", a.action, phase)
+                if joint:
+                    self._joint_start(a.action, phase)
                 return True
             return False
         if a.mode == "work":
             end = a.work_start + a.duration
             if mine and o is not None and o.event == "end":
                 end = max(end, o.earliest)
-                if o.latest is not None:
+                if o.latest is not None and not (self.joint and a.action in self.joint):  # nature's end
                     end = min(end, o.latest)
                 a.order = o
             a.work_end = end
@@ -655,6 +821,8 @@ class _Run(Standoffs):
                 changed = self.robot() or changed
                 if not changed:
                     break
+            if self.joint:
+                self.floor.cowork = self._cowork()
             if self.done():
                 if self.finished_at is None:
                     self.finished_at = (self.t, self.floor.min_free, self.floor.overlaps, self.floor.robot.held,
@@ -705,6 +873,8 @@ class _Run(Standoffs):
             hx, hy = self.h.mover.xy
             rx, ry = self.r.mover.xy
             self.frames.append((self.t + h, hx, hy, rx, ry, self.h.mover.present))
+            if self.joint:
+                self.cowork_frames.append(self.floor.cowork)
 
     def _why_stuck(self) -> str:
         if self.h.mode == "gone":
@@ -732,7 +902,7 @@ class _Run(Standoffs):
         first = ctl.first_plan
         cps = self.ctx.compiles[self.policy.compile]
         first_cp = next((cp for cp in cps.plans if cp.plan.id == first), None)
-        alloc = {a: ag for a, ag in self.started.items()}
+        alloc = {a: (task.lead(a) if a in self.joint else ag) for a, ag in self.started.items()}
         kept = first_cp is not None and finished and executed(first_cp, alloc, {self.h.id: human_seq,
                                                                                  self.r.id: robot_seq})
         broken: tuple[str, ...] = ()
@@ -756,14 +926,15 @@ class _Run(Standoffs):
             first_blocked=first_cp is not None and first_cp.blocked, final_plan=ctl.plan_id,
             first_kept=bool(kept), first_broken=broken, refused=tuple(ctl.refused), late=self.late,
             robot_travel_excess=self.excess, human_sequence=human_seq, robot_sequence=robot_seq,
-            overruns=sum(1 for k in self.draws.overrun if times.get(f"{self.h.id}.{k[1]}.{k[0]}.end") is not None),
+            overruns=sum(1 for k in self.draws.overrun if times.get(self._end_name(k[0], k[1])) is not None),
             absent=self.absent, detection=self._detection(), latencies=tuple(ctl.latencies),
             late_observations=getattr(ctl, "late_observations", None),
             first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
             ssm=None if self.floor.ssm is None else self.floor.ssm.measures(),
-            on_demand=None if od is None else od.to_json(),
+            on_demand=None if od is None else od.to_json(), joint=self._joint_result(),
             compile_seconds=() if od is None else tuple(od.compile_seconds),
-            happenings=tuple(self.happenings) if self.record else (), frames=tuple(self.frames))
+            happenings=tuple(self.happenings) if self.record else (), frames=tuple(self.frames),
+            cowork_frames=tuple(self.cowork_frames))
 
     def _detection(self) -> Detection | None:
         """How the motion detector did against what happened (None: buttons)."""
@@ -788,6 +959,11 @@ class _Run(Standoffs):
 
     def _busy(self, times: dict[str, float], span: float) -> tuple[float, float]:
         busy = {self.h.id: 0.0, self.r.id: 0.0}
+        for action in self.joint:  # the person works it too, from the robot's start to its end
+            for phase in self.phases[action]:
+                a, b = times.get(f"{self.r.id}.{phase}.{action}.start"), times.get(f"{self.r.id}.{phase}.{action}.end")
+                if a is not None and b is not None:
+                    busy[self.h.id] += min(b, span) - min(a, span)
         for name, t in times.items():
             if name.count(".") != 3:
                 continue

@@ -242,7 +242,7 @@ class Standoffs:
             a.next_way = self.ways.route(self._clearance(a), a.mover.xy, a.aside.target) or (a.mover.xy, a.aside.target)
         mine = samples(a.next_way)
         o = other.mover
-        if o.present:
+        if o.present and not self._coworks_at(a, a.aside.target):
             reach = self._reach()
             near = float(np.min(np.hypot(mine[:, 0] - o.xy[0], mine[:, 1] - o.xy[1])))
             waits = other.mode == "aside_wait" and other.next_way is not None
@@ -280,6 +280,11 @@ class Standoffs:
         assert a.aside is not None
         mine = self._startable(a)
         return (not a.aside.standing or a.aside.mode == "parked" or mine) and (mine or not self._startable(other))
+
+    def _coworks_at(self, a: AgentState, target: tuple[float, float]) -> bool:
+        """Whether `other` stands at `target` to co-work with `a` there (a joint action, issue 37: `hrc.sim.run`
+        says when), so that it is not in `a`'s way back or on; never without joint actions."""
+        return False
 
     def _startable(self, a: AgentState) -> bool:
         """`a`'s next phase may start as far as the task graph goes (and, for a person who follows the
