@@ -104,11 +104,15 @@ class Run:
         return answer
 
     # -------------------------------------------------------------------------------------------- the human
+    def _leg_plan(self) -> str:
+        """The plan whose leg the human walks and works (its events, its bounds): the best one now."""
+        return str(self.decision["plan"])
+
     def _stnu(self) -> STNU:
-        return self.by_id[self.decision["plan"]].stnu
+        return self.by_id[self._leg_plan()].stnu
 
     def _leg_events(self, action: str, phase: str) -> list[str]:
-        entry = self.by_id[self.decision["plan"]]
+        entry = self.by_id[self._leg_plan()]
         return [e for e, _ in entry.leg_points[(self.human, action, phase)]]
 
     def _duration(self, action: str, phase: str, event: str) -> float:
@@ -117,7 +121,7 @@ class Run:
         stnu = self._stnu()
         link = next((c for c in stnu.contingents if c.target == node), None)
         if link is None:  # a fixed duration (no travel: [0, 0]) is written as requirement links
-            points = [n for _, n in self.by_id[self.decision["plan"]].leg_points[(self.human, action, phase)]]
+            points = [n for _, n in self.by_id[self._leg_plan()].leg_points[(self.human, action, phase)]]
             prev = points[points.index(node) - 1]
             for r in stnu.requirements:
                 if (r.source, r.target) == (prev, node):
