@@ -31,13 +31,18 @@ from hrc.dispatch.plan_set import load_plan_set  # noqa: E402
 from hrc.dispatch.protocol import handle_line  # noqa: E402
 
 
+def _at_motion_sensing(tmp_path_factory, task: Path) -> Path:
+    """`task` compiled under ``sensing: motion`` (a copy with the key, its map by absolute path)."""
+    folder = tmp_path_factory.mktemp("driver")
+    text = task.read_text(encoding="utf-8").replace("map: ../maps/", f"map: {ROOT / 'maps'}/")
+    copy = folder / task.name
+    copy.write_text(text + "\nsensing:\n  path: motion\n", encoding="utf-8")
+    return compiled_folder(folder / "out", copy)
+
+
 @pytest.fixture(scope="module")
 def workshop(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("driver")
-    text = WORKSHOP_TASK.read_text(encoding="utf-8").replace("map: ../maps/", f"map: {ROOT / 'maps'}/")
-    task = folder / "cube_stacking.yaml"
-    task.write_text(text + "\nsensing:\n  path: motion\n", encoding="utf-8")
-    return compiled_folder(folder / "ws", task)
+    return _at_motion_sensing(tmp_path_factory, WORKSHOP_TASK)
 
 
 @pytest.fixture(scope="module")
@@ -76,3 +81,19 @@ def test_outside_driver_keeps_the_promise(setup, seed: int) -> None:
     for key, t in given.items():
         if key[2] in ("depart", "arrive"):
             assert abs(t - true[key]) < 0.5, (key, t, true[key])
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 32, measure 5: the robot's arrival at K is answered before the "
+                   "detector has learnt the person's departure it was told to make just before; the unseen "
+                   "departure is read as not yet happened (docs/simulate.md, the outside driver)")
+def test_kitting_driver_robot_arrival_before_the_departure_is_learnt(tmp_path_factory) -> None:
+    folder = _at_motion_sensing(tmp_path_factory, ROOT / "tasks" / "kitting.yaml")
+    plan_set = load_plan_set(folder)
+    routes, paths = routes_of(str(folder), plan_set)
+    d = DetectingDispatcher(plan_set, params=DetectParams(sigma=0.05), threads=1)
+    run = WalkingRun(plan_set, lambda line: handle_line(d, line), 1, routes=routes, paths=paths,
+                     sensor=SensorModel(0.05, 10.0, 0.0))
+    j = judge(plan_set, run.play(cap=600.0))
+    assert j.first_class == "DC" and j.late == 0
+    assert j.broken == (), j.broken  # today: human_place_pick_a_depart -> robot_place_pick_c_end, 3753 > 3384
