@@ -1,7 +1,7 @@
 """How often a person who follows the first plan keeps its promise (issue 32): buttons on time, or an
 outside driver seen by the motion detector.
 
-    PYTHONPATH=. .venv/bin/python scripts/measure_promise.py OUT_DIR [--seeds 20] [--robot anywhere|near]
+    PYTHONPATH=. .venv/bin/python scripts/measure_promise.py OUT_DIR [--seeds 20] [--robot anywhere|near|earliest]
     PYTHONPATH=. .venv/bin/python scripts/measure_promise.py OUT_DIR --detect motion \\
         [--sensor-sigma 0.05 --sensor-rate 10 --sensor-dropout 0] [--sensing motion | --observation-delay LO:HI]
 
@@ -14,10 +14,13 @@ OUT_DIR is an `hrc compile` output. Each seed plays one run through `hrc.dispatc
 - ``--detect motion``: the outside driver of tests/detect_client.py, which walks the person's planned
   routes and sends only their tracked position (`hrc.detect.sensor`'s noise, rate and dropouts) to the
   dispatcher `hrc dispatch --detect motion` serves (`DetectingDispatcher`, the detector assuming the
-  sensor's sigma), reading the answers alone; the robot acts anywhere in its windows. A run keeps the
+  sensor's sigma), reading the answers alone. A run keeps the
   promise when its first plan is classed DC at the compile's sensing, every observation arrived within
   the stated delay (no answer with a ``deviation``), and every link of the final plan's STNU holds on the
   true times. The same seeds are played with buttons on time for the makespan to compare with.
+
+Either way the robot acts anywhere in its windows (``--robot near``: within 2 s of each opening;
+``earliest``: at it, as `hrc simulate`'s robot).
 
 The stated delay is the compile's sensing (``compiled.json``'s ``sensing``), or ``--sensing`` (the
 path's delay, `hrc.model.SENSING_PATHS`) / ``--observation-delay LO:HI`` (its HI), as `hrc simulate`
@@ -118,7 +121,7 @@ def main() -> int:
     ap.add_argument("out_dir")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--robot", choices=("anywhere", "near"), default="anywhere")
+    ap.add_argument("--robot", choices=("anywhere", "near", "earliest"), default="anywhere")
     ap.add_argument("--detect", choices=("buttons", "motion"), default="buttons")
     ap.add_argument("--sensor-sigma", type=float, default=0.05)
     ap.add_argument("--sensor-rate", type=float, default=10.0)

@@ -14,7 +14,7 @@ answers. A discrete-event loop in simulated time:
 - `announce`: on the end of each action the human announces the next one of the plan they follow
   (``"next"``), as the paper's detector does ("the currently performed and the predicted next action");
 - `robot_window`: "near" acts within 2 s of the window's opening, "anywhere" anywhere in it (a window
-  with no latest bound: within 3 s of its opening).
+  with no latest bound: within 3 s of its opening), "earliest" at its opening (as `hrc simulate`'s robot).
 
 The human's route is the one the best plan shows when they leave (its waiting place, if any: they stop
 there and go on when the hint says); that plan, `Run.told`, is what they were told.
@@ -213,7 +213,8 @@ class Run:
             lo = max(self.now, step["earliest"])
             hi = step["latest"] if step["latest"] is not None else lo + 3.0
             assert hi >= lo - 1e-9, f"window over before it is given: now {self.now}, {step}"
-            reach = hi if self.robot_window == "anywhere" else min(hi, lo + 2.0)
+            reach = hi if self.robot_window == "anywhere" else lo if self.robot_window == "earliest" \
+                else min(hi, lo + 2.0)
             self.r_at = round(self.rng.uniform(lo, reach), 3)
             self.r_at = min(max(self.r_at, lo), hi)
             self.r_key = key

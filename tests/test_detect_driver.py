@@ -13,6 +13,7 @@ docs/simulate.md ("The promise at the compile's sensing", the outside driver).
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -97,3 +98,37 @@ def test_kitting_driver_robot_arrival_before_the_departure_is_learnt(tmp_path_fa
     j = judge(plan_set, run.play(cap=600.0))
     assert j.first_class == "DC" and j.late == 0
     assert j.broken == (), j.broken  # today: human_place_pick_a_depart -> robot_place_pick_c_end, 3753 > 3384
+
+
+def test_driver_walks_the_waiting_place_and_detour_routes_of_the_compile(setup, workshop: Path) -> None:
+    """The driver's legs (tests/detect_client.py `WalkingRun._route`) against compiled.json's motions: a
+    leg with a waiting place goes from its origin to the place (the person's start) and on to its target,
+    the two stretches as long as the motion's times to the place and in all at the person's speed; a
+    detour follows its points."""
+    from hrc.compile.output import iter_plans
+
+    plan_set, routes, paths, base = setup
+    speed = plan_set.task.agent("human").speed
+    checked = {"park": 0, "detour": 0}
+    for plan in iter_plans(workshop):
+        for m in plan["motions"]:
+            if m["agent"] != "human" or not (m["park"] or m["detour"]):
+                continue
+            run = WalkingRun(plan_set, lambda line: "", 0, routes=routes, paths=paths, sensor=SensorModel())
+            run.leg_plan = plan["id"]
+            first, onward = run._route(m["action"], m["phase"])
+            locations = paths.locations
+            length = sum(math.dist(p, q) for p, q in zip(first, first[1:], strict=False))
+            assert math.dist(first[0], locations[m["from"]]) < 1e-3
+            if m["park"]:
+                assert onward is not None and math.dist(first[-1], locations[m["park"]["at"]]) < 1e-3
+                assert math.dist(onward[-1], locations[m["to"]]) < 1e-3
+                rest = sum(math.dist(p, q) for p, q in zip(onward, onward[1:], strict=False))
+                assert length / speed == pytest.approx(m["park"]["time"], abs=0.01)
+                assert (length + rest) / speed == pytest.approx(m["time"], abs=0.01)
+                checked["park"] += 1
+            else:
+                assert onward is None and math.dist(first[-1], locations[m["to"]]) < 1e-3
+                assert length / speed == pytest.approx(m["time"], abs=0.01)
+                checked["detour"] += 1
+    assert checked["park"] > 0, checked
