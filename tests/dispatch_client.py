@@ -14,7 +14,7 @@ answers. A discrete-event loop in simulated time:
 - `announce`: on the end of each action the human announces the next one of the plan they follow
   (``"next"``), as the paper's detector does ("the currently performed and the predicted next action");
 - `robot_window`: "near" acts within 2 s of the window's opening, "anywhere" anywhere in it (a window
-  with no latest bound: within 3 s of its opening).
+  with no latest bound: within 3 s of its opening), "earliest" at its opening (as `hrc simulate`'s robot).
 
 The human's route is the one the best plan shows when they leave (its waiting place, if any: they stop
 there and go on when the hint says); that plan, `Run.told`, is what they were told.
@@ -104,11 +104,15 @@ class Run:
         return answer
 
     # -------------------------------------------------------------------------------------------- the human
+    def _leg_plan(self) -> str:
+        """The plan whose leg the human walks and works (its events, its bounds): the best one now."""
+        return str(self.decision["plan"])
+
     def _stnu(self) -> STNU:
-        return self.by_id[self.decision["plan"]].stnu
+        return self.by_id[self._leg_plan()].stnu
 
     def _leg_events(self, action: str, phase: str) -> list[str]:
-        entry = self.by_id[self.decision["plan"]]
+        entry = self.by_id[self._leg_plan()]
         return [e for e, _ in entry.leg_points[(self.human, action, phase)]]
 
     def _duration(self, action: str, phase: str, event: str) -> float:
@@ -117,7 +121,7 @@ class Run:
         stnu = self._stnu()
         link = next((c for c in stnu.contingents if c.target == node), None)
         if link is None:  # a fixed duration (no travel: [0, 0]) is written as requirement links
-            points = [n for _, n in self.by_id[self.decision["plan"]].leg_points[(self.human, action, phase)]]
+            points = [n for _, n in self.by_id[self._leg_plan()].leg_points[(self.human, action, phase)]]
             prev = points[points.index(node) - 1]
             for r in stnu.requirements:
                 if (r.source, r.target) == (prev, node):
@@ -209,7 +213,8 @@ class Run:
             lo = max(self.now, step["earliest"])
             hi = step["latest"] if step["latest"] is not None else lo + 3.0
             assert hi >= lo - 1e-9, f"window over before it is given: now {self.now}, {step}"
-            reach = hi if self.robot_window == "anywhere" else min(hi, lo + 2.0)
+            reach = hi if self.robot_window == "anywhere" else lo if self.robot_window == "earliest" \
+                else min(hi, lo + 2.0)
             self.r_at = round(self.rng.uniform(lo, reach), 3)
             self.r_at = min(max(self.r_at, lo), hi)
             self.r_key = key
