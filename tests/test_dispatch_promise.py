@@ -94,6 +94,25 @@ def test_a_person_following_the_first_workshop_plan_keeps_its_promise(workshop, 
     _kept(plan_set, out)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_buttons_under_a_stated_delay_longer_than_a_walk_never_wait_for_what_was_seen(kitting_part, seed):
+    """Buttons read as up to 7 s late (a compile under the motion path's stated delay, fed by buttons): an
+    arrival pressed 1.9 s after its departure did not happen up to 7 s before the press, only after the
+    departure plus the walk's shortest. Read before the departure, it made the dispatcher tell both the
+    person and the robot to wait for that arrival, which had been seen: the run stopped there."""
+    plan_set = load_plan_set(kitting_part)
+    out, log = _follow(plan_set, seed, max_observation_delay=7.0)
+    _kept(plan_set, out)
+    seen: set[str] = set()
+    for line, answer in log:
+        got, sent = json.loads(answer), json.loads(line)
+        if {"agent", "action", "phase", "event"} <= sent.keys() and got["ok"]:
+            seen.add(".".join(sent[k] for k in ("agent", "action", "phase", "event")))
+        waits = [got[who]["wait_for"] for who in ("robot", "human") if isinstance(got.get(who), dict)
+                 and "wait_for" in got[who]]
+        assert not seen & set(waits), (line, answer)
+
+
 def _route_checks(folder: Path, log: list[tuple[str, str]]) -> int:
     """Every answer names a plan whose route on each leg seen is the one the agent was told when it
     began (the plan named just before), and a waiting place where the agent was seen stopping; the robot

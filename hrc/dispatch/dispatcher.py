@@ -812,15 +812,25 @@ class Dispatcher:
         if not shift:
             return None
         nodes = {key: node for node, key in entry.events.items() if key in shift}
+        ends = {c.target: c for c in entry.stnu.contingents}
         out = []
         for side in (0, 1):
-            arr = seen[0].copy()
-            for key, bounds in shift.items():
-                arr[g, legs.index((key[1], key[2])), LEG_EVENTS.index(key[3])] = bounds[side]
             moved = dict(done)
-            for key, node in nodes.items():
-                if node in moved:
-                    moved[node] = shift[key][side]
+            times = dict(shift)
+            for key, node in sorted(nodes.items(), key=lambda kn: history.times[kn[0]]):
+                if node not in moved:
+                    continue
+                t = shift[key][side]
+                link = ends.get(node)
+                if link is not None and link.source in moved:  # not outside the link from the event before:
+                    start = moved[link.source]  # a walk's arrival learnt 7 s late did not happen before the
+                    t = max(t, start + link.lb) if side == 0 else min(t, start + link.ub)  # departure
+                    t = min(max(t, shift[key][0]), shift[key][1])
+                moved[node] = t
+                times[key] = (t, t)
+            arr = seen[0].copy()
+            for key, bounds in times.items():
+                arr[g, legs.index((key[1], key[2])), LEG_EVENTS.index(key[3])] = bounds[side]
             out.append((moved, (arr, seen[1])))
         return out[0], out[1]
 
