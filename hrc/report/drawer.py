@@ -1,12 +1,14 @@
 """The report's figures drawn beside the compile, in two processes of their own (issue 38).
 
 Drawing the figures is most of a small compile's report (matplotlib's import and 16 PNGs: about 2 s of
-the workshop's 5), and it needs only what the figures show (`hrc.report.plan_figures.FigureWork`). A `FigureDrawer`
-is started (forked) before the compile plans its paths: while this process plans, it imports matplotlib
-and draws each figure's plan-independent base (axes, the workspace), on the core the path planning
-leaves idle. Once the plans are ranked, `draw` hands it the work; it forks once more, so that the figures
-are drawn half each (`hrc.report.plan_figures.draw_figures`' share) at once on both cores, while this process
-writes the report's text (whose figure names are known in advance: `hrc.report.plan_figures.figure_names`); `wait`
+the workshop's 5), and it needs only what the figures show (`hrc.report.plan_figures.FigureWork`). A
+`FigureDrawer` is started (forked) as soon as the task is read, before the compile's own imports: while this process
+imports and plans, it imports matplotlib and draws each figure's plan-independent base (axes, the
+workspace), on the core the path planning leaves idle, until the work comes (a compile taken from the
+cache asks at once, and its figures are all in the disk cache: no base is drawn then). Once the plans
+are ranked, `draw` hands it the work; it forks once more, so that the figures are drawn half each
+(`hrc.report.plan_figures.draw_figures`' share) at once on both cores, while this process writes the
+report's text (whose figure names are known in advance: `hrc.report.plan_figures.figure_names`); `wait`
 returns when every file is written. The files are those `hrc.report.write_figures` writes, byte for byte:
 the same functions draw them, each figure on a base drawn the same way (tests/test_report_drawer.py).
 
@@ -28,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from hrc.model import Task
-    from hrc.report.plan_figures import FigureWork
+    from hrc.report.plan_figures import Bases, FigureWork
 
 __all__ = ["FigureDrawer", "draw_in_two", "shares"]
 
@@ -66,10 +68,11 @@ class FigureDrawer:
         if answer is not None:
             raise RuntimeError(f"drawing the report's figures failed:\n{answer}")
 
-    def close(self) -> None:
-        """Stop the process (at once if it is still drawing: the staging folder is thrown away then)."""
+    def close(self, at_once: bool = False) -> None:
+        """Stop the process (at once if it is still drawing: the staging folder is thrown away then; or if
+        `at_once`: no report is coming)."""
         if self._proc.is_alive():
-            if self._asked:
+            if self._asked or at_once:
                 self._proc.kill()
             else:
                 self._conn.send(None)  # nothing to draw: it ends
@@ -87,13 +90,18 @@ def _serve(task: Task, conn: Connection, parent: int) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     _die_with_parent(parent, direct=True)
     failed: str | None = None
+    bases: Bases = {}
     try:
-        from hrc.report.plan_figures import draw_figures, figure_bases
+        from hrc.report.plan_figures import BASE_KINDS, draw_figures, drawing_digest, figure_bases
 
-        # the bases every plan's figure is drawn on, drawn once here while the compile runs (with the
-        # import, the font cache and the text layouts they warm): both processes below reuse them
-        bases = figure_bases(task)
-        for fig, _ in bases.values():
+        drawing_digest()  # matplotlib imported, its settings and font read: what every figure's cache key needs
+        # the bases every plan's figure is drawn on, drawn one by one here while the compile runs (with the
+        # font cache and the text layouts they warm), until the work comes: both processes below reuse them;
+        # one not drawn by then is drawn only if a figure needs it (none does when all are in the disk cache)
+        for kind in BASE_KINDS:
+            if conn.poll():
+                break
+            fig, _ = figure_bases(task, bases, (kind,))[kind]
             fig.canvas.draw()
     except BaseException:  # noqa: BLE001 - said when the work is asked for
         failed = traceback.format_exc()

@@ -22,7 +22,8 @@ if TYPE_CHECKING:
 
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 
-__all__ = ["Bases", "FigureWork", "draw_figures", "figure_bases", "figure_names", "figure_work"]
+__all__ = ["BASE_KINDS", "Bases", "FigureWork", "draw_figures", "drawing_digest", "figure_bases", "figure_names",
+           "figure_work"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,13 +61,18 @@ Bases = dict[str, "tuple[Figure, Axes]"]
 and reused for every plan (`draw_figures`, `figure_bases`)."""
 
 
-def figure_bases(task: Task, bases: Bases | None = None) -> Bases:
-    """`bases` (a new dict if None) with every kind of plan figure's base for `task` in it."""
+BASE_KINDS = ("gantt_earliest", "gantt_worst", "map")
+"""The kinds of plan figure, each drawn on its own base (`Bases`)."""
+
+
+def figure_bases(task: Task, bases: Bases | None = None, kinds: tuple[str, ...] = BASE_KINDS) -> Bases:
+    """`bases` (a new dict if None) with the base of each of `kinds` (default: every kind of plan figure)
+    for `task` in it."""
     from hrc.report.gantt import gantt_base
     from hrc.report.maps import map_base
 
     bases = {} if bases is None else bases
-    for kind in ("gantt_earliest", "gantt_worst", "map"):
+    for kind in kinds:
         if kind not in bases:
             bases[kind] = map_base(task) if kind == "map" else gantt_base(task, kind.removeprefix("gantt_"))
     return bases
@@ -131,7 +137,7 @@ def _figure_key(kind: str, payload: object) -> str:
     """A figure's key in the disk cache (``figures``): everything its bytes depend on. The report's code,
     matplotlib's and Pillow's versions, matplotlib's settings (``rcParams``, a user's matplotlibrc
     included) and the font it finds, and what the figure shows (`_content_digest`)."""
-    return repr(("figure-1", _drawing_digest(), kind, _content_digest(payload)))
+    return repr(("figure-1", drawing_digest(), kind, _content_digest(payload)))
 
 
 def _content_digest(value: object) -> str:
@@ -152,7 +158,8 @@ _DRAWING_CODE = ("hrc.report.plan_figures", "hrc.report.figures", "hrc.report.ga
 
 
 @functools.cache
-def _drawing_digest() -> str:
+def drawing_digest() -> str:
+    """What every figure's bytes depend on besides what it shows (`_figure_key`); imports matplotlib."""
     import matplotlib
     import PIL
     from matplotlib.font_manager import FontProperties, findfont
