@@ -143,9 +143,9 @@ def test_a_compile_of_the_same_task_again_is_taken_whole_from_the_cache(tmp_path
     the compiler made to fail, its plans come from there (``-v`` says so) and every file is the cold
     compile's, byte for byte; the same task with one duration changed is another key (compiled, kept
     beside the first); an empty HRC_CACHE_DIR keeps nothing."""
-    import hrc.compile.stream as stream
     from conftest import compiled_folder
 
+    import hrc.compile.stream as stream
     from hrc.caches import CACHE_ENV
 
     monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
@@ -166,9 +166,9 @@ def test_a_compile_of_the_same_task_again_is_taken_whole_from_the_cache(tmp_path
     assert len(files) > 32 and all((cold / rel).read_bytes() == (warm / rel).read_bytes() for rel in files)
 
     text = WORKSHOP_TASK.read_text()
-    edited = text.replace("robot: [5, 6]}}\n      - {id: put,   location: T,  duration: {human: [2, 4], robot: [4, 5]}}",
-                          "robot: [5, 7]}}\n      - {id: put,   location: T,  duration: {human: [2, 4], robot: [4, 5]}}",
-                          1).replace("map: ../maps/", f"map: {WORKSHOP_TASK.parent.parent}/maps/")
+    put = "\n      - {id: put,   location: T,  duration: {human: [2, 4], robot: [4, 5]}}"
+    edited = text.replace(f"robot: [5, 6]}}}}{put}", f"robot: [5, 7]}}}}{put}", 1)  # cube 1's fetch by the robot
+    edited = edited.replace("map: ../maps/", f"map: {WORKSHOP_TASK.parent.parent}/maps/")
     assert edited != text
     (tmp_path / "edited.yaml").write_text(edited)
     compiled_folder(tmp_path / "edited", tmp_path / "edited.yaml", "-v", "--jobs", "1")

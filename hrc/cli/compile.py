@@ -334,6 +334,18 @@ def _stated_sensing(task: Task, delay: tuple[Fraction, Fraction | None]) -> Task
 
 
 def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
+    # the figures' process, forked first: while this one reads the task and imports the compiler, it
+    # imports matplotlib, then draws the figures' bases on the other core (none for a search compile)
+    drawer = None
+    if not args.no_report and not isinstance(args.plans, int):
+        from hrc.report.drawer import FigureDrawer
+
+        drawer = FigureDrawer()
+    with drawer or contextlib.nullcontext():
+        return _run_with(args, interrupt, drawer)
+
+
+def _run_with(args: argparse.Namespace, interrupt: DeferredInterrupt, drawer: FigureDrawer | None) -> int:
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
     from hrc.plans import pin_actions
 
@@ -358,15 +370,9 @@ def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
             for line in claim.recovered:  # a killed run's leftovers, cleaned up: said even with --quiet
                 print(f"{out}: {line}", file=sys.stderr, flush=True)
             _check_entries(out)
-            # the figures' process, forked now, before the compiler is imported here: meanwhile it imports
-            # matplotlib and draws the figures' bases on the other core (none for a search compile)
-            drawer = None
-            if not args.no_report and not isinstance(args.plans, int):
-                from hrc.report.drawer import FigureDrawer
-
-                drawer = FigureDrawer(task)
-            with drawer or contextlib.nullcontext():
-                return _compile(args, interrupt, task, out, workers, claim, say, drawer)
+            if drawer is not None:
+                drawer.task(task)
+            return _compile(args, interrupt, task, out, workers, claim, say, drawer)
     except OSError as err:  # writing the output (a full disk: a write names no file); said by `hrc.cli.main`
         if not err.filename:
             err.filename = str(out)

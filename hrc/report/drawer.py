@@ -2,10 +2,11 @@
 
 Drawing the figures is most of a small compile's report (matplotlib's import and 16 PNGs: about 2 s of
 the workshop's 5), and it needs only what the figures show (`hrc.report.plan_figures.FigureWork`). A
-`FigureDrawer` is started (forked) as soon as the task is read, before the compile's own imports: while this process
-imports and plans, it imports matplotlib and draws each figure's plan-independent base (axes, the
-workspace), on the core the path planning leaves idle, until the work comes (a compile taken from the
-cache asks at once, and its figures are all in the disk cache: no base is drawn then). Once the plans
+`FigureDrawer` is started (forked) as soon as the command starts, before the task is read (`task` sends
+it) and before the compile's imports: while this process reads and plans, it imports matplotlib and
+draws each figure's plan-independent base (axes, the workspace), on the core the path planning leaves
+idle, until the work comes (a compile taken from the cache asks at once, and its figures are all in the
+disk cache: no base is drawn then). Once the plans
 are ranked, `draw` hands it the work; it forks once more, so that the figures are drawn half each
 (`hrc.report.plan_figures.draw_figures`' share) at once on both cores, while this process writes the
 report's text (whose figure names are known in advance: `hrc.report.plan_figures.figure_names`); `wait`
@@ -39,23 +40,28 @@ class FigureDrawer:
     """A process that draws a report's figures when asked (module docstring). Use as a context manager
     around the compile; at most one `draw` then `wait`."""
 
-    def __init__(self, task: Task) -> None:
-        ctx = mp.get_context("fork")  # the task and the imports so far come with the fork, not pickled
+    def __init__(self, task: Task | None = None) -> None:
+        ctx = mp.get_context("fork")  # the imports so far come with the fork, not pickled
         self._conn, theirs = ctx.Pipe()
         self._proc = ctx.Process(target=_serve, args=(task, theirs, os.getpid()), name="hrc-figures", daemon=True)
         self._proc.start()
         theirs.close()
         self._asked = False
 
+    def task(self, task: Task) -> None:
+        """The task whose figures will be drawn, for a drawer started before it was read (without one, the
+        bases are drawn only once the work comes)."""
+        self._conn.send(("task", task))
+
     def __enter__(self) -> FigureDrawer:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.close()
+        self.close(at_once=exc[0] is not None)  # a failure (a bad task file): no report is coming
 
     def draw(self, work: FigureWork, out_dir: Path) -> None:
         """Start drawing `work`'s figures into ``out_dir/figures``; `wait` for them."""
-        self._conn.send((work, str(out_dir)))
+        self._conn.send(("work", work, str(out_dir)))
         self._asked = True
 
     def wait(self) -> None:
@@ -83,7 +89,7 @@ class FigureDrawer:
             self._proc.join()
 
 
-def _serve(task: Task, conn: Connection, parent: int) -> None:
+def _serve(task: Task | None, conn: Connection, parent: int) -> None:
     from hrc.compile.executors import _die_with_parent
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -92,27 +98,43 @@ def _serve(task: Task, conn: Connection, parent: int) -> None:
     failed: str | None = None
     bases: Bases = {}
     try:
-        from hrc.report.plan_figures import BASE_KINDS, draw_figures, drawing_digest, figure_bases
+        from hrc.report.plan_figures import drawing_digest
 
         drawing_digest()  # matplotlib imported, its settings and font read: what every figure's cache key needs
-        # the bases every plan's figure is drawn on, drawn one by one here while the compile runs (with the
-        # font cache and the text layouts they warm), until the work comes: both processes below reuse them;
-        # one not drawn by then is drawn only if a figure needs it (none does when all are in the disk cache)
+    except BaseException:  # noqa: BLE001 - said when the work is asked for
+        failed = traceback.format_exc()
+    job: Any = ("task", task)
+    while job[0] == "task":  # the task (maybe more than once), then the work or None
+        if job[1] is not None and failed is None:
+            failed = _bases(job[1], bases, conn)
+        job = conn.recv()
+        if job is None:
+            return
+    if failed is not None:
+        conn.send(failed)
+        return
+    _, work, out = job
+    from hrc.report.plan_figures import draw_figures
+
+    conn.send(_draw_in_two(lambda share: draw_figures(work, Path(out), share, bases)))
+
+
+def _bases(task: Task, bases: Bases, conn: Connection) -> str | None:
+    """The bases every plan's figure is drawn on, drawn one by one into `bases` while the compile runs
+    (with the font cache and the text layouts they warm), until a message comes: both drawing processes
+    reuse them; one not drawn by then is drawn only if a figure needs it (none does when all are in the
+    disk cache). None, or what went wrong."""
+    try:
+        from hrc.report.plan_figures import BASE_KINDS, figure_bases
+
         for kind in BASE_KINDS:
             if conn.poll():
                 break
             fig, _ = figure_bases(task, bases, (kind,))[kind]
             fig.canvas.draw()
     except BaseException:  # noqa: BLE001 - said when the work is asked for
-        failed = traceback.format_exc()
-    job: Any = conn.recv()
-    if job is None:
-        return
-    if failed is not None:
-        conn.send(failed)
-        return
-    work, out = job
-    conn.send(_draw_in_two(lambda share: draw_figures(work, Path(out), share, bases)))
+        return traceback.format_exc()
+    return None
 
 
 def _draw_in_two(draw: Callable[[tuple[int, int]], None]) -> str | None:
