@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import pickle
 import signal
 import traceback
 from collections.abc import Callable
@@ -61,7 +62,12 @@ class FigureDrawer:
 
     def draw(self, work: FigureWork, out_dir: Path) -> None:
         """Start drawing `work`'s figures into ``out_dir/figures``; `wait` for them."""
-        self._conn.send(("work", work, str(out_dir)))
+        from hrc.report.plan_figures import figure_digests
+
+        # the figures' cache keys, and the work as bytes: the process copies them all from the cache
+        # without importing what the work is made of (the compiler), and reads the work only to draw
+        self._conn.send(("work", figure_digests(work), pickle.dumps(work, protocol=pickle.HIGHEST_PROTOCOL),
+                         str(out_dir)))
         self._asked = True
 
     def wait(self) -> None:
@@ -113,9 +119,17 @@ def _serve(task: Task | None, conn: Connection, parent: int) -> None:
     if failed is not None:
         conn.send(failed)
         return
-    _, work, out = job
-    from hrc.report.plan_figures import draw_figures
+    _, digests, blob, out = job
+    from hrc.report.plan_figures import copy_cached, draw_figures
 
+    try:
+        if copy_cached(digests, Path(out)):
+            conn.send(None)
+            return
+    except BaseException:  # noqa: BLE001 - said to the caller
+        conn.send(traceback.format_exc())
+        return
+    work = pickle.loads(blob)
     conn.send(_draw_in_two(lambda share: draw_figures(work, Path(out), share, bases)))
 
 

@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING
 
 from hrc.caches import cache_folder, disk_load, disk_store, source_digest
 from hrc.model import Task
-from hrc.report.summary import featured_plans
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -22,8 +21,8 @@ if TYPE_CHECKING:
 
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 
-__all__ = ["BASE_KINDS", "Bases", "FigureWork", "draw_figures", "drawing_digest", "figure_bases", "figure_names",
-           "figure_work"]
+__all__ = ["BASE_KINDS", "Bases", "FigureWork", "copy_cached", "draw_figures", "drawing_digest", "figure_bases",
+           "figure_digests", "figure_names", "figure_work"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -43,6 +42,8 @@ def figure_work(cps: CompiledPlanSet) -> FigureWork:
     histogram = None
     if cps.summary is not None and cps.total > len(cps.plans):  # a large set: its distribution, not its rows
         histogram = (cps.summary.bins, {st.plan_class: st.histogram for st in cps.summary.stats})
+    from hrc.report.summary import featured_plans  # here: the figure process imports this module early
+
     return FigureWork(cps.task, cps.counts(), histogram, featured_plans(cps))
 
 
@@ -96,16 +97,10 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
     fig_dir = Path(out_dir) / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     task = work.task
-    todo: list[tuple[str, str, CompiledPlan | None]] = [("counts", "counts", None)]
-    if work.histogram is not None:
-        todo.append(("makespans", "makespans", None))
-    for which, prefix in (("earliest", "gantt_"), ("worst", "gantt_worst_")):
-        todo += [(f"gantt_{which}", f"{prefix}{cp.plan.id}", cp) for cp in work.featured if cp.classification.schedule]
-    todo += [("map", f"map_{cp.plan.id}", cp) for cp in work.featured]
     k, n = share
     folder = cache_folder("figures")
     mine = []
-    for kind, key, cp in todo[k::n]:
+    for kind, key, cp in _todo(work)[k::n]:
         payload = work.counts if kind == "counts" else work.histogram if kind == "makespans" else (task, cp)
         ckey = _figure_key(kind, payload) if folder is not None else ""
         found = disk_load(folder, ckey)
@@ -131,6 +126,43 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
         disk_store(folder, ckey, save_png(fig, fig_dir / f"{key}.png", clear=False))
         for artist in added:
             artist.remove()
+
+
+def _todo(work: FigureWork) -> list[tuple[str, str, CompiledPlan | None]]:
+    """Every figure of `work` as (kind, name, the plan it shows or None), in drawing order."""
+    todo: list[tuple[str, str, CompiledPlan | None]] = [("counts", "counts", None)]
+    if work.histogram is not None:
+        todo.append(("makespans", "makespans", None))
+    for which, prefix in (("earliest", "gantt_"), ("worst", "gantt_worst_")):
+        todo += [(f"gantt_{which}", f"{prefix}{cp.plan.id}", cp) for cp in work.featured if cp.classification.schedule]
+    todo += [("map", f"map_{cp.plan.id}", cp) for cp in work.featured]
+    return todo
+
+
+def figure_digests(work: FigureWork) -> tuple[tuple[str, str, str], ...]:
+    """Each figure of `work` as (kind, name, the digest of what it shows): with `drawing_digest`, its key in
+    the disk cache (`_figure_key`), computed without matplotlib, so that the figure process can copy
+    every figure from the cache before it has imported what a `FigureWork` is made of (`copy_cached`)."""
+    task = work.task
+    return tuple((kind, key, _content_digest(work.counts if kind == "counts" else work.histogram
+                                             if kind == "makespans" else (task, cp)))
+                 for kind, key, cp in _todo(work))
+
+
+def copy_cached(digests: tuple[tuple[str, str, str], ...], out_dir: Path) -> bool:
+    """Write every figure of `digests` (`figure_digests`) into ``out_dir/figures`` from the disk cache, if
+    all are there (True); else write none (False: they are drawn, `draw_figures`)."""
+    folder = cache_folder("figures")
+    if folder is None:
+        return False
+    found = [disk_load(folder, repr(("figure-1", drawing_digest(), kind, digest))) for kind, _, digest in digests]
+    if not all(isinstance(png, bytes) for png in found):
+        return False
+    fig_dir = Path(out_dir) / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    for (_, key, _), png in zip(digests, found, strict=True):
+        (fig_dir / f"{key}.png").write_bytes(png)
+    return True
 
 
 def _figure_key(kind: str, payload: object) -> str:
