@@ -6,11 +6,12 @@ best and the best of each class: a report of thousands of plans still has a hand
 renders each format in `FORMATS` from the same data. Output is deterministic: the same compiled set
 gives the same bytes (no timestamps; PNGs without software/date metadata).
 
-What a person waits for (issue 38): ``hrc compile`` starts a `hrc.report.drawer.FigureDrawer` before it
-plans its paths (matplotlib is imported there, never in the command's own process), and `write_report`
-hands it the figures (`FigureWork`, `figure_names`: their names are known before any is drawn) while
-it writes the text; the drawer draws them half each in two processes. Each PNG is also kept in the disk
-cache (`draw_figures`). The files are those `write_figures` draws in one process, byte for byte.
+What a person waits for (issue 38): ``hrc compile`` starts a `hrc.report.drawer.FigureDrawer` first,
+before it reads the task (matplotlib is imported there, never in the command's own process), and
+`write_report` hands it the figures (`FigureWork`, `figure_names`: their names are known before any is
+drawn) while it writes the text; the drawer copies them from the disk cache (`copy_cached`) or draws
+them half each in two processes. Each PNG is also kept in the disk cache (`draw_figures`). The files
+are those `write_figures` draws in one process, byte for byte.
 
 Figures: ``counts.png`` (plans per class), ``makespans.png`` (worst-case makespans of all plans per
 class, only when the ranked table holds the best plans only: `hrc.compile.stream`), ``gantt_ID.png``
