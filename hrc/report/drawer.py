@@ -20,6 +20,8 @@ asked for (an interrupted compile). A failure in it is raised here as `RuntimeEr
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import multiprocessing as mp
 import os
 import pickle
@@ -34,7 +36,11 @@ if TYPE_CHECKING:
     from hrc.model import Task
     from hrc.report.plan_figures import Bases, FigureWork
 
-__all__ = ["FigureDrawer", "draw_in_two", "shares"]
+__all__ = ["WORK_SOON", "FigureDrawer", "draw_in_two", "shares"]
+
+WORK_SOON = 1.0
+"""Seconds the figure process waits for its work, once the bases are drawn, before it imports what reading
+the work needs (a warm compile asks within them; a cold one takes seconds more)."""
 
 
 class FigureDrawer:
@@ -113,6 +119,12 @@ def _serve(task: Task | None, conn: Connection, parent: int) -> None:
     while job[0] == "task":  # the task (maybe more than once), then the work or None
         if job[1] is not None and failed is None:
             failed = _bases(job[1], bases, conn)
+            if failed is None and not conn.poll(WORK_SOON):
+                # a compile that takes a while: what reading the work needs (the compiler's records), imported
+                # now on the idle core rather than once the report waits for it (a compile taken from the
+                # cache asks sooner, and its figures are copied without reading the work)
+                with contextlib.suppress(Exception):  # reading the work then says what is wrong
+                    importlib.import_module("hrc.compile.compiler")
         job = conn.recv()
         if job is None:
             return
