@@ -16,15 +16,19 @@ recently are deleted until it is down to three quarters (a hit refreshes an entr
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import importlib.util
 import os
 import pickle
+import sys
+import sysconfig
 import tempfile
 from pathlib import Path
 from typing import Any
 
-__all__ = ["CACHE_ENV", "CACHE_MAX_ENV", "cache_folder", "disk_load", "disk_store", "make_room", "source_digest"]
+__all__ = ["CACHE_ENV", "CACHE_MAX_ENV", "cache_folder", "code_digest", "disk_load", "disk_store", "make_room",
+           "source_digest"]
 
 
 def make_room(cache: dict, cap: int) -> None:
@@ -74,6 +78,27 @@ def source_digest(*modules: str) -> str:
         h.update(name.encode() + b"\0")
         if origin and os.path.exists(origin):
             h.update(Path(origin).read_bytes())
+    return h.hexdigest()
+
+
+@functools.cache
+def code_digest() -> str:
+    """SHA-256 of all of hrc's code (every ``.py`` file of the package and its native cores) and of the
+    versions of Python and of every installed library (numpy's, scipy's, OMPL's numbers reach the
+    outputs): the key part of a cached value computed by much of the package at once (a whole compile's
+    plans, `hrc.compile.stream`), so that any change of code, on any branch, is a miss. Computed once per
+    process (a few tens of ms)."""
+    import hrc
+
+    root = Path(hrc.__file__).resolve().parent
+    h = hashlib.sha256(sys.version.encode())
+    # the installed distributions' names and versions (``numpy-2.1.3.dist-info``): one folder listing
+    for lib in sorted({sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]}):
+        with contextlib.suppress(OSError):
+            h.update(repr(sorted(n for n in os.listdir(lib) if n.endswith((".dist-info", ".egg-info")))).encode())
+    for path in sorted(p for p in root.rglob("*") if p.suffix in (".py", ".so", ".c", ".h") and p.is_file()):
+        h.update(str(path.relative_to(root)).encode() + b"\0")
+        h.update(path.read_bytes())
     return h.hexdigest()
 
 

@@ -11,6 +11,13 @@ before each run; *warm*: filled by one untimed run first. The table gives each r
 time (user + sys of the whole process tree: the compile, its workers and the figure processes, from
 ``getrusage(RUSAGE_CHILDREN)``; less sensitive to a shared machine's load than the wall time), their
 medians, and the load average (1 min) before the first and after the last run of each row.
+
+*warm* for a compile of at most `hrc.compile.stream.RESULTS_MAX_PLANS` plans means the same task compiled
+before with the same code: its plans come from the cache of whole compiles. The same script times the
+simulator (issue 38: 1,000 workshop runs, 4 policies), whose up-front compile is then warm:
+
+    .venv/bin/python scripts/bench_compile_speed.py --before DIR --repeat 1 --modes warm \
+        --command "simulate tasks/cube_stacking.yaml --runs 1000 --jobs 2"
 """
 
 from __future__ import annotations
@@ -31,7 +38,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def run_once(root: Path, command: list[str], out: Path, cache: Path) -> tuple[float, float]:
-    """Wall and CPU seconds (user + sys of the process tree) of one ``hrc COMMAND --out OUT -q`` from `root`."""
+    """Wall and CPU seconds (user + sys of the process tree) of one ``hrc COMMAND --out OUT -q`` from `root`
+    (the command's output folder `out` removed first)."""
     shutil.rmtree(out, ignore_errors=True)
     env = {**os.environ, "PYTHONPATH": str(root), "HRC_CACHE_DIR": str(cache)}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)

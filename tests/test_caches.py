@@ -138,6 +138,49 @@ def test_a_compile_with_a_warm_cache_writes_the_same_bytes(tmp_path, monkeypatch
             assert (cold / rel).read_bytes() == (warm / rel).read_bytes(), rel
 
 
+def test_a_compile_of_the_same_task_again_is_taken_whole_from_the_cache(tmp_path, monkeypatch, capsys):
+    """A small compile is kept whole on disk (`hrc.compile.stream.RESULTS_MAX_PLANS`): compiled again, with
+    the compiler made to fail, its plans come from there (``-v`` says so) and every file is the cold
+    compile's, byte for byte; the same task with one duration changed is another key (compiled, kept
+    beside the first); an empty HRC_CACHE_DIR keeps nothing."""
+    from conftest import compiled_folder
+
+    import hrc.compile.stream as stream
+    from hrc.caches import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    capsys.readouterr()
+    cold = compiled_folder(tmp_path / "cold", WORKSHOP_TASK, "-v", "--jobs", "1")
+    assert "plans (32, 1 worker)" in capsys.readouterr().err
+    assert len(list((tmp_path / "cache" / "results").iterdir())) == 1
+
+    def compiled(*args, **kwargs):
+        raise AssertionError("compiled again")
+
+    with monkeypatch.context() as m:
+        m.setattr(stream, "compile_family", compiled)
+        warm = compiled_folder(tmp_path / "warm", WORKSHOP_TASK, "-v", "--jobs", "1")
+    assert "plans (32, from the cache of whole compiles)" in capsys.readouterr().err
+    files = sorted(p.relative_to(cold) for p in cold.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(warm) for p in warm.rglob("*") if p.is_file())
+    assert len(files) > 32 and all((cold / rel).read_bytes() == (warm / rel).read_bytes() for rel in files)
+
+    text = WORKSHOP_TASK.read_text()
+    put = "\n      - {id: put,   location: T,  duration: {human: [2, 4], robot: [4, 5]}}"
+    edited = text.replace(f"robot: [5, 6]}}}}{put}", f"robot: [5, 7]}}}}{put}", 1)  # cube 1's fetch by the robot
+    edited = edited.replace("map: ../maps/", f"map: {WORKSHOP_TASK.parent.parent}/maps/")
+    assert edited != text
+    (tmp_path / "edited.yaml").write_text(edited)
+    compiled_folder(tmp_path / "edited", tmp_path / "edited.yaml", "-v", "--jobs", "1")
+    assert "plans (32, 1 worker)" in capsys.readouterr().err
+    assert len(list((tmp_path / "cache" / "results").iterdir())) == 2
+    assert (tmp_path / "edited" / "compiled.json").read_bytes() != (cold / "compiled.json").read_bytes()
+
+    monkeypatch.setenv(CACHE_ENV, "")
+    compiled_folder(tmp_path / "none", WORKSHOP_TASK, "-v", "--jobs", "1")
+    assert "plans (32, 1 worker)" in capsys.readouterr().err
+
+
 # -- on disk: detours ------------------------------------------------------------------------------------
 def test_a_cached_detour_is_the_detour_planned_afresh(tmp_path, monkeypatch):
     """`detour` reads a detour planned by another process (another library: its own per-process cache is

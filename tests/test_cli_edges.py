@@ -118,7 +118,8 @@ def test_sigterm_leaves_a_partial_output_and_no_staging_folder(tmp_path, earlier
     if earlier:
         out.mkdir()
         (out / "compiled.json").write_text('{"earlier": true}')
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    # no disk cache: a compile taken whole from it (issue 38) would end before it could be interrupted
+    env = dict(os.environ, PYTHONPATH=str(ROOT), HRC_CACHE_DIR="")
     proc = subprocess.Popen([sys.executable, "-m", "hrc", "compile", str(WORKSHOP_TASK), "--out", str(out),
                              "--jobs", "1", "--no-report"], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)

@@ -116,8 +116,12 @@ class Driver:
             answer = self.send(msg)
 
 
-def _run(folder: Path, seeds: range, messages: int, native: bool = True) -> int:
+def _run(folder: Path, seeds: range, messages: int, native: bool = True, forked: bool = False) -> int:
+    """`messages` random messages per seed to the dispatcher and the reference, every answer the same;
+    `forked`: each run's dispatcher a fork of one per options, as the simulator's are (the caches of what
+    is a function of the plan set, filled by the runs before, shared)."""
     task, entries, rank_by = read_entries(folder)
+    shared: dict[tuple, Dispatcher] = {}
     base = Dispatcher.from_folder(folder, threads=2)
     if not native:
         base.ranker.native = None
@@ -125,7 +129,11 @@ def _run(folder: Path, seeds: range, messages: int, native: bool = True) -> int:
     memo: dict = {}
     for seed in seeds:
         options = {"feasible_only": seed % 7 == 3, "use_preferences": seed % 5 != 4}
-        fast = Dispatcher(base.plan_set, ranker=base.ranker, **options)
+        if forked:
+            key = tuple(options.values())
+            fast = shared.setdefault(key, Dispatcher(base.plan_set, ranker=base.ranker, **options)).fork()
+        else:
+            fast = Dispatcher(base.plan_set, ranker=base.ranker, **options)
         ref = ReferenceDispatcher(task, entries, rank_by, memo=memo, apa_entry=base.plan_set.entry, **options)
         assert fast.decision == ref.decision
         driver = Driver(fast, ref, seed)
@@ -137,6 +145,12 @@ def _run(folder: Path, seeds: range, messages: int, native: bool = True) -> int:
 def test_the_workshop_answers_as_defined(workshop):
     """The workshop, with its APA preference: 120 random runs (the next 140 with ``-m slow``)."""
     assert _run(workshop, range(120), 30) > 2300
+
+
+def test_forks_sharing_their_caches_answer_as_defined(workshop):
+    """Each run on a fork of one dispatcher (issue 38: the instruction ahead's distances and the DO forms
+    kept across forks): the answers of a fresh one, 15 random runs."""
+    assert _run(workshop, range(3000, 3015), 30, forked=True) > 200
 
 
 def test_kitting_answers_as_defined(kitting_part):

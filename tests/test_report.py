@@ -514,6 +514,41 @@ def test_the_figure_processes_write_what_one_process_writes(cps: CompiledPlanSet
     assert set(figure_names(figure_work(cps)).values()) == {n for n in alone if n.startswith("figures/")}
 
 
+def test_figures_all_in_the_cache_are_copied_without_the_work(cps: CompiledPlanSet, report_dir: Path,
+                                                               tmp_path: Path, monkeypatch) -> None:
+    """Issue 38: once every figure is in the disk cache, the figure process copies them by their keys
+    (`figure_digests`, computed where the work is) before it reads the work: the same bytes as drawn;
+    with one figure missing from the cache, none is copied (all are then drawn), and the drawer, the
+    drawing made to fail, says so."""
+    import hrc.report.figures
+    from hrc.caches import CACHE_ENV
+    from hrc.report import figure_work
+    from hrc.report.drawer import FigureDrawer
+    from hrc.report.plan_figures import copy_cached, draw_figures, figure_digests
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    work = figure_work(cps)
+    draw_figures(work, tmp_path / "drawn")  # fills the cache
+    digests = figure_digests(work)
+    assert copy_cached(digests, tmp_path / "copied")
+    drawn, copied = _files(tmp_path / "drawn"), _files(tmp_path / "copied")
+    assert drawn == copied and drawn == {n: b for n, b in _files(report_dir).items() if n.startswith("figures/")}
+
+    def cannot(*args: object, **kwargs: object) -> None:
+        raise ValueError("drawn, not copied")
+
+    monkeypatch.setattr(hrc.report.figures, "save_png", cannot)  # what every figure drawn is saved with
+    (tmp_path / "report").mkdir()
+    (tmp_path / "again").mkdir()
+    with FigureDrawer(cps.task) as drawer:
+        write_report(cps, tmp_path / "report", drawer=drawer)  # every figure from the cache: nothing drawn
+    assert {n: b for n, b in _files(tmp_path / "report").items() if n.startswith("figures/")} == drawn
+    next(p for p in (tmp_path / "cache" / "figures").iterdir()).unlink()
+    assert not copy_cached(digests, tmp_path / "partly") and not (tmp_path / "partly").exists()
+    with FigureDrawer(cps.task) as drawer, pytest.raises(RuntimeError, match="(?s)figures failed.*drawn, not copied"):
+        write_report(cps, tmp_path / "again", drawer=drawer)
+
+
 def test_a_figure_process_that_fails_says_why(cps: CompiledPlanSet, tmp_path: Path, monkeypatch) -> None:
     """A figure that cannot be drawn (here: every map, in the forked processes) fails the report with the
     figure process's traceback, not a report with a missing picture."""

@@ -47,6 +47,7 @@ from hrc.io.task_file import MAX_SECONDS, load_task
 if TYPE_CHECKING:
     from hrc.cli.interrupt import DeferredInterrupt
     from hrc.model import Task
+    from hrc.report.drawer import FigureDrawer
 
 __all__ = ["PROGRESS_EVERY", "add_parser", "run"]
 
@@ -72,10 +73,8 @@ def _plans(text: str) -> str | int:
 
 
 def add_parser(sub: Any) -> None:
+    from hrc.compile.defaults import COVER_DEPTH, DEFAULT_K, REPORT_TOP, SEARCH_FAMILIES, STNU_MODES
     from hrc.compile.estimate import DEFAULT_MAX_PLANS
-    from hrc.compile.output import STNU_MODES
-    from hrc.compile.search import COVER_DEPTH, DEFAULT_K, SEARCH_FAMILIES
-    from hrc.compile.sink import REPORT_TOP
 
     p = sub.add_parser("compile", help="compile a task into its ranked set of HRC schedules (STNUs)")
     p.add_argument("task", help="task YAML file")
@@ -335,6 +334,18 @@ def _stated_sensing(task: Task, delay: tuple[Fraction, Fraction | None]) -> Task
 
 
 def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
+    # the figures' process, forked first: while this one reads the task and imports the compiler, it
+    # imports matplotlib, then draws the figures' bases on the other core (none for a search compile)
+    drawer = None
+    if not args.no_report and not isinstance(args.plans, int):
+        from hrc.report.drawer import FigureDrawer
+
+        drawer = FigureDrawer()
+    with drawer or contextlib.nullcontext():
+        return _run_with(args, interrupt, drawer)
+
+
+def _run_with(args: argparse.Namespace, interrupt: DeferredInterrupt, drawer: FigureDrawer | None) -> int:
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
     from hrc.plans import pin_actions
 
@@ -359,7 +370,9 @@ def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
             for line in claim.recovered:  # a killed run's leftovers, cleaned up: said even with --quiet
                 print(f"{out}: {line}", file=sys.stderr, flush=True)
             _check_entries(out)
-            return _compile(args, interrupt, task, out, workers, claim, say)
+            if drawer is not None:
+                drawer.task(task)
+            return _compile(args, interrupt, task, out, workers, claim, say, drawer)
     except OSError as err:  # writing the output (a full disk: a write names no file); said by `hrc.cli.main`
         if not err.filename:
             err.filename = str(out)
@@ -383,7 +396,7 @@ def _times(start_cpu: float, stages: list[tuple[str, float, float]]) -> str:
 
 
 def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, out: str, workers: int,
-             claim: FolderClaim, say: Callable[[str], None]) -> int:
+             claim: FolderClaim, say: Callable[[str], None], drawer: FigureDrawer | None = None) -> int:
     start_cpu = time.process_time()  # CPU since the process began: the imports, reading the task
     start = time.perf_counter()
     from hrc.compile.compiler import CompileOptions
@@ -409,6 +422,8 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
         say(f"{task.name}: {est.plans} plans, more than --max-plans {args.max_plans:,}: searching for the best "
             f"{k} instead (--plans best:K; --plans all to refuse; docs/search.md)")
     if isinstance(k, int):
+        if drawer is not None:  # the search compile writes its report without it
+            drawer.close(at_once=True)
         return _search(args, interrupt, task, out, k, claim, say, options)
     if est.plans.value > args.max_plans:
         raise _refusal(args.task, est, args.max_plans, workers)
@@ -437,7 +452,7 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
             "follows the real pace)")
 
     progress = _Progress(tty=sys.stderr.isatty(), quiet=quiet)
-    stages: list[tuple[str, float, float]] = [("estimate", time.perf_counter() - start,
+    stages: list[tuple[str, float, float]] = [("the compiler's imports, the plan count", time.perf_counter() - start,
                                                time.process_time() - start_cpu)]
     t0 = time.perf_counter()
     c0 = time.process_time()
@@ -445,18 +460,14 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
 
     # an earlier output is not replaced by a partial one (but the one resumed is: it holds fewer plans)
     earlier = Path(out).is_dir() and any(Path(out).iterdir()) and resume is None
-    drawer = None
-    if not args.no_report:  # the figures' process, started now: matplotlib is imported there meanwhile
-        from hrc.report.drawer import FigureDrawer
-
-        drawer = FigureDrawer(task)
     try:
-        with claim.staging(check_earlier=_check_earlier(out)) as stage, drawer or contextlib.nullcontext():
+        with claim.staging(check_earlier=_check_earlier(out)) as stage:
             try:
                 result = compile_stream(task, stage, total, seed=args.seed, jobs=jobs, executor=args.executor,
                                         options=options, stnu=args.stnu, keep=args.report_top, progress=progress,
                                         estimate=on_estimate, symmetry=args.symmetry, best=best,
-                                        resume=resume, keep_partial=not earlier, stop=interrupt.check)
+                                        resume=resume, keep_partial=not earlier, stop=interrupt.check,
+                                        reuse=True)
             finally:
                 progress.close()
             path_stats = result.plan_set.paths.stats
@@ -465,8 +476,10 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
             roadmaps, cached = int(path_stats.get("roadmaps", 0)), int(path_stats.get("cached", 0))
             stages += [(f"paths ({roadmaps} roadmap{'s' * (roadmaps != 1)}, {cached} from the cache)", path_wall,
                         path_cpu),  # planned in this process
-                       (f"plans ({result.compiled:,}, {jobs or workers} worker{'s' * ((jobs or workers) > 1)}) and "
-                        "compiled.json, STNUs", time.perf_counter() - t0 - path_wall,
+                       (f"plans ({result.compiled:,}, "
+                        + ("from the cache of whole compiles" if result.cached else
+                           f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)}")
+                        + ") and compiled.json, STNUs", time.perf_counter() - t0 - path_wall,
                         time.process_time() - c0 - path_cpu)]
             # from here on a signal only is noted: the report and the swap are finished first (the output
             # is complete; throwing it away would lose every plan)

@@ -51,7 +51,6 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy.sparse.csgraph import NegativeCycleError, csgraph_from_dense, floyd_warshall
 
 from hrc.compile.classify import (
     Classification,
@@ -183,6 +182,8 @@ def _apsp_scipy(n: int, src: list[int], dst: list[int], wt: list[int]) -> np.nda
     if src:
         np.minimum.at(mat, (np.asarray(src), np.asarray(dst)), np.asarray(wt, dtype=np.float64))
     # a dense 0 means "no edge" to scipy: go through csgraph_from_dense with inf as the null value
+    from scipy.sparse.csgraph import NegativeCycleError, csgraph_from_dense, floyd_warshall  # a cached compile: none
+
     try:
         return floyd_warshall(csgraph_from_dense(mat, null_value=np.inf), directed=True)
     except NegativeCycleError:

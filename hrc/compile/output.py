@@ -94,6 +94,7 @@ import yaml
 
 from hrc import __version__
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions
+from hrc.compile.defaults import STNU_ARCHIVE, STNU_MODES  # here too, as before
 from hrc.compile.dispatch_form import FORM_FOLDER, FormWriter, plan_sequences
 from hrc.compile.motion_pattern import MotionPattern, PassingOrder
 from hrc.compile.sensing import sensing_dict
@@ -123,12 +124,6 @@ INLINE_MAX_BYTES = 16 << 20
 ROWS_MAX = 50_000
 """Rows ``compiled.json`` lists at most in the split layout (about 10 MB; the rest only in `PLAN_LINES`)."""
 
-STNU_MODES = ("graphml", "archive", "none")
-"""How the plans' STNUs are written (``hrc compile --stnu``): one GraphML file per plan in ``stnu/`` (the
-default), the same files packed into one zip file `STNU_ARCHIVE` (member names as the ``stnu`` paths),
-or not at all (``"stnu": null`` per plan)."""
-
-STNU_ARCHIVE = "stnu.zip"
 
 
 def _s(x: float) -> float:

@@ -54,6 +54,7 @@ from pathlib import Path
 
 from hrc.compile.bounds import Bound, Node, NodeBounds
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, rank_key
+from hrc.compile.defaults import COVER_DEPTH, DEFAULT_K, SEARCH_FAMILIES  # here too, as before
 from hrc.compile.output import write_input
 from hrc.compile.sink import REPORT_TOP, PlanSink
 from hrc.compile.stream import compile_records
@@ -64,17 +65,10 @@ from hrc.plans import family_of, identical_actions, relabellings
 __all__ = ["COVER_DEPTH", "DEFAULT_K", "DIVE_NODES", "NODES_PER_FAMILY", "SEARCH_FAMILIES", "SearchOutcome",
            "SearchResult", "compile_search", "search_in_memory", "search_plans"]
 
-DEFAULT_K = 50
-"""Plans ``hrc compile`` searches for when it switches to the search on its own."""
-
-SEARCH_FAMILIES = 2
-"""Default budget of the best-K search: at most this many families compiled per plan asked for (``K``)."""
 
 NODES_PER_FAMILY = 400
 """Nodes the search may expand per family of its budget."""
 
-COVER_DEPTH = 2
-"""Default depth of the coverage: the person's first choice, and each choice after it."""
 
 DIVE_NODES = 5000
 """Most nodes one coverage dive expands before it gives that choice up (reported)."""

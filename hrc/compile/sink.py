@@ -37,6 +37,7 @@ from hrc.compile.compiler import (
     compile_family,
     rank_key,
 )
+from hrc.compile.defaults import REPORT_TOP  # here too, as before
 from hrc.compile.dispatch_form import FormWriter, plan_record, plan_sequences, read_form
 from hrc.compile.output import (
     FORM_PLACEHOLDER,
@@ -69,8 +70,6 @@ __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "Bar", "PlanSink", "Record"]
 
 _CLASS_NAMES = {c.order: c.value for c in PlanClass}
 
-REPORT_TOP = 100
-"""Plans the report's ranked table shows by default (plus the best of each class)."""
 
 HISTOGRAM_BINS = 24
 """Bins of the worst-case makespan histogram over all plans."""

@@ -49,8 +49,8 @@ from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import generate_plans, identical_actions, plan_code, plan_families, spread_families, symmetry_factor
 
-__all__ = ["OUTPUT_FILES", "Abandoned", "Sample", "StreamResult", "chunk_size", "compact_records", "compile_records",
-           "compile_stream", "sample_twice"]
+__all__ = ["OUTPUT_FILES", "RESULTS_MAX_PLANS", "Abandoned", "Sample", "StreamResult", "chunk_size",
+           "compact_records", "compile_records", "compile_stream", "sample_twice"]
 
 OUTPUT_FILES = ("compiled.json", "input", "stnu", STNU_ARCHIVE, RESUME_FILE, FORM_FOLDER)
 """Every name `compile_stream` may write into an output folder (``hrc compile`` adds the report's,
@@ -60,6 +60,15 @@ here, or the next compile into the same folder refuses it (tests/test_compile_fa
 files against this list)."""
 
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
+
+RESULTS_MAX_PLANS = 512
+"""A compile of at most this many plans keeps all its plans (their records and lines) in the disk cache
+(`hrc.caches.cache_folder` ``results``; about 50 kB a plan), keyed by everything they are computed from
+(`_results_key`): compiling the same task again (the report's figures and text changed, the output
+folder lost, a colleague's checkout of the same code) takes the plans from there and writes the same
+bytes, without planning a motion or starting a worker (issue 38: the workshop in about a second).
+Larger compiles are not kept: a file per compile of hundreds of MB would cost more to write than a
+repeated compile saves."""
 
 
 def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
@@ -147,6 +156,7 @@ class StreamResult:
     compiled: int
     partial: bool
     seconds_per_plan: float | None  # the estimate's sample plans, the second time (`Sample`), in this process
+    cached: bool = False  # every plan came from the disk cache of whole compiles (`RESULTS_MAX_PLANS`)
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,16 +200,19 @@ def sample_twice(options: CompileOptions, stnu: str, task: Task, paths: PathLibr
 
 
 def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], options: CompileOptions,
-            stnu: str, sink: PlanSink, budget: float, taken: frozenset[str] = frozenset(), most: int = 16) -> Sample:
+            stnu: str, sink: PlanSink, budget: float, taken: frozenset[str] = frozenset(), most: int = 16,
+            kept: list[tuple[CompiledPlan, str]] | None = None) -> Sample:
     """Compile sample families here until `budget` seconds pass (at least one family, at most `most` plans),
     then the same again (`Sample`): the time and disk per plan for the up-front estimate; the first
-    time's plans are kept, not wasted (but for those the sink has `taken` already)."""
+    time's plans are kept, not wasted (but for those the sink has `taken` already), and appended to `kept`."""
     size = 0.0
 
     def each(cp: CompiledPlan, tail: str) -> None:
         nonlocal size
         if cp.plan.id not in taken:
             sink.add(cp, tail)
+        if kept is not None:
+            kept.append((cp, tail))
         size += len(tail.encode()) + 32
         if stnu == "graphml":
             size += -(-len(cp.graphml.encode()) // 4096) * 4096
@@ -210,13 +223,24 @@ def _sample(task: Task, paths: PathLibrary, families: list[tuple[Plan, ...]], op
     return Sample(done, n, second / max(n, 1), first / max(n, 1), size / max(n, 1))
 
 
+def _results_key(task: Task, seed: int, options: CompileOptions, stnu: str, symmetry: bool) -> str:
+    """The disk cache key of a whole compile's plans: the task and its map as loaded (`task_digest`), the
+    motion planner's seed, the options, the STNU mode (the lines name the files), the families compiled
+    (`symmetry`) and all of the code (`code_digest`: any change of hrc or a library is a miss)."""
+    from hrc.caches import code_digest
+    from hrc.io.task_file import task_digest
+
+    return repr(("results-1", code_digest(), task_digest(task), seed, options.human_waits, options.rank_by, stnu,
+                 symmetry))
+
+
 def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs: int | None = None,
                    executor: str | None = None, options: CompileOptions | None = None,
                    stnu: str = "graphml", keep: int = REPORT_TOP, progress: Progress | None = None,
                    estimate: Callable[[Sample], None] | None = None, sample_seconds: float = 1.0,
                    symmetry: bool = False, best: int | None = None,
                    resume: tuple[Path, np.ndarray] | None = None, keep_partial: bool = True,
-                   stop: Callable[[], None] | None = None) -> StreamResult:
+                   stop: Callable[[], None] | None = None, reuse: bool = False) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
     seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
@@ -229,6 +253,8 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
     whether an interrupted run writes what it compiled (else it raises `Abandoned` at once: the caller
     keeps an earlier output instead, and writing a large partial one would take a while for nothing).
     `stop`: called where the compile may stop (module docstring); it raises KeyboardInterrupt to stop it.
+    `reuse` (``hrc compile``): a small compile on this machine is taken whole from the disk cache when
+    the same was compiled before, and kept there otherwise (`RESULTS_MAX_PLANS`).
     Raises `hrc.errors.HrcError`."""
     options = options or CompileOptions()
     out_dir = Path(out_dir)
@@ -242,54 +268,33 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
         except BaseException:
             sink.abandon()
             raise
-    paths: PathLibrary | None = None
     per_plan: float | None = None
     partial = False
     check = stop or (lambda: None)
-    try:
-        with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
-            def planned(done: int, total: int) -> None:
-                check()
-                if progress:
-                    progress("motion", done, total)
+    # a small compile on this machine is kept whole on disk (`RESULTS_MAX_PLANS`): taken from there when
+    # the same task is compiled again with the same code, else its plans are kept as they come
+    from hrc.caches import cache_folder, disk_load, disk_store
 
-            paths = plan_paths(task, seed=seed, progress=planned)
+    results = cache_folder("results") if (reuse and executor is None and resume is None
+                                          and total <= RESULTS_MAX_PLANS) else None
+    rkey = _results_key(task, seed, options, stnu, symmetry) if results is not None else ""
+    found = disk_load(results, rkey)
+    kept: list[tuple[CompiledPlan, str]] | None = None if results is None else []
+    planned: list[PathLibrary] = []  # the paths, once planned (an interrupt may come after them)
+    try:
+        if isinstance(found, list):
+            planned.append(plan_paths(task, seed=seed))
             check()
-            # the estimate's sample comes from allocations spread over the whole space (the stream's first
-            # plans are all of one corner: the human doing everything), and is left out of the stream
-            spread = spread_families(task, 16, symmetry)
-            # at most a quarter of a small compile: this process compiles the sample alone (twice), while
-            # the workers share the rest
-            sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken,
-                             most=max(1, min(16, total // 4)))
-            per_plan = sample.seconds_per_plan
-            done = {f[0] for f in spread[:sample.families]}
-            check()
-            if estimate is not None:
-                estimate(sample)
-            stream = (((plan,) for plan in generate_plans(task, symmetry=True)) if symmetry
-                      else plan_families(task))
-            # a family the interrupted run took in part (interrupted between its plans) is compiled
-            # again, and only its missing plans are taken
-            stream = (f for f in stream if f[0] not in done and not (taken and all(p.id in taken for p in f)))
+            for cp, tail in found:
+                sink.add(cp, tail)
+                check()  # as between the units of work of a compile (an interrupt: a partial output)
             if progress:
                 progress("plans", len(sink), total)
-            family = 1 if symmetry else symmetry_factor(task)
-            size = max(1, chunk_size(max(total - len(sink), 1), getattr(ex, "jobs", 2)) // family)
-            # workers on this machine write their plans' texts into the folder themselves
-            folder = str(out_dir) if getattr(ex, "local_processes", False) else None
-            work = functools.partial(_records_with, options, stnu, folder, sink.stnu_to)
-            chunks = iter(lambda: list(itertools.islice(stream, size)), [])
-            bars = ((sink.bar(chunk), chunk) for chunk in chunks)
-            for batch in ex.map_chunks(work, task, paths, bars, poll=check):
-                for record in batch:
-                    if record[1] not in taken:
-                        sink.add_record(record)
-                if progress:
-                    progress("plans", len(sink), total)
-                check()
+        else:
+            per_plan = _compile_into(task, sink, total, seed, jobs, executor, options, stnu, progress, estimate,
+                                     sample_seconds, symmetry, taken, check, kept, planned)
     except KeyboardInterrupt:
-        if paths is None or not len(sink):
+        if not planned or not len(sink):
             sink.abandon()
             raise
         if not keep_partial:
@@ -302,8 +307,81 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
         sink.abandon()
         raise
     compiled = len(sink)
+    paths = planned[0]
     plan_set = sink.finish(seed, paths, options, partial=total if partial else None)
-    return StreamResult(plan_set=plan_set, compiled=compiled, partial=partial, seconds_per_plan=per_plan)
+    if kept is not None and not partial and not isinstance(found, list):
+        disk_store(results, rkey, kept)
+    return StreamResult(plan_set=plan_set, compiled=compiled, partial=partial, seconds_per_plan=per_plan,
+                        cached=isinstance(found, list))
+
+
+def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int | None, executor: str | None,
+                  options: CompileOptions, stnu: str, progress: Progress | None,
+                  estimate: Callable[[Sample], None] | None, sample_seconds: float, symmetry: bool,
+                  taken: frozenset[str], check: Callable[[], None],
+                  kept: list[tuple[CompiledPlan, str]] | None, planned: list[PathLibrary]) -> float:
+    """`compile_stream`'s compile: the paths (appended to `planned` at once), the estimate's sample, then
+    the rest over the executor, every plan into `sink`; returns the sample's seconds per plan. With
+    `kept` (a compile to keep whole on disk), each plan's full record and line tail is also appended to
+    it (the workers then send them whole: a small compile's few MB)."""
+    with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
+        def motion(done: int, total: int) -> None:
+            check()
+            if progress:
+                progress("motion", done, total)
+
+        paths = plan_paths(task, seed=seed, progress=motion)
+        planned.append(paths)
+        check()
+        # the estimate's sample comes from allocations spread over the whole space (the stream's first
+        # plans are all of one corner: the human doing everything), and is left out of the stream
+        spread = spread_families(task, 16, symmetry)
+        # at most a quarter of a small compile: this process compiles the sample alone (twice), while
+        # the workers share the rest
+        sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken,
+                         most=max(1, min(16, total // 4)), kept=kept)
+        done = {f[0] for f in spread[:sample.families]}
+        check()
+        if estimate is not None:
+            estimate(sample)
+        stream = (((plan,) for plan in generate_plans(task, symmetry=True)) if symmetry
+                  else plan_families(task))
+        # a family the interrupted run took in part (interrupted between its plans) is compiled
+        # again, and only its missing plans are taken
+        stream = (f for f in stream if f[0] not in done and not (taken and all(p.id in taken for p in f)))
+        if progress:
+            progress("plans", len(sink), total)
+        family = 1 if symmetry else symmetry_factor(task)
+        size = max(1, chunk_size(max(total - len(sink), 1), getattr(ex, "jobs", 2)) // family)
+        chunks = iter(lambda: list(itertools.islice(stream, size)), [])
+        if kept is not None:  # whole records, to keep (`RESULTS_MAX_PLANS`)
+            whole = functools.partial(_whole_records, options, stnu)
+            for batch in ex.map_chunks(whole, task, paths, ((None, chunk) for chunk in chunks), poll=check):
+                for cp, tail in batch:
+                    if cp.plan.id not in taken:
+                        sink.add(cp, tail)
+                    kept.append((cp, tail))
+                if progress:
+                    progress("plans", len(sink), total)
+                check()
+            return sample.seconds_per_plan
+        # workers on this machine write their plans' texts into the folder themselves
+        folder = str(sink.out_dir) if getattr(ex, "local_processes", False) else None
+        work = functools.partial(_records_with, options, stnu, folder, sink.stnu_to)
+        bars = ((sink.bar(chunk), chunk) for chunk in chunks)
+        for batch in ex.map_chunks(work, task, paths, bars, poll=check):
+            for record in batch:
+                if record[1] not in taken:
+                    sink.add_record(record)
+            if progress:
+                progress("plans", len(sink), total)
+            check()
+    return sample.seconds_per_plan
+
+
+def _whole_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
+                   work: tuple[None, list[tuple[Plan, ...]]]) -> list[tuple[CompiledPlan, str]]:
+    return compile_records(options, stnu, task, paths, work[1])
 
 
 def _records_with(options: CompileOptions, stnu: str, folder: str | None, stnu_to: str, task: Task,

@@ -134,6 +134,8 @@ class Dispatcher:
         self._human_g = next((g for g, a in enumerate(plan_set.task.agents) if a.is_human), -1)
         self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
         self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
+        self._dists: dict[tuple[int, tuple[str, ...]], np.ndarray | None] = {}  # (plan, steps) -> distances (`_ahead`)
+        self._dos: dict[tuple, Any] = {}  # (plan, what happened, now) -> its DO form (`_preferred`)
         found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
         self._limits = None if found is None else MappingProxyType(found)
         history = History.start(plan_set.task)
@@ -396,6 +398,8 @@ class Dispatcher:
             # the caches by plan index are shared by forks, whose added plans differ: this one's own from here
             self._nodes = {p: v for p, v in self._nodes.items() if p < n}
             self._arcs = {p: v for p, v in self._arcs.items() if p < n}
+            self._dists = {k: v for k, v in self._dists.items() if k[0] < n}
+            self._dos = {k: v for k, v in self._dos.items() if k[0] < n}
         pool = np.arange(len(plan_set), dtype=np.int64)
         kept = agreeing(plan_set.form, st.history, pool)
         if not len(kept) and st.history.away:  # as `observe` reads an absence
@@ -551,10 +555,10 @@ class Dispatcher:
             plan_class = CLASS_ORDER[int(cls[at])]
             entry = self.plan_set.entry(best)
             do = dict(do_forms)
-            robot, human = self._steps(entry, executed(entry, history), history, plan_class, best, do,
-                                       (seen, legs_seen), hinted)
+            done = executed(entry, history)  # read, never changed, by both
+            robot, human = self._steps(entry, done, history, plan_class, best, do, (seen, legs_seen), hinted)
             do_forms = MappingProxyType(do)
-            ahead = self._ahead(entry, best, executed(entry, history), history) if human is None else None
+            ahead = self._ahead(entry, best, done, history) if human is None else None
             if self._limits is not None and isinstance(robot, RobotStep):
                 robot = replace(robot, separation=self._limits)
             decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
@@ -602,29 +606,15 @@ class Dispatcher:
                         break
                     continue  # the work of a leg here
                 sources.append(x)
-        arcs = self._arcs.get(p)
-        if arcs is None:  # shared by forks: a function of the plan alone; a few hundred plans at most
-            if len(self._arcs) >= 256:
-                self._arcs.clear()
-            a = self.plan_set.form.arrays(p)
-            u = np.concatenate([a.edges[:, 0], a.conts[:, 0], a.conts[:, 1]])
-            v = np.concatenate([a.edges[:, 1], a.conts[:, 1], a.conts[:, 0]])
-            w = np.concatenate([a.edges[:, 2], a.conts[:, 3], -a.conts[:, 2]]).astype(np.float64)
-            by = np.argsort(v, kind="stable")  # arcs grouped by their head: one reduceat per pass
-            heads, starts = np.unique(v[by], return_index=True)
-            arcs = self._arcs[p] = (a.n, u[by], w[by], heads, starts)
-        n, u, w, heads, starts = arcs
         at = self.plan_set.node_index(p)
-        dist = np.full(n, np.inf)
-        dist[[at[x[3]] for x in sources]] = 0.0
-        for _ in range(n + 1):
-            relaxed = dist.copy()
-            if len(u):
-                relaxed[heads] = np.minimum(dist[heads], np.minimum.reduceat(dist[u] + w, starts))
-            if np.array_equal(relaxed, dist):
-                break
-            dist = relaxed
+        key = (p, tuple(x[3] for x in sources))
+        if key in self._dists:  # shared by forks, like the arcs: a function of the plan and the step alone
+            dist = self._dists[key]
         else:
+            if len(self._dists) >= 4096:
+                self._dists.clear()
+            dist = self._dists[key] = self._distances(p, [at[x[3]] for x in sources])
+        if dist is None:
             return None
         robot = self._robot
         order = [(k, e, n) for k, (a, ph) in enumerate(entry.legs.get(robot, ()))
@@ -646,6 +636,33 @@ class Dispatcher:
             wait, gap = f"{agent}.{action}.{phase}.{event}", round(-float(dist[at[before[-1]]]) / 1000, 3) + 0.0
         after = f"{human}.{pending[0][0]}.{pending[0][1]}.{pending[0][2]}"
         return Ahead(after, f"{human}.{step[0]}.{step[1]}.{step[2]}", wait, gap)
+
+    def _distances(self, p: int, sources: list[int]) -> np.ndarray | None:
+        """Plan `p`'s network's distances from the nearest of timepoints `sources` (by position) in its STN reading
+        (requirement links, contingent links at their bounds: `_ahead`), by Bellman-Ford; None on a
+        negative cycle."""
+        arcs = self._arcs.get(p)
+        if arcs is None:  # shared by forks: a function of the plan alone; a few hundred plans at most
+            if len(self._arcs) >= 256:
+                self._arcs.clear()
+            a = self.plan_set.form.arrays(p)
+            u = np.concatenate([a.edges[:, 0], a.conts[:, 0], a.conts[:, 1]])
+            v = np.concatenate([a.edges[:, 1], a.conts[:, 1], a.conts[:, 0]])
+            w = np.concatenate([a.edges[:, 2], a.conts[:, 3], -a.conts[:, 2]]).astype(np.float64)
+            by = np.argsort(v, kind="stable")  # arcs grouped by their head: one reduceat per pass
+            heads, starts = np.unique(v[by], return_index=True)
+            arcs = self._arcs[p] = (a.n, u[by], w[by], heads, starts)
+        n, u, w, heads, starts = arcs
+        dist = np.full(n, np.inf)
+        dist[sources] = 0.0
+        for _ in range(n + 1):
+            relaxed = dist.copy()
+            if len(u):
+                relaxed[heads] = np.minimum(dist[heads], np.minimum.reduceat(dist[u] + w, starts))
+            if np.array_equal(relaxed, dist):
+                return dist
+            dist = relaxed
+        return None
 
     def _lead(self, kept: np.ndarray, cls: np.ndarray, previous: _State | None) -> np.ndarray | None:
         """The plan being followed keeps its hold (docs/dispatch.md, "What the robot may assume"): the
@@ -878,7 +895,15 @@ class Dispatcher:
             return step
         form = do.get(index)
         if form is None or (form is not False and not _within(form, done)):
-            form = do[index] = _do_form(entry, done, now, task.preferences)
+            # shared by forks: the same plan from the same events at the same time (each simulated run's
+            # first) has the same DO form; its rows follow `done`'s order, so the key does too
+            key = (index, tuple(done.items()), now)
+            form = self._dos.get(key)
+            if form is None:
+                if len(self._dos) >= 1024:
+                    self._dos.clear()
+                form = self._dos[key] = _do_form(entry, done, now, task.preferences)
+            do[index] = form
         if form is False:
             return step
         events, apsp = form

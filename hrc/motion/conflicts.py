@@ -66,8 +66,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-from scipy.spatial import cKDTree
 
 from hrc.model import Agent, Plan, Task
 from hrc.motion import separation
@@ -209,6 +207,8 @@ def _samples(paths: PathLibrary, path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """Maximal runs ``[i, j]`` of True in a 1-D mask."""
+    from scipy import ndimage  # here: a compile taken from the cache finds no conflict (issue 38)
+
     labels, n = ndimage.label(mask)
     return [(int(idx[0]), int(idx[-1])) for idx in (np.flatnonzero(labels == k) for k in range(1, n + 1))]
 
@@ -228,6 +228,9 @@ def _travel_travel(paths: PathLibrary, rp: Path, hp: Path, reach: float, vr: flo
     hxy, hu = _samples(paths, hp)
     out: list[_Component] = []
     if _boxes_meet(rxy, hxy, reach + STEP):
+        from scipy import ndimage  # here: a compile taken from the cache finds no conflict (issue 38)
+        from scipy.spatial import cKDTree
+
         pairs = cKDTree(rxy).sparse_distance_matrix(cKDTree(hxy), reach + STEP, output_type="ndarray")
         close = pairs[pairs["v"] < reach + STEP]
         if len(close):

@@ -149,7 +149,7 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
     clearance. Raises `UnreachableLocationError` naming agent and locations.
     """
     t0, c0 = time.perf_counter(), time.process_time()
-    world = World(task.workspace)
+    world: World | None = None  # built only to plan (a roadmap from the cache needs none)
     locs = {loc.id: loc.xy for loc in task.workspace.locations}
     wanted: dict[float, list[tuple[str, str]]] = {}  # clearance -> unordered pairs (sorted ids)
     requested = 0
@@ -176,6 +176,7 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
             kept[c], these = found
             cached += 1
         else:
+            world = world or World(task.workspace)
             roadmap = kept[c] = Roadmap.build(world, c, _seed(seed, c))
             routes = roadmap.routes(world, [locs[e] for e in ends])
             these = {}

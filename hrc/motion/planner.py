@@ -38,8 +38,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from hrc.motion.world import World
 
@@ -294,6 +292,9 @@ class Roadmap:
                 rows.append(n + e)
                 cols.append(i)
                 weights.append(max(d, 1e-12))
+        from scipy.sparse import csr_matrix  # here: a roadmap read from the cache is never searched again
+        from scipy.sparse.csgraph import dijkstra
+
         graph = csr_matrix((weights, (rows, cols)), shape=(n + k, n + k))
         dist, pred = dijkstra(graph, directed=False, indices=list(range(n, n + k)), return_predecessors=True)
         out: dict[tuple[int, int], list[Point] | None] = {}

@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING
 
 from hrc.caches import cache_folder, disk_load, disk_store, source_digest
 from hrc.model import Task
-from hrc.report.summary import featured_plans
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -22,7 +21,8 @@ if TYPE_CHECKING:
 
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 
-__all__ = ["Bases", "FigureWork", "draw_figures", "figure_bases", "figure_names", "figure_work"]
+__all__ = ["BASE_KINDS", "Bases", "FigureWork", "copy_cached", "draw_figures", "drawing_digest", "figure_bases",
+           "figure_digests", "figure_names", "figure_work"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +42,8 @@ def figure_work(cps: CompiledPlanSet) -> FigureWork:
     histogram = None
     if cps.summary is not None and cps.total > len(cps.plans):  # a large set: its distribution, not its rows
         histogram = (cps.summary.bins, {st.plan_class: st.histogram for st in cps.summary.stats})
+    from hrc.report.summary import featured_plans  # here: the figure process imports this module early
+
     return FigureWork(cps.task, cps.counts(), histogram, featured_plans(cps))
 
 
@@ -60,13 +62,18 @@ Bases = dict[str, "tuple[Figure, Axes]"]
 and reused for every plan (`draw_figures`, `figure_bases`)."""
 
 
-def figure_bases(task: Task, bases: Bases | None = None) -> Bases:
-    """`bases` (a new dict if None) with every kind of plan figure's base for `task` in it."""
+BASE_KINDS = ("gantt_earliest", "gantt_worst", "map")
+"""The kinds of plan figure, each drawn on its own base (`Bases`)."""
+
+
+def figure_bases(task: Task, bases: Bases | None = None, kinds: tuple[str, ...] = BASE_KINDS) -> Bases:
+    """`bases` (a new dict if None) with the base of each of `kinds` (default: every kind of plan figure)
+    for `task` in it."""
     from hrc.report.gantt import gantt_base
     from hrc.report.maps import map_base
 
     bases = {} if bases is None else bases
-    for kind in ("gantt_earliest", "gantt_worst", "map"):
+    for kind in kinds:
         if kind not in bases:
             bases[kind] = map_base(task) if kind == "map" else gantt_base(task, kind.removeprefix("gantt_"))
     return bases
@@ -90,16 +97,10 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
     fig_dir = Path(out_dir) / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     task = work.task
-    todo: list[tuple[str, str, CompiledPlan | None]] = [("counts", "counts", None)]
-    if work.histogram is not None:
-        todo.append(("makespans", "makespans", None))
-    for which, prefix in (("earliest", "gantt_"), ("worst", "gantt_worst_")):
-        todo += [(f"gantt_{which}", f"{prefix}{cp.plan.id}", cp) for cp in work.featured if cp.classification.schedule]
-    todo += [("map", f"map_{cp.plan.id}", cp) for cp in work.featured]
     k, n = share
     folder = cache_folder("figures")
     mine = []
-    for kind, key, cp in todo[k::n]:
+    for kind, key, cp in _todo(work)[k::n]:
         payload = work.counts if kind == "counts" else work.histogram if kind == "makespans" else (task, cp)
         ckey = _figure_key(kind, payload) if folder is not None else ""
         found = disk_load(folder, ckey)
@@ -127,11 +128,48 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
             artist.remove()
 
 
+def _todo(work: FigureWork) -> list[tuple[str, str, CompiledPlan | None]]:
+    """Every figure of `work` as (kind, name, the plan it shows or None), in drawing order."""
+    todo: list[tuple[str, str, CompiledPlan | None]] = [("counts", "counts", None)]
+    if work.histogram is not None:
+        todo.append(("makespans", "makespans", None))
+    for which, prefix in (("earliest", "gantt_"), ("worst", "gantt_worst_")):
+        todo += [(f"gantt_{which}", f"{prefix}{cp.plan.id}", cp) for cp in work.featured if cp.classification.schedule]
+    todo += [("map", f"map_{cp.plan.id}", cp) for cp in work.featured]
+    return todo
+
+
+def figure_digests(work: FigureWork) -> tuple[tuple[str, str, str], ...]:
+    """Each figure of `work` as (kind, name, the digest of what it shows): with `drawing_digest`, its key in
+    the disk cache (`_figure_key`), computed without matplotlib, so that the figure process can copy
+    every figure from the cache before it has imported what a `FigureWork` is made of (`copy_cached`)."""
+    task = work.task
+    return tuple((kind, key, _content_digest(work.counts if kind == "counts" else work.histogram
+                                             if kind == "makespans" else (task, cp)))
+                 for kind, key, cp in _todo(work))
+
+
+def copy_cached(digests: tuple[tuple[str, str, str], ...], out_dir: Path) -> bool:
+    """Write every figure of `digests` (`figure_digests`) into ``out_dir/figures`` from the disk cache, if
+    all are there (True); else write none (False: they are drawn, `draw_figures`)."""
+    folder = cache_folder("figures")
+    if folder is None:
+        return False
+    found = [disk_load(folder, repr(("figure-1", drawing_digest(), kind, digest))) for kind, _, digest in digests]
+    if not all(isinstance(png, bytes) for png in found):
+        return False
+    fig_dir = Path(out_dir) / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    for (_, key, _), png in zip(digests, found, strict=True):
+        (fig_dir / f"{key}.png").write_bytes(png)
+    return True
+
+
 def _figure_key(kind: str, payload: object) -> str:
     """A figure's key in the disk cache (``figures``): everything its bytes depend on. The report's code,
     matplotlib's and Pillow's versions, matplotlib's settings (``rcParams``, a user's matplotlibrc
     included) and the font it finds, and what the figure shows (`_content_digest`)."""
-    return repr(("figure-1", _drawing_digest(), kind, _content_digest(payload)))
+    return repr(("figure-1", drawing_digest(), kind, _content_digest(payload)))
 
 
 def _content_digest(value: object) -> str:
@@ -152,7 +190,8 @@ _DRAWING_CODE = ("hrc.report.plan_figures", "hrc.report.figures", "hrc.report.ga
 
 
 @functools.cache
-def _drawing_digest() -> str:
+def drawing_digest() -> str:
+    """What every figure's bytes depend on besides what it shows (`_figure_key`); imports matplotlib."""
     import matplotlib
     import PIL
     from matplotlib.font_manager import FontProperties, findfont
