@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hrc.dispatch.protocol import handle_line
-from hrc.temporal.graphml import tool_name
 from hrc.temporal import STNU
+from hrc.temporal.graphml import tool_name
 
 Key = tuple[str, str, str, str]  # (agent, action, phase, event)
 EVENTS = ("depart", "park", "unpark", "arrive", "start", "end")

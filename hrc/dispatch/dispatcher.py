@@ -553,8 +553,9 @@ class Dispatcher:
             do_forms = MappingProxyType(do)
             if self._limits is not None:
                 for r in self._robots:
-                    if isinstance(steps[r], RobotStep):
-                        steps[r] = replace(steps[r], separation=self._limits)
+                    step = steps[r]
+                    if isinstance(step, RobotStep):
+                        steps[r] = replace(step, separation=self._limits)
             robot, human = steps.get(self._robot), steps.get(history.human)
             if not self._team:
                 ahead = self._ahead(entry, best, done, history) if human is None else None
@@ -711,7 +712,7 @@ class Dispatcher:
         if not asks:
             return out
         mode, found = self._windows(entry, index, done, history, _MODES[plan_class], asks, seen, hinted or {})
-        for (slot, agent, action, phase, event, node, _), step in zip(asks, found, strict=True):
+        for (_, agent, action, phase, event, node, _), step in zip(asks, found, strict=True):
             if isinstance(step, tuple):
                 earliest, latest = step
                 step_ = RobotStep(action, phase, event, earliest / 1000,

@@ -177,8 +177,8 @@ class Decision:
         """A team's answer (docs/dispatch.md, "Teams"): each robot's step and each person's hint by id."""
         out: dict[str, Any] = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
                                "candidates": dict(self.candidates),
-                               "robots": {r: None if s is None else s.to_json() for r, s in (self.robots or {}).items()},
-                               "people": {h: None if s is None else s.to_json() for h, s in (self.people or {}).items()},
+                               "robots": {r: _json(s) for r, s in (self.robots or {}).items()},
+                               "people": {h: _json(s) for h, s in (self.people or {}).items()},
                                "human_away": self.human_away, "stopped": self.stopped}
         if self.ack is not None:
             out["ack"] = dict(self.ack)
@@ -192,6 +192,10 @@ class Decision:
         if self.fallback is not None:
             out["fallback"] = self.fallback
         return out
+
+
+def _json(step: RobotStep | WaitFor | None) -> dict[str, Any] | None:
+    return None if step is None else step.to_json()
 
 
 def ack_note(told: RobotStep | WaitFor | None, obs: Observation) -> Mapping[str, Any] | None:
