@@ -25,7 +25,7 @@ from conftest import ROOT
 from dispatch_client import broken_links
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from team_client import TeamRun
+from team_client import TeamRun, timepoint
 from test_team import CROSS, CROSS_MAP, write_task
 
 from hrc.cli import main
@@ -42,6 +42,7 @@ class Team:
         self.task = task
         cps = compile_task(task, seed=0, jobs=1)
         self.stnus = {cp.plan.id: read_graphml(cp.graphml.encode()) for cp in cps.plans}
+        self.plans = {cp.plan.id: cp for cp in cps.plans}
         self.dispatcher = Dispatcher.from_compiled(cps)
         self.robots = tuple(a.id for a in task.agents if not a.is_human)
         self.people = tuple(a.id for a in task.agents if a.is_human)
@@ -101,16 +102,31 @@ def test_two_people_and_a_robot_random_runs(workers: Team, seed: int) -> None:
     _check(workers, workers.run(seed))
 
 
-def test_both_robots_work_in_some_runs_and_the_classes_hold(kitting3: Team) -> None:
-    """Over 20 seeded runs: both robots act in most (the client is not only ever serving one robot), and
-    every run ends on a DC plan (the client keeps to every window and bound)."""
-    both = classes = 0
+def test_both_robots_work_in_some_runs_and_every_agent_keeps_apart(kitting3: Team) -> None:
+    """Over 20 seeded runs: both robots act in most (the client is not only ever serving one robot), every
+    run ends on a DC plan (the client keeps to every window and bound), and in the first 6 of those with both
+    robots, every robot stays ``r_a + r_b + margin`` from every other agent at every instant (each agent
+    moved along its compiled routes at the run's times: tests/referee.py, no conflict model)."""
+    from test_team import _closest
+
+    from hrc.motion.conflicts import floor_pairs
+
+    task = kitting3.task
+    pairs = [(r.id, o.id, r.radius + o.radius + task.safety_margin) for r, o in floor_pairs(task)]
+    both = classes = refereed = 0
     for seed in range(20):
         run = kitting3.run(seed)
         _check(kitting3, run)
-        both += {"robot", "robot2"} <= {k[0] for k in run.times}
-        classes += run.answers[-1]["class"] == "DC"
-    assert classes == 20 and both >= 10
+        two = {"robot", "robot2"} <= {k[0] for k in run.times}
+        both += two
+        last = run.answers[-1]
+        classes += last["class"] == "DC"
+        if two and last["class"] == "DC" and refereed < 6:
+            refereed += 1
+            times = {timepoint(k): t for k, t in run.times.items()}
+            for a, b, reach in pairs:
+                assert _closest(task, kitting3.plans[last["plan"]], times, a, b, "even", dt=0.02) >= reach - 1e-3
+    assert classes == 20 and both >= 10 and refereed == 6
 
 
 # ------------------------------------------------------------------------------ a crossing, by hand

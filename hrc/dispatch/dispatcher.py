@@ -236,12 +236,13 @@ class Dispatcher:
         return tuple(self._candidate(int(at)) for at in self.ranker.order(st.plans, st.cls, st.finish, st.idle,
                                                                             st.lead))
 
-    def human_options(self) -> tuple[HumanOption, ...]:
-        """Leg events the human may report now that the task and some remaining plan allow, in task order
-        (a console's buttons): the next event of the leg under way, or the start of a next leg."""
+    def human_options(self, agent: str | None = None) -> tuple[HumanOption, ...]:
+        """Leg events the human (`agent`, a person of a team; default: the first) may report now that the
+        task and some remaining plan allow, in task order (a console's buttons): the next event of the leg
+        under way, or the start of a next leg."""
         history = self._state.history
-        human = history.human
-        if not human or history.away:
+        human = history.human if agent is None else agent
+        if not human or (history.away and human == history.human):
             return ()
         found: set[tuple[str, str, str]] = set()
         for obs in self._next_events(human, history):
