@@ -216,3 +216,46 @@ def test_hrc_dispatch_refuses_what_is_not_built_for_a_team_in_one_line(option: l
     got, err = capsys.readouterr()
     assert got == "" and err.startswith("error: ") and err.count("\n") == 1
     assert "1 person and 2 robots" in err
+
+
+def test_each_person_has_their_own_buttons_and_only_the_first_may_leave(workers: Team) -> None:
+    """`human_options(agent)`: at the start, each person's departures are exactly for the first actions some
+    compiled plan gives them (read from the plans, not the dispatcher), and their starts those of them the
+    task graph does not hold back. `away` is the first
+    person's only, for now (docs/dispatch.md, "Teams"): another's is refused in one line, changing nothing."""
+    d = workers.dispatcher.fork()
+    task = workers.task
+    for person in workers.people:
+        firsts = {cp.plan.sequence(person)[0] for cp in workers.plans.values() if cp.plan.sequence(person)}
+        waits = {p.after.action for p in task.precedence}  # a start the task graph holds back at the start
+        expected = {(a, task.action(a).phases[0].id, e) for a in firsts for e in ("depart", "start")
+                    if e == "depart" or a not in waits}
+        assert {(o.action, o.phase, o.event) for o in d.human_options(person)} == expected
+    got = json.loads(handle_line(d, json.dumps({"t": 1.0, "agent": "bob", "event": "away"})))
+    assert got == {"t": 1.0, "ok": False, "error": "only the human (alice) can be away or back, not 'bob'"}
+    assert d.accepted == ()
+
+
+def test_hrc_dispatch_resumes_a_team_run_as_it_went(tmp_path: Path) -> None:
+    """A team's run cut after two messages and resumed from its log answers the rest as the whole run did."""
+    out = tmp_path / "cross"
+    assert main(["compile", str(write_task(tmp_path, CROSS, CROSS_MAP)), "--out", str(out), "--no-report",
+                 "-q"]) == 0
+    lines = [json.dumps(m) + "\n" for m in (
+        {"t": 0, "event": "tick"}, {"t": 0.1, "agent": "r1", "action": "east", "phase": "go", "event": "depart"},
+        {"t": 1.3, "agent": "r2", "action": "north", "phase": "go", "event": "depart"},
+        {"t": 1.5, "agent": "human", "action": "tidy", "phase": "do", "event": "depart"},
+        {"t": 8.1, "agent": "r1", "action": "east", "phase": "go", "event": "arrive"})]
+    cmd = [sys.executable, "-m", "hrc", "dispatch", str(out)]
+
+    def run(*args: str, given: list[str]) -> str:
+        done = subprocess.run([*cmd, *args], input="".join(given), capture_output=True, text=True, check=False,
+                              cwd=ROOT)
+        assert done.returncode == 0, done.stderr
+        return done.stdout
+
+    whole = run("--log", str(tmp_path / "whole.log"), given=lines).splitlines()
+    first = run("--log", str(tmp_path / "cut.log"), given=lines[:2]).splitlines()
+    rest = run("--resume", str(tmp_path / "cut.log"), given=lines[2:]).splitlines()
+    assert first + rest == whole and all(json.loads(x)["ok"] for x in whole)
+    assert "robots" in json.loads(whole[-1])
