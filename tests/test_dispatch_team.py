@@ -218,11 +218,11 @@ def test_hrc_dispatch_refuses_what_is_not_built_for_a_team_in_one_line(option: l
     assert "1 person and 2 robots" in err
 
 
-def test_each_person_has_their_own_buttons_and_only_the_first_may_leave(workers: Team) -> None:
+def test_each_person_has_their_own_buttons_and_may_leave(workers: Team) -> None:
     """`human_options(agent)`: at the start, each person's departures are exactly for the first actions some
     compiled plan gives them (read from the plans, not the dispatcher), and their starts those of them the
-    task graph does not hold back. `away` is the first
-    person's only, for now (docs/dispatch.md, "Teams"): another's is refused in one line, changing nothing."""
+    task graph does not hold back. Alice away: the plans left give her nothing more (checked against the
+    compiled plans) and she is told nothing; a person's events are refused in one line while away."""
     d = workers.dispatcher.fork()
     task = workers.task
     for person in workers.people:
@@ -231,9 +231,26 @@ def test_each_person_has_their_own_buttons_and_only_the_first_may_leave(workers:
         expected = {(a, task.action(a).phases[0].id, e) for a in firsts for e in ("depart", "start")
                     if e == "depart" or a not in waits}
         assert {(o.action, o.phase, o.event) for o in d.human_options(person)} == expected
+    got = json.loads(handle_line(d, json.dumps({"t": 0.5, "agent": "alice", "event": "away"})))
+    free = {cp.plan.id for cp in workers.plans.values() if not cp.plan.sequence("alice")}
+    assert got["ok"] is True and got["away"] == ["alice"] and got["people"]["alice"] is None
+    assert got["plan"] in free and sum(got["candidates"].values()) == len(free) > 0
+    assert d.human_options("alice") == () and d.human_options("bob") != ()
+    # bob too: no plan does without him (the load is his and the robot's), so the set stays as it was
     got = json.loads(handle_line(d, json.dumps({"t": 1.0, "agent": "bob", "event": "away"})))
-    assert got == {"t": 1.0, "ok": False, "error": "only the human (alice) can be away or back, not 'bob'"}
-    assert d.accepted == ()
+    assert got["away"] == ["alice", "bob"] and got["people"] == {"alice": None, "bob": None}
+    assert sum(got["candidates"].values()) == len(free)
+    assert json.loads(handle_line(d, json.dumps({"t": 1.2, "agent": "alice", "event": "back"})))["away"] == ["bob"]
+    for message, why in (({"t": 1.5, "agent": "bob", "action": "pick_a", "phase": "fetch", "event": "depart"},
+                          "bob is away: send 'back' before pick_a.fetch depart"),
+                         ({"t": 1.5, "agent": "bob", "event": "away"}, "bob is already away"),
+                         ({"t": 1.5, "agent": "alice", "event": "back"}, "alice is not away"),
+                         ({"t": 1.5, "event": "back"}, "alice is not away"),
+                         ({"t": 1.5, "agent": "robot", "event": "away"},
+                          "only a person (alice, bob) can be away or back, not 'robot'")):
+        assert json.loads(handle_line(d, json.dumps(message))) == {"t": 1.5, "ok": False, "error": why}
+    back = json.loads(handle_line(d, json.dumps({"t": 2.0, "agent": "bob", "event": "back"})))
+    assert back["away"] == [] and sum(back["candidates"].values()) == len(workers.plans)
 
 
 def test_hrc_dispatch_resumes_a_team_run_as_it_went(tmp_path: Path) -> None:

@@ -242,7 +242,7 @@ class Dispatcher:
         under way, or the start of a next leg."""
         history = self._state.history
         human = history.human if agent is None else agent
-        if not human or (history.away and human == history.human):
+        if not human or human in history.absent:
             return ()
         found: set[tuple[str, str, str]] = set()
         for obs in self._next_events(human, history):
@@ -538,11 +538,11 @@ class Dispatcher:
             decision = fallback_decision(history, self._robot, None if previous is None else previous.decision.robot,
                                          counts, ack, deviation)
             if self._team:  # the first robot's fallback; the others wait
-                decision = replace(decision, **self._per_agent({self._robot: decision.robot}, {}))
+                decision = replace(decision, **self._per_agent({self._robot: decision.robot}, {}, history))
             best = -1
         elif at < 0:
             decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack,
-                                deviation=deviation, **self._per_agent({}, {}))
+                                deviation=deviation, **self._per_agent({}, {}, history))
             best = -1
         else:
             best = int(kept[at])
@@ -567,22 +567,23 @@ class Dispatcher:
                           for a in [self._ahead(entry, best, done, history, h)] if a is not None}
                 decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
                                     False, human, ack, deviation, aheads.get(history.human),
-                                    **self._per_agent(steps, aheads))
+                                    **self._per_agent(steps, aheads, history))
         told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told
         hinted = self._told(hinted, history, decision)
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
                       MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,
                       deviation, hinted)
 
-    def _per_agent(self, steps: Mapping[str, RobotStep | WaitFor | None], aheads: Mapping[str, Ahead]
-                   ) -> dict[str, Any]:
+    def _per_agent(self, steps: Mapping[str, RobotStep | WaitFor | None], aheads: Mapping[str, Ahead],
+                   history: History) -> dict[str, Any]:
         """A team's answer per agent (`Decision.robots`, `people`, `aheads`; an agent not in `steps` is told
         nothing); nothing for one person and one robot, whose answer is as it always was."""
         if not self._team:
             return {}
         return {"robots": MappingProxyType({r: steps.get(r) for r in self._robots}),
                 "people": MappingProxyType({h: steps.get(h) for h in self._people}),
-                "aheads": MappingProxyType(dict(aheads))}
+                "aheads": MappingProxyType(dict(aheads)),
+                "away": tuple(h for h in self._people if h in history.absent)}
 
     def _ahead(self, entry: PlanEntry, p: int, done: dict[str, int], history: History,
                person: str | None = None) -> Ahead | None:
@@ -595,7 +596,7 @@ class Dispatcher:
         (no schedule: nothing to promise). `person`: which person (default: the first); in a team the robots'
         events are every robot's, and of several the one that holds the step back by the largest gap."""
         human = history.human if person is None else person
-        if not human or (history.away and human == history.human):
+        if not human or human in history.absent:
             return None
         contingent = entry.stnu.contingent_timepoints
         pending = [(a, ph, e, n) for a, ph in entry.legs.get(human, ())
@@ -680,7 +681,6 @@ class Dispatcher:
         by agent id, robots first; `seen`: the history as the core reads it (`seen_arrays`); `hinted`: what
         the person was told (`_hinted`). No agent goes together with another's own event it must follow
         (every other agent's timepoints are uncontrolled for it)."""
-        human = history.human
         now = ticks(history.now)
         agents = (*self._robots, *self._people)
         out: dict[str, RobotStep | WaitFor | None] = dict.fromkeys(agents)
@@ -701,7 +701,7 @@ class Dispatcher:
                 if held is not None:  # a joint action: its start waits for every agent's observed arrival
                     out[agent] = held
                     continue
-            if nxt is None or nxt[3] in contingent or (agent == human and history.away):
+            if nxt is None or nxt[3] in contingent or agent in history.absent:
                 continue
             action, phase, event, node = nxt
             arrival = self._arrival(entry, index, agent, action, phase, event, node, done, now)
@@ -1025,7 +1025,7 @@ def _within(form: _DOForm, done: dict[str, int]) -> bool:
 def _validated_by(history: History) -> tuple:
     """What set validation reads of a history (`agreeing`): each agent's legs, the announced next
     actions, whether the human is away."""
-    return (tuple(history.legs.items()), tuple(sorted(history.announced.items())), history.away)
+    return (tuple(history.legs.items()), tuple(sorted(history.announced.items())), history.absent)
 
 
 def _seen_after(state: _State, history: History, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
@@ -1054,7 +1054,7 @@ def _human(task: Task) -> str:
 def _present(history: History) -> History:
     from dataclasses import replace
 
-    return replace(history, away=False)
+    return replace(history, away=False, gone=frozenset())
 
 
 def _describe(obs: Observation) -> str:

@@ -141,7 +141,8 @@ class Decision:
     A team (issue 37: other than one person and one robot) is answered per agent: `robots` names each
     robot's next step by its id, `people` each person's hint, `aheads` the instruction ahead of each person
     under way; `robot`, `human` and `ahead` are then the first robot's and the first person's (what the
-    sensing paths read). For one person and one robot the three are None and the JSON is as it always was."""
+    sensing paths read); `away` names the people away (`human_away`: some person is). For one person and
+    one robot the three are None and the JSON is as it always was."""
 
     t: float
     plan: str | None
@@ -158,6 +159,7 @@ class Decision:
     robots: Mapping[str, RobotStep | WaitFor | None] | None = None
     people: Mapping[str, RobotStep | WaitFor | None] | None = None
     aheads: Mapping[str, Ahead] | None = None
+    away: tuple[str, ...] = ()  # a team's: the people away, in task order
 
     def to_json(self) -> dict[str, Any]:
         if self.robots is not None:
@@ -179,7 +181,7 @@ class Decision:
                                "candidates": dict(self.candidates),
                                "robots": {r: _json(s) for r, s in (self.robots or {}).items()},
                                "people": {h: _json(s) for h, s in (self.people or {}).items()},
-                               "human_away": self.human_away, "stopped": self.stopped}
+                               "away": list(self.away), "stopped": self.stopped}
         if self.ack is not None:
             out["ack"] = dict(self.ack)
         if self.aheads:
