@@ -7,6 +7,8 @@ input exits 0. ``--log FILE`` writes every message to a new log before it counts
 ``--resume LOG`` rebuilds a crashed run from its log and goes on appending to it; ``--replay LOG``
 re-runs a log and prints the same answers, exit 1 if one differs from the logged one. ``--record
 FILE`` writes the run (the resumed or replayed one too) as an MCAP file for Foxglove (docs/record.md).
+Any team is served (issue 37): a task of other than one person and one robot is answered per agent
+(``"robots": {ID: step}``, ``"people": {ID: hint}``), without ``--record`` or ``--detect motion`` yet.
 See docs/dispatch.md.
 """
 
