@@ -13,7 +13,9 @@ task allows and goes at once, a robot that acts inside every window). Every answ
 ``--clock`` (``cpu``: the process's CPU time, all threads, which a loaded machine disturbs far less than
 wall time; ``wall``). The table gives medians over the repeats of: load time and peak memory, the
 per-message median, p99 and max, and the first message of a run after its opening tick (the human's
-first choice: the most candidates re-ranked).
+first choice: the most candidates re-ranked). A team's task (other than one person and one robot, issue
+37: tasks/kitting_2robots.yaml) is played by tests/team_client.py instead: every person and every robot,
+times drawn inside the windows, nature's durations inside the plan's contingent links.
 
 Beside it, in the same process and on the same histories, the peer: the dispatcher by its definitions
 (tests/reference_dispatch.py: the GraphML files read into objects, every candidate re-checked from its
@@ -81,7 +83,10 @@ def worker(folder: str, runs: int, clock_name: str, threads: int | None, prefere
             sent.append(line)
             return answer
 
-        Run(base.plan_set, send, seed, human_choice="random", timing="eager").play()
+        if sorted(a.kind.value for a in base.task.agents) == ["human", "robot"]:
+            Run(base.plan_set, send, seed, human_choice="random", timing="eager").play()
+        else:
+            _team_run(base, d, send, seed)
         firsts.append(mine[1])  # mine[0] is the opening tick (nothing seen: nothing to re-check)
         times += mine
         lines.append(sent)
@@ -107,6 +112,30 @@ def worker(folder: str, runs: int, clock_name: str, threads: int | None, prefere
             ref_times += mine
         out["reference"] = {"load": ref_load, **_stats(ref_times, ref_firsts)}
     return out
+
+
+def _team_run(base, d, send, seed: int) -> None:  # noqa: ANN001 - the worker's own objects
+    """One random run of a team (tests/team_client.py), every answer through `send` (timed)."""
+    import random
+
+    from team_client import TeamRun
+
+    class _STNUs(dict):
+        def __missing__(self, plan: str):  # noqa: ANN204 - the plan's STNU, read when an answer names it
+            self[plan] = base.plan_set.entry(base.plan_set.index(plan)).stnu
+            return self[plan]
+
+    class _Timed(TeamRun):
+        def send(self, message):  # noqa: ANN001, ANN202
+            line = json.dumps(message)
+            self.sent.append(line)
+            out = json.loads(send(line))
+            self.answers.append(out)
+            return out
+
+    agents = base.task.agents
+    _Timed(d, _STNUs(), tuple(a.id for a in agents if not a.is_human), tuple(a.id for a in agents if a.is_human),
+           random.Random(seed)).play()
 
 
 def _compile(task: str, cache: Path) -> Path:

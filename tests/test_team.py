@@ -406,7 +406,7 @@ def test_a_joint_action_of_people_alone_is_refused_in_one_line(tmp_path: Path, c
 
 
 # ------------------------------------------------------------------------------ the online side refuses
-@pytest.mark.parametrize("command", ["dispatch", "console", "ros2", "detect"])
+@pytest.mark.parametrize("command", ["console", "ros2", "detect"])  # dispatch serves teams: test_dispatch_team
 def test_online_commands_refuse_a_team_folder_in_one_line(command: str, tmp_path: Path, capsys) -> None:
     out = tmp_path / "cross"
     task = write_task(tmp_path, CROSS, CROSS_MAP)

@@ -7,6 +7,8 @@ input exits 0. ``--log FILE`` writes every message to a new log before it counts
 ``--resume LOG`` rebuilds a crashed run from its log and goes on appending to it; ``--replay LOG``
 re-runs a log and prints the same answers, exit 1 if one differs from the logged one. ``--record
 FILE`` writes the run (the resumed or replayed one too) as an MCAP file for Foxglove (docs/record.md).
+Any team is served (issue 37): a task of other than one person and one robot is answered per agent
+(``"robots": {ID: step}``, ``"people": {ID: hint}``), without ``--record`` or ``--detect motion`` yet.
 See docs/dispatch.md.
 """
 
@@ -69,8 +71,9 @@ def run(args: argparse.Namespace) -> int:
     if len(given) > 1:
         print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
         return 2
-    if refuse_team("dispatch", args.out_dir):
-        return 2
+    if (args.record or getattr(args, "detect", None) == "motion") and \
+            refuse_team("dispatch --record or --detect motion", args.out_dir):
+        return 2  # a team is dispatched (issue 37); its recording and motion detector are not built yet
     dispatcher = open_dispatcher(args, "dispatch")
     if dispatcher is None:
         return 2

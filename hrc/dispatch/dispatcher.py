@@ -128,11 +128,18 @@ class Dispatcher:
         self.max_observation_delay = max_observation_delay
         self.ranker = ranker if ranker is not None and ranker.plan_set is plan_set else Ranker(plan_set, threads)
         self.routes = RouteIndex(plan_set.form)  # shared by forks: a function of the plans alone
-        self._robot = next((a.id for a in plan_set.task.agents if not a.is_human), "")
+        agents = plan_set.task.agents
+        self._robot = next((a.id for a in agents if not a.is_human), "")  # the first robot (and person, below)
+        # the team (issue 37): every robot is told its next step and every person their hint, robots first;
+        # a team other than one of each is answered per agent (`Decision.robots`, `Decision.people`)
+        self._robots = tuple(a.id for a in agents if not a.is_human)
+        self._people = tuple(a.id for a in agents if a.is_human)
+        self._team = (len(self._robots), len(self._people)) != (1, 1)
         # joint actions (issue 37): action -> its agents; empty for a task without
         self._joint = MappingProxyType({a.id: a.agents for a in plan_set.task.actions if a.joint})
         self._human_g = next((g for g, a in enumerate(plan_set.task.agents) if a.is_human), -1)
-        self._nodes: dict[int, tuple[frozenset[str], frozenset[str]]] = {}  # plan -> human's, robot's timepoints
+        self._people_g = [g for g, a in enumerate(agents) if a.is_human]
+        self._nodes: dict[int, dict[str, frozenset[str]]] = {}  # plan -> agent -> every other agent's timepoints
         self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
         self._dists: dict[tuple[int, tuple[str, ...]], np.ndarray | None] = {}  # (plan, steps) -> distances (`_ahead`)
         self._dos: dict[tuple, Any] = {}  # (plan, what happened, now) -> its DO form (`_preferred`)
@@ -231,12 +238,13 @@ class Dispatcher:
         return tuple(self._candidate(int(at)) for at in self.ranker.order(st.plans, st.cls, st.finish, st.idle,
                                                                             st.lead))
 
-    def human_options(self) -> tuple[HumanOption, ...]:
-        """Leg events the human may report now that the task and some remaining plan allow, in task order
-        (a console's buttons): the next event of the leg under way, or the start of a next leg."""
+    def human_options(self, agent: str | None = None) -> tuple[HumanOption, ...]:
+        """Leg events the human (`agent`, a person of a team; default: the first) may report now that the
+        task and some remaining plan allow, in task order (a console's buttons): the next event of the leg
+        under way, or the start of a next leg."""
         history = self._state.history
-        human = history.human
-        if not human or history.away:
+        human = history.human if agent is None else agent
+        if not human or human in history.absent:
             return ()
         found: set[tuple[str, str, str]] = set()
         for obs in self._next_events(human, history):
@@ -308,8 +316,10 @@ class Dispatcher:
             told, changed = self._tell_route(state, history, obs)
             if changed or kept is not state.plans:
                 kept = self._on_routes(kept, history, told)
-        robot = self._robot
-        ack = ack_note(state.decision.robot, obs) if obs.agent == robot and obs.event in LEG_EVENTS else None
+        ack = None
+        if obs.agent in self._robots and obs.event in LEG_EVENTS:  # what this robot was told
+            ack = ack_note(state.decision.robot if not self._team else (state.decision.robots or {}).get(obs.agent),
+                           obs)
         deviation = self._late(obs)
         hinted = self._hinted(state, obs)
         self._state = self._settle(history, (*state.accepted, obs), (*state.effective, obs), kept, state.do_forms,
@@ -489,10 +499,9 @@ class Dispatcher:
         if obs.t < state.history.now:
             raise DispatchError(f"time goes backwards: t = {obs.t:g} s is before the last message "
                                 f"({state.history.now:g} s)")
-        human = state.history.human
         last = next((k for k in range(len(state.effective) - 1, -1, -1) if state.effective[k].event != "tick"),
                     None)  # the last observation that is not a tick: only ticks may follow the one withdrawn
-        if last is None or state.effective[last].agent not in (human, None):
+        if last is None or state.effective[last].agent not in (*self._people, None):
             raise DispatchError("nothing to undo: the last observation is not the human's")
         target = state.effective[last]
         if obs.t - target.t > UNDO_SECONDS:
@@ -545,40 +554,66 @@ class Dispatcher:
         if at < 0 and self.fallback and not self.feasible_only:  # no plan agrees: compile on demand
             decision = fallback_decision(history, self._robot, None if previous is None else previous.decision.robot,
                                          counts, ack, deviation)
+            if self._team:  # the first robot's fallback; the others wait
+                decision = replace(decision, **self._per_agent({self._robot: decision.robot}, {}, history))
             best = -1
         elif at < 0:
             decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack,
-                                deviation=deviation)
+                                deviation=deviation, **self._per_agent({}, {}, history))
             best = -1
         else:
             best = int(kept[at])
             plan_class = CLASS_ORDER[int(cls[at])]
             entry = self.plan_set.entry(best)
             do = dict(do_forms)
-            done = executed(entry, history)  # read, never changed, by both
-            robot, human = self._steps(entry, done, history, plan_class, best, do, (seen, legs_seen), hinted)
+            done = executed(entry, history)
+            steps = self._steps(entry, done, history, plan_class, best, do, (seen, legs_seen), hinted)
             do_forms = MappingProxyType(do)
-            ahead = self._ahead(entry, best, done, history) if human is None else None
-            if self._limits is not None and isinstance(robot, RobotStep):
-                robot = replace(robot, separation=self._limits)
-            decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
-                                False, human, ack, deviation, ahead)
+            if self._limits is not None:
+                for r in self._robots:
+                    step = steps[r]
+                    if isinstance(step, RobotStep):
+                        steps[r] = replace(step, separation=self._limits)
+            robot, human = steps.get(self._robot), steps.get(history.human)
+            if not self._team:
+                ahead = self._ahead(entry, best, done, history) if human is None else None
+                decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
+                                    False, human, ack, deviation, ahead)
+            else:  # each person under way is told their step ahead
+                aheads = {h: a for h in self._people if steps[h] is None
+                          for a in [self._ahead(entry, best, done, history, h)] if a is not None}
+                decision = Decision(history.now, entry.id, plan_class, MappingProxyType(counts), robot, history.away,
+                                    False, human, ack, deviation, aheads.get(history.human),
+                                    **self._per_agent(steps, aheads, history))
         told = (previous.told if previous is not None else MappingProxyType({})) if told is None else told
         hinted = self._told(hinted, history, decision)
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
                       MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,
                       deviation, hinted)
 
-    def _ahead(self, entry: PlanEntry, p: int, done: dict[str, int], history: History) -> Ahead | None:
+    def _per_agent(self, steps: Mapping[str, RobotStep | WaitFor | None], aheads: Mapping[str, Ahead],
+                   history: History) -> dict[str, Any]:
+        """A team's answer per agent (`Decision.robots`, `people`, `aheads`; an agent not in `steps` is told
+        nothing); nothing for one person and one robot, whose answer is as it always was."""
+        if not self._team:
+            return {}
+        return {"robots": MappingProxyType({r: steps.get(r) for r in self._robots}),
+                "people": MappingProxyType({h: steps.get(h) for h in self._people}),
+                "aheads": MappingProxyType(dict(aheads)),
+                "away": tuple(h for h in self._people if h in history.absent)}
+
+    def _ahead(self, entry: PlanEntry, p: int, done: dict[str, int], history: History,
+               person: str | None = None) -> Ahead | None:
         """The person's instruction ahead (`Ahead`), while their next event in the plan is nature's (a walk
         or a manipulation under way): their next own step after it, and the robot's last event not yet
         done that the plan's network orders no later than that step (a distance ``T(x) - T(step) <= -gap <= 0``
         in its STN reading: requirement links, contingent links at their bounds, by Bellman-Ford from
         the step); when there is none, the robot's event already done that holds the step back latest, if
         that is after now. None when the person is not under way, away, done, or the network has a negative cycle
-        (no schedule: nothing to promise)."""
-        human = history.human
-        if not human or history.away:
+        (no schedule: nothing to promise). `person`: which person (default: the first); in a team the robots'
+        events are every robot's, and of several the one that holds the step back by the largest gap."""
+        human = history.human if person is None else person
+        if not human or human in history.absent:
             return None
         contingent = entry.stnu.contingent_timepoints
         pending = [(a, ph, e, n) for a, ph in entry.legs.get(human, ())
@@ -616,16 +651,17 @@ class Dispatcher:
             dist = self._dists[key] = self._distances(p, [at[x[3]] for x in sources])
         if dist is None:
             return None
-        robot = self._robot
-        order = [(k, e, n) for k, (a, ph) in enumerate(entry.legs.get(robot, ()))
+        order = [(k, e, n) for robot in self._robots for k, (a, ph) in enumerate(entry.legs.get(robot, ()))
                  for e, (_, n) in enumerate(entry.leg_points[(robot, a, ph)]) if n not in done]
         before = [n for _, _, n in order if dist[at[n]] <= 0]
+        if len(self._robots) > 1 and before:  # several robots: the one that holds the step back longest
+            before = [min(before, key=lambda n: float(dist[at[n]]))]
         if not before:
             # a robot event already done may still hold the step back: ``T(step) >= T(x) + gap`` after now
             # (issue 32: once the robot had left, "wait 4 s after its departure" fell from the instruction and
             # the person, told nothing, left at once, breaking the passing order)
             now = ticks(history.now)
-            bound = [(done[n] - float(dist[at[n]]), n) for a, ph in entry.legs.get(robot, ())
+            bound = [(done[n] - float(dist[at[n]]), n) for robot in self._robots for a, ph in entry.legs.get(robot, ())
                      for _, n in entry.leg_points[(robot, a, ph)] if n in done and dist[at[n]] <= 0]
             bound = [b for b in bound if b[0] > now]
             if bound:
@@ -675,7 +711,11 @@ class Dispatcher:
         if previous is None or previous.best < 0 or g < 0 or not len(kept):
             return None
         seq = self.plan_set.form.seq
-        same = np.all(seq[kept, g] == seq[previous.best, g], axis=1)
+        if len(self._people_g) > 1:  # every person's part
+            gs = self._people_g
+            same = np.all((seq[kept][:, gs] == seq[previous.best, gs]).reshape(len(kept), -1), axis=1)
+        else:
+            same = np.all(seq[kept, g] == seq[previous.best, g], axis=1)
         dc = cls == 0
         if not (same & dc).any() or not (dc & ~same).any():
             return None
@@ -684,57 +724,57 @@ class Dispatcher:
     def _steps(self, entry: PlanEntry, done: dict[str, int], history: History, plan_class: str,
                index: int, do: dict[int, Any], seen: tuple[np.ndarray, np.ndarray],
                hinted: Mapping[tuple[str, str, str, str], tuple[int, int]] | None = None
-               ) -> tuple[RobotStep | WaitFor | None, RobotStep | WaitFor | None]:
-        """The robot's next step in `entry` (module docstring) and the human's hint (`Decision.human`);
-        `seen`: the history as the core reads it (`seen_arrays`); `hinted`: what the person was told
-        (`_hinted`)."""
-        robot = self._robot
-        human = history.human
+               ) -> dict[str, RobotStep | WaitFor | None]:
+        """Each robot's next step in `entry` (module docstring) and each person's hint (`Decision.human`),
+        by agent id, robots first; `seen`: the history as the core reads it (`seen_arrays`); `hinted`: what
+        the person was told (`_hinted`). No agent goes together with another's own event it must follow
+        (every other agent's timepoints are uncontrolled for it)."""
         now = ticks(history.now)
-        out: list[RobotStep | WaitFor | None] = [None, None]
+        agents = (*self._robots, *self._people)
+        out: dict[str, RobotStep | WaitFor | None] = dict.fromkeys(agents)
         contingent = entry.stnu.contingent_timepoints
         nodes = self._nodes.get(index)
         if nodes is None:  # shared by forks: a function of the plan alone; a few hundred plans at most
             if len(self._nodes) >= 256:
                 self._nodes.clear()
-            human_nodes = frozenset(n for n, ev in entry.events.items() if ev[0] == human)
-            nodes = self._nodes[index] = (human_nodes, frozenset(entry.events) - human_nodes)
-        human_nodes, robot_nodes = nodes
+            every = frozenset(entry.events)
+            nodes = self._nodes[index] = {a: every - frozenset(n for n, ev in entry.events.items() if ev[0] == a)
+                                          for a in agents}
         asks: list[tuple[int, str, str, str, str, str, frozenset[str]]] = []
-        for slot, (agent, other_nodes) in enumerate(((robot, human_nodes), (human, robot_nodes))):
+        for slot, agent in enumerate(agents):
             nxt = next(((action, phase, event, node) for action, phase in entry.legs.get(agent, ())
                         for event, node in entry.leg_points[(agent, action, phase)] if node not in done), None)
             if nxt is not None and self._joint and nxt[0] in self._joint:
                 held = self._joint_hold(entry, agent, nxt, done)
                 if held is not None:  # a joint action: its start waits for every agent's observed arrival
-                    out[slot] = held
+                    out[agent] = held
                     continue
-            if nxt is None or nxt[3] in contingent or (agent == human and history.away):
+            if nxt is None or nxt[3] in contingent or agent in history.absent:
                 continue
             action, phase, event, node = nxt
             arrival = self._arrival(entry, index, agent, action, phase, event, node, done, now)
             if arrival is not None:  # under way: it gets there when its drive says
-                out[slot] = arrival
+                out[agent] = arrival
                 continue
-            uncontrolled = frozenset(n for n in other_nodes if n not in done and n not in contingent)
+            uncontrolled = frozenset(n for n in nodes[agent] if n not in done and n not in contingent)
             asks.append((slot, agent, action, phase, event, node, uncontrolled))
         if not asks:
-            return out[0], out[1]
+            return out
         mode, found = self._windows(entry, index, done, history, _MODES[plan_class], asks, seen, hinted or {})
         found = self._unlock(entry, index, done, history, mode, asks, found, seen, hinted or {})
-        for (slot, agent, action, phase, event, node, _), step in zip(asks, found, strict=True):
+        for (_, agent, action, phase, event, node, _), step in zip(asks, found, strict=True):
             if isinstance(step, tuple):
                 earliest, latest = step
                 step_ = RobotStep(action, phase, event, earliest / 1000,
                                   None if latest is None or mode is ExecutionMode.EARLIEST else latest / 1000)
-                if agent == robot and mode is not ExecutionMode.EARLIEST and self.use_preferences:
+                if agent in self._robots and mode is not ExecutionMode.EARLIEST and self.use_preferences:
                     step_ = self._preferred(entry, index, do, done, now, node, step_)
-                out[slot] = step_
+                out[agent] = step_
                 continue
             waits = sorted(step, key=lambda n: (entry.events.get(n, ("",))[0] == agent, n))
             w_agent, w_action, w_phase, w_event = entry.events.get(waits[0], ("", "", "", waits[0]))
-            out[slot] = WaitFor(w_agent, w_action, w_phase, w_event)
-        return out[0], out[1]
+            out[agent] = WaitFor(w_agent, w_action, w_phase, w_event)
+        return out
 
     def _unlock(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
                 asks: list[tuple[int, str, str, str, str, str, frozenset[str]]],
@@ -752,7 +792,8 @@ class Dispatcher:
         if len(asks) != 2 or not isinstance(found[0], list) or not isinstance(found[1], list):
             return found
         robot, human = asks
-        if robot[0] != 0 or robot[5] not in found[1] or human[5] not in found[0]:
+        if robot[1] not in self._robots or human[1] not in self._people or robot[5] not in found[1] or \
+                human[5] not in found[0]:
             return found
         freed = (*robot[:6], robot[6] - {human[5]})
         _, again = self._windows(entry, p, done, history, mode, [freed], seen, hinted)
@@ -1074,7 +1115,7 @@ def _within(form: _DOForm, done: dict[str, int]) -> bool:
 def _validated_by(history: History) -> tuple:
     """What set validation reads of a history (`agreeing`): each agent's legs, the announced next
     actions, whether the human is away."""
-    return (tuple(history.legs.items()), tuple(sorted(history.announced.items())), history.away)
+    return (tuple(history.legs.items()), tuple(sorted(history.announced.items())), history.absent)
 
 
 def _seen_after(state: _State, history: History, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
@@ -1103,7 +1144,7 @@ def _human(task: Task) -> str:
 def _present(history: History) -> History:
     from dataclasses import replace
 
-    return replace(history, away=False)
+    return replace(history, away=False, gone=frozenset())
 
 
 def _describe(obs: Observation) -> str:

@@ -136,7 +136,13 @@ class Decision:
     the one under way (`Ahead`), so that they know it before it is due. `fallback`: no plan agrees with
     what was seen (the person left every compiled plan) and the robot's step is the safe fallback
     (`hrc.dispatch.fallback`): ``"continue"`` its leg under way, or ``"wait"`` (robot None) while plans that
-    extend the history are compiled (`hrc.dispatch.on_demand`)."""
+    extend the history are compiled (`hrc.dispatch.on_demand`).
+
+    A team (issue 37: other than one person and one robot) is answered per agent: `robots` names each
+    robot's next step by its id, `people` each person's hint, `aheads` the instruction ahead of each person
+    under way; `robot`, `human` and `ahead` are then the first robot's and the first person's (what the
+    sensing paths read); `away` names the people away (`human_away`: some person is). For one person and
+    one robot the three are None and the JSON is as it always was."""
 
     t: float
     plan: str | None
@@ -150,8 +156,14 @@ class Decision:
     deviation: Mapping[str, Any] | None = None
     ahead: Ahead | None = None
     fallback: str | None = None
+    robots: Mapping[str, RobotStep | WaitFor | None] | None = None
+    people: Mapping[str, RobotStep | WaitFor | None] | None = None
+    aheads: Mapping[str, Ahead] | None = None
+    away: tuple[str, ...] = ()  # a team's: the people away, in task order
 
     def to_json(self) -> dict[str, Any]:
+        if self.robots is not None:
+            return self._team_json()
         out = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
                "candidates": dict(self.candidates),
                "robot": None if self.robot is None else self.robot.to_json(),
@@ -161,11 +173,31 @@ class Decision:
             out["ack"] = dict(self.ack)
         if self.ahead is not None:
             out["ahead"] = self.ahead.to_json()
+        return self._tail(out)
+
+    def _team_json(self) -> dict[str, Any]:
+        """A team's answer (docs/dispatch.md, "Teams"): each robot's step and each person's hint by id."""
+        out: dict[str, Any] = {"t": self.t, "ok": True, "plan": self.plan, "class": self.plan_class,
+                               "candidates": dict(self.candidates),
+                               "robots": {r: _json(s) for r, s in (self.robots or {}).items()},
+                               "people": {h: _json(s) for h, s in (self.people or {}).items()},
+                               "away": list(self.away), "stopped": self.stopped}
+        if self.ack is not None:
+            out["ack"] = dict(self.ack)
+        if self.aheads:
+            out["ahead"] = {h: a.to_json() for h, a in self.aheads.items()}
+        return self._tail(out)
+
+    def _tail(self, out: dict[str, Any]) -> dict[str, Any]:
         if self.deviation is not None:
             out["deviation"] = {k: dict(v) if isinstance(v, Mapping) else v for k, v in self.deviation.items()}
         if self.fallback is not None:
             out["fallback"] = self.fallback
         return out
+
+
+def _json(step: RobotStep | WaitFor | None) -> dict[str, Any] | None:
+    return None if step is None else step.to_json()
 
 
 def ack_note(told: RobotStep | WaitFor | None, obs: Observation) -> Mapping[str, Any] | None:

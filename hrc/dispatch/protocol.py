@@ -148,6 +148,9 @@ def log_header(dispatcher: Dispatcher, version: int) -> dict[str, Any]:
     # compiled digest alone depends on the compile too); a replay checks "compiled" only
     header = {"hrc_dispatch_log": version, "compiled": _digest(dispatcher), "plans": len(dispatcher.plan_set),
               "task": task_digest(dispatcher.plan_set.task)}
+    team = _team(dispatcher)
+    if team is not None:  # a team other than one person and one robot (issue 37): who is who, in task order
+        header["team"] = team
     detect = _detect(dispatcher)
     if detect is not None:  # a run with a detector in front replays only with the same detector
         header["detect"] = detect
@@ -157,6 +160,14 @@ def log_header(dispatcher: Dispatcher, version: int) -> dict[str, Any]:
     if on_demand is not None:  # and one that compiles on demand only so (`hrc.dispatch.on_demand`)
         header["on_demand"] = on_demand
     return header
+
+
+def _team(dispatcher: Dispatcher) -> dict[str, str] | None:
+    """The task's agents and their kinds (``{"human": "human", "robot": "robot", "robot2": "robot"}``), for a
+    team other than one person and one robot; None for those (their log header is as it always was)."""
+    kinds = {a.id: a.kind.value for a in dispatcher.plan_set.task.agents}
+    values = list(kinds.values())
+    return None if sorted(values) == ["human", "robot"] else kinds
 
 
 def _on_demand(dispatcher: Dispatcher) -> dict[str, Any] | None:
@@ -175,6 +186,9 @@ def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> No
     if contents.header.get("compiled") != digest:
         raise HrcError(f"{path}: the log was written for another compiled plan set "
                        f"(compiled {contents.header.get('compiled')!r}, this folder {digest!r})")
+    if contents.header.get("team") != _team(dispatcher):
+        raise HrcError(f"{path}: the log was written for another team (the log: {contents.header.get('team')}; "
+                       f"this folder: {_team(dispatcher)})")
     if contents.header.get("detect") != _detect(dispatcher):
         raise HrcError(f"{path}: the log was written with other detector settings (the log: "
                        f"{contents.header.get('detect') or 'buttons'}; now: {_detect(dispatcher) or 'buttons'}): "

@@ -1,13 +1,13 @@
 """Set validation (Strassmair & Taylor 2014, section V.B): what was seen, and which plans still agree.
 
 `History` is what the dispatcher has accepted so far: each agent's legs in the order they were seen,
-the time of every reported event, the legs ended, the human's announced next action, whether the human
-is away. `History.add` checks an observation against the *task* (known names, time never going
-backwards, no duplicate, an agent's events in order, no end without a start, one leg at a time, an
-action's phases in order, the task graph's precedence) and raises `DispatchError` with a one-line reason
-otherwise, changing nothing. `agrees` checks it against one *plan*: a plan stays a candidate exactly
-while its allocation and each agent's order of legs extend what was seen (and, when the human is away,
-it gives the robot every action the human has not started). Timing never drops a plan: a plan whose
+the time of every reported event, the legs ended, the announced next actions, which people are away
+(`gone`; `away`: some person is). `History.add` checks an observation against the *task* (known names,
+time never going backwards, no duplicate, an agent's events in order, no end without a start, one leg at
+a time, an action's phases in order, the task graph's precedence) and raises `DispatchError` with a
+one-line reason otherwise, changing nothing. `agrees` checks it against one *plan*: a plan stays a
+candidate exactly while its allocation and each agent's order of legs extend what was seen (and, while
+people are away, it gives them nothing they have not started). Timing never drops a plan: a plan whose
 timing history broke is still an instruction for finishing the task (section V.B); ranking deals with it.
 
 `agreeing` is set validation by index: which plans of a pool agree with the history, from the dispatch
@@ -81,12 +81,19 @@ class History:
     ended: frozenset[tuple[str, str]] = frozenset()
     doer: Mapping[str, str] = field(default_factory=lambda: _EMPTY)  # action -> agent that began it
     announced: Mapping[str, str] = field(default_factory=lambda: _EMPTY)  # agent -> next action
-    away: bool = False
+    away: bool = False  # some person is away: the one person of a task of one
+    gone: frozenset[str] = frozenset()  # the people away (issue 37: any person of a team)
 
     @classmethod
     def start(cls, task: Task) -> History:
         human = next((a.id for a in task.agents if a.is_human), "")
         return cls(task, human, legs=MappingProxyType({a.id: () for a in task.agents}))
+
+    @property
+    def absent(self) -> frozenset[str]:
+        """The people away (`gone`), none when `away` is off (a copy read as everyone present:
+        ``replace(history, away=False)``)."""
+        return self.gone if self.away else frozenset()
 
     def current(self, agent: str) -> tuple[str, str] | None:
         """The leg `agent` is on (seen, not ended), or None."""
@@ -115,13 +122,19 @@ class History:
         if obs.event == "tick":
             return replace(self, now=obs.t)
         if obs.event in ("away", "back"):
-            if obs.agent is not None and obs.agent != self.human:
-                raise DispatchError(f"only the human ({self.human}) can be away or back, not {obs.agent!r}")
-            if obs.event == "away" and self.away:
-                raise DispatchError("the human is already away")
-            if obs.event == "back" and not self.away:
-                raise DispatchError("the human is not away")
-            return replace(self, now=obs.t, away=obs.event == "away")
+            people = [a.id for a in self.task.agents if a.is_human]
+            who = self.human if obs.agent is None else obs.agent
+            if who not in people:
+                if len(people) <= 1:
+                    raise DispatchError(f"only the human ({self.human}) can be away or back, not {obs.agent!r}")
+                raise DispatchError(f"only a person ({', '.join(people)}) can be away or back, not {obs.agent!r}")
+            name = "the human" if len(people) == 1 else who
+            if obs.event == "away" and who in self.gone:
+                raise DispatchError(f"{name} is already away")
+            if obs.event == "back" and who not in self.gone:
+                raise DispatchError(f"{name} is not away")
+            gone = self.gone | {who} if obs.event == "away" else self.gone - {who}
+            return replace(self, now=obs.t, away=bool(gone), gone=gone)
         return self._leg_event(obs)
 
     def _leg_event(self, obs: Observation) -> History:
@@ -137,8 +150,9 @@ class History:
             raise DispatchError(f"action {action!r} has no phase {phase!r} (phases: {', '.join(phases)})")
         if agent not in act.agents:
             raise DispatchError(f"{agent} cannot do {action} (the task gives it to {', '.join(act.agents)})")
-        if agent == self.human and self.away:
-            raise DispatchError(f"the human is away: send 'back' before {action}.{phase} {event}")
+        if agent in self.absent:
+            who = "the human" if sum(a.is_human for a in task.agents) == 1 else agent
+            raise DispatchError(f"{who} is away: send 'back' before {action}.{phase} {event}")
         what = f"{agent} {action}.{phase} {event}"
         if obs.key in self.times:
             raise DispatchError(f"duplicate: {what} was seen at {self.times[obs.key]:g} s")
@@ -204,9 +218,7 @@ def agrees(entry: PlanEntry, history: History) -> bool:
         rest = [a for a in entry.plan.sequence(agent) if a not in seen_actions]
         if not rest or rest[0] != nxt:
             return False
-    if history.away and history.human:
-        return len(entry.plan.sequence(history.human)) == len(history.actions_seen(history.human))
-    return True
+    return all(len(entry.plan.sequence(p)) == len(history.actions_seen(p)) for p in history.absent)
 
 
 def executed(entry: PlanEntry, history: History) -> dict[str, int]:
@@ -248,7 +260,7 @@ def agreeing(form: DispatchForm, history: History, pool: np.ndarray) -> np.ndarr
         nxt = history.announced.get(agent)
         if nxt is not None:
             keep &= form.seq[pool, g, len(seen)] == action_index[nxt] if len(seen) < A else False
-        if history.away and agent == history.human and len(seen) < A:
+        if agent in history.absent and len(seen) < A:
             keep &= form.seq[pool, g, len(seen)] < 0  # the robot does every action the human has not begun
     return pool[keep]
 
