@@ -88,9 +88,7 @@ def code_digest() -> str:
     outputs): the key part of a cached value computed by much of the package at once (a whole compile's
     plans, `hrc.compile.stream`), so that any change of code, on any branch, is a miss. Computed once per
     process (a few tens of ms)."""
-    import hrc
-
-    root = Path(hrc.__file__).resolve().parent
+    root = Path(__file__).resolve().parent  # the package's folder (this module is at its top)
     h = hashlib.sha256(sys.version.encode())
     # the installed distributions' names and versions (``numpy-2.1.3.dist-info``): one folder listing
     for lib in sorted({sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]}):
