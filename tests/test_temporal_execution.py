@@ -230,7 +230,9 @@ def _check_windows(stnu: STNU, rng: random.Random, overrun: int) -> None:
         return
     top = now + _horizon(stnu) + 3
     running = [times[c.source] + c.ub for c in stnu.contingents if c.source in times and c.target not in times]
-    overdue = any(t < now for t in running)  # `_residual` knows no overruns
+    overdue = any(t < now for t in running) or any(  # `_residual` knows no overruns, running or done
+        c.source in times and c.target in times and not c.lb <= times[c.target] - times[c.source] <= c.ub
+        for c in stnu.contingents)
     for x in state.pending:
         exact = _brute_window(stnu, times, now, x, top)
         step = state.step(x)
