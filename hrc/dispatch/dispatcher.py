@@ -832,7 +832,17 @@ class Dispatcher:
         time, to executable events of the person as well as contingent ones (issue 32: a departure estimated
         20-90 ms late let the robot pass 20-90 ms late). Where the two do not meet (the error is more than
         the plan's slack) the window at the estimates, as without the sensor's error."""
-        box = self._estimates(entry, done, history, seen, hinted)
+        unlearnt = self._unlearnt(entry, done, history, hinted) if hinted else None
+        own = [i for i, ask in enumerate(asks) if unlearnt is not None and ask[5] == unlearnt[1]]
+        if own and len(own) < len(asks):  # the person's own window for it: as it was (nothing to read early)
+            rest = [ask for i, ask in enumerate(asks) if i not in own]
+            mode_rest, found_rest = self._windows(entry, p, done, history, mode, rest, seen, hinted)
+            mode_own, found_own = self._windows(entry, p, done, history, mode, [asks[i] for i in own], seen,
+                                                hinted)
+            merged = iter(found_rest), iter(found_own)
+            return (max(mode_rest, mode_own, key=_rank),
+                    [next(merged[1]) if i in own else next(merged[0]) for i in range(len(asks))])
+        box = self._estimates(entry, done, history, seen, hinted, unlearnt=None if own else unlearnt)
         if box is None:
             return self._windows_at(entry, p, done, history, mode, asks, seen)
         (done_lo, seen_lo), (done_hi, seen_hi) = box
@@ -856,18 +866,21 @@ class Dispatcher:
         return used, out
 
     def _estimates(self, entry: PlanEntry, done: dict[str, int], history: History,
-                   seen: tuple[np.ndarray, np.ndarray], hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]
+                   seen: tuple[np.ndarray, np.ndarray], hinted: Mapping[tuple[str, str, str, str], tuple[int, int]],
+                   unlearnt: tuple[tuple[str, str, str, str], str, int, int | None, int] | None = None
                    ) -> tuple[tuple[dict[str, int], tuple[np.ndarray, np.ndarray]],
                               tuple[dict[str, int], tuple[np.ndarray, np.ndarray]]] | None:
         """`done` and `seen` with each seen event of the person at the earliest, then at the latest time it
-        may have happened (`_windows`); None without a sensor's error or before any event of the person."""
+        may have happened (`_windows`), and `unlearnt`, their next event when it may have happened unlearnt
+        (`_unlearnt`), at the earliest it may have, then at the latest (or not yet); None without a sensor's
+        error or before any event of the person."""
         human = history.human
         if not human or not hinted:
             return None
         g = self.task.agent_ids.index(human)
         legs = history.legs.get(human, ())
         shift = {key: hinted[key] for key in history.times if key in hinted}
-        if not shift:
+        if not shift and unlearnt is None:
             return None
         nodes = {key: node for node, key in entry.events.items() if key in shift}
         ends = {c.target: c for c in entry.stnu.contingents}
@@ -889,8 +902,51 @@ class Dispatcher:
             arr = seen[0].copy()
             for key, bounds in times.items():
                 arr[g, legs.index((key[1], key[2])), LEG_EVENTS.index(key[3])] = bounds[side]
-            out.append((moved, (arr, seen[1])))
+            counts = seen[1]
+            at = None if unlearnt is None else (unlearnt[2], unlearnt[3])[side]
+            if unlearnt is not None and at is not None:
+                key, node, k = unlearnt[0], unlearnt[1], unlearnt[4]
+                moved[node] = at
+                arr[g, k, LEG_EVENTS.index(key[3])] = at
+                if k >= counts[g]:  # the first event of a leg not yet seen begun
+                    counts = counts.copy()
+                    counts[g] = k + 1
+            out.append((moved, (arr, counts)))
         return out[0], out[1]
+
+    def _unlearnt(self, entry: PlanEntry, done: dict[str, int], history: History,
+                  hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]
+                  ) -> tuple[tuple[str, str, str, str], str, int, int | None, int] | None:
+        """The person's next own event in `entry` when it may have happened without the robot knowing yet
+        (issue 32): they were told a window ``[lo, hi]`` for it (`_told`) and ``lo`` has passed, no later than
+        the stated delay after ``hi`` (beyond that, an event not seen was not done as told: the plain
+        reading). The delay-robust strategy reads it as possibly done at any time it was told (Bhargava,
+        Muise & Williams 2018, variable delay: a contingent point is known only once observed, and the
+        executable one of a person who does as told lies in their window): ``(key, node, lo, late, leg)``,
+        `late` the latest it may have happened (``hi`` once passed) or None while it may also be still to
+        come, `leg` its position among the person's legs. None otherwise (and always with buttons on time:
+        nothing is told then, `_told`)."""
+        human = history.human
+        legs = history.legs.get(human, ())
+        now = ticks(history.now)
+        contingent = entry.stnu.contingent_timepoints
+        for k, (action, phase) in enumerate(entry.legs.get(human, ())):
+            for event, node in entry.leg_points[(human, action, phase)]:
+                if node in done:
+                    continue
+                key = (human, action, phase, event)
+                told = hinted.get(key)
+                if node in contingent or told is None or key in history.times or told[0] > now:
+                    return None
+                if k > len(legs) or (k < len(legs) and legs[k] != (action, phase)):
+                    return None  # not the person's next step as seen
+                lo, hi = told
+                if hi == NO_BOUND or now <= hi:
+                    return key, node, lo, None, k
+                if now - hi > ticks(self.max_observation_delay or 0.0):
+                    return None
+                return key, node, lo, hi, k
+        return None
 
     def _windows_at(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
                     asks: list[tuple[int, str, str, str, str, str, frozenset[str]]],
