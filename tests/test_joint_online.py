@@ -21,33 +21,17 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import pytest
-import yaml
 from conftest import ROOT
 from joint_client import JointRun
+from joint_tasks import lift_task, write_lift
 
 from hrc.cli import main
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.plan_set import load_plan_set
 
-BARE: dict[str, Any] = {"name": "bare", "bounds": [0, 0, 10, 4], "obstacles": [],
-                        "locations": {"H": [1, 2], "R": [9, 2], "J": [5, 2], "A": [1, 3.5], "B": [9, 3.5]}}
-LIFT: dict[str, Any] = {
-    "name": "lift_then_place", "map": "map.yaml", "safety_margin": 0.1,
-    "agents": [{"id": "human", "kind": "human", "radius": 0.3, "speed": 1.0, "start": "H"},
-               {"id": "robot", "kind": "robot", "radius": 0.35, "speed": 0.5, "start": "R"}],
-    "actions": [
-        {"id": "a", "agents": ["human", "robot"], "phases": [
-            {"id": "fetch", "location": "A", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-        {"id": "b", "agents": ["human", "robot"], "phases": [
-            {"id": "fetch", "location": "B", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-        {"id": "lift", "roles": {"holder": "human", "lifter": "robot"}, "phases": [
-            {"id": "hold", "location": "J", "duration": {"holder": [3, 5], "lifter": [2, 4]}}]},
-    ],
-    "precedence": [["a", "lift"], ["b", "lift"]],
-}
+LIFT = lift_task(place=False)
 
 pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 
@@ -55,8 +39,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     tmp = tmp_path_factory.mktemp("joint")
-    (tmp / "map.yaml").write_text(yaml.safe_dump(BARE, sort_keys=False), "utf-8")
-    (tmp / "task.yaml").write_text(yaml.safe_dump(LIFT, sort_keys=False), "utf-8")
+    write_lift(tmp, LIFT)
     out = tmp / "out"
     assert main(["compile", str(tmp / "task.yaml"), "--out", str(out), "--no-report", "-q", "--jobs", "1"]) == 0
     return out

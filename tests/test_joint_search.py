@@ -14,13 +14,12 @@ import itertools
 import json
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import pytest
-import yaml
 from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from joint_tasks import lift_task, write_lift
 
 from hrc.cli import main
 from hrc.compile.bounds import NodeBounds
@@ -32,39 +31,13 @@ from hrc.model import Action, Interval, Phase, PhaseRef, Precedence, Task
 from hrc.motion import plan_paths
 from hrc.plans import generate_plans, identical_actions, is_canonical
 
-BARE: dict[str, Any] = {"name": "bare", "bounds": [0, 0, 10, 4], "obstacles": [],
-                        "locations": {"H": [1, 2], "R": [9, 2], "J": [5, 2], "A": [1, 3.5], "B": [9, 3.5]}}
-
-LIFT: dict[str, Any] = {
-    "name": "lift_then_place", "map": "map.yaml", "safety_margin": 0.1, "deadline": 40,
-    "agents": [{"id": "human", "kind": "human", "radius": 0.3, "speed": 1.0, "start": "H"},
-               {"id": "robot", "kind": "robot", "radius": 0.35, "speed": 0.5, "start": "R"}],
-    "actions": [
-        {"id": "a", "agents": ["human", "robot"], "phases": [
-            {"id": "fetch", "location": "A", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-        {"id": "b", "agents": ["human", "robot"], "phases": [
-            {"id": "fetch", "location": "B", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-        {"id": "lift", "roles": {"holder": "human", "lifter": "robot"}, "phases": [
-            {"id": "hold", "location": "J", "duration": {"holder": [3, 5], "lifter": [2, 4]}},
-            {"id": "set", "location": "A", "duration": {"holder": [1, 2], "lifter": [1, 3]}}]},
-        {"id": "c", "agents": ["human", "robot"], "phases": [
-            {"id": "place", "location": "B", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-    ],
-    "precedence": [["a", "lift"], ["b", "lift"], ["lift", "c"]],
-}
+LIFT = lift_task(set_down=True, deadline=40)
 """Two fetches, a joint lift of two phases (held at J, set down at A: both agents go on together), a place."""
-
-
-def _write(tmp: Path, task: dict[str, Any]) -> Path:
-    (tmp / "map.yaml").write_text(yaml.safe_dump(BARE, sort_keys=False), "utf-8")
-    path = tmp / "task.yaml"
-    path.write_text(yaml.safe_dump(task, sort_keys=False), "utf-8")
-    return path
 
 
 @pytest.fixture(scope="module")
 def lift(tmp_path_factory):
-    path = _write(tmp_path_factory.mktemp("lift"), LIFT)
+    path = write_lift(tmp_path_factory.mktemp("lift"), LIFT)
     task = load_task(path)
     return path, task, plan_paths(task, seed=0)
 

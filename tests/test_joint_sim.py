@@ -18,9 +18,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 from conftest import ROOT
 from dispatch_client import broken_links
+from joint_tasks import J, lift_task, write_lift
 
 from hrc.cli import main
 from hrc.compile.compiler import compile_task
@@ -35,26 +35,7 @@ from hrc.sim.montecarlo import simulate, simulation_json
 from hrc.sim.policies import DispatchedController
 from hrc.sim.run import SimContext, SimSettings, make_controller, simulate_run
 
-BARE: dict[str, Any] = {"name": "bare", "bounds": [0, 0, 10, 4], "obstacles": [],
-                        "locations": {"H": [1, 2], "R": [9, 2], "J": [5, 2], "A": [1, 3.5], "B": [9, 3.5]}}
-J = (5.0, 2.0)
-
-LIFT: dict[str, Any] = {
-    "name": "lift_then_place", "map": "map.yaml", "safety_margin": 0.1,
-    "agents": [{"id": "human", "kind": "human", "radius": 0.3, "speed": 1.0, "start": "H"},
-               {"id": "robot", "kind": "robot", "radius": 0.35, "speed": 0.5, "start": "R"}],
-    "actions": [
-        {"id": "a", "agents": ["human", "robot"], "phases": [
-            {"id": "fetch", "location": "A", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-        {"id": "b", "agents": ["human", "robot"], "phases": [
-            {"id": "fetch", "location": "B", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-        {"id": "lift", "roles": {"holder": "human", "lifter": "robot"}, "phases": [
-            {"id": "hold", "location": "J", "duration": {"holder": [3, 5], "lifter": [2, 4]}}]},
-        {"id": "c", "agents": ["human", "robot"], "phases": [
-            {"id": "place", "location": "B", "duration": {"human": [1, 2], "robot": [2, 3]}}]},
-    ],
-    "precedence": [["a", "lift"], ["b", "lift"], ["lift", "c"]],
-}
+LIFT = lift_task()
 """Fetches at A and B (either agent), the joint lift at J between the two starts (the person holds 3-5 s, the
 robot lifts 2-4 s: the step lasts 3-5 s, contingent), then a place at B: after the lift one of them walks or
 drives away from the joint spot while the other may still stand there."""
@@ -62,16 +43,9 @@ drives away from the joint spot while the other may still stand there."""
 ERROR_LINE = re.compile(r"^error: [^\n]+: [^\n]+\n$")
 
 
-def _write(tmp: Path) -> Path:
-    (tmp / "map.yaml").write_text(yaml.safe_dump(BARE, sort_keys=False), "utf-8")
-    path = tmp / "task.yaml"
-    path.write_text(yaml.safe_dump(LIFT, sort_keys=False), "utf-8")
-    return path
-
-
 @pytest.fixture(scope="module")
 def lift(tmp_path_factory):
-    path = _write(tmp_path_factory.mktemp("lift"))
+    path = write_lift(tmp_path_factory.mktemp("lift"), LIFT)
     task = load_task(path)
     return path, task, {"motion": compile_task(task, seed=0, jobs=1), "blind": blind_compile(task, jobs=1)}
 
