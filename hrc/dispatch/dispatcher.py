@@ -831,18 +831,27 @@ class Dispatcher:
         observation point ``C' = t + tol`` telling ``C`` to within ``[C' - 2 tol, C']``) applied at run
         time, to executable events of the person as well as contingent ones (issue 32: a departure estimated
         20-90 ms late let the robot pass 20-90 ms late). Where the two do not meet (the error is more than
-        the plan's slack) the window at the estimates, as without the sensor's error."""
+        the plan's slack) the window at the estimates, as without the sensor's error. The person's next
+        event, when it may have happened unlearnt (`_unlearnt`), is read so for every ask but its own (the
+        person's window for it: nothing to read early)."""
         unlearnt = self._unlearnt(entry, done, history, hinted) if hinted else None
         own = [i for i, ask in enumerate(asks) if unlearnt is not None and ask[5] == unlearnt[1]]
-        if own and len(own) < len(asks):  # the person's own window for it: as it was (nothing to read early)
-            rest = [ask for i, ask in enumerate(asks) if i not in own]
-            mode_rest, found_rest = self._windows(entry, p, done, history, mode, rest, seen, hinted)
-            mode_own, found_own = self._windows(entry, p, done, history, mode, [asks[i] for i in own], seen,
-                                                hinted)
-            merged = iter(found_rest), iter(found_own)
-            return (max(mode_rest, mode_own, key=_rank),
-                    [next(merged[1]) if i in own else next(merged[0]) for i in range(len(asks))])
-        box = self._estimates(entry, done, history, seen, hinted, unlearnt=None if own else unlearnt)
+        if not own or len(own) == len(asks):
+            return self._read(entry, p, done, history, mode, asks, seen, hinted, None if own else unlearnt)
+        rest = [ask for i, ask in enumerate(asks) if i not in own]
+        mode_rest, found_rest = self._read(entry, p, done, history, mode, rest, seen, hinted, unlearnt)
+        mode_own, found_own = self._read(entry, p, done, history, mode, [asks[i] for i in own], seen, hinted, None)
+        merged = iter(found_rest), iter(found_own)
+        return (max(mode_rest, mode_own, key=_rank),
+                [next(merged[1]) if i in own else next(merged[0]) for i in range(len(asks))])
+
+    def _read(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
+              asks: list[tuple[int, str, str, str, str, str, frozenset[str]]], seen: tuple[np.ndarray, np.ndarray],
+              hinted: Mapping[tuple[str, str, str, str], tuple[int, int]],
+              unlearnt: tuple[tuple[str, str, str, str], str, int, int | None, int] | None
+              ) -> tuple[ExecutionMode, list[tuple[int, int | None] | list[str]]]:
+        """`_windows` for `asks`, with `unlearnt` (or None) read as `_estimates` reads it."""
+        box = self._estimates(entry, done, history, seen, hinted, unlearnt)
         if box is None:
             return self._windows_at(entry, p, done, history, mode, asks, seen)
         (done_lo, seen_lo), (done_hi, seen_hi) = box
