@@ -51,6 +51,8 @@ __all__ = ["ROBOT_PATH", "TOKEN_PATTERN", "AccessGuard", "Credentials", "allowed
 ROBOT_PATH = "/robot"
 TOKEN_PATTERN = re.compile(r"[A-Za-z0-9_-]{32,256}")
 """What a token looks like: URL-safe base64, at least 32 characters (192 bits)."""
+PERSON_PATTERN = re.compile(r"[A-Za-z0-9_.-]{1,64}")
+"""A person's id as the first load's ``&person=`` may carry it on to ``/?person=`` (issue 37)."""
 
 Scope = MutableMapping[str, Any]
 Receive = Callable[[], Awaitable[MutableMapping[str, Any]]]
@@ -199,7 +201,7 @@ class AccessGuard:
         first_load = scope["type"] == "http" and scope["path"] == "/" and _query_token(scope) is not None
         refusal = self._check(scope, headers, first_load)
         if refusal is None and first_load:  # the URL printed at start: trade the token for a cookie, drop it
-            await self._redirect_with_cookie(send)
+            await self._redirect_with_cookie(send, _query_value(scope, "person"))
             return
         if refusal is not None:
             self.denied += 1
@@ -232,10 +234,13 @@ class AccessGuard:
             return 401, "refused: open the address `hrc console` printed (with its ?token=)"
         return None
 
-    async def _redirect_with_cookie(self, send: Send) -> None:
+    async def _redirect_with_cookie(self, send: Send, person: str | None = None) -> None:
+        """To ``/`` with the cookie set; a team person's page (``&person=ID``, issue 37) keeps its
+        ``?person=ID`` (an id of letters, digits, ``_``, ``-`` and ``.`` only; anything else is dropped)."""
         cookie = f"{self.cookie}={self.credentials.page}; HttpOnly; SameSite=Strict; Path=/"
+        where = f"/?person={person}" if person is not None and PERSON_PATTERN.fullmatch(person) else "/"
         await send({"type": "http.response.start", "status": 303,
-                    "headers": [(b"location", b"/"), (b"set-cookie", cookie.encode("ascii")),
+                    "headers": [(b"location", where.encode("ascii")), (b"set-cookie", cookie.encode("ascii")),
                                 (b"content-length", b"0"), *_SECURITY]})
         await send({"type": "http.response.body", "body": b""})
 
@@ -274,7 +279,7 @@ def _cookie(headers: dict[str, str], name: str) -> str | None:
 
 
 MAX_QUERY = 1024
-"""Bytes of a query string at most (the only one this console reads is ``?token=``)."""
+"""Bytes of a query string at most (this console reads ``?token=``, ``person=`` and, on /robot, ``robot=``)."""
 MAX_QUERY_FIELDS = 8
 MAX_HEADERS = 64
 """Header lines of a request at most (uvicorn's h11 bounds their total size: `hrc.console.limits`)."""
@@ -294,9 +299,13 @@ def _bounded(scope: Scope) -> tuple[int, str] | None:
 
 
 def _query_token(scope: Scope) -> str | None:
+    return _query_value(scope, "token")
+
+
+def _query_value(scope: Scope, name: str) -> str | None:
     query = scope.get("query_string", b"").decode("latin-1")
     try:
-        values = parse_qs(query, max_num_fields=MAX_QUERY_FIELDS).get("token") if query else None
+        values = parse_qs(query, max_num_fields=MAX_QUERY_FIELDS).get(name) if query else None
     except ValueError:  # more fields than allowed (`_bounded` refuses such a request first)
         return None
     return values[-1] if values else None
