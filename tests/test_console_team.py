@@ -189,7 +189,8 @@ def test_two_people_each_press_on_their_own_page_to_the_end_of_a_run(workers: Pa
             shared.wait_for_function("() => !document.getElementById('error').hidden", timeout=15_000)
             assert "shared view" in shared.evaluate("() => document.getElementById('error-text').textContent")
             seen, pressed = _play(pages, workers, seed=3)
-            colours = shared.evaluate("() => [...document.querySelectorAll('#gantt .gantt-row')].map(e => e.getAttribute('fill'))")
+            colours = shared.evaluate("() => [...document.querySelectorAll('#gantt .gantt-row')]"
+                                      ".map(e => e.getAttribute('fill'))")
             assert len(set(colours)) == 3  # one colour per agent
             assert requests and all(u.startswith(("http://127.0.0.1:", "ws://127.0.0.1:")) for u in requests)
         state = console.state()
