@@ -217,7 +217,11 @@ def test_two_people_each_press_on_their_own_page_to_the_end_of_a_run(workers: Pa
 
 
 def test_simulated_robots_drive_both_robots_of_a_team(kitting3: Path, tmp_path: Path) -> None:
-    console = ConsoleProcess(kitting3, tmp_path / "run.jsonl", "--speed", str(SPEED), "--simulate-robot")
+    from mcap_check import read_mcap
+
+    recording = tmp_path / "run.mcap"
+    console = ConsoleProcess(kitting3, tmp_path / "run.jsonl", "--speed", str(SPEED), "--simulate-robot",
+                             "--record", str(recording))
     try:
         with chromium() as ctx:
             page = ctx.new_page()
@@ -238,6 +242,15 @@ def test_simulated_robots_drive_both_robots_of_a_team(kitting3: Path, tmp_path: 
     assert {a for a, _ in ends} >= {"robot", "robot2"}  # both robots were driven (the seed's plan uses both)
     assert {act for _, act in ends} == {"pick_a", "pick_b", "pick_c"}
     _replays(kitting3, console.log, outs)
+    # the console's recording: a goal channel per robot, each robot's own drives (tests/test_record_team.py)
+    pose = ("foxglove.PoseInFrame", "protobuf", "protobuf")
+    topics = {f"/hrc/{a}/pose": pose for a in ("human", "robot", "robot2")} | \
+        {f"/hrc/{r}/goal": pose for r in ("robot", "robot2")}
+    rec = read_mcap(recording, topics)
+    departs = {r: sum(1 for m in ins if m.get("agent") == r and m.get("event") == "depart")
+               for r in ("robot", "robot2")}
+    assert {r: rec.counts.get(f"/hrc/{r}/goal", 0) for r in departs} == departs  # no waiting places on this floor
+    assert len(rec.of("/hrc/out")) == len(outs)
 
 
 def test_each_robot_controller_acknowledges_its_own_robot_only(kitting3: Path, tmp_path: Path) -> None:
