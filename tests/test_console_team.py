@@ -154,6 +154,31 @@ def _options_after_each(out_dir: Path, log: Path, people: tuple[str, ...]) -> li
     return out
 
 
+def person_urls(console: ConsoleProcess, people: tuple[str, ...]) -> dict[str, str]:
+    """The address `hrc console` printed for each person's page (with that person's own secret)."""
+    out: dict[str, str] = {}
+    while len(out) < len(people):
+        line = console.lines.get(timeout=10)
+        if "'s page: " in line:
+            who, url = line.split("'s page: ")
+            out[who.removeprefix("hrc console: ")] = url.strip()
+    assert set(out) == set(people) and all(f"&person={p}" in u for p, u in out.items())
+    assert len({u.partition("?token=")[2].partition("&")[0] for u in out.values()} | {console.token}) == len(people) + 1
+    return out
+
+
+def _one_page_per_secret(console: ConsoleProcess, urls: dict[str, str]) -> None:
+    """alice's secret opens alice's page, not bob's: a press as bob is out of her reach."""
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    alice = {"Authorization": f"Bearer {urls['alice'].partition('?token=')[2].partition('&')[0]}"}
+    with pytest.raises(InvalidStatus, match="403"):
+        connect(console.ws + "ws?person=bob", open_timeout=10, additional_headers=alice)
+    with connect(console.ws + "ws?person=alice", open_timeout=10, additional_headers=alice) as c:
+        assert json.loads(c.recv(timeout=10))["type"] == "setup"
+
+
 def _replays(out_dir: Path, log: Path, outs: list[dict[str, Any]]) -> None:
     done = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(out_dir), "--replay", str(log)],
                           capture_output=True, text=True, timeout=120, cwd=ROOT,
@@ -170,9 +195,12 @@ def test_two_people_each_press_on_their_own_page_to_the_end_of_a_run(workers: Pa
             requests = record_requests(shared)
             shared.goto(console.url)
             pages = {}
-            for person in ("alice", "bob"):
-                page = pages[person] = ctx.new_page()
-                page.goto(f"{console.url}&person={person}")  # the address printed for that person
+            urls = person_urls(console, ("alice", "bob"))
+            _one_page_per_secret(console, urls)
+            for person, url in urls.items():
+                # each person's device: a browser of its own, with only that person's secret (its cookie)
+                page = pages[person] = ctx.browser.new_context().new_page()
+                page.goto(url)
             for page in (shared, *pages.values()):
                 page.wait_for_function("() => window.hrcConsole && window.hrcConsole.state !== null "
                                        "&& window.hrcConsole.connected", timeout=15_000)
@@ -269,6 +297,15 @@ def test_each_robot_controller_acknowledges_its_own_robot_only(kitting3: Path, t
                 assert not reply["ok"] and expect in reply["error"], (path, reply)
         with pytest.raises(InvalidStatus, match="401"):  # only the robot's secret opens a controller
             connect(ws + "robot?robot=robot2", open_timeout=10, additional_headers=page_auth)
+        # the person's own secret: their page and the read-only routes; no shared view, no robot
+        own = person_urls(console, ("human",))["human"].partition("?token=")[2].partition("&")[0]
+        mine = {"Authorization": f"Bearer {own}"}
+        with connect(ws + "ws?person=human", open_timeout=10, additional_headers=mine) as c:
+            assert _recv(c)["type"] == "setup"
+        assert json.loads(console.get("state", token=own))["type"] == "state"
+        for path, status in (("ws", "403"), ("robot?robot=robot", "401")):
+            with pytest.raises(InvalidStatus, match=status):
+                connect(ws + path, open_timeout=10, additional_headers=mine)
         with connect(ws + "robot?robot=robot", open_timeout=10, additional_headers=robot_auth) as r1, \
                 connect(ws + "robot?robot=robot2", open_timeout=10, additional_headers=robot_auth) as r2:
             for r, name in ((r1, "robot"), (r2, "robot2")):

@@ -6,7 +6,7 @@ notebook server does), and where a robot controller connects with its own secret
 ``--robot-token-file`` read the secrets from files (or write new ones there, mode 0600), so that a robot
 controller can be given its token before the console starts. Listening on another address than this
 machine's loopback needs ``--allow-remote``. A team (issue 37) gets one address per person (their page:
-their buttons) after the shared view's, and one controller address per robot (``/robot?robot=ID``).
+their buttons, with a secret of their own, new each start) after the shared view's, and one controller address per robot (``/robot?robot=ID``).
 SIGINT or SIGTERM stop it cleanly, as ``hrc ros2``: the message being handled finishes, then exit 0 with the
 log whole ("stopped by SIGTERM after N messages").
 """
@@ -91,8 +91,8 @@ def run(args: argparse.Namespace) -> int:
     def ready(url: str) -> None:
         print(f"hrc console: {url}?token={page}  (log: {session.log_path})", flush=True)
         if session.team:  # each person's page, after the shared view's (issue 37)
-            for person in session.people:
-                print(f"hrc console: {person}'s page: {url}?token={page}&person={person}", flush=True)
+            for person, token in server.credentials.people:  # each with their own secret: their page only
+                print(f"hrc console: {person}'s page: {url}?token={token}&person={person}", flush=True)
         if not args.simulate_robot:
             where = f"token in {args.robot_token_file}" if args.robot_token_file else f"token {robot}"
             endpoints = ([(f"{r}'s robot controller", f"robot?robot={r}") for r in session.robots] if session.team

@@ -26,7 +26,8 @@ its window (`hrc.console.robot`), and ``/robot`` refuses controllers.
 
 A team (issue 37): a person's page connects as ``/ws?person=ID`` and presses as that person (``/ws``
 alone is the shared view, which may not press); each robot's controller connects as ``/robot?robot=ID``
-(the robot's secret, one controller per robot) and acknowledges for that robot only; ``--simulate-robot``
+(the robot's secret, one controller per robot) and acknowledges for that robot only; each person has a
+secret of their own that opens their page only (`hrc.console.access`); ``--simulate-robot``
 plays every robot. An id not of the team is refused before anything is served.
 """
 
@@ -37,6 +38,7 @@ import contextlib
 import json
 import time
 from collections.abc import AsyncIterator
+from dataclasses import replace
 from importlib import resources
 from typing import Any
 
@@ -46,7 +48,7 @@ from starlette.responses import FileResponse, PlainTextResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketState
 
-from hrc.console.access import AccessGuard, Credentials
+from hrc.console.access import AccessGuard, Credentials, new_token
 from hrc.console.connections import ConnectionLimiter
 from hrc.console.inbox import Inbox, Letter, TokenBucket
 from hrc.console.robot import SimulatedRobot
@@ -148,7 +150,10 @@ class ConsoleServer:
         session.robot_link = "simulated" if simulate_robot else "none"
         if session.team and simulate_robot:
             session.robot_links.update(dict.fromkeys(session.robots, "simulated"))
-        self.credentials = credentials or Credentials.generate()
+        credentials = credentials or Credentials.generate()
+        if session.team and not credentials.people:  # a secret per person's own page (issue 37)
+            credentials = replace(credentials, people=tuple((p, new_token()) for p in session.people))
+        self.credentials = credentials
         routes = Starlette(routes=[
             Route("/", self.index), Route("/static/{name}", self.static), Route("/state", self.state),
             Route("/log", self.log), WebSocketRoute("/ws", self.page_socket),
