@@ -355,3 +355,40 @@ def _drain_reply(ws: Any) -> dict[str, Any]:
         msg = _recv(ws)
         if msg["type"] == "reply":
             return msg
+
+
+def test_a_team_run_resumes_with_each_persons_counter(workers: Path, tmp_path: Path) -> None:
+    """Stopped after presses of both people, ``--resume`` shows the run where it was: the same seq, each
+    person's counter and buttons, and a page drawn before the stop still presses (its counter is current)."""
+    from websockets.sync.client import connect
+
+    log = tmp_path / "run.jsonl"
+    console = ConsoleProcess(workers, log, "--speed", str(SPEED), "--tick", "0", "--simulate-robot")
+    try:
+        for person in ("alice", "bob"):
+            with connect(console.ws + f"ws?person={person}", open_timeout=10,
+                         additional_headers=console.page_headers()) as c:
+                _recv(c)
+                state = _recv(c)
+                option = state["persons"][person]["options"][0]
+                c.send(json.dumps({"type": "press", "hseq": 0, **option}))
+                reply = next(m for m in iter(lambda: _recv(c), None) if m["type"] == "reply")
+                assert reply["ok"], reply
+        before = console.state()
+    finally:
+        console.stop()
+    assert [before["persons"][p]["hseq"] for p in ("alice", "bob")] == [1, 1]
+    again = ConsoleProcess(workers, log, "--speed", str(SPEED), "--tick", "0", "--resume", str(log),
+                           log_option=False)
+    try:
+        after = again.state()
+        for key in ("seq", "hseq", "persons", "decision"):
+            assert after[key] == before[key], key
+        with connect(again.ws + "ws?person=bob", open_timeout=10, additional_headers=again.page_headers()) as c:
+            _recv(c)
+            option = _recv(c)["persons"]["bob"]["options"][0]
+            c.send(json.dumps({"type": "press", "hseq": 1, **option}))
+            reply = next(m for m in iter(lambda: _recv(c), None) if m["type"] == "reply")
+            assert reply["ok"], reply
+    finally:
+        again.stop()

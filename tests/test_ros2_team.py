@@ -6,7 +6,8 @@ plays the person and both robot controllers with random valid histories, every l
 topic (``/hrc/human/observations``, ``/hrc/robot/acks``, ``/hrc/robot2/acks``); the answers are those of
 the same lines through ``hrc dispatch``, byte for byte, the log replays, and each robot's goals on
 ``/hrc/ROBOT/goal`` are exactly the drives its entries of the answers name (`next_drive`), in the frame asked
-for. A line on an agent's own topic that names another agent is refused in one line and never logged.
+for; its ``--record`` is the same bytes as ``hrc dispatch --record``'s. A line on an agent's own topic that
+names another agent is refused in one line and never logged.
 
 Skipped with the reason where rclpy cannot be imported (as tests/test_ros2.py).
 """
@@ -74,8 +75,9 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
     assert robots == ("robot", "robot2") and people == ("human",)
     stnus = {p.stem: read_graphml(p.read_bytes()) for p in (kitting3 / "stnu").glob("*.graphml")}
     env = ros_env(tmp_path)
-    log = tmp_path / "ros.log"
-    node = NodeProcess(kitting3, env, "--log", str(log), "--map-origin", *(str(v) for v in ORIGIN))
+    log, recording = tmp_path / "ros.log", tmp_path / "ros.mcap"
+    node = NodeProcess(kitting3, env, "--log", str(log), "--record", str(recording), "--map-origin",
+                       *(str(v) for v in ORIGIN))
     client = None
     refused: list[str] = []
     try:
@@ -102,8 +104,9 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
     assert f"stopped by SIGTERM after {len(run.sent)} messages" in node.stderr(), node.stderr()
     # the same lines through hrc dispatch: the same answers, byte for byte; the log holds those alone
     stdin = "".join(line + "\n" for line in run.sent).encode()
-    plain = _dispatch(kitting3, stdin=stdin)
+    plain = _dispatch(kitting3, "--record", str(tmp_path / "dispatch.mcap"), stdin=stdin)
     assert plain.returncode == 0 and plain.stdout.decode().splitlines() == answers
+    assert recording.read_bytes() == (tmp_path / "dispatch.mcap").read_bytes()  # the same recording
     replayed = _dispatch(kitting3, "--replay", str(log))
     assert replayed.returncode == 0 and replayed.stdout == plain.stdout, replayed.stderr
     # each robot's goals: the drives its entries of the answers name, one per new drive, in the frame asked
