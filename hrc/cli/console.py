@@ -6,7 +6,8 @@ notebook server does), and where a robot controller connects with its own secret
 ``--robot-token-file`` read the secrets from files (or write new ones there, mode 0600), so that a robot
 controller can be given its token before the console starts. Listening on another address than this
 machine's loopback needs ``--allow-remote``. A team (issue 37) gets one address per person (their page:
-their buttons, with a secret of their own, new each start) after the shared view's, and one controller address per robot (``/robot?robot=ID``).
+their buttons, with a secret of their own, new each start) after the shared view's, and one controller
+address per robot (``/robot?robot=ID``).
 SIGINT or SIGTERM stop it cleanly, as ``hrc ros2``: the message being handled finishes, then exit 0 with the
 log whole ("stopped by SIGTERM after N messages").
 """
