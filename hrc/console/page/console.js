@@ -201,7 +201,7 @@
   }
 
   function drawDoing(box, me, who, awayText, tag) {
-    const line = (cls, text) => { const e = el("div", { class: cls }, (tag ? tag + ": " : "") + text); if (tag) e.dataset.person = tag; box.append(e); };
+    const line = (cls, text) => { const e = el("div", { class: cls }, (tag ? tag + ": " : "") + text); if (tag) { e.dataset.person = tag; e.style.color = color(tag); } box.append(e); };
     if (me.away) box.append(el("span", { class: "away" }, (tag ? tag + " is" : "You are") + " away: " + awayText));
     else if (me.under_way.length) line("under-way", "Under way: " + me.under_way.map(([a, p]) => cap(p) + " " + a).join(", "));
     const h = me.hint;  // the dispatcher's hint: the person's next step in the best plan, or what to wait for
