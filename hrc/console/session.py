@@ -217,6 +217,8 @@ class ConsoleSession:
         missing = [k for k in ("hseq", *PAGE_MESSAGES[kind]) if k not in msg]
         if missing:
             return Reply.error(f"malformed {kind} message: missing {', '.join(missing)}")
+        if "agent" in msg and msg["agent"] != person:  # a page presses for its own person only
+            return Reply.error(f"refused: this is {person}'s page; it cannot press for {str(msg['agent'])[:40]!r}")
         if msg["hseq"] != self.hseqs[person]:
             return Reply.error("refused: the run moved on since this page was drawn (another press); "
                                "look again and press again")
