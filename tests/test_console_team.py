@@ -244,6 +244,7 @@ def test_two_people_each_press_on_their_own_page_to_the_end_of_a_run(workers: Pa
     _replays(workers, console.log, outs)
 
 
+@pytest.mark.slow  # ~30 s: a whole run; two_workers' run (the default) drives its robot the same way
 def test_simulated_robots_drive_both_robots_of_a_team(kitting3: Path, tmp_path: Path) -> None:
     from mcap_check import read_mcap
 
@@ -357,13 +358,14 @@ def _drain_reply(ws: Any) -> dict[str, Any]:
             return msg
 
 
+@pytest.mark.slow  # ~15 s: two console processes
 def test_a_team_run_resumes_with_each_persons_counter(workers: Path, tmp_path: Path) -> None:
     """Stopped after presses of both people, ``--resume`` shows the run where it was: the same seq, each
     person's counter and buttons, and a page drawn before the stop still presses (its counter is current)."""
     from websockets.sync.client import connect
 
     log = tmp_path / "run.jsonl"
-    console = ConsoleProcess(workers, log, "--speed", str(SPEED), "--tick", "0", "--simulate-robot")
+    console = ConsoleProcess(workers, log, "--speed", str(SPEED), "--tick", "0")  # nothing moves but the presses
     try:
         for person in ("alice", "bob"):
             with connect(console.ws + f"ws?person={person}", open_timeout=10,

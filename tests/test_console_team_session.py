@@ -91,7 +91,7 @@ def _build(s: ConsoleSession, kind: str, who: Any, what: str, pick: int) -> tupl
     return json.dumps({"type": "ack", "agent": ["alice", "bob"][pick % 2], **event}), "other"
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.lists(_MESSAGE, min_size=1, max_size=14))
 def test_a_refused_message_changes_nothing_and_no_client_speaks_for_another(parts: Any, messages: list) -> None:
     s = _session(parts)

@@ -37,7 +37,7 @@ POSE = ("foxglove.PoseInFrame", "protobuf", "protobuf")
 POSE_ROS2 = ("geometry_msgs/msg/PoseStamped", "ros2msg", "cdr")
 
 
-@pytest.fixture(scope="module", params=["kitting3", "two_workers"])
+@pytest.fixture(scope="module", params=["kitting3", pytest.param("two_workers", marks=pytest.mark.slow)])
 def team(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Path:
     where = tmp_path_factory.mktemp(request.param)
     task = kitting3_task(where) if request.param == "kitting3" else ROOT / "tasks" / "two_workers.yaml"
