@@ -98,6 +98,7 @@ class ConsoleProcess:
             self.stop()
             raise AssertionError(f"hrc console: {first} {self.stderr()}")
         self.url = first.split()[2]
+        self.lines = lines  # what it printed after the first line (a team's pages, the robot's address)
         self.base, _, self.token = self.url.partition("?token=")
         self.ws = self.base.replace("http://", "ws://")
         self.robot_token = robot_file.read_text().strip()

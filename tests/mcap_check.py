@@ -44,9 +44,10 @@ class Recorded:
         return [ns / 1e9 for t, ns, _, _ in self.messages if t == topic]
 
 
-def read_mcap(source: Path | bytes) -> Recorded:
+def read_mcap(source: Path | bytes, expected: dict[str, tuple[str, str, str]] | None = None) -> Recorded:
     """Read and decode every message; checks what any reader relies on: a summary whose statistics count
-    what the data section holds, known channels with the expected schemas, log times never going back."""
+    what the data section holds, known channels with the expected schemas (`EXPECTED`, and `expected`: a
+    team's channels per agent), log times never going back."""
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
 
@@ -72,8 +73,9 @@ def read_mcap(source: Path | bytes) -> Recorded:
             value = decode(message.data)
         out.messages.append((channel.topic, message.log_time, message.publish_time, value))
     assert sum(counts.values()) == len(out.messages) == summary.statistics.message_count
+    table = {**EXPECTED, **(expected or {})}
     for topic, kinds in channels.items():
-        assert EXPECTED.get(topic) == kinds, (topic, kinds)
+        assert table.get(topic) == kinds, (topic, kinds)
     return out
 
 
@@ -90,7 +92,7 @@ EXPECTED_ROS2 = {  # topic -> (schema name, schema encoding, message encoding): 
 }
 
 
-def read_ros2_mcap(source: Path | bytes) -> Recorded:
+def read_ros2_mcap(source: Path | bytes, expected: dict[str, tuple[str, str, str]] | None = None) -> Recorded:
     """`read_mcap` for a ROS-typed recording: decoded by ``mcap-ros2-support``'s decoder, which builds each
     type from the ``ros2msg`` definition stored in the file (MCAP's ``ros2`` profile); each message is
     kept as (topic, log time, publish time, (decoded, CDR bytes)) so that another decoder can read it too."""
@@ -113,6 +115,7 @@ def read_ros2_mcap(source: Path | bytes) -> Recorded:
         last = message.log_time
         out.messages.append((channel.topic, message.log_time, message.publish_time, (decoded, message.data)))
     assert sum(counts.values()) == len(out.messages) == summary.statistics.message_count
+    table = {**EXPECTED_ROS2, **(expected or {})}
     for topic, kinds in channels.items():
-        assert EXPECTED_ROS2.get(topic) == kinds, (topic, kinds)
+        assert table.get(topic) == kinds, (topic, kinds)
     return out

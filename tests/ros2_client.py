@@ -176,3 +176,53 @@ class Client:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+class TeamClient:
+    """A real rclpy node for a team's ``hrc ros2`` (issue 37): each person's lines on ``PERSON/observations``,
+    each robot's on ``ROBOT/acks``, anything else (ticks) on the shared ``observations``; it reads the
+    answers and each robot's goals and routes from ``ROBOT/goal`` and ``ROBOT/route`` (kept whole: a deep
+    queue, so that no goal is missed between spins)."""
+
+    def __init__(self, env: dict[str, str], robots: tuple[str, ...], people: tuple[str, ...]) -> None:
+        self.base = Client(env)
+        from geometry_msgs.msg import PoseArray, PoseStamped
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        node = self.base.node
+        inq = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+        kept = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        String = self.base.String
+        self.own = {r: node.create_publisher(String, f"{r}/acks", inq) for r in robots}
+        self.own.update({h: node.create_publisher(String, f"{h}/observations", inq) for h in people})
+        self.goals: dict[str, list[Any]] = {r: [] for r in robots}
+        self.routes: dict[str, list[Any]] = {r: [] for r in robots}
+        for r in robots:
+            node.create_subscription(PoseStamped, f"{r}/goal", self.goals[r].append, kept)
+            node.create_subscription(PoseArray, f"{r}/route", self.routes[r].append, kept)
+
+    @property
+    def answers(self) -> list[str]:
+        return self.base.answers
+
+    def wait_matched(self, timeout: float = 30.0) -> None:
+        ns = self.base.node.get_namespace()
+        self.base.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in self.own.values())
+                             and self.base.observations.get_subscription_count() >= 1
+                             and self.base.node.count_publishers(f"{ns}/answers") >= 1,
+                             timeout, "discovery of the hrc ros2 node")
+
+    def send(self, line: str, topic: str | None = None) -> str:
+        """Publish one line on `topic`'s own input (an agent id), or by the line's agent (None: the shared
+        ``observations``); wait for its answer."""
+        agent = topic if topic is not None else json.loads(line).get("agent")
+        publisher = self.own.get(agent, self.base.observations)
+        before = len(self.answers)
+        publisher.publish(self.base.String(data=line))
+        self.base.spin_until(lambda: len(self.answers) > before, ANSWER_TIMEOUT, f"answer to {line[:80]}")
+        assert len(self.answers) == before + 1, "more answers than messages"
+        return self.answers[-1]
+
+    def close(self) -> None:
+        self.base.close()

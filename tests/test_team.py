@@ -406,13 +406,15 @@ def test_a_joint_action_of_people_alone_is_refused_in_one_line(tmp_path: Path, c
 
 
 # ------------------------------------------------------------------------------ the online side refuses
-@pytest.mark.parametrize("command", ["console", "ros2", "detect"])  # dispatch serves teams: test_dispatch_team
-def test_online_commands_refuse_a_team_folder_in_one_line(command: str, tmp_path: Path, capsys) -> None:
+@pytest.mark.parametrize("command", ["console --detect motion", "ros2 --detect motion", "dispatch --detect motion",
+                                     "detect"])  # the console, ros2 and dispatch (--record too) serve teams
+def test_the_motion_detector_refuses_a_team_folder_in_one_line(command: str, tmp_path: Path, capsys) -> None:
     out = tmp_path / "cross"
     task = write_task(tmp_path, CROSS, CROSS_MAP)
     assert main(["compile", str(task), "--out", str(out), "--no-report", "-q", "--stnu", "none"]) == 0
     capsys.readouterr()
-    argv = [command, str(out)] + (["-"] if command == "detect" else [])
+    name, *options = command.split()
+    argv = [name, str(out), *options] + (["-"] if name == "detect" else [])
     assert main(argv) == 2
     got, err = capsys.readouterr()
     assert got == "" and ERROR_LINE.match(err), err

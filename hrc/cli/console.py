@@ -5,8 +5,11 @@ It prints, once, the address to open with the run's secret (``http://127.0.0.1:8
 notebook server does), and where a robot controller connects with its own secret. ``--token-file`` and
 ``--robot-token-file`` read the secrets from files (or write new ones there, mode 0600), so that a robot
 controller can be given its token before the console starts. Listening on another address than this
-machine's loopback needs ``--allow-remote``. SIGINT or SIGTERM stop it cleanly, as ``hrc ros2``: the message
-being handled finishes, then exit 0 with the log whole ("stopped by SIGTERM after N messages").
+machine's loopback needs ``--allow-remote``. A team (issue 37) gets one address per person (their page:
+their buttons, with a secret of their own, new each start) after the shared view's, and one controller
+address per robot (``/robot?robot=ID``).
+SIGINT or SIGTERM stop it cleanly, as ``hrc ros2``: the message being handled finishes, then exit 0 with the
+log whole ("stopped by SIGTERM after N messages").
 """
 
 from __future__ import annotations
@@ -58,8 +61,8 @@ def run(args: argparse.Namespace) -> int:
     from hrc.console.access import Credentials, is_loopback, load_or_create_token, new_token
     from hrc.console.run import open_console, serve
 
-    if refuse_team("console", args.out_dir):
-        return 2
+    if args.detect == "motion" and refuse_team("console --detect motion", args.out_dir):
+        return 2  # the motion detector tracks one person (a team's: docs/dispatch.md)
     if not is_loopback(args.host) and not args.allow_remote:
         print(f"error: hrc console: --host {args.host} is not this machine's loopback: other machines could "
               "reach the console (over plain HTTP); add --allow-remote if that is meant", file=sys.stderr)
@@ -84,12 +87,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"hrc console: warning: listening on {args.host}: reachable from other machines, and the "
               "token travels unencrypted", file=sys.stderr)
 
+    session = server.session
+
     def ready(url: str) -> None:
-        print(f"hrc console: {url}?token={page}  (log: {server.session.log_path})", flush=True)
+        print(f"hrc console: {url}?token={page}  (log: {session.log_path})", flush=True)
+        if session.team:  # each person's page, after the shared view's (issue 37)
+            for person, token in server.credentials.people:  # each with their own secret: their page only
+                print(f"hrc console: {person}'s page: {url}?token={token}&person={person}", flush=True)
         if not args.simulate_robot:
             where = f"token in {args.robot_token_file}" if args.robot_token_file else f"token {robot}"
-            print(f"hrc console: robot controller: ws{url[4:]}robot  (Authorization: Bearer; {where})",
-                  flush=True)
+            endpoints = ([(f"{r}'s robot controller", f"robot?robot={r}") for r in session.robots] if session.team
+                         else [("robot controller", "robot")])
+            for who, path in endpoints:
+                print(f"hrc console: {who}: ws{url[4:]}{path}  (Authorization: Bearer; {where})", flush=True)
 
     recording = server.session.recording
     try:

@@ -71,9 +71,8 @@ def run(args: argparse.Namespace) -> int:
     if len(given) > 1:
         print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
         return 2
-    if (args.record or getattr(args, "detect", None) == "motion") and \
-            refuse_team("dispatch --record or --detect motion", args.out_dir):
-        return 2  # a team is dispatched (issue 37); its recording and motion detector are not built yet
+    if getattr(args, "detect", None) == "motion" and refuse_team("dispatch --detect motion", args.out_dir):
+        return 2  # a team is dispatched and recorded (issue 37); the motion detector tracks one person
     dispatcher = open_dispatcher(args, "dispatch")
     if dispatcher is None:
         return 2

@@ -6,8 +6,9 @@ Messages of ``hrc dispatch``'s protocol come in as ``std_msgs/String`` on ``NAME
 ``NAMESPACE/robot/route``; with ``--detect motion`` the person's tracked pose on ``NAMESPACE/human/pose``
 goes to the motion detector. The log (default ``OUT_DIR/runs/ros2-N.jsonl``, never overwritten) replays with
 ``hrc dispatch OUT_DIR --replay LOG``; ``--resume LOG`` goes on after a crash; ``--record FILE`` writes
-an MCAP recording. SIGINT or SIGTERM stop it cleanly (exit 0, the log whole). Needs the ``ros2`` extra:
-``pip install 'hrc[ros2]'``.
+an MCAP recording. A team (issue 37) has ``NAMESPACE/ROBOT/goal``, ``/route`` and ``/acks`` per robot
+and ``NAMESPACE/PERSON/observations`` per person. SIGINT or SIGTERM stop it cleanly (exit 0, the log
+whole). Needs the ``ros2`` extra: ``pip install 'hrc[ros2]'``.
 """
 
 from __future__ import annotations
@@ -71,7 +72,9 @@ def _next_log(out_dir: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    if refuse_team("ros2", args.out_dir):
+    # a team (issue 37) gets a goal topic per robot and an observation topic per person (docs/ros2.md);
+    # the motion detector still tracks one person
+    if args.detect == "motion" and refuse_team("ros2 --detect motion", args.out_dir):
         return 2
     try:
         from hrc.ros2 import node as ros_node

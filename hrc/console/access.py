@@ -17,6 +17,11 @@ HTTP request and every websocket upgrade, before any route sees it (`AccessGuard
    a websocket) on ``/robot``. Missing or wrong: 401. Tokens are compared in constant time
    (`hmac.compare_digest`).
 
+A team (issue 37) adds a secret per person (`Credentials.people`): it opens that person's page (``/`` and
+``/ws`` with ``?person=ID``; its first load sets a cookie of that person's, so that two people's pages live
+in one browser) and the read-only routes, and no other person's page nor the shared view; the page's
+secret (the engineer's) opens every page.
+
 Secrets come from `secrets.token_urlsafe` (256 bits), one per run, or from a token file
 (`load_or_create_token`: read when it exists, else written, mode 0600), so that a robot controller can
 be given its token before the console starts.
@@ -51,6 +56,8 @@ __all__ = ["ROBOT_PATH", "TOKEN_PATTERN", "AccessGuard", "Credentials", "allowed
 ROBOT_PATH = "/robot"
 TOKEN_PATTERN = re.compile(r"[A-Za-z0-9_-]{32,256}")
 """What a token looks like: URL-safe base64, at least 32 characters (192 bits)."""
+PERSON_PATTERN = re.compile(r"[A-Za-z0-9_.-]{1,64}")
+"""A person's id as the first load's ``&person=`` may carry it on to ``/?person=`` (issue 37)."""
 
 Scope = MutableMapping[str, Any]
 Receive = Callable[[], Awaitable[MutableMapping[str, Any]]]
@@ -136,17 +143,26 @@ def allowed_hosts(host: str, port: int) -> frozenset[str]:
 
 @dataclass(frozen=True, slots=True)
 class Credentials:
-    """The run's two secrets: `page` (the person's pages and scripts) and `robot` (``/robot`` only)."""
+    """The run's secrets: `page` (the person's pages and scripts; a team's engineer: every page) and
+    `robot` (``/robot`` only); `people`: a team's (person id, their own page's secret) pairs (issue 37)."""
 
     page: str
     robot: str
+    people: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
-        for name, value in (("page", self.page), ("robot", self.robot)):
+        for name, value in (("page", self.page), ("robot", self.robot), *self.people):
             if not TOKEN_PATTERN.fullmatch(value):
                 raise ValueError(f"the {name} token is not a token")
-        if hmac.compare_digest(self.page, self.robot):
-            raise ValueError("the page and the robot tokens must differ")
+        tokens = [self.page, self.robot, *(t for _, t in self.people)]
+        if any(hmac.compare_digest(a, b) for k, a in enumerate(tokens) for b in tokens[k + 1:]):
+            raise ValueError("the page, the robot and each person must have different tokens")
+        if not all(PERSON_PATTERN.fullmatch(p) for p, _ in self.people):
+            raise ValueError("a person's id cannot name a page")
+
+    def person(self, token: str | None) -> str | None:
+        """The person whose own secret `token` is, or None."""
+        return next((p for p, t in self.people if _same(token, t)), None)
 
     @classmethod
     def generate(cls) -> Credentials:
@@ -199,7 +215,7 @@ class AccessGuard:
         first_load = scope["type"] == "http" and scope["path"] == "/" and _query_token(scope) is not None
         refusal = self._check(scope, headers, first_load)
         if refusal is None and first_load:  # the URL printed at start: trade the token for a cookie, drop it
-            await self._redirect_with_cookie(send)
+            await self._redirect_with_cookie(send, _query_value(scope, "person"), _query_token(scope) or "")
             return
         if refusal is not None:
             self.denied += 1
@@ -228,14 +244,48 @@ class AccessGuard:
                 return 401, "refused: /robot needs the robot's token (Authorization: Bearer ROBOT_TOKEN)"
             return None
         given = _query_token(scope) if first_load else _bearer(headers) or _cookie(headers, self.cookie)
-        if not _same(given, self.credentials.page):
+        if _same(given, self.credentials.page):
+            return None
+        if self.credentials.people:  # a team's person's own secret (issue 37): their page only
+            return self._person_check(scope, headers, first_load)
+        return 401, "refused: open the address `hrc console` printed (with its ?token=)"
+
+    def _person_check(self, scope: Scope, headers: dict[str, str], first_load: bool) -> tuple[int, str] | None:
+        """A team's person's own secret opens their page (``?person=`` theirs) and the read-only routes;
+        no other person's page, and not the shared view's websocket."""
+        asked = _query_value(scope, "person")
+        if first_load:
+            who = self.credentials.person(_query_token(scope))
+        else:
+            bearer = _bearer(headers)
+            who = self.credentials.person(bearer) if bearer else None
+            if who is None:  # the cookie of the person asked for, else any person's (read-only routes)
+                names = [asked] if asked is not None else [p for p, _ in self.credentials.people]
+                who = next((p for p in names if self.credentials.person(_cookie(headers, self.person_cookie(p)))
+                            == p), None)
+        if who is None:
             return 401, "refused: open the address `hrc console` printed (with its ?token=)"
+        if asked is not None and asked != who:
+            return 403, f"refused: this secret is {who}'s page's; it opens no other person's page"
+        if scope["type"] == "websocket" and asked is None:
+            return 403, f"refused: {who}'s secret opens their own page (?person={who}), not the shared view"
         return None
 
-    async def _redirect_with_cookie(self, send: Send) -> None:
-        cookie = f"{self.cookie}={self.credentials.page}; HttpOnly; SameSite=Strict; Path=/"
+    def person_cookie(self, person: str) -> str:
+        """The cookie of a team's person's own page (one per person: two pages in one browser)."""
+        return f"{self.cookie}_{person}"
+
+    async def _redirect_with_cookie(self, send: Send, person: str | None = None, token: str = "") -> None:
+        """To ``/`` with the cookie set; a team person's page (``&person=ID``, issue 37) keeps its
+        ``?person=ID`` (an id of letters, digits, ``_``, ``-`` and ``.`` only; anything else is dropped), and
+        their own secret (`token`) sets their own cookie."""
+        own = self.credentials.person(token)
+        name = self.cookie if own is None else self.person_cookie(own)
+        secret = self.credentials.page if own is None else token
+        cookie = f"{name}={secret}; HttpOnly; SameSite=Strict; Path=/"
+        where = f"/?person={person}" if person is not None and PERSON_PATTERN.fullmatch(person) else "/"
         await send({"type": "http.response.start", "status": 303,
-                    "headers": [(b"location", b"/"), (b"set-cookie", cookie.encode("ascii")),
+                    "headers": [(b"location", where.encode("ascii")), (b"set-cookie", cookie.encode("ascii")),
                                 (b"content-length", b"0"), *_SECURITY]})
         await send({"type": "http.response.body", "body": b""})
 
@@ -274,7 +324,7 @@ def _cookie(headers: dict[str, str], name: str) -> str | None:
 
 
 MAX_QUERY = 1024
-"""Bytes of a query string at most (the only one this console reads is ``?token=``)."""
+"""Bytes of a query string at most (this console reads ``?token=``, ``person=`` and, on /robot, ``robot=``)."""
 MAX_QUERY_FIELDS = 8
 MAX_HEADERS = 64
 """Header lines of a request at most (uvicorn's h11 bounds their total size: `hrc.console.limits`)."""
@@ -294,9 +344,13 @@ def _bounded(scope: Scope) -> tuple[int, str] | None:
 
 
 def _query_token(scope: Scope) -> str | None:
+    return _query_value(scope, "token")
+
+
+def _query_value(scope: Scope, name: str) -> str | None:
     query = scope.get("query_string", b"").decode("latin-1")
     try:
-        values = parse_qs(query, max_num_fields=MAX_QUERY_FIELDS).get("token") if query else None
+        values = parse_qs(query, max_num_fields=MAX_QUERY_FIELDS).get(name) if query else None
     except ValueError:  # more fields than allowed (`_bounded` refuses such a request first)
         return None
     return values[-1] if values else None

@@ -11,6 +11,9 @@ is dropped and the new decision's is scheduled. Acknowledgements go through the 
 A joint action (issue 37) the robot has started ends when its last role is done, which a real controller
 senses; told to wait for that end, the simulated robot reports it at the earliest the step can end (its
 start plus the largest of the roles' shortest durations), as it does every event at its window's start.
+
+A team's console (issue 37) runs one simulated robot per robot id, each acting on its own entry of the
+decision's ``robots`` and acknowledging under its own id.
 """
 
 from __future__ import annotations
@@ -28,15 +31,16 @@ __all__ = ["SimulatedRobot"]
 class SimulatedRobot:
     """Schedules the robot's next event on the running event loop; `update()` after every change."""
 
-    def __init__(self, session: ConsoleSession, changed: Callable[[], None]) -> None:
+    def __init__(self, session: ConsoleSession, changed: Callable[[], None], robot: str | None = None) -> None:
         self.session = session
         self.changed = changed
+        self.robot = robot  # a team's robot id (None: the one robot of one person and one robot)
         self._key: tuple[str, str, str, float] | None = None
         self._handle: asyncio.TimerHandle | None = None
         self.errors: list[str] = []
 
     def update(self) -> None:
-        step = self.session.robot_step()
+        step = self.session.robot_step(self.robot)
         key = self._joint_end() if step is None else (step.action, step.phase, step.event, step.earliest)
         if key == self._key:
             return
@@ -49,9 +53,9 @@ class SimulatedRobot:
     def _joint_end(self) -> tuple[str, str, str, float] | None:
         """Told to wait for its own end of a joint phase it started: that end, at the earliest it can be."""
         d = self.session.dispatcher
-        wait = d.decision.robot
+        wait = d.decision.robot if self.robot is None else (d.decision.robots or {}).get(self.robot)
         if not isinstance(wait, WaitFor) or wait.event != "end" or not d.task.action(wait.action).joint \
-                or d.task.lead(wait.action) != wait.agent:
+                or d.task.lead(wait.action) != wait.agent or (self.robot is not None and wait.agent != self.robot):
             return None
         started = d.seen.times.get((wait.agent, wait.action, wait.phase, "start"))
         if started is None:
@@ -71,7 +75,8 @@ class SimulatedRobot:
         action, phase, event, earliest = key
         t = max(earliest, self.session.dispatcher.now)
         reply = self.session.robot_message(json.dumps({"type": "ack", "action": action, "phase": phase,
-                                                       "event": event, "t": t}), source="simulated robot")
+                                                       "event": event, "t": t}), source="simulated robot",
+                                          robot=self.robot)
         if reply["ok"]:
             self.changed()
         else:  # shown in the log; the run waits for the person

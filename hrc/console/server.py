@@ -23,6 +23,12 @@ memory grow.
 
 With ``simulate_robot`` the server plays the robot: each robot event is acknowledged at the start of
 its window (`hrc.console.robot`), and ``/robot`` refuses controllers.
+
+A team (issue 37): a person's page connects as ``/ws?person=ID`` and presses as that person (``/ws``
+alone is the shared view, which may not press); each robot's controller connects as ``/robot?robot=ID``
+(the robot's secret, one controller per robot) and acknowledges for that robot only; each person has a
+secret of their own that opens their page only (`hrc.console.access`); ``--simulate-robot``
+plays every robot. An id not of the team is refused before anything is served.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ import contextlib
 import json
 import time
 from collections.abc import AsyncIterator
+from dataclasses import replace
 from importlib import resources
 from typing import Any
 
@@ -41,7 +48,7 @@ from starlette.responses import FileResponse, PlainTextResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketState
 
-from hrc.console.access import AccessGuard, Credentials
+from hrc.console.access import AccessGuard, Credentials, new_token
 from hrc.console.connections import ConnectionLimiter
 from hrc.console.inbox import Inbox, Letter, TokenBucket
 from hrc.console.robot import SimulatedRobot
@@ -79,8 +86,10 @@ class _Client:
     """One websocket, the queue of messages waiting for it (one writer task per client, so sends never
     interleave), and the rate its messages may come at."""
 
-    def __init__(self, ws: WebSocket, rate: tuple[float, int]) -> None:
+    def __init__(self, ws: WebSocket, rate: tuple[float, int], who: str | None = None, robot: bool = False) -> None:
         self.ws = ws
+        self.who = who  # a team's person or robot id (None: one of each, or the shared view)
+        self.robot = robot
         self.queue: asyncio.Queue[str] = asyncio.Queue(QUEUE)
         self.bucket = TokenBucket(*rate)
         self.over = 0  # messages over the rate since the last refusal said how many
@@ -132,11 +141,19 @@ class ConsoleServer:
         self.session = session
         self.tick = tick
         self.pages: set[_Client] = set()
-        self.robot: _Client | None = None
+        self.controllers: dict[str | None, _Client] = {}  # robot id (None: the one robot) -> its controller
         self.inbox: Inbox[_Client] = Inbox(WAITING)
-        self.sim = SimulatedRobot(session, self.changed) if simulate_robot else None
+        # one simulated robot per robot of a team, each on its own id; the one robot otherwise
+        ids: tuple[str | None, ...] = session.robots if session.team else (None,)
+        self.sims = [SimulatedRobot(session, self.changed, r) for r in ids] if simulate_robot else []
+        self.sim = self.sims[0] if self.sims else None
         session.robot_link = "simulated" if simulate_robot else "none"
-        self.credentials = credentials or Credentials.generate()
+        if session.team and simulate_robot:
+            session.robot_links.update(dict.fromkeys(session.robots, "simulated"))
+        credentials = credentials or Credentials.generate()
+        if session.team and not credentials.people:  # a secret per person's own page (issue 37)
+            credentials = replace(credentials, people=tuple((p, new_token()) for p in session.people))
+        self.credentials = credentials
         routes = Starlette(routes=[
             Route("/", self.index), Route("/static/{name}", self.static), Route("/state", self.state),
             Route("/log", self.log), WebSocketRoute("/ws", self.page_socket),
@@ -183,22 +200,30 @@ class ConsoleServer:
         for client in list(self.pages):
             if not client.push(state):
                 self._drop(client)
-        if self.robot is not None and not self.robot.push(self._decision()):
-            self._drop(self.robot)
-        if self.sim is not None:
-            self.sim.update()
+        for robot, client in list(self.controllers.items()):
+            if not client.push(self._decision(robot)):
+                self._drop(client)
+        for sim in self.sims:
+            sim.update()
 
-    def _decision(self) -> dict[str, Any]:
+    def _decision(self, robot: str | None = None) -> dict[str, Any]:
         s = self.session
         return {"type": "decision", "seq": s.seq, "now": s.now(), "finished": s.finished,
-                "decision": s.dispatcher.decision.to_json()}
+                "decision": s.dispatcher.decision.to_json()} | ({"robot": robot} if robot is not None else {})
 
     def _drop(self, client: _Client) -> None:
         self.pages.discard(client)
-        if self.robot is client:
-            self.robot = None
-            self.session.robot_link = "none"
+        if client.robot and self.controllers.get(client.who) is client:
+            self._unlink(client.who)
         asyncio.get_running_loop().create_task(_close(client.ws, 1013))
+
+    def _unlink(self, robot: str | None) -> None:
+        self.controllers.pop(robot, None)
+        if robot is None:
+            self.session.robot_link = "none"
+        else:
+            self.session.robot_links[robot] = "none"
+            self.session.robot_link = "connected" if self.controllers else "none"
 
     # -- messages in --------------------------------------------------------------------------------
     def _admit(self, client: _Client, frame: str | bytes) -> dict[str, Any] | None:
@@ -216,7 +241,7 @@ class ConsoleServer:
         mid = msg.get("id")
         mid = mid if isinstance(mid, str | int) and not isinstance(mid, bool) else None
         ident = {} if mid is None else {"id": mid}
-        if not self.inbox.put(Letter(client, client is self.robot, msg, mid)):
+        if not self.inbox.put(Letter(client, client.robot, msg, mid)):
             self.limited += 1
             return {**Reply.error(f"refused: {WAITING} messages of yours are still waiting; nothing changed"),
                     **ident}
@@ -250,9 +275,10 @@ class ConsoleServer:
             letter = await self.inbox.get()
             ident = {} if letter.reply_id is None else {"id": letter.reply_id}
             error_before = self.session.log_error
-            handle = self.session.robot_message if letter.robot else self.session.page_message
+            who = letter.client.who
             try:
-                reply = handle(letter.message)
+                reply = (self.session.robot_message(letter.message, robot=who) if letter.robot
+                         else self.session.page_message(letter.message, person=who))
             except Exception as err:  # noqa: BLE001 - one message's fault must not stop every answer
                 self.fault("message", f"hrc console: internal error while handling a "
                                       f"{'robot' if letter.robot else 'page'} message ({type(err).__name__}: "
@@ -281,13 +307,27 @@ class ConsoleServer:
             self.session.clock.start()
             self._changed_safely()
 
+    async def _refuse_id(self, ws: WebSocket, what: str, given: str | None, known: tuple[str, ...]) -> bool:
+        """Refuse (one line, then close) a websocket naming an id not of the team; whether it was."""
+        if given is None or given in known:
+            return False
+        await ws.accept()
+        await ws.send_text(_json({"type": "reply", "ok": False,
+                                  "error": f"refused: unknown {what} {given[:40]!r} "
+                                           f"({'people' if what == 'person' else 'robots'}: {', '.join(known)})"}))
+        await ws.close(code=1008)
+        return True
+
     async def page_socket(self, ws: WebSocket) -> None:
         if len(self.pages) >= MAX_PAGES:
             await ws.close(code=1013)
             return
+        person = ws.query_params.get("person")
+        if await self._refuse_id(ws, "person", person, self.session.people):
+            return
         await ws.accept()
         self._start_run()
-        client = _Client(ws, PAGE_RATE)
+        client = _Client(ws, PAGE_RATE, person if self.session.team else None)
         client.push(self.session.setup())
         client.push(self.session.state())
         self.pages.add(client)
@@ -297,24 +337,32 @@ class ConsoleServer:
             self.pages.discard(client)
 
     async def robot_socket(self, ws: WebSocket) -> None:
+        given = ws.query_params.get("robot")
+        if await self._refuse_id(ws, "robot", given, self.session.robots):
+            return
+        robot = given if self.session.team else None
         await ws.accept()
-        why = ("the robot is simulated (--simulate-robot)" if self.sim is not None
-               else "a robot controller is already connected" if self.robot is not None else None)
+        why = ("the robot is simulated (--simulate-robot)" if self.sims
+               else f"a team's controller names its robot: /robot?robot=ID (robots: {', '.join(self.session.robots)})"
+               if self.session.team and robot is None
+               else "a robot controller is already connected" if robot in self.controllers else None)
         if why:
             await ws.send_text(_json({"type": "reply", "ok": False, "error": f"refused: {why}"}))
             await ws.close(code=1008)
             return
         self._start_run()
-        client = self.robot = _Client(ws, ROBOT_RATE)
+        client = self.controllers[robot] = _Client(ws, ROBOT_RATE, robot, robot=True)
         self.session.robot_link = "connected"
-        client.push({"type": "hello", "now": self.session.now(), "speed": self.session.clock.speed})
+        if robot is not None:
+            self.session.robot_links[robot] = "connected"
+        client.push({"type": "hello", "now": self.session.now(), "speed": self.session.clock.speed}
+                    | ({"robot": robot} if robot is not None else {}))
         self._changed_safely()  # the decision to the robot, the link to the pages
         try:
             await self._serve(client)
         finally:
-            if self.robot is client:
-                self.robot = None
-                self.session.robot_link = "none"
+            if self.controllers.get(robot) is client:
+                self._unlink(robot)
                 self._changed_safely()
 
     # -- time passing -------------------------------------------------------------------------------
@@ -333,15 +381,15 @@ class ConsoleServer:
     @contextlib.asynccontextmanager
     async def _lifespan(self, app: Starlette) -> AsyncIterator[None]:
         tasks = [asyncio.create_task(self._ticker()), asyncio.create_task(self._worker())]
-        if self.sim is not None:
-            self.sim.update()
+        for sim in self.sims:
+            sim.update()
         try:
             yield
         finally:
             for task in tasks:
                 task.cancel()
-            if self.sim is not None:
-                self.sim.stop()
+            for sim in self.sims:
+                sim.stop()
             for client in list(self.pages):
                 if client.ws.client_state == WebSocketState.CONNECTED:
                     with contextlib.suppress(Exception):

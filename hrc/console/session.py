@@ -12,6 +12,13 @@ message refused here or by the dispatcher changes nothing but the reply.
 
 Memory is bounded: the page is shown the last `LOG_SHOWN` messages (the log file keeps all).
 
+A team (issue 37: other than one person and one robot) is served per agent: each person's page is that
+person's buttons (`page_message` with the person's id: their observations, their ``away``/``back``, an undo
+of their own last observation only), each robot controller acknowledges for its own id only
+(`robot_message` with the robot's id), and the state carries each person's buttons and counter
+(``"persons"``) beside the shared view of every agent. An id not of the team is refused in one line and
+changes nothing. One person and one robot are served exactly as before (the same lines into the log).
+
 The session is not thread-safe: the server calls it from its one event loop, which serializes the
 messages of every tab and of the robot.
 """
@@ -94,6 +101,12 @@ class ConsoleSession:
         self.recording: Any = None  # an `hrc.record.Recording` fed by the log's listener (``--record``), or None
         self._phases = {(a.id, p.id) for a in logged.dispatcher.task.actions for p in a.phases}
         self._joint = {a.id: a.agents for a in logged.dispatcher.task.actions if a.joint}  # issue 37
+        agents = logged.dispatcher.task.agents
+        self.people = tuple(a.id for a in agents if a.is_human)
+        self.robots = tuple(a.id for a in agents if not a.is_human)
+        self.team = (len(self.people), len(self.robots)) != (1, 1)  # served per agent (issue 37)
+        self.hseqs = dict.fromkeys(self.people, 0)  # a team's: each person's accepted messages
+        self.robot_links = dict.fromkeys(self.robots, "none")  # a team's: each robot's link
 
     @property
     def dispatcher(self) -> Dispatcher:
@@ -114,10 +127,18 @@ class ConsoleSession:
                 obs = {"raw": line[:200]}
             out = json.loads(message.answer)
             obs = obs if isinstance(obs, dict) else {"raw": line[:200]}
-            source = ("tracker" if obs.get("event") == "position"
-                      else "person" if obs.get("agent") == "human" or obs.get("event") == "undo"
-                      else "robot" if obs.get("agent") == "robot" else "clock")
-            self._record(obs, out, source)
+            self._record(obs, out, self._source(obs), obs.get("agent") if self.team else None)
+
+    def _source(self, obs: Mapping[str, Any]) -> str:
+        """Who sent a logged message: "tracker", "person", "robot" or "clock"."""
+        agent = obs.get("agent")
+        if obs.get("event") == "position":
+            return "tracker"
+        if not self.team:
+            return ("person" if agent == "human" or obs.get("event") == "undo"
+                    else "robot" if agent == "robot" else "clock")
+        return ("person" if agent in self.people or obs.get("event") == "undo"
+                else "robot" if agent in self.robots else "clock")
 
     # -- time -------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -125,7 +146,7 @@ class ConsoleSession:
         return max(self.clock.now(), self.dispatcher.now)
 
     # -- the one way into the dispatcher ----------------------------------------------------------
-    def _submit(self, message: dict[str, Any], source: str) -> Reply:
+    def _submit(self, message: dict[str, Any], source: str, person: str | None = None) -> Reply:
         line = json.dumps(message, separators=(",", ":"))  # ASCII: a lone surrogate stays escaped
         out_line = self.logged.take_line(line)
         try:
@@ -135,25 +156,31 @@ class ConsoleSession:
             return Reply.error(f"refused: {err}; nothing changed")
         self.log_error = None
         out = json.loads(out_line)
-        self._record(message, out, source)
+        self._record(message, out, source, person)
         if not out.get("ok"):
             return Reply.error(str(out.get("error", "refused by the dispatcher")))
         return Reply(ok=True, decision=out)
 
-    def _record(self, message: dict[str, Any], out: dict[str, Any], source: str) -> None:
+    def _record(self, message: dict[str, Any], out: dict[str, Any], source: str, person: Any = None) -> None:
         self.total += 1
         self.entries.append({"n": self.total, "source": source, "in": message, "out": out})
         if out.get("ok") and not out.get("unchanged"):  # a redundant message is answered, changes nothing
             self.seq += 1
             if source == "person":
                 self.hseq += 1
+                if person in self.hseqs:
+                    self.hseqs[person] += 1
 
     # -- the person (the page) --------------------------------------------------------------------
-    def page_message(self, text: str | bytes | Mapping[str, Any]) -> Reply:
-        """A message from a page (see `PAGE_MESSAGES`); refused here when malformed or stale."""
+    def page_message(self, text: str | bytes | Mapping[str, Any], person: str | None = None) -> Reply:
+        """A message from a page (see `PAGE_MESSAGES`); refused here when malformed or stale. `person`: a
+        team's person whose page it is (their id; None: the shared view, which may not press); ignored for
+        one person and one robot."""
         msg = parse(text)
         if isinstance(msg, str):
             return Reply.error(msg)
+        if self.team:
+            return self._person_message(msg, person)
         kind = msg.get("type")
         if kind not in PAGE_MESSAGES:
             return Reply.error(f"unknown message type {kind!r} (expected one of {', '.join(PAGE_MESSAGES)})")
@@ -177,18 +204,69 @@ class ConsoleSession:
             obs = {"t": t, "agent": "human", "event": kind}
         return self._submit(obs, "person")
 
+    def _person_message(self, msg: dict[str, Any], person: str | None) -> Reply:
+        """A team person's page message: as `page_message`, every observation that person's (issue 37)."""
+        if person is None:
+            return Reply.error("refused: this page is the shared view; a person presses on their own page "
+                               "(the address hrc console printed for them)")
+        if person not in self.hseqs:
+            return Reply.error(f"refused: unknown person {str(person)[:40]!r} (people: {', '.join(self.people)})")
+        kind = msg.get("type")
+        if kind not in PAGE_MESSAGES:
+            return Reply.error(f"unknown message type {kind!r} (expected one of {', '.join(PAGE_MESSAGES)})")
+        missing = [k for k in ("hseq", *PAGE_MESSAGES[kind]) if k not in msg]
+        if missing:
+            return Reply.error(f"malformed {kind} message: missing {', '.join(missing)}")
+        if "agent" in msg and msg["agent"] != person:  # a page presses for its own person only
+            return Reply.error(f"refused: this is {person}'s page; it cannot press for {str(msg['agent'])[:40]!r}")
+        if msg["hseq"] != self.hseqs[person]:
+            return Reply.error("refused: the run moved on since this page was drawn (another press); "
+                               "look again and press again")
+        if self.finished:
+            return Reply.error("refused: the run is over")
+        t = self.now()
+        if kind == "press":
+            fields = {k: msg[k] for k in PAGE_MESSAGES["press"]}
+            if not all(isinstance(v, str) for v in fields.values()):
+                return Reply.error("malformed press message: action, phase and event must be strings")
+            obs: dict[str, Any] = {"t": t, "agent": person, **fields}
+        elif kind == "undo":  # only the person's own last observation (the dispatcher withdraws the last one)
+            last = next((o for o in reversed(self.dispatcher.history) if o.event != "tick"), None)
+            if last is None or last.agent != person:
+                return Reply.error(f"refused: nothing of {person}'s to undo (the last observation is not theirs)")
+            obs = {"t": t, "event": "undo"}
+        else:
+            obs = {"t": t, "agent": person, "event": kind}
+        return self._submit(obs, "person", person)
+
     # -- the robot (its controller, or the simulated robot) ---------------------------------------
-    def robot_message(self, text: str | bytes | Mapping[str, Any], source: str = "robot") -> Reply:
+    def robot_message(self, text: str | bytes | Mapping[str, Any], source: str = "robot",
+                      robot: str | None = None) -> Reply:
         """An acknowledgement ``{"type": "ack", "action", "phase", "event"[, "t"]}`` from the robot.
 
         ``t`` (run seconds, optional) is when the event happened; it may not lie in the future nor before
         the dispatcher's last accepted message. Without it the event happened now. With ``hrc console
         --detect motion`` the same stream also takes the person's tracked position, ``{"type":
         "position", "x", "y"[, "t"]}`` (`position_message`).
+
+        `robot`: a team's robot whose controller sent it (its id); an ack naming another agent
+        (``"robot"`` or ``"agent"``) is refused: a controller acknowledges its own robot's events only.
         """
         msg = parse(text)
         if isinstance(msg, str):
             return Reply.error(msg)
+        agent = "robot"
+        if self.team:
+            if robot not in self.robot_links:
+                return Reply.error(f"refused: unknown robot {str(robot)[:40]!r} (robots: {', '.join(self.robots)})")
+            named = [msg[k] for k in ("robot", "agent") if k in msg]
+            if any(n != robot for n in named):
+                return Reply.error(f"refused: this controller is {robot}'s; it cannot acknowledge for "
+                                   f"{str(next(n for n in named if n != robot))[:40]!r}")
+            if msg.get("type") == "position":
+                return Reply.error("refused: a position needs the motion detector, which takes one person "
+                                   "(not a team yet)")
+            agent = robot
         if msg.get("type") == "position" or ("type" not in msg and msg.get("event") == "position"):
             return self.position_message(msg)  # the console's shape, or the dispatcher protocol's
         if msg.get("type") != "ack":
@@ -203,7 +281,7 @@ class ConsoleSession:
             return Reply.error(f"malformed ack: t must be a number of run seconds (0 to {MAX_RUN_SECONDS:g})")
         if t > now:
             return Reply.error(f"refused: t = {t} lies in the future (the run's time is {now})")
-        return self._submit({"t": round(float(t), 3), "agent": "robot", **fields}, source)
+        return self._submit({"t": round(float(t), 3), "agent": agent, **fields}, source)
 
     def position_message(self, msg: Mapping[str, Any]) -> Reply:
         """The person's tracked position ``{"type": "position", "x", "y"[, "t"]}``, or the dispatcher
@@ -240,8 +318,10 @@ class ConsoleSession:
         ended = {(o.action, o.phase) for o in self.dispatcher.history if o.event == "end"}
         return self._phases <= ended
 
-    def robot_step(self) -> RobotStep | None:
-        step = self.dispatcher.decision.robot
+    def robot_step(self, robot: str | None = None) -> RobotStep | None:
+        """The robot's next step (a team's: `robot`'s), or None (it waits, or has nothing to do)."""
+        decision = self.dispatcher.decision
+        step = decision.robot if not self.team else (decision.robots or {}).get(robot or "")
         return step if isinstance(step, RobotStep) else None
 
     def setup(self) -> dict[str, Any]:
@@ -252,10 +332,15 @@ class ConsoleSession:
                                                              "phases": {p.id: p.location for p in a.phases}}
                                                       for a in task.actions}},
                 "map": map_view(task), "speed": self.clock.speed, "undo_window": UNDO_WINDOW,
-                "log_file": str(self.log_path)}
+                "log_file": str(self.log_path)} | ({"team": {"people": list(self.people), "robots": list(self.robots)}}
+                                                   if self.team else {})
 
-    def _undo(self, now: float) -> dict[str, Any] | None:
-        last = next((o for o in reversed(self.dispatcher.history) if o.agent == "human"), None)
+    def _undo(self, now: float, person: str | None = None) -> dict[str, Any] | None:
+        if person is None:
+            last = next((o for o in reversed(self.dispatcher.history) if o.agent == "human"), None)
+        else:  # a team's person: their own observation, when it is the last one (what an undo withdraws)
+            last = next((o for o in reversed(self.dispatcher.history) if o.event != "tick"), None)
+            last = last if last is not None and last.agent == person else None
         if last is None or now - last.t > UNDO_WINDOW:
             return None
         what = " ".join(x for x in (last.event, last.action, last.phase) if x)
@@ -268,6 +353,8 @@ class ConsoleSession:
         decision = d.decision.to_json()
         best = d.best
         plan = decision.get("plan")
+        if self.team:
+            return self._team_state(now, decision, plan)
         return {
             "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,
             "decision": decision,
@@ -280,6 +367,27 @@ class ConsoleSession:
             "routes": self.routes.routes(plan),
             "log": list(self.entries), "log_total": self.total, "log_error": self.log_error,
             "robot_link": self.robot_link, "where": self._where(), **self._tracked(),
+        }
+
+    def _team_state(self, now: float, decision: dict[str, Any], plan: str | None) -> dict[str, Any]:
+        """A team's view (issue 37): the shared view of every agent, and per person their buttons, what
+        they have under way, their undo and their counter (``"persons"``); per robot its link."""
+        d = self.dispatcher
+        best = d.best
+        persons = {p: {"hseq": self.hseqs[p],
+                       "options": [{"action": o.action, "phase": o.phase, "event": o.event}
+                                   for o in d.human_options(p)],
+                       "under_way": [list(x) for x in under_way(d.history, p, self._joint)],
+                       "undo": self._undo(now, p)} for p in self.people}
+        return {
+            "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,
+            "decision": decision, "persons": persons,
+            "best": None if best is None else {"plan": best.plan, "class": best.plan_class,
+                                               "makespan": best.makespan, "sequences": dict(best.sequences)},
+            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now, self._joint),
+            "routes": self.routes.routes(plan),
+            "log": list(self.entries), "log_total": self.total, "log_error": self.log_error,
+            "robot_link": self.robot_link, "robot_links": dict(self.robot_links), "where": self._where(),
         }
 
     def _tracked(self) -> dict[str, Any]:

@@ -10,6 +10,10 @@ from the epoch, so Foxglove shows the task's start as 1970-01-01 00:00:00 UTC), 
 the same bytes, so a live run's recording equals the one made from its log (``hrc dispatch --replay LOG
 --record FILE``).
 
+A team (issue 37: other than one person and one robot) has a pose channel per agent (``/hrc/ID/pose``)
+and a goal channel per robot (``/hrc/ROBOT/goal``, its entry of the answers' ``robots``: `scene.goal_topic`);
+``/hrc/decision`` then names each robot's step (``robots``) and ``/hrc/agents`` labels each robot with its own.
+
 Where the agents are: in a simulation, where the floor had them (`positions`, at most every
 `FRAME_PERIOD` run seconds); otherwise where they were last seen (`Places`: an agent is put at a phase's
 location when it arrives, starts or ends there, at its waiting place when it parks, and stays where it
@@ -107,17 +111,19 @@ class Places:
     at; `present` whether it is on the floor (the person may be away).
     """
 
-    def __init__(self, task: Task, park: Callable[[str, str, str], str | None]) -> None:
+    def __init__(self, task: Task, park: Callable[[str, str, str], str | None], team: bool = False) -> None:
         self.task = task
         self.park = park  # (agent, action, phase) -> the leg's waiting place in the current plan, or None
         self.human = next(a.id for a in task.agents if a.is_human)
+        # a team's undo withdraws the last observation, some person's (or an away/back of theirs)
+        self.undone = {a.id for a in task.agents if a.is_human} | {None} if team else {self.human}
         self.kept: list[Mapping[str, Any]] = []
         self._fold()
 
     def see(self, obs: Mapping[str, Any]) -> None:
         if obs.get("event") == "undo":
             for k in range(len(self.kept) - 1, -1, -1):
-                if self.kept[k].get("agent") == self.human:
+                if self.kept[k].get("agent") in self.undone:
                     del self.kept[k]
                     break
         elif obs.get("event") != "tick":
@@ -168,9 +174,11 @@ class _FoxgloveOut:
         self._map = SceneUpdateChannel("/hrc/map", context=ctx)
         self._routes = SceneUpdateChannel("/hrc/routes", context=ctx)
         self._agents = SceneUpdateChannel("/hrc/agents", context=ctx)
-        self._pose = {a.id: PoseInFrameChannel(f"/hrc/{'human' if a.is_human else 'robot'}/pose", context=ctx)
-                      for a in task.agents}
-        self._goal = PoseInFrameChannel("/hrc/robot/goal", context=ctx)
+        self._pose = {a.id: PoseInFrameChannel(scene.pose_topic(task, a.id), context=ctx) for a in task.agents}
+        robots = scene.team_robots(task)  # a team's robots: a goal channel each (issue 37)
+        self._goals: dict[str | None, PoseInFrameChannel] = \
+            {r: PoseInFrameChannel(scene.goal_topic(r), context=ctx) for r in robots} if robots else \
+            {None: PoseInFrameChannel(scene.goal_topic(), context=ctx)}
         self._in = self._json("/hrc/in", "hrc.Message")
         self._out = self._json("/hrc/out", "hrc.Answer")
         self._decision = self._json("/hrc/decision", "hrc.Decision")
@@ -205,8 +213,8 @@ class _FoxgloveOut:
     def pose(self, agent: str, t: float, x: float, y: float, ns: int) -> None:
         self._pose[agent].log(scene.pose_in_frame(t, x, y), log_time=ns)
 
-    def goal(self, t: float, x: float, y: float, heading: float, ns: int) -> None:
-        self._goal.log(scene.pose_in_frame(t, x, y, heading), log_time=ns)
+    def goal(self, t: float, x: float, y: float, heading: float, ns: int, robot: str | None = None) -> None:
+        self._goals[robot].log(scene.pose_in_frame(t, x, y, heading), log_time=ns)
 
     def agents(self, t: float, where: Mapping[str, tuple[float, float]], labels: Mapping[str, str],
                present: Mapping[str, bool], ns: int) -> None:
@@ -237,6 +245,8 @@ class RunRecorder:
         self.measured = measured
         self.human = next(a.id for a in task.agents if a.is_human)
         self.robot = next(a.id for a in task.agents if not a.is_human)
+        self.team = scene.team_robots(task)  # a team's robots (issue 37), () for one of each
+        self.goals: dict[str, tuple[str, str, str]] = {}  # a team's robot -> its last drive
         if fmt == "ros2":
             from hrc.record.ros2msg import Ros2Out
 
@@ -251,7 +261,7 @@ class RunRecorder:
         self.plan: str | None = None
         self.answer: Mapping[str, Any] = {}
         self.goal: tuple[str, str, str] | None = None
-        self.places = Places(task, self._park)
+        self.places = Places(task, self._park, bool(self.team))
         self.where = dict(self.places.where)
         self.present = dict(self.places.present)
         self.frame_t: float | None = None
@@ -296,11 +306,24 @@ class RunRecorder:
         cls = out.get("class")
         robot = out.get("robot")
         window = robot if isinstance(robot, dict) and "earliest" in robot else {}
-        self._sink.decision(_dumps({"t": self.t, "plan": out.get("plan"), "class": cls,
-                                   "class_rank": CLASS_RANK.get(str(cls), -1), "candidates": out.get("candidates", {}),
-                                   "robot": _step_words(robot), "earliest": window.get("earliest"),
-                                   "latest": window.get("latest"), "human_away": bool(out.get("human_away")),
-                                   "stopped": bool(out.get("stopped"))}), ns)
+        if self.team:  # each robot's step by id (issue 37); the first robot's window for a plot
+            steps = out.get("robots") or {}
+            robot = steps.get(self.robot)
+            window = robot if isinstance(robot, dict) and "earliest" in robot else {}
+            self._sink.decision(_dumps({"t": self.t, "plan": out.get("plan"), "class": cls,
+                                       "class_rank": CLASS_RANK.get(str(cls), -1),
+                                       "candidates": out.get("candidates", {}), "robot": _step_words(robot),
+                                       "earliest": window.get("earliest"), "latest": window.get("latest"),
+                                       "robots": {r: _step_words(steps.get(r)) for r in self.team},
+                                       "human_away": bool(out.get("away")), "away": list(out.get("away") or []),
+                                       "stopped": bool(out.get("stopped"))}), ns)
+        else:
+            self._sink.decision(_dumps({"t": self.t, "plan": out.get("plan"), "class": cls,
+                                       "class_rank": CLASS_RANK.get(str(cls), -1),
+                                       "candidates": out.get("candidates", {}), "robot": _step_words(robot),
+                                       "earliest": window.get("earliest"), "latest": window.get("latest"),
+                                       "human_away": bool(out.get("human_away")), "stopped": bool(out.get("stopped"))}),
+                                ns)
         if out.get("plan") != self.plan:
             self.plan = out.get("plan")
             self._sink.routes(self.t, self._legs(), ns)
@@ -311,6 +334,13 @@ class RunRecorder:
             for agent, (x, y) in self.where.items():
                 self._sink.pose(agent, self.t, x, y, ns)
         self._draw_agents()
+        for r in self.team:  # a team: each robot's drive on its own channel
+            drive = next_drive(self.task, out, self._legs(), r)
+            if drive is not None and drive.leg != self.goals.get(r):
+                self.goals[r] = drive.leg
+                self._sink.goal(self.t, *drive.target, drive.heading, ns, r)
+        if self.team:
+            return
         drive = next_drive(self.task, out, self._legs())
         if drive is not None and drive.leg != self.goal:
             self.goal = drive.leg
@@ -333,7 +363,10 @@ class RunRecorder:
     def _draw_agents(self) -> None:
         labels = {a: f"{a}: {self.places.doing.get(a, '')}" for a in self.where}
         robot = self.answer.get("robot", None) if self.answer else None
-        if self.answer:
+        if self.answer and self.team:
+            for r in self.team:
+                labels[r] += f"\nnext: {_step_words((self.answer.get('robots') or {}).get(r))}"
+        elif self.answer:
             labels[self.robot] += f"\nnext: {_step_words(robot)}"
         self._sink.agents(self.t, self.where, labels, self.present, self._ns())
 

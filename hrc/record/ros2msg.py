@@ -226,7 +226,7 @@ class Ros2Out:
         self.task = task
         self._writer = Writer(sink)
         self._schemas = {name: self._writer.register_msgdef(name, text) for name, text in DEFINITIONS.items()}
-        self._pose_topic = {a.id: f"/hrc/{'human' if a.is_human else 'robot'}/pose" for a in task.agents}
+        self._pose_topic = {a.id: scene.pose_topic(task, a.id) for a in task.agents}
 
     def _write(self, topic: str, type_name: str, message: Any, ns: int) -> None:
         self._writer.write_message(topic, self._schemas[type_name], message, log_time=ns, publish_time=ns)
@@ -258,8 +258,8 @@ class Ros2Out:
     def pose(self, agent: str, t: float, x: float, y: float, ns: int) -> None:
         self._write(self._pose_topic[agent], "geometry_msgs/msg/PoseStamped", pose_stamped(t, x, y), ns)
 
-    def goal(self, t: float, x: float, y: float, heading: float, ns: int) -> None:
-        self._write("/hrc/robot/goal", "geometry_msgs/msg/PoseStamped", pose_stamped(t, x, y, heading), ns)
+    def goal(self, t: float, x: float, y: float, heading: float, ns: int, robot: str | None = None) -> None:
+        self._write(scene.goal_topic(robot), "geometry_msgs/msg/PoseStamped", pose_stamped(t, x, y, heading), ns)
 
     def agents(self, t: float, where: Mapping[str, tuple[float, float]], labels: Mapping[str, str],
                present: Mapping[str, bool], ns: int) -> None:

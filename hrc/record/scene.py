@@ -40,8 +40,8 @@ from foxglove.messages import (
 
 from hrc.model import Obstacle, Task
 
-__all__ = ["AGENT_COLORS", "AGENT_HEIGHT", "FRAME", "OBSTACLE_HEIGHT", "agent_color", "agents_update", "map_update",
-           "pose_in_frame", "routes_update", "stamp"]
+__all__ = ["AGENT_COLORS", "AGENT_HEIGHT", "FRAME", "OBSTACLE_HEIGHT", "agent_color", "agents_update", "goal_topic",
+           "map_update", "pose_in_frame", "pose_topic", "routes_update", "stamp", "team_robots"]
 
 FRAME = "map"
 """The frame every entity and pose is in: hrc's map coordinates (m)."""
@@ -52,6 +52,29 @@ AGENT_HEIGHT = {True: 1.7, False: 0.6}
 _IDENTITY = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
 AGENT_COLORS = ("#d9731a", "#1f6fb2", "#00897b", "#6d4c41")
 """The first person, the first robot, then a second of either kind (`hrc.report.figures.AGENT_COLORS`)."""
+
+
+def team_robots(task: Task) -> tuple[str, ...]:
+    """A team's robots (issue 37: other than one person and one robot), each recorded on channels of its
+    own; () for one person and one robot, whose channels are as they always were."""
+    people = sum(a.is_human for a in task.agents)
+    robots = tuple(a.id for a in task.agents if not a.is_human)
+    return robots if (people, len(robots)) != (1, 1) else ()
+
+
+def pose_topic(task: Task, agent_id: str) -> str:
+    """An agent's pose channel: ``/hrc/human/pose`` and ``/hrc/robot/pose`` for one of each, else
+    ``/hrc/ID/pose`` (a team: issue 37)."""
+    agent = task.agent(agent_id)
+    if not team_robots(task):
+        return f"/hrc/{'human' if agent.is_human else 'robot'}/pose"
+    return f"/hrc/{agent_id}/pose"
+
+
+def goal_topic(robot: str | None = None) -> str:
+    """A robot's goal channel: ``/hrc/robot/goal`` for the one robot (`robot` None), ``/hrc/ID/goal`` for a
+    team's (issue 37)."""
+    return "/hrc/robot/goal" if robot is None else f"/hrc/{robot}/goal"
 
 
 def agent_color(task: Task, agent_id: str) -> str:

@@ -89,15 +89,21 @@ def _split(points: Sequence[Point], at: Point) -> int | None:
     return None
 
 
-def next_drive(task: Task, answer: Mapping[str, Any],
-               routes: Mapping[str, Sequence[Mapping[str, Any]]] | None = None) -> Drive | None:
+def next_drive(task: Task, answer: Mapping[str, Any], routes: Mapping[str, Sequence[Mapping[str, Any]]] | None = None,
+               robot: str | None = None) -> Drive | None:
     """The drive the answer tells the robot to make next, or None (it is told to wait, to do work at a
     location, to end a drive under way, or nothing; or the answer is a refusal).
 
     `routes`: the best plan's legs per agent (``PlanRoutes.routes(answer["plan"])``): the drive's points
     and its waiting place. Without them the destination is the phase's location and there are no points.
+    `robot`: a team's robot (issue 37), whose step is its entry of the answer's ``robots``; None: the one
+    robot's ``robot``.
     """
-    step = answer.get("robot") if answer.get("ok") else None
+    if robot is None:
+        step = answer.get("robot") if answer.get("ok") else None
+    else:
+        steps = answer.get("robots") if answer.get("ok") else None
+        step = steps.get(robot) if isinstance(steps, Mapping) else None
     if not isinstance(step, Mapping) or step.get("event") not in DRIVE_EVENTS:
         return None
     action, phase, event = str(step["action"]), str(step["phase"]), str(step["event"])
@@ -106,7 +112,7 @@ def next_drive(task: Task, answer: Mapping[str, Any],
     except KeyError:
         return None
     ws = task.workspace
-    robot = next(a.id for a in task.agents if not a.is_human)
+    robot = robot if robot is not None else next(a.id for a in task.agents if not a.is_human)
     leg = next((lg for lg in (routes or {}).get(robot, ()) if (lg["action"], lg["phase"]) == (action, phase)), None)
     points: tuple[Point, ...] = tuple((float(x), float(y)) for x, y in leg["points"]) if leg else ()
     park = leg.get("park") if leg else None

@@ -15,6 +15,13 @@ drive of the robot (`hrc.ros2.drive.next_drive`), its destination on ``robot/goa
 points on ``robot/route``, in the frame `MapFrame.frame_id`. Both are reliable and transient local: a
 late subscriber gets the latest.
 
+**A team** (issue 37: other than one person and one robot): each robot has its own ``ROBOT/acks`` in and
+``ROBOT/goal``, ``ROBOT/route`` (and ``ROBOT/separation``) out, under its id (`hrc.ros2.topics.robot_topics`),
+each goal from that robot's entry of the answer's ``robots``; each person has ``PERSON/observations``
+(`person_topics`). A line on an agent's own topic must name that agent (``"agent": ID``): any other is
+refused in one line on ``answers`` and never reaches the log, so that one agent's detector or controller
+cannot speak for another. The shared ``observations`` topic takes any line, as for one of each.
+
 **Time.** The run's time is the messages' own ``t`` (seconds from the task's start), as in ``hrc
 dispatch``. A pose's ``t`` is its header's stamp read as run seconds; a goal's stamp is the run time of
 the answer that named it. With ``use_sim_time`` the node's clock is ``/clock`` (run seconds): goals are
@@ -49,10 +56,23 @@ from std_msgs.msg import String
 
 from hrc.detect import DetectingDispatcher
 from hrc.dispatch.durable import LoggedDispatcher
-from hrc.dispatch.limits import MAX_LINE
+from hrc.dispatch.limits import MAX_LINE, parse_message
+from hrc.errors import HrcError, MessageError
 from hrc.model import Task
 from hrc.ros2.drive import Drive, MapFrame, next_drive
-from hrc.ros2.topics import ANSWERS, GOAL, NODE_NAME, OBSERVATIONS, POSE, ROBOT_ACKS, ROUTE, SEPARATION, Qos
+from hrc.ros2.topics import (
+    ANSWERS,
+    GOAL,
+    NODE_NAME,
+    OBSERVATIONS,
+    POSE,
+    ROBOT_ACKS,
+    ROUTE,
+    SEPARATION,
+    Qos,
+    person_topics,
+    robot_topics,
+)
 
 __all__ = ["POSITION", "DispatcherNode", "Stopped", "qos_profile", "serve"]
 
@@ -92,21 +112,45 @@ class DispatcherNode:
         self.handled = 0
         self.last_leg: tuple[str, str, str] | None = None
         self.human = next(a.id for a in self.task.agents if a.is_human)
+        people = tuple(a.id for a in self.task.agents if a.is_human)
+        robots = tuple(a.id for a in self.task.agents if not a.is_human)
+        self.team = robots if (len(people), len(robots)) != (1, 1) else ()  # issue 37: per robot
+        self.last_legs: dict[str, tuple[str, str, str]] = {}  # a team's robot -> its last drive
         overrides = [Parameter("use_sim_time", value=True)] if use_sim_time else []
         self.node = Node(NODE_NAME, namespace=namespace, context=context, parameter_overrides=overrides)
         self.sim_time = bool(self.node.get_parameter("use_sim_time").value)
         node = self.node
         self.answers = node.create_publisher(String, ANSWERS.name, qos_profile(ANSWERS.qos))
-        self.goal = node.create_publisher(PoseStamped, GOAL.name, qos_profile(GOAL.qos))
-        self.route = node.create_publisher(PoseArray, ROUTE.name, qos_profile(ROUTE.qos))
-        self.separation = None if self.task.safety is None else \
+        # a team's robots have their own topics (below; a robot named "robot" has the one robot's names)
+        one = not self.team
+        self.goal: Any = node.create_publisher(PoseStamped, GOAL.name, qos_profile(GOAL.qos)) if one else None
+        self.route: Any = node.create_publisher(PoseArray, ROUTE.name, qos_profile(ROUTE.qos)) if one else None
+        self.separation = None if self.task.safety is None or not one else \
             node.create_publisher(String, SEPARATION.name, qos_profile(SEPARATION.qos))
-        for topic in (OBSERVATIONS, ROBOT_ACKS):
+        for topic in (OBSERVATIONS, ROBOT_ACKS) if one else (OBSERVATIONS,):
             node.create_subscription(String, topic.name, self._supervised(self._on_line), qos_profile(topic.qos))
         node.create_subscription(PoseStamped, POSE.name, self._supervised(self._on_pose), qos_profile(POSE.qos))
         self._pose_refused = False
         self.faults = 0
         self._fault_said = -math.inf
+        self.per_robot: dict[str, tuple[Any, Any, Any]] = {}  # a team's robot -> (goal, route, separation)
+        try:
+            for r in self.team:
+                t = robot_topics(r)
+                self.per_robot[r] = (node.create_publisher(PoseStamped, t["goal"].name, qos_profile(t["goal"].qos)),
+                                     node.create_publisher(PoseArray, t["route"].name, qos_profile(t["route"].qos)),
+                                     None if self.task.safety is None else node.create_publisher(
+                                         String, t["separation"].name, qos_profile(t["separation"].qos)))
+                node.create_subscription(String, t["acks"].name, self._supervised(self._own_line(r)),
+                                         qos_profile(t["acks"].qos))
+            for h in people if self.team else ():
+                t = person_topics(h)
+                node.create_subscription(String, t["observations"].name, self._supervised(self._own_line(h)),
+                                         qos_profile(t["observations"].qos))
+        except (ValueError, TypeError, RuntimeError) as err:  # an id that is no ROS 2 name
+            node.destroy_node()
+            raise HrcError(f"hrc ros2: an agent's id cannot name its topics ({' '.join(str(err).split())[:200]}); "
+                           "a team's ids must be ROS 2 names (letters, digits, _)") from err
         if self.tick > 0 and self.sim_time:
             node.create_timer(self.tick, self._supervised(self._on_tick))  # on the node's clock: /clock
 
@@ -146,6 +190,27 @@ class DispatcherNode:
             data = data[:-1]
         self._answer(self._submit(data))
 
+    def _own_line(self, agent: str) -> Callable[[String], None]:
+        """The callback of `agent`'s own input topic (a team's): a line naming another agent, or none, is
+        refused here (one line on ``answers``), never logged; the rest go in as on ``observations``."""
+        def take(msg: String) -> None:
+            data = msg.data.encode("utf-8", "surrogatepass")
+            if data.endswith(b"\n"):
+                data = data[:-1]
+            try:
+                obj = parse_message(data) if len(data) <= MAX_LINE else None
+            except MessageError:
+                obj = None
+            named = obj.get("agent") if isinstance(obj, dict) else None
+            if named != agent:
+                t = obj.get("t") if isinstance(obj, dict) else None
+                which = f"names {str(named)[:40]!r}" if named is not None else "names no agent"
+                self._say(_refusal(t, f"a line on {agent}'s own topic must be {agent}'s (\"agent\": \"{agent}\"); "
+                                      f"this one {which}; nothing changed"))
+                return
+            self._answer(self._submit(data))
+        return take
+
     def _on_pose(self, msg: PoseStamped) -> None:
         t = msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9
         if msg.header.frame_id != self.frame.frame_id:
@@ -180,25 +245,37 @@ class DispatcherNode:
         if not out.get("ok"):
             return
         legs = self.routes(out["plan"]) if self.routes is not None and out.get("plan") else None
+        for r in self.team:  # a team: each robot's drive on its own topics
+            drive = next_drive(self.task, out, legs, r)
+            if drive is not None and drive.leg != self.last_legs.get(r):
+                self.last_legs[r] = drive.leg
+                goal, route, separation = self.per_robot[r]
+                self._drive(drive, float(out["t"]), goal, route)
+                self._limits(out, legs, drive, r, separation)
+        if self.team:
+            return
         drive = next_drive(self.task, out, legs)
         if drive is not None and drive.leg != self.last_leg:
             self.last_leg = drive.leg
             self._drive(drive, float(out["t"]))
             self._limits(out, legs, drive)
 
-    def _limits(self, out: dict[str, Any], legs: Any, drive: Drive) -> None:
-        """The limits the drive's plan assumed (`SEPARATION`), for a task with safety: only."""
-        step = out.get("robot") or {}
+    def _limits(self, out: dict[str, Any], legs: Any, drive: Drive, robot: str | None = None,
+                publisher: Any = None) -> None:
+        """The limits the drive's plan assumed (`SEPARATION`), for a task with safety: only (a team's
+        `robot`: its own step, on its own `publisher`)."""
+        step = (out.get("robot") if robot is None else (out.get("robots") or {}).get(robot)) or {}
         limits = step.get("separation")
-        if self.separation is None or not isinstance(limits, dict):
+        publisher = self.separation if robot is None else publisher
+        if publisher is None or not isinstance(limits, dict):
             return
-        robot = next(a.id for a in self.task.agents if not a.is_human)
+        robot = robot or next(a.id for a in self.task.agents if not a.is_human)
         leg = next((lg for lg in (legs or {}).get(robot, ()) if (lg["action"], lg["phase"]) == drive.leg[:2]), None)
         slow = leg.get("speed") if leg is not None else None
         msg = {"t": out["t"], "action": drive.action, "phase": drive.phase, "event": drive.event, **limits,
                "drive_speed": slow or limits["speed"],
                "drive_separation": limits.get("reduced_separation") if slow else limits["separation"]}
-        self.separation.publish(String(data=json.dumps(msg)))
+        publisher.publish(String(data=json.dumps(msg)))
 
     def _stamp(self, t: float) -> Any:
         if self.sim_time:
@@ -215,12 +292,12 @@ class DispatcherNode:
         pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = qx, qy, qz, qw
         return pose
 
-    def _drive(self, drive: Drive, t: float) -> None:
+    def _drive(self, drive: Drive, t: float, goal_topic: Any = None, route_topic: Any = None) -> None:
         goal = PoseStamped()
         goal.header.stamp = self._stamp(t)
         goal.header.frame_id = self.frame.frame_id
         goal.pose = self._pose(*drive.target, drive.heading)
-        self.goal.publish(goal)
+        (goal_topic or self.goal).publish(goal)
         route = PoseArray()
         route.header = goal.header
         pts = drive.points
@@ -228,7 +305,7 @@ class DispatcherNode:
             nxt = pts[k + 1] if k + 1 < len(pts) else None
             heading = math.atan2(nxt[1] - y, nxt[0] - x) if nxt is not None and nxt != (x, y) else drive.heading
             route.poses.append(self._pose(x, y, heading))
-        self.route.publish(route)
+        (route_topic or self.route).publish(route)
 
     def destroy(self) -> None:
         self.node.destroy_node()

@@ -1,6 +1,11 @@
 """What ``hrc ros2`` speaks on ROS 2: its node's name, its topics (relative to the namespace, default
 ``/hrc``), their types and QoS. Plain data, no ROS import: docs/ros2.md lists the same, and the node
 (`hrc.ros2.node`) builds its publishers and subscriptions from it.
+
+A team (issue 37: other than one person and one robot) has a goal, a route and an acknowledgement topic
+per robot and an observation topic per person, each under the agent's id (`robot_topics`,
+`person_topics`): ``/hrc/robot2/goal``, ``/hrc/alice/observations``. The shared ``observations`` and
+``answers`` stay.
 """
 
 from __future__ import annotations
@@ -8,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 __all__ = ["ANSWERS", "DEFAULT_NAMESPACE", "GOAL", "INPUT", "LATEST", "NODE_NAME", "OBSERVATIONS", "POSE", "Qos",
-           "ROBOT_ACKS", "ROUTE", "SEPARATION", "TOPICS", "Topic"]
+           "ROBOT_ACKS", "ROUTE", "SEPARATION", "TOPICS", "Topic", "person_topics", "robot_topics"]
 
 NODE_NAME = "hrc_dispatcher"
 DEFAULT_NAMESPACE = "/hrc"
@@ -65,3 +70,22 @@ SEPARATION = Topic("robot/separation", "std_msgs/msg/String", "out", LATEST,
                    "controller (JSON: the step's ``separation`` and the drive's ``drive_speed`` and "
                    "``drive_separation``); only for a task with safety:")
 TOPICS = (OBSERVATIONS, ROBOT_ACKS, POSE, ANSWERS, GOAL, ROUTE, SEPARATION)
+
+
+def robot_topics(robot: str) -> dict[str, Topic]:
+    """A team's robot's own topics under its id (issue 37): ``acks`` in (its controller's lines, each naming
+    this robot), ``goal``, ``route`` and ``separation`` out, as `ROBOT_ACKS`, `GOAL`, `ROUTE` and
+    `SEPARATION` are the one robot's."""
+    return {"acks": Topic(f"{robot}/acks", ROBOT_ACKS.type, "in", INPUT,
+                          f"{robot}'s controller's acknowledgements (each line's agent must be {robot})"),
+            "goal": Topic(f"{robot}/goal", GOAL.type, "out", LATEST, f"the destination of {robot}'s next drive"),
+            "route": Topic(f"{robot}/route", ROUTE.type, "out", LATEST, f"the points of {robot}'s next drive"),
+            "separation": Topic(f"{robot}/separation", SEPARATION.type, "out", LATEST,
+                                f"the limits {robot}'s drive's plan assumed (a task with safety: only)")}
+
+
+def person_topics(person: str) -> dict[str, Topic]:
+    """A team's person's own topic under their id (issue 37): ``observations`` in, the lines of that
+    person's detector or buttons (each naming this person)."""
+    return {"observations": Topic(f"{person}/observations", OBSERVATIONS.type, "in", INPUT,
+                                  f"{person}'s observations, away and back (each line's agent must be {person})")}

@@ -1,5 +1,6 @@
 // hrc console page: plain JavaScript, no library. Talks to the server over one websocket (/ws):
 // receives "setup" once per connection, then "state" after every change, and "reply" to its own messages.
+// A team (issue 37): "?person=ID" makes this page that person's buttons; without it, the shared view.
 "use strict";
 (function () {
   const SVGNS = "http://www.w3.org/2000/svg";
@@ -7,6 +8,7 @@
   const C = {                      // what the tests and the curious may read: window.hrcConsole
     ws: null, setup: null, state: null, receivedAt: 0, nextId: 1, pending: new Map(),
     stats: { pressToReply: [], pressToState: [], reconnects: 0, errors: [] }, connected: false,
+    person: new URLSearchParams(location.search).get("person"),
   };
   window.hrcConsole = C;
   C.runNow = () => runNow();
@@ -14,7 +16,8 @@
 
   // ---- the connection -------------------------------------------------------------------------
   function connect() {
-    const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
+    const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws" +
+                             (C.person ? "?person=" + encodeURIComponent(C.person) : ""));
     C.ws = ws;
     ws.onopen = () => { backoff = 250; };
     ws.onmessage = (ev) => {
@@ -42,7 +45,7 @@
   function send(msg) {
     if (!C.connected || !C.ws || C.ws.readyState !== WebSocket.OPEN) { showError("not connected: wait until the page reconnects"); return; }
     msg.id = C.nextId++;
-    msg.hseq = C.state ? C.state.hseq : -1;
+    msg.hseq = C.state ? mine().hseq : -1;
     C.pending.set(msg.id, { at: performance.now(), hseq: msg.hseq });
     C.ws.send(JSON.stringify(msg));
     drawButtons();
@@ -63,12 +66,32 @@
     setLink(true, s.robot_link === "simulated" ? "connected · robot simulated" :
                   s.robot_link === "connected" ? "connected · robot connected" : "connected · no robot");
     drawState();
-    if (C.waitState && s.hseq > C.waitState.hseq) {  // the press is now on screen
+    if (C.waitState && mine().hseq > C.waitState.hseq) {  // the press is now on screen
       C.stats.pressToState.push(performance.now() - C.waitState.at);
       C.waitState = null;
     }
     drawStats();
   }
+
+  // ---- whose page: one person and one robot, or a team's person (issue 37), or a team's shared view
+  const team = () => !!(C.setup && C.setup.team);
+  function mine() {
+    const s = C.state, d = s.decision;
+    if (!s.persons) return { options: s.options, under_way: s.under_way, undo: s.undo, hseq: s.hseq, hint: d.human,
+                             ahead: d.ahead, away: d.human_away, presses: true };
+    const p = C.person ? s.persons[C.person] : null;
+    if (!p) return { options: [], under_way: [], undo: null, hseq: -1, hint: null, ahead: null, away: false, presses: false };
+    return { options: p.options, under_way: p.under_way, undo: p.undo, hseq: p.hseq, hint: (d.people || {})[C.person] || null,
+             ahead: (d.ahead || {})[C.person] || null, away: (d.away || []).includes(C.person), presses: true };
+  }
+  // one colour per agent, kept across the Gantt chart and the map
+  const PALETTE = ["#d9731a", "#1f6fb2", "#2e9e4f", "#8e44ad", "#c0392b", "#138d90", "#7f6a00"];
+  function color(agent) {
+    if (!team()) return { human: "#d9731a", robot: "#1f6fb2" }[agent] || "#333";
+    const i = Object.keys(C.setup.map.agents).indexOf(agent);
+    return i < 0 ? "#333" : PALETTE[i % PALETTE.length];
+  }
+  const isRobot = (agent) => { const a = C.setup.map.agents[agent]; return a ? a.kind === "robot" : agent === "robot"; };
 
   // ---- time -----------------------------------------------------------------------------------
   function runNow() {
@@ -110,7 +133,9 @@
   }
 
   function drawSetup() {
-    $("task-name").textContent = "hrc console · " + C.setup.task.name;
+    $("task-name").textContent = "hrc console · " + C.setup.task.name + (team() ? (C.person ? " · " + C.person + "'s page" : " · shared view") : "");
+    if (team()) $("person-title").textContent = C.person ? "You (" + C.person + ")" : "People";
+    if (team()) { $("robot-title").textContent = "Robots next"; $("robot-step").hidden = true; }
     $("speed").textContent = C.setup.speed !== 1 ? "×" + C.setup.speed : "";
   }
 
@@ -119,11 +144,12 @@
     box.textContent = "";
     const busy = !C.connected || C.pending.size > 0 || !s || s.finished;
     if (!s) return;
+    const me = mine();
     // "done" first: the phase under way
-    const opts = s.options.slice().sort((a, b) => (a.event === "end" ? 0 : 1) - (b.event === "end" ? 0 : 1));
+    const opts = me.options.slice().sort((a, b) => (a.event === "end" ? 0 : 1) - (b.event === "end" ? 0 : 1));
     for (const o of opts) {
       const [big, small] = optionLabel(o);
-      const h = s.decision.human, hinted = h && h.action === o.action && h.phase === o.phase && h.event === o.event;
+      const h = me.hint, hinted = h && h.action === o.action && h.phase === o.phase && h.event === o.event;
       const b = el("button", { type: "button", class: "act" + (o.event === "end" ? " done" : "") + (hinted ? " hint" : ""),
                                "data-action": o.action, "data-phase": o.phase, "data-event": o.event });
       b.append(document.createTextNode(big), el("small", {}, small));
@@ -131,9 +157,10 @@
       b.addEventListener("click", () => send({ type: "press", action: o.action, phase: o.phase, event: o.event }));
       box.append(b);
     }
-    if (!opts.length) box.append(el("div", { class: "none" }, s.finished ? "All done." : "Nothing for you to start now."));
-    const away = s.decision && s.decision.human_away;
-    $("away").hidden = !!away; $("back").hidden = !away;
+    if (!opts.length) box.append(el("div", { class: "none" }, s.finished ? "All done." : !me.presses ?
+      "The shared view: each person presses on their own page." : "Nothing for you to start now."));
+    const away = me.away;
+    $("away").hidden = !!away || !me.presses; $("back").hidden = !away || !me.presses;
     $("away").disabled = $("back").disabled = busy;
     $("undo").disabled = busy;
   }
@@ -149,47 +176,80 @@
       const c = el("span", { class: "count c-" + k, "data-class": k }); c.append(el("small", {}, k), document.createTextNode(String(d.candidates ? d.candidates[k] : 0)));
       counts.append(c);
     }
-    // the person: what they are doing
+    // the person: what they are doing (a team's shared view: every person's)
     const doing = $("doing"); doing.textContent = "";
-    if (d.human_away) doing.append(el("span", { class: "away" }, "You are away: the robot takes what you have not started."));
-    else if (s.under_way.length) doing.append(document.createTextNode("Under way: " + s.under_way.map(([a, p]) => cap(p) + " " + a).join(", ")));
-    const h = d.human;  // the dispatcher's hint: the person's next step in the best plan, or what to wait for
-    if (h && h.wait_for) doing.append(el("div", { class: "hint-line wait" }, "Please wait for the " + h.wait_for.replace(/\./g, " ")));
-    else if (h && h.action) doing.append(el("div", { class: "hint-line" }, "Suggested: " + optionLabel(h).join(" · ") +
-      (h.latest !== null ? " (by " + fmt(h.latest) + " s)" : "")));
-    const ahead = d.ahead;  // while a walk or a manipulation is under way: the instruction for the step after it
-    if (!h && ahead) {
-      const words = (name) => name.split(".").slice(1).reverse().join(" ");
-      doing.append(el("div", { class: "hint-line ahead" }, "Next, after " + words(ahead.after) + ": " +
-        (ahead.wait_for ? "wait for the " + ahead.wait_for.replace(/\./g, " ") +
-          (ahead.gap > 0 ? " and " + fmt(ahead.gap) + " s more" : "") + " before you " + words(ahead.next)
-          : words(ahead.next))));
+    const me = mine();
+    if (me.presses) drawDoing(doing, me, "You", "the robot takes what you have not started.");
+    else for (const p of Object.keys(s.persons || {})) {
+      const q = s.persons[p];
+      drawDoing(doing, { under_way: q.under_way, hint: (d.people || {})[p] || null, ahead: (d.ahead || {})[p] || null,
+                         away: (d.away || []).includes(p) }, p, "the others take what " + p + " has not started.", p);
     }
     drawButtons();
+    if (team()) drawRobots(s, d);
     // the robot
     const r = d.robot;
     $("robot-step").textContent = d.stopped ? "STOPPED (no feasible plan)" : !r ? (s.finished ? "finished" : "nothing left to do")
       : r.wait_for ? "wait for " + r.wait_for : r.event + " · " + r.phase + " " + r.action;
     $("robot-step").setAttribute("data-decision", JSON.stringify(r));
     $("robot-window").textContent = r && r.action ? "window " + fmt(r.earliest) + " – " + fmt(r.latest) + " s" : "";
+    const seqs = !s.best ? "" : team() ? Object.keys(C.setup.map.agents).map((a) => " · " + a + ": " + (s.best.sequences[a] || []).join(" ")).join("")
+      : " · human: " + (s.best.sequences.human || []).join(" ") + " · robot: " + (s.best.sequences.robot || []).join(" ");
     $("plan-line").textContent = d.plan ? "best plan " + d.plan + " (" + d.class + ")" +
-      (s.best && s.best.makespan !== null ? ", makespan " + fmt(s.best.makespan) + " s" : "") +
-      (s.best ? " · human: " + (s.best.sequences.human || []).join(" ") + " · robot: " + (s.best.sequences.robot || []).join(" ") : "") : "no plan";
+      (s.best && s.best.makespan !== null ? ", makespan " + fmt(s.best.makespan) + " s" : "") + seqs : "no plan";
     drawGantt(); drawMap(); drawLog();
+  }
+
+  function drawDoing(box, me, who, awayText, tag) {
+    const line = (cls, text) => { const e = el("div", { class: cls }, (tag ? tag + ": " : "") + text); if (tag) { e.dataset.person = tag; e.style.color = color(tag); } box.append(e); };
+    if (me.away) box.append(el("span", { class: "away" }, (tag ? tag + " is" : "You are") + " away: " + awayText));
+    else if (me.under_way.length) line("under-way", "Under way: " + me.under_way.map(([a, p]) => cap(p) + " " + a).join(", "));
+    const h = me.hint;  // the dispatcher's hint: the person's next step in the best plan, or what to wait for
+    if (h && h.wait_for) line("hint-line wait", "Please wait for the " + h.wait_for.replace(/\./g, " "));
+    else if (h && h.action) line("hint-line", "Suggested: " + optionLabel(h).join(" · ") +
+      (h.latest !== null ? " (by " + fmt(h.latest) + " s)" : ""));
+    const ahead = me.ahead;  // while a walk or a manipulation is under way: the instruction for the step after it
+    if (!h && ahead) {
+      const words = (name) => name.split(".").slice(1).reverse().join(" ");
+      line("hint-line ahead", "Next, after " + words(ahead.after) + ": " +
+        (ahead.wait_for ? "wait for the " + ahead.wait_for.replace(/\./g, " ") +
+          (ahead.gap > 0 ? " and " + fmt(ahead.gap) + " s more" : "") + " before " + (tag ? "they " : "you ") + words(ahead.next)
+          : words(ahead.next)));
+    }
+  }
+
+  // A team's robots (issue 37): one row per robot, its next step, window and link.
+  function stepText(r, finished) {
+    return !r ? (finished ? "finished" : "nothing left to do") : r.wait_for ? "wait for " + r.wait_for : r.event + " · " + r.phase + " " + r.action;
+  }
+  function drawRobots(s, d) {
+    const box = $("robots"); box.textContent = "";
+    for (const [id, r] of Object.entries(d.robots || {})) {
+      const row = el("div", { class: "robot-row", "data-robot": id, "data-decision": JSON.stringify(r) });
+      const name = el("b", {}, id); name.style.color = color(id);
+      row.append(name, document.createTextNode(" " + (d.stopped ? "STOPPED" : stepText(r, s.finished))),
+                 el("span", { class: "robot-when" }),
+                 el("small", {}, (r && r.action ? " · window " + fmt(r.earliest) + " – " + fmt(r.latest) + " s" : "") +
+                                  " · " + ((s.robot_links || {})[id] || "none")));
+      box.append(row);
+    }
+  }
+  function countdown(r, now) {
+    if (!r || !r.action) return "";
+    return now < r.earliest ? "in " + (r.earliest - now).toFixed(1) + " s" :
+           (r.latest === null || now <= r.latest) ? "now" + (r.latest !== null ? " (" + (r.latest - now).toFixed(1) + " s left)" : "") : "late";
   }
 
   function tickDraw() {
     if (C.state) {
       const now = runNow();
       $("clock").textContent = fmt(now) + " s";
-      const r = C.state.decision.robot;
-      let text = "";
-      if (r && r.action) {
-        text = now < r.earliest ? "in " + (r.earliest - now).toFixed(1) + " s" :
-               (r.latest === null || now <= r.latest) ? "now" + (r.latest !== null ? " (" + (r.latest - now).toFixed(1) + " s left)" : "") : "late";
+      $("robot-countdown").textContent = team() ? "" : countdown(C.state.decision.robot, now);
+      for (const row of document.querySelectorAll("#robots .robot-row")) {
+        const when = row.querySelector(".robot-when");
+        if (when) when.textContent = " " + countdown((C.state.decision.robots || {})[row.dataset.robot], now);
       }
-      $("robot-countdown").textContent = text;
-      const u = C.state.undo, ub = $("undo");
+      const u = mine().undo, ub = $("undo");
       if (u && now <= u.until && !C.state.finished) { ub.hidden = false; ub.textContent = "Undo " + u.what + " (" + Math.max(0, u.until - now).toFixed(0) + " s)"; }
       else ub.hidden = true;
       const line = document.getElementById("now-line");
@@ -202,7 +262,8 @@
   function drawGantt() {
     const svg = $("gantt"), s = C.state, g = s.gantt;
     svg.textContent = "";
-    const W = 800, rowH = 56, top = 22, left = 64, H = top + 2 * rowH + 26;
+    const agents = team() ? Object.keys(C.setup.map.agents) : ["human", "robot"];
+    const W = 800, rowH = 56, top = 22, left = 64, H = top + agents.length * rowH + 26;
     svg.setAttribute("viewBox", `0 0 ${W} ${H}`);
     const deadline = C.setup.task.deadline;
     let tmax = Math.max(deadline || 0, s.now);
@@ -214,17 +275,16 @@
       svg.append(el("svg:line", { x1: x(t), x2: x(t), y1: top - 4, y2: H - 20, stroke: "#e2e2e2" }));
       svg.append(el("svg:text", { x: x(t), y: H - 6, "font-size": 12, "text-anchor": "middle", fill: "#666" }, String(t)));
     }
-    const agents = ["human", "robot"];
-    agents.forEach((a, i) => svg.append(el("svg:text", { x: 6, y: top + i * rowH + rowH / 2 + 5, "font-size": 15, "font-weight": 700, fill: a === "human" ? "#d9731a" : "#1f6fb2" }, a)));
+    agents.forEach((a, i) => svg.append(el("svg:text", { x: 6, y: top + i * rowH + rowH / 2 + 5, "font-size": 15, "font-weight": 700, fill: color(a), class: "gantt-row", "data-agent": a }, a)));
     const fill = { travel: "#9aa7b4", wait: "#e6c229", work: null };
     const draw = (b, actual) => {
       const i = agents.indexOf(b.agent); if (i < 0) return;
       const y = top + i * rowH + (actual ? rowH / 2 : 2), h = rowH / 2 - 6;
-      const color = fill[b.kind] || (b.agent === "human" ? "#d9731a" : "#1f6fb2");
+      const col = fill[b.kind] || color(b.agent);
       const w = Math.max(1.5, x(b.to) - x(b.from));
       const r = el("svg:rect", { x: x(b.from), y, width: w, height: h, rx: 3,
-        fill: actual ? color : "none", stroke: color, "stroke-width": actual ? 0 : 2, "stroke-dasharray": actual ? "" : (b.kind === "work" ? "" : "4 3"),
-        class: (actual ? "bar-actual" : "bar-planned") + " bar-" + b.kind });
+        fill: actual ? col : "none", stroke: col, "stroke-width": actual ? 0 : 2, "stroke-dasharray": actual ? "" : (b.kind === "work" ? "" : "4 3"),
+        class: (actual ? "bar-actual" : "bar-planned") + " bar-" + b.kind, "data-agent": b.agent });
       r.append(el("svg:title", {}, `${b.agent} ${b.kind} ${b.action}.${b.phase}: ${fmt(b.from)} – ${fmt(b.to)} s`));
       svg.append(r);
       if (b.kind === "work" && w > 34) svg.append(el("svg:text", { x: x(b.from) + 3, y: y + h - 7, "font-size": 11, fill: actual ? "#fff" : "#333" }, b.action.replace("cube", "c").replace("triangle", "tri") + (b.phase === "put" ? "↓" : "↑")));
@@ -247,12 +307,11 @@
     const P = (p) => `${p[0]},${-p[1]}`;
     svg.append(el("svg:rect", { x: x0, y: -y1, width: x1 - x0, height: y1 - y0, fill: "#fff", stroke: "#444", "stroke-width": 0.05 }));
     for (const o of m.obstacles) svg.append(el("svg:polygon", { points: o.points.map(P).join(" "), fill: "#bbb", stroke: "#888", "stroke-width": 0.02 }));
-    const colors = { human: "#d9731a", robot: "#1f6fb2" };
     for (const [agent, legs] of Object.entries(s.routes)) {
       legs.forEach((leg) => {
         if (leg.points.length < 2) return;
-        const pl = el("svg:polyline", { points: leg.points.map(P).join(" "), fill: "none", stroke: colors[agent] || "#333",
-          "stroke-width": 0.07, "stroke-dasharray": agent === "robot" ? "0.25 0.12" : "", "stroke-linejoin": "round", "stroke-opacity": 0.8, class: "route route-" + agent });
+        const pl = el("svg:polyline", { points: leg.points.map(P).join(" "), fill: "none", stroke: color(agent),
+          "stroke-width": 0.07, "stroke-dasharray": isRobot(agent) ? "0.25 0.12" : "", "stroke-linejoin": "round", "stroke-opacity": 0.8, class: "route route-" + agent });
         pl.append(el("svg:title", {}, `${agent}: ${leg.from} → ${leg.to} for ${leg.action}.${leg.phase}` + (leg.detour ? ` (detour round ${leg.detour})` : "")));
         svg.append(pl);
       });
@@ -265,12 +324,12 @@
       if (s.tracked && a.kind === "human") continue;  // the tracker says where the person is
       const at = s.where && s.where[agent] ? s.where[agent] : a.start, p = m.locations[at];
       if (!p) continue;
-      svg.append(el("svg:circle", { cx: p[0], cy: -p[1], r: a.radius, fill: colors[agent] || "#333", "fill-opacity": 0.35, stroke: colors[agent] || "#333", "stroke-width": 0.05 }));
+      svg.append(el("svg:circle", { cx: p[0], cy: -p[1], r: a.radius, fill: color(agent), "fill-opacity": 0.35, stroke: color(agent), "stroke-width": 0.05, class: "agent", "data-agent": agent }));
     }
     // The motion detector (hrc console --detect motion): the person's tracked position and its belief.
     if (s.tracked) {
       const human = Object.entries(m.agents).find(([, a]) => a.kind === "human"), b = s.belief || {};
-      const r = human ? human[1].radius : 0.3, col = colors[human ? human[0] : "human"] || "#d9731a";
+      const r = human ? human[1].radius : 0.3, col = color(human ? human[0] : "human");
       const dot = el("svg:circle", { id: "tracked", cx: s.tracked.x, cy: -s.tracked.y, r, fill: col, "fill-opacity": 0.5, stroke: col, "stroke-width": 0.06, "stroke-dasharray": "0.12 0.08" });
       dot.append(el("svg:title", {}, `tracked at ${fmt(s.tracked.t)} s: (${s.tracked.x}, ${s.tracked.y})`));
       svg.append(dot);
@@ -292,6 +351,8 @@
   }
   function describeOut(o) {
     if (!o.ok) return "refused: " + o.error;
+    if (o.robots) return Object.entries(o.robots).map(([id, r]) => !r ? id + ": nothing" : r.wait_for ? id + " waits for " + r.wait_for
+      : `${id} ${r.event} ${r.action}.${r.phase} in [${fmt(r.earliest)}, ${fmt(r.latest)}]`).join(" · ") + ` · plan ${o.plan} (${o.class})`;
     const r = o.robot;
     const step = !r ? "robot: nothing" : r.wait_for ? "robot waits for " + r.wait_for : `robot ${r.event} ${r.action}.${r.phase} in [${fmt(r.earliest)}, ${fmt(r.latest)}]`;
     const seen = o.detect && o.detect.events.length ? "detected " + o.detect.events.map((e) => `${e.event} ${e.action}.${e.phase} @${fmt(e.t)}`).join(", ") + " · " : "";
@@ -304,7 +365,7 @@
     let prev = null;
     const rows = [];
     for (const e of s.log) {
-      const key = JSON.stringify([e.out.robot, e.out.plan, e.out.ok]);
+      const key = JSON.stringify([e.out.robots || e.out.robot, e.out.plan, e.out.ok]);
       if (e.in.event === "tick" && e.out.ok && key === prev) continue;  // ticks that changed nothing
       if (e.in.event === "position" && e.out.ok && !(e.out.detect && e.out.detect.events.length)) continue;  // nothing detected
       prev = e.out.ok ? key : prev;

@@ -1,0 +1,129 @@
+"""``hrc ros2`` for a team (issue 37): one goal topic per robot under its id, each person's observations on
+their own topic, driven by a real rclpy node over loopback (tests/ros2_client.py's `TeamClient`).
+
+kitting_2robots cut to three picks (one person, two robots): an independent client (tests/team_client.py)
+plays the person and both robot controllers with random valid histories, every line on its agent's own
+topic (``/hrc/human/observations``, ``/hrc/robot/acks``, ``/hrc/robot2/acks``); the answers are those of
+the same lines through ``hrc dispatch``, byte for byte, the log replays, and each robot's goals on
+``/hrc/ROBOT/goal`` are exactly the drives its entries of the answers name (`next_drive`), in the frame asked
+for; its ``--record`` is the same bytes as ``hrc dispatch --record``'s. A line on an agent's own topic that
+names another agent is refused in one line and never logged.
+
+Skipped with the reason where rclpy cannot be imported (as tests/test_ros2.py).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import random
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT, compiled_folder
+from team_client import TeamRun
+from test_console_team import kitting3_task
+
+from hrc.compile.output import read_header
+from hrc.dispatch.plan_set import load_plan_set
+from hrc.dispatch.routes import PlanRoutes, plan_motions
+from hrc.motion import plan_paths
+from hrc.ros2.drive import MapFrame, next_drive
+from hrc.temporal.graphml import read_graphml
+
+ORIGIN = (2.0, -1.0, math.pi / 2)
+
+
+@pytest.fixture(scope="module")
+def kitting3(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from ros2_client import rclpy_or_skip
+
+    rclpy_or_skip()
+    where = tmp_path_factory.mktemp("k3")
+    return compiled_folder(where / "out", kitting3_task(where), "--jobs", "1")
+
+
+def _dispatch(folder: Path, *args: str, stdin: bytes = b"") -> subprocess.CompletedProcess[bytes]:
+    return subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(folder), *args], input=stdin,
+                          capture_output=True, timeout=120, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+
+
+class _OverRos(TeamRun):
+    """The team client's run, each line published on its agent's own topic of the node."""
+
+    client: object = None
+
+    def send(self, message: dict) -> dict:
+        line = json.dumps(message)
+        self.sent.append(line)
+        out = json.loads(self.client.send(line))  # type: ignore[attr-defined]
+        self.answers.append(out)
+        return out
+
+
+def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_path: Path) -> None:
+    from ros2_client import NodeProcess, TeamClient, ros_env
+
+    plan_set = load_plan_set(kitting3)
+    task = plan_set.task
+    robots = tuple(a.id for a in task.agents if not a.is_human)
+    people = tuple(a.id for a in task.agents if a.is_human)
+    assert robots == ("robot", "robot2") and people == ("human",)
+    stnus = {p.stem: read_graphml(p.read_bytes()) for p in (kitting3 / "stnu").glob("*.graphml")}
+    env = ros_env(tmp_path)
+    log, recording = tmp_path / "ros.log", tmp_path / "ros.mcap"
+    node = NodeProcess(kitting3, env, "--log", str(log), "--record", str(recording), "--map-origin",
+                       *(str(v) for v in ORIGIN))
+    client = None
+    refused: list[str] = []
+    try:
+        client = TeamClient(env, robots, people)
+        client.wait_matched()
+        # an agent's own topic takes that agent's lines only: refused in one line, never logged
+        for topic, line in (("robot2", {"t": 0, "agent": "robot", "action": "pick_a", "phase": "fetch",
+                                        "event": "depart"}),
+                            ("human", {"t": 0, "event": "tick"}), ("robot", "not json")):
+            text = line if isinstance(line, str) else json.dumps(line)
+            out = json.loads(client.send(text, topic))
+            assert not out["ok"] and f"must be {topic}'s" in out["error"], out
+            refused.append(text)
+        run = _OverRos(None, stnus, robots, people, random.Random(5))
+        run.client = client
+        run.play()
+        assert node.stop(signal.SIGTERM) == 0
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()
+    answers = client.answers[len(refused):]
+    assert len(answers) == len(run.sent) and all(json.loads(a)["ok"] for a in answers)
+    assert f"stopped by SIGTERM after {len(run.sent)} messages" in node.stderr(), node.stderr()
+    # the same lines through hrc dispatch: the same answers, byte for byte; the log holds those alone
+    stdin = "".join(line + "\n" for line in run.sent).encode()
+    plain = _dispatch(kitting3, "--record", str(tmp_path / "dispatch.mcap"), stdin=stdin)
+    assert plain.returncode == 0 and plain.stdout.decode().splitlines() == answers
+    assert recording.read_bytes() == (tmp_path / "dispatch.mcap").read_bytes()  # the same recording
+    replayed = _dispatch(kitting3, "--replay", str(log))
+    assert replayed.returncode == 0 and replayed.stdout == plain.stdout, replayed.stderr
+    # each robot's goals: the drives its entries of the answers name, one per new drive, in the frame asked
+    routes = PlanRoutes(plan_motions(kitting3, plan_set), plan_paths(task, seed=int(read_header(kitting3)["seed"])))
+    frame = MapFrame("map", *ORIGIN)
+    for r in robots:
+        expected, last = [], None
+        for a in map(json.loads, answers):
+            drive = next_drive(task, a, routes.routes(a["plan"]), r)
+            if drive is not None and drive.leg != last:
+                last = drive.leg
+                expected.append(drive)
+        got = client.goals[r]
+        assert len(got) == len(expected) == len(client.routes[r]) >= 1, (r, len(got), len(expected))
+        for goal, drive in zip(got, expected, strict=True):
+            want = frame.to_frame(*drive.target)
+            assert goal.header.frame_id == "map"
+            assert math.dist((goal.pose.position.x, goal.pose.position.y), want) < 1e-9
+    # both robots drove: the run gave each some pick
+    assert all(client.goals[r] for r in robots)
