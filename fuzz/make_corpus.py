@@ -1,5 +1,6 @@
 """Write the seed corpus ``fuzz/corpus/TARGET/`` from the bundled tasks, maps and test data, and from a
-compile of the workshop (its STNUs, a log of a short run): ``python fuzz/make_corpus.py COMPILED_DIR``.
+compile of the workshop (its STNUs, a log of a short run) and of the two workers' team (the team's frames):
+``python fuzz/make_corpus.py COMPILED_DIR TEAM_DIR``.
 
 Small on purpose (a few files per target, most under 4 KiB): libFuzzer grows it; the long run
 (``make fuzz``) adds what it finds with ``--grow``. Re-running it rewrites the same files.
@@ -20,6 +21,32 @@ def _put(target: str, data: bytes) -> None:
     folder = CORPUS / target
     folder.mkdir(parents=True, exist_ok=True)
     (folder / hashlib.sha1(data).hexdigest()).write_bytes(data)  # noqa: S324 - a name, as libFuzzer names units
+
+
+def team(folder: str) -> None:
+    """Frames for `team_frames` (alice's page, bob's page, the shared view, the robot's controller, the
+    protocol, in turn) from the first answer of the compiled team in `folder`: each person presses what
+    they are told, the robot acknowledges its step, then undo, away and back."""
+    from hrc.dispatch import Dispatcher
+    from hrc.dispatch.protocol import answer
+
+    first = json.loads(answer(Dispatcher.from_folder(folder), b'{"t": 0, "event": "tick"}'))
+    people, robots = list(first["people"]), list(first["robots"])
+    event = ("action", "phase", "event")
+
+    def press(person: str, hseq: int) -> bytes:
+        hint = first["people"][person] or {}
+        return json.dumps({"type": "press", "hseq": hseq, **{k: hint.get(k, "") for k in event}}).encode()
+
+    step = first["robots"][robots[0]] or {}
+    frames = [*(press(p, 0) for p in people), press(people[0], 1),
+              json.dumps({"type": "ack", **{k: step.get(k, "") for k in event}}).encode(),
+              b'{"t": 1.0, "event": "tick"}', json.dumps({"type": "undo", "hseq": 1}).encode(),
+              json.dumps({"type": "away", "hseq": 1}).encode(), b'{"type": "back", "hseq": 0}',
+              json.dumps({"type": "ack", "robot": people[0], **{k: step.get(k, "") for k in event}}).encode(),
+              json.dumps({"t": 2.0, "agent": people[1], "event": "back"}).encode()]
+    _put("team_frames", b"\n".join(frames[:5]))
+    _put("team_frames", b"\n".join(frames))
 
 
 def main(compiled: str) -> None:
@@ -102,3 +129,4 @@ def main(compiled: str) -> None:
 
 if __name__ == "__main__":
     main(sys.argv[1])
+    team(sys.argv[2])

@@ -17,6 +17,7 @@ temporary folder `setup` makes.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import shutil
@@ -28,6 +29,8 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 COMPILED_VARIABLE = "HRC_FUZZ_COMPILED"
 """The environment variable naming the compiled workshop folder the protocol targets dispatch on."""
+TEAM_VARIABLE = "HRC_FUZZ_TEAM"
+"""The environment variable naming a compiled team folder (two people, one robot: ``tasks/two_workers.yaml``)."""
 
 _STATE: dict[str, Any] = {}
 
@@ -144,15 +147,15 @@ def apa(data: bytes) -> None:
 
 # --- protocols --------------------------------------------------------------------------------------
 
-def _plan_set() -> Any:
-    if "plan_set" not in _STATE:
+def _plan_set(variable: str = COMPILED_VARIABLE) -> Any:
+    if (variable, "plan_set") not in _STATE:
         from hrc.dispatch.plan_set import load_plan_set
 
-        folder = os.environ.get(COMPILED_VARIABLE)
+        folder = os.environ.get(variable)
         if not folder:
-            raise SystemExit(f"{COMPILED_VARIABLE} must name a compiled folder (scripts/fuzz.py sets it)")
-        _STATE["plan_set"] = load_plan_set(folder)
-    return _STATE["plan_set"]
+            raise SystemExit(f"{variable} must name a compiled folder (scripts/fuzz.py sets it)")
+        _STATE[variable, "plan_set"] = load_plan_set(folder)
+    return _STATE[variable, "plan_set"]
 
 
 def _lines(data: bytes, most: int = 24) -> list[bytes]:
@@ -189,9 +192,10 @@ def console_frames(data: bytes) -> None:
         assert isinstance(reply, Reply), reply
 
 
-def _console() -> Any:
-    count = _STATE["console_uses"] = _STATE.get("console_uses", 0) + 1
-    if "console" not in _STATE or count % 500 == 0:
+def _console(variable: str = COMPILED_VARIABLE) -> Any:
+    """A console session (unlogged) of the compiled folder `variable` names; a fresh one every 500 uses."""
+    count = _STATE[f"{variable}_uses"] = _STATE.get(f"{variable}_uses", 0) + 1
+    if (variable, "console") not in _STATE or count % 500 == 0:
         from hrc.compile.output import read_header
         from hrc.console.clock import RunClock
         from hrc.console.session import ConsoleSession
@@ -200,14 +204,42 @@ def _console() -> Any:
         from hrc.dispatch.routes import PlanRoutes, plan_motions
         from hrc.motion import plan_paths
 
-        plan_set = _plan_set()
-        folder = os.environ[COMPILED_VARIABLE]
+        plan_set = _plan_set(variable)
+        folder = os.environ[variable]
         header = read_header(folder)
-        if "paths" not in _STATE:
-            _STATE["paths"] = plan_paths(plan_set.task, seed=int(header.get("seed", 0)))
-        routes = PlanRoutes(plan_motions(folder, plan_set), _STATE["paths"])
-        _STATE["console"] = ConsoleSession(LoggedDispatcher(Dispatcher(plan_set)), header, routes, RunClock(1.0))
-    return _STATE["console"]
+        if (variable, "paths") not in _STATE:
+            _STATE[variable, "paths"] = plan_paths(plan_set.task, seed=int(header.get("seed", 0)))
+        routes = PlanRoutes(plan_motions(folder, plan_set), _STATE[variable, "paths"])
+        _STATE[variable, "console"] = ConsoleSession(LoggedDispatcher(Dispatcher(plan_set)), header, routes,
+                                                     RunClock(1.0))
+    return _STATE[variable, "console"]
+
+
+def team_frames(data: bytes) -> None:
+    """A team's console (issue 37: two people, one robot) and its dispatcher, one frame per line of the
+    input: in turn to alice's page, bob's page, the shared view, the robot's controller and the
+    dispatcher's protocol. Each gets a `Reply` (or a well-formed answer), never an exception, and a frame
+    refused changes nothing the dispatcher holds: its history, its answer."""
+    from hrc.console.session import Reply
+
+    session = _console(TEAM_VARIABLE)
+    people, robots = session.people, session.robots
+    senders: list[Callable[[bytes], Any]] = [
+        *(functools.partial(session.page_message, person=p) for p in people), session.page_message,
+        *(functools.partial(session.robot_message, robot=r) for r in robots),
+        session.logged.submit]
+    for k, line in enumerate(_lines(data, 12)):
+        d = session.dispatcher
+        before = (len(d.history), d.decision.to_json())
+        reply = senders[k % len(senders)](line)
+        if isinstance(reply, str):
+            _answer_ok(reply)
+            ok = json.loads(reply)["ok"]
+        else:
+            assert isinstance(reply, Reply), reply
+            ok = reply["ok"]
+        if not ok:
+            assert (len(d.history), d.decision.to_json()) == before, line
 
 
 def dispatch_log(data: bytes) -> None:
@@ -437,6 +469,7 @@ TARGETS: dict[str, Callable[[bytes], None]] = {
     "apa": apa,
     "dispatch_lines": dispatch_lines,
     "console_frames": console_frames,
+    "team_frames": team_frames,
     "dispatch_log": dispatch_log,
     "detect_trace": detect_trace,
     "rul_verdict": rul_verdict,
@@ -451,3 +484,6 @@ NATIVE = ("rul_verdict", "stn_distances", "dispatch_history", "pattern_search")
 
 COMPILED = ("dispatch_lines", "console_frames", "dispatch_log", "detect_trace", "dispatch_history")
 """The targets that need the compiled workshop (`COMPILED_VARIABLE`)."""
+
+TEAM = ("team_frames",)
+"""The targets that need a compiled team (`TEAM_VARIABLE`)."""

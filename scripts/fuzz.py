@@ -18,7 +18,8 @@ has no ``-fsanitize-coverage=inline-8bit-counters``); the native targets' struct
 (random networks, random dispatch histories) are what reaches their branches.
 
 The targets that dispatch need a compiled workshop: made once per run into a temporary folder (about
-a minute), or given with ``--compiled DIR``.
+a minute), or given with ``--compiled DIR``; the team's target a compiled ``tasks/two_workers.yaml``
+(``--team DIR``).
 
 Examples::
 
@@ -97,9 +98,11 @@ def self_check(env: dict[str, str]) -> None:
     print("sanitizer self-check: the planted overflow was reported (the ASan build is the one loaded)", flush=True)
 
 
-def compile_workshop(folder: Path) -> Path:
-    out = folder / "workshop"
-    subprocess.run([sys.executable, "-m", "hrc", "compile", str(ROOT / "tasks" / "cube_stacking.yaml"), "--out",
+def compile_task(folder: Path, task: str = "cube_stacking.yaml") -> Path:
+    """The bundled `task` compiled into `folder` (the workshop for the protocol targets, a team's task for
+    the team's)."""
+    out = folder / Path(task).stem
+    subprocess.run([sys.executable, "-m", "hrc", "compile", str(ROOT / "tasks" / task), "--out",
                     str(out), "--no-report", "-q", "--jobs", "1"], check=True, cwd=folder,
                    env=dict(os.environ, PYTHONPATH=str(ROOT)))
     return out
@@ -145,6 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--targets", default=",".join(targets.TARGETS), help="comma-separated (default: all)")
     p.add_argument("--sanitize", action="store_true", help="only the native targets, on the ASan/UBSan build")
     p.add_argument("--compiled", help="a compiled workshop folder to dispatch on (default: compile one)")
+    p.add_argument("--team", help="a compiled two_workers folder for the team's target (default: compile one)")
     p.add_argument("--timeout", type=int, default=10, help="seconds per input before it counts as a hang")
     p.add_argument("--artifacts", default=str(ROOT / "fuzz" / "crashes"), help="where crashing inputs go")
     p.add_argument("--grow", action="store_true", help="add what the run finds to fuzz/corpus/ (a long run)")
@@ -159,7 +163,9 @@ def main(argv: list[str] | None = None) -> int:
     env = dict(os.environ, PYTHONPATH=str(ROOT), HRC_FUZZ_SCRATCH=str(work))
     try:
         if any(n in targets.COMPILED for n in names):
-            env[targets.COMPILED_VARIABLE] = args.compiled or str(compile_workshop(work))
+            env[targets.COMPILED_VARIABLE] = args.compiled or str(compile_task(work))
+        if any(n in targets.TEAM for n in names):
+            env[targets.TEAM_VARIABLE] = args.team or str(compile_task(work, "two_workers.yaml"))
         if args.sanitize:
             env["HRC_NATIVE_LIBRARY"] = str(build_sanitized(work))
             env["LD_PRELOAD"] = f"{_runtime('libasan.so')}:{_runtime('libstdc++.so')}"
