@@ -141,6 +141,7 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     if joint is not None and settings.motion:  # issue 37: the detector finds a person's start and end of each step
         raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
                               f"--detector motion does not take joint actions yet (the robot starts and ends them)")
+    _check_team(task, settings, keep_logs)
     settings.human.check(task)
     compiles = dict(compiles or {})
     if "motion" not in compiles:
@@ -161,6 +162,30 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     buttons = SimContext(task, compiles, replace(settings, detector="buttons", detection_delay=delay), seed)
     base = _run_all(buttons, dispatched, runs, executor, jobs, progress, "buttons") if dispatched else {}
     return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay, logs)
+
+
+def _check_team(task: Task, settings: SimSettings, keep_logs: bool) -> None:
+    """A team (issue 37: other than one person and one robot) runs on the team floor (`hrc.sim.team_run`),
+    which leaves some things out: each is refused here in one line, before anything is compiled."""
+    from hrc.sim.team_run import is_team
+
+    if not is_team(task):
+        return
+    what = [name for name, on in (("--detector motion", settings.motion),
+                                  ("--absence-rate", settings.human.absence_rate > 0),
+                                  ("--keep-logs", keep_logs)) if on]
+    if task.safety is not None:
+        what.append("a task with safety: (speed and separation monitoring)")
+    from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
+
+    if estimate(task).plans.value > DEFAULT_MAX_PLANS:
+        what.append(f"more than {DEFAULT_MAX_PLANS:,} plans (compile on demand)")
+    if what:
+        people = sum(1 for a in task.agents if a.is_human)
+        robots = len(task.agents) - people
+        raise SimulationError(f"{task.source}: agents: hrc simulate runs a team ({people} "
+                              f"{'person' if people == 1 else 'people'} and {robots} robot{'' if robots == 1 else 's'}) "
+                              f"without {', '.join(what)} (docs/simulate.md, \"Teams\")")
 
 
 def _compile(task: Task, seed: int, jobs: int | None, executor: str | None, progress: Progress | None

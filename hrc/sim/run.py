@@ -173,6 +173,9 @@ class RunResult:
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
     cowork_frames: tuple[bool, ...] = field(default=(), compare=False)  # per frame, a joint task's: in co-work
+    team: dict | None = None  # a team's (issue 37): per agent and per pair (`hrc.sim.team_run`); None for 1+1
+    # a team's recorded frames: (t, ((x, y, present) per agent, in task order))
+    agent_frames: tuple[tuple[float, tuple[tuple[float, float, bool], ...]], ...] = field(default=(), compare=False)
 
     def to_json(self) -> dict:
         def r(x: float | None) -> float | None:
@@ -195,7 +198,8 @@ class RunResult:
                 **({} if self.detection is None else {"detection": self.detection.to_json()}),
                 **({} if self.ssm is None else {"ssm": self.ssm.to_json()}),
                 **({} if self.on_demand is None else {"on_demand": self.on_demand}),
-                **({} if self.joint is None else {"joint": self.joint})}
+                **({} if self.joint is None else {"joint": self.joint}),
+                **({} if self.team is None else {"team": self.team})}
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -238,7 +242,16 @@ def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
                  controller: Callable[[SimContext, Policy], Controller] = make_controller) -> RunResult:
     """Run `index` of `policy`: the same person (drawn from ``(seed, index)``) under every policy.
 
-    `record` keeps the happenings and the agents' positions at every step (for figures)."""
+    `record` keeps the happenings and the agents' positions at every step (for figures). A task of other
+    than one person and one robot runs on the team floor (`hrc.sim.team_run`, issue 37)."""
+    if ctx.cache.get("team", None) is None:
+        from hrc.sim.team_run import is_team
+
+        ctx.cache["team"] = is_team(ctx.task)
+    if ctx.cache["team"]:
+        from hrc.sim.team_run import simulate_team_run
+
+        return simulate_team_run(ctx, policy, index, record)
     rng = np.random.default_rng([ctx.seed, index])
     draws = draw_human(ctx.task, ctx.settings.human, rng)
     ctl = controller(ctx, POLICIES[policy])
