@@ -240,6 +240,22 @@ def format_joint(sim: Any) -> list[str]:
     return lines
 
 
+def format_team(sim: Any) -> list[str]:
+    """A team's lines (issue 37): robot-robot contacts and the closest approach of every pair of agents."""
+    from hrc.sim.metrics import aggregate
+
+    lines = []
+    for name in sim.policies:
+        team = aggregate(sim.results[name]).get("team")
+        if team is None:
+            continue
+        pairs = ", ".join(f"{p} {'-' if d is None else f'{d:.2f} m'}" for p, d in team["min_distance"].items())
+        lines.append(f"team ({name}): robot-robot contacts {team['robot_contacts']} (in "
+                     f"{team['runs_with_robot_contacts']} runs), person-person {team['people_contacts']}; "
+                     f"closest per pair: {pairs}")
+    return lines
+
+
 def format_on_demand(sim: Any) -> list[str]:
     """With a searched compile (a task beyond enumeration): compile on demand's misses, time to recover and
     the wall time of its compiles (excluded from the dispatcher's latency), per dispatched policy."""
@@ -343,7 +359,7 @@ def run(args: argparse.Namespace) -> int:
             print(format_detection(sim))
         if task.safety is not None:
             print(format_ssm(sim))
-        for line in format_on_demand(sim) + format_joint(sim):
+        for line in format_on_demand(sim) + format_joint(sim) + format_team(sim):
             print(line)
         print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/")
               + ("" if sim.logs is None else f", {out}/runs/ (one dispatcher log per run)"))

@@ -137,11 +137,11 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
         raise SimulationError(f"--runs must be at least 1, found {runs}")
     chosen = check_policies(policies)
     settings = settings or SimSettings()
+    _check_team(task, settings, keep_logs)
     joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
     if joint is not None and settings.motion:  # issue 37: the detector finds a person's start and end of each step
         raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
                               f"--detector motion does not take joint actions yet (the robot starts and ends them)")
-    _check_team(task, settings, keep_logs)
     settings.human.check(task)
     compiles = dict(compiles or {})
     if "motion" not in compiles:
@@ -183,8 +183,8 @@ def _check_team(task: Task, settings: SimSettings, keep_logs: bool) -> None:
     if what:
         people = sum(1 for a in task.agents if a.is_human)
         robots = len(task.agents) - people
-        raise SimulationError(f"{task.source}: agents: hrc simulate runs a team ({people} "
-                              f"{'person' if people == 1 else 'people'} and {robots} robot{'' if robots == 1 else 's'}) "
+        team = f"{people} {'person' if people == 1 else 'people'} and {robots} robot{'' if robots == 1 else 's'}"
+        raise SimulationError(f"{task.source}: agents: hrc simulate runs a team ({team}) "
                               f"without {', '.join(what)} (docs/simulate.md, \"Teams\")")
 
 

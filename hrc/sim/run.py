@@ -62,13 +62,18 @@ from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint
 from hrc.sim.ssm import SsmMeasures
 from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, AgentState, Standoffs
 
-__all__ = ["RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
+__all__ = ["AgentFrame", "RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
 
 _EPS = 1e-9
 _DETECTED = ("depart", "arrive", "start", "end")  # the events a motion detector gives
 _DRAIN = 12.0  # s after the last phase in which a motion detector may still give the person's last events
 _QUIET = 30.0  # s with nothing due but the tracker's positions: nobody can go on (stuck)
 _ACK = 0.002  # s: the robot's acknowledgement snaps into its window when this close to it
+
+
+AgentFrame = tuple[float, tuple[tuple[float, float, bool], ...], tuple[tuple[str, str], ...]]
+"""A team's recorded frame (issue 37): its time, each agent's ``(x, y, present)`` in task order, and the
+(person, robot) pairs co-working then (`hrc.sim.team_floor.TeamFloor.cowork`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,8 +179,7 @@ class RunResult:
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
     cowork_frames: tuple[bool, ...] = field(default=(), compare=False)  # per frame, a joint task's: in co-work
     team: dict | None = None  # a team's (issue 37): per agent and per pair (`hrc.sim.team_run`); None for 1+1
-    # a team's recorded frames: (t, ((x, y, present) per agent, in task order))
-    agent_frames: tuple[tuple[float, tuple[tuple[float, float, bool], ...]], ...] = field(default=(), compare=False)
+    agent_frames: tuple[AgentFrame, ...] = field(default=(), compare=False)  # a team's recorded frames
 
     def to_json(self) -> dict:
         def r(x: float | None) -> float | None:

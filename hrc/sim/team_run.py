@@ -34,7 +34,7 @@ someone wanted to ends as a deadlock (counted, as in the one-pair loop).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -49,7 +49,7 @@ from hrc.sim.floor import MIN_STEP, Mover
 from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute, leg_route
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
-from hrc.sim.run import RunResult, SimContext
+from hrc.sim.run import AgentFrame, RunResult, SimContext
 from hrc.sim.team_floor import TeamFloor
 
 __all__ = ["TeamDispatched", "TeamFixed", "is_team", "simulate_team_run"]
@@ -240,11 +240,13 @@ def make_team_controller(ctx: SimContext, policy: Policy) -> TeamController:
     return TeamDispatched(pristine.fork(), cps, ctx, policy.compile == "blind")
 
 
-def simulate_team_run(ctx: SimContext, policy: str, index: int, record: bool = False) -> RunResult:
-    """Run `index` of `policy` for a team: the same people (drawn from ``(seed, index)``) under every policy."""
+def simulate_team_run(ctx: SimContext, policy: str, index: int, record: bool = False,
+                      controller: Callable[[SimContext, Policy], TeamController] = make_team_controller) -> RunResult:
+    """Run `index` of `policy` for a team: the same people (drawn from ``(seed, index)``) under every policy.
+    `record` keeps the happenings and every agent's position at every step (for figures)."""
     rng = np.random.default_rng([ctx.seed, index])
     draws = draw_people(ctx.task, ctx.settings.human, rng)
-    return _TeamRun(ctx, POLICIES[policy], draws, make_team_controller(ctx, POLICIES[policy]), record).run(index)
+    return _TeamRun(ctx, POLICIES[policy], draws, controller(ctx, POLICIES[policy]), record).run(index)
 
 
 # -- the run ---------------------------------------------------------------------------------------------------
@@ -256,7 +258,8 @@ class _Agent:
                  "work_end", "duration", "order", "predicted", "moved", "draws")
 
     def __init__(self, agent_id: str, mover: Mover, human: bool, home: str, draws: HumanDraws | None) -> None:
-        self.id, self.mover, self.human, self.home, self.loc = agent_id, mover, human, home, home
+        self.id, self.mover, self.human, self.home = agent_id, mover, human, home
+        self.loc: str | None = home
         self.mode = "free"  # free, travel, parked, arrived, work, home
         self.action: str | None = None
         self.pi = 0
@@ -304,7 +307,7 @@ class _TeamRun:
         self.late = 0
         self.excess = 0.0
         self.finished_at: float | None = None
-        self.frames: list[tuple[float, tuple[tuple[float, float, bool], ...]]] = []
+        self.frames: list[AgentFrame] = []
         deadline = task.deadline if task.deadline is not None else 120.0
         self.cap = s.time_cap if s.time_cap is not None else 5 * deadline
 
@@ -749,8 +752,9 @@ class _TeamRun:
                 self.last_tick = nt
                 self.ctl.tick(max(nt, self.last_obs))
                 self.last_obs = max(nt, self.last_obs)
-            waiting = any(a.mover.moving for a in self.agents.values())
-            if waiting and before == (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings)):
+            moving = [a.mover for a in self.agents.values() if a.mover.moving]
+            held = bool(moving) and all(m.blocked_for > 0 for m in moving)  # everyone under way is held up
+            if held or (moving and before == (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings))):
                 stall_since = self.t if stall_since is None else stall_since
                 if self.t - stall_since > self.ctx.settings.stall:
                     reason = "deadlock: agents block each other"
@@ -765,7 +769,7 @@ class _TeamRun:
         self.floor.advance(h)
         if self.record:
             self.frames.append((self.t + h, tuple((a.mover.xy[0], a.mover.xy[1], a.mover.present)
-                                                  for a in self.agents.values())))
+                                                  for a in self.agents.values()), tuple(sorted(self.floor.cowork))))
 
     def _why_stuck(self) -> str:
         if self.ctl.stopped:
@@ -827,7 +831,7 @@ class _TeamRun:
             late=self.late, robot_travel_excess=self.excess, human_sequence=seqs[people[0]] if people else (),
             robot_sequence=seqs[robots[0]] if robots else (), overruns=sum(
                 1 for p in self.people if p.draws is not None for x, ph in p.draws.overrun
-                if x in seqs[p.id] and times.get(f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end") is not None),
+                if x in seqs[p.id] and f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
             absent=0.0, latencies=tuple(ctl.latencies), joint=joint, team=team,
             happenings=tuple(self.happenings) if self.record else (),
             agent_frames=tuple(self.frames))
