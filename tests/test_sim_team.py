@@ -35,7 +35,8 @@ from hrc.model import Task
 from hrc.sim.floor import CONTACT
 from hrc.sim.montecarlo import simulate, simulation_json
 from hrc.sim.run import RunResult, SimContext, SimSettings
-from hrc.sim.team_run import TeamDispatched, make_team_controller, simulate_team_run
+from hrc.sim.team_policies import TeamDispatched, make_team_controller
+from hrc.sim.team_run import simulate_team_run
 from hrc.temporal.graphml import read_graphml
 
 ERROR_LINE = r"^error: [^\n]+\n$"

@@ -1,8 +1,8 @@
 """The online commands' one-line refusal of a task with more than one person or robot (issue 37).
 
-The compile plans for any number of people and robots and `hrc dispatch` serves them; the simulator, the
-console, the ROS 2 node, the motion detector and `hrc dispatch --record` / `--detect motion` still run one
-person and one robot (what they need is listed in docs/dispatch.md, "What the N-agent step needs"). Each
+The compile plans for any number of people and robots, `hrc dispatch` serves them and `hrc simulate` runs
+them; the console, the ROS 2 node, the motion detector and `hrc dispatch --record` / `--detect motion` still
+run one person and one robot (what they need is listed in docs/dispatch.md, "What the N-agent step needs"). Each
 of them asks `refuse_team` first and ends with exit status 2 after one ``error:`` line, before it opens a
 log or a port.
 """
