@@ -25,7 +25,7 @@ from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
 __all__ = ["add_parser", "format_detection", "format_joint", "format_on_demand", "format_promise", "format_ssm",
-           "format_table", "run"]
+           "format_table", "format_team", "run"]
 
 POLICY_NAMES = ("hrc", "motion-blind", "feasible-only", "fixed")  # hrc.sim.policies.POLICIES, not imported here
 
@@ -282,8 +282,8 @@ def format_on_demand(sim: Any) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from hrc.sim.human import HumanModel, scaled_truth
-    from hrc.sim.montecarlo import simulate, simulation_json
-    from hrc.sim.run import SimSettings, simulate_run
+    from hrc.sim.montecarlo import run_one, simulate, simulation_json
+    from hrc.sim.run import SimSettings
 
     task = load_task(args.task)
     if args.record is not None and team_refusal("simulate --record", [a.kind.value for a in task.agents]):
@@ -346,7 +346,7 @@ def run(args: argparse.Namespace) -> int:
 
             if not args.quiet:
                 print(f"figures: one recorded run per policy into {out}/figures/ ...", file=sys.stderr, flush=True)
-            featured = {p: simulate_run(sim.context, p, 0, record=True) for p in sim.policies}
+            featured = {p: run_one(sim.context, p, 0, record=True) for p in sim.policies}
             write_simulation_figures(sim, featured, stage)
     if not args.quiet:
         print(f"simulated {args.runs} runs x {len(sim.policies)} policies of {task.name} in {elapsed:.1f} s "

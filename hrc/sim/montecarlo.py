@@ -45,9 +45,10 @@ from hrc.model import Task
 from hrc.sim.metrics import aggregate
 from hrc.sim.policies import POLICIES
 from hrc.sim.run import RunResult, SimContext, SimSettings, simulate_run
+from hrc.sim.team_floor import is_team
 
-__all__ = ["Simulation", "baseline_delay", "check_policies", "comparison", "separation_summary", "simulate",
-           "simulation_json"]
+__all__ = ["Simulation", "baseline_delay", "check_policies", "comparison", "run_one", "separation_summary",
+           "simulate", "simulation_json"]
 
 Progress = Callable[[str, int, int], None]
 CHUNK = 10
@@ -99,7 +100,7 @@ def _chunk(ctx: SimContext, keep_logs: object, work: list[tuple[str, int]]) -> l
     """The unit of work sent to an executor: some runs of one policy (module-level, so it pickles), each
     with its dispatcher log when `keep_logs` (`hrc.sim.runlog`: the same run, its exchanges caught)."""
     if not keep_logs:
-        return [(simulate_run(ctx, policy, i), None) for policy, i in work]
+        return [(run_one(ctx, policy, i), None) for policy, i in work]
     from hrc.sim.runlog import catching, log_bytes
 
     out: list[tuple[RunResult, bytes | None]] = []
@@ -108,6 +109,18 @@ def _chunk(ctx: SimContext, keep_logs: object, work: list[tuple[str, int]]) -> l
         result = simulate_run(ctx, policy, i, controller=catching(exchanges))
         out.append((result, log_bytes(ctx, POLICIES[policy], exchanges)))
     return out
+
+
+def run_one(ctx: SimContext, policy: str, index: int, record: bool = False) -> RunResult:
+    """Run `index` of `policy`: `hrc.sim.run.simulate_run` for one person and one robot, else the team loop
+    (`hrc.sim.team_run.simulate_team_run`, issue 37)."""
+    if ctx.cache.get("team") is None:
+        ctx.cache["team"] = is_team(ctx.task)
+    if ctx.cache["team"]:
+        from hrc.sim.team_run import simulate_team_run
+
+        return simulate_team_run(ctx, policy, index, record)
+    return simulate_run(ctx, policy, index, record)
 
 
 def _work(policies: Sequence[str], runs: int) -> Iterator[list[tuple[str, int]]]:
@@ -167,8 +180,6 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
 def _check_team(task: Task, settings: SimSettings, keep_logs: bool) -> None:
     """A team (issue 37: other than one person and one robot) runs on the team floor (`hrc.sim.team_run`),
     which leaves some things out: each is refused here in one line, before anything is compiled."""
-    from hrc.sim.team_run import is_team
-
     if not is_team(task):
         return
     what = [name for name, on in (("--detector motion", settings.motion),

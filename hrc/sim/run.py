@@ -41,6 +41,7 @@ import numpy as np
 
 from hrc.compile.compiler import CompiledPlanSet
 from hrc.detect.sensor import Sensor, SensorModel
+from hrc.errors import SimulationError
 from hrc.model import Task
 from hrc.motion import PathLibrary
 from hrc.plans import must_precede
@@ -61,6 +62,7 @@ from hrc.sim.policies import (
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
 from hrc.sim.ssm import SsmMeasures
 from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, AgentState, Standoffs
+from hrc.sim.team_floor import is_team
 
 __all__ = ["AgentFrame", "RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
 
@@ -246,16 +248,11 @@ def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
                  controller: Callable[[SimContext, Policy], Controller] = make_controller) -> RunResult:
     """Run `index` of `policy`: the same person (drawn from ``(seed, index)``) under every policy.
 
-    `record` keeps the happenings and the agents' positions at every step (for figures). A task of other
-    than one person and one robot runs on the team floor (`hrc.sim.team_run`, issue 37)."""
-    if ctx.cache.get("team", None) is None:
-        from hrc.sim.team_run import is_team
-
-        ctx.cache["team"] = is_team(ctx.task)
-    if ctx.cache["team"]:
-        from hrc.sim.team_run import simulate_team_run
-
-        return simulate_team_run(ctx, policy, index, record)
+    `record` keeps the happenings and the agents' positions at every step (for figures). One person and
+    one robot: a team runs on the team floor (`hrc.sim.team_run.simulate_team_run`; `hrc.sim.montecarlo.run_one`
+    picks), `SimulationError` here."""
+    if is_team(ctx.task):
+        raise SimulationError(f"{ctx.task.source}: agents: a team runs in hrc.sim.team_run, not on the one-pair floor")
     rng = np.random.default_rng([ctx.seed, index])
     draws = draw_human(ctx.task, ctx.settings.human, rng)
     ctl = controller(ctx, POLICIES[policy])

@@ -38,9 +38,15 @@ from hrc.model import Agent, Task
 from hrc.motion.world import World
 from hrc.sim.floor import CONTACT, MAX_STEP, MIN_STEP, QUERY_GAP, Mover, _closest, _entry
 
-__all__ = ["TeamFloor"]
+__all__ = ["TeamFloor", "is_team"]
 
 Point = tuple[float, float]
+
+
+def is_team(task: Task) -> bool:
+    """Whether `task` has other than one person and one robot (it runs on this floor, `hrc.sim.team_run`)."""
+    people = sum(1 for a in task.agents if a.is_human)
+    return (people, len(task.agents) - people) != (1, 1)
 
 
 class TeamFloor:

@@ -1,7 +1,7 @@
 """One simulated run of a team (issue 37): every person and every robot of the task on one floor.
 
 The loop is `hrc.sim.run`'s (Strassmair & Taylor 2014, Fig. 5, every box simulated but the dispatcher),
-taken over every agent of the task (`hrc.sim.run.simulate_run` hands a task of other than one person and
+taken over every agent of the task (`hrc.sim.montecarlo.run_one` hands a task of other than one person and
 one robot here):
 
 - **each robot** carries out its own entry of the dispatcher's answer (`Decision.robots`, the same
@@ -38,10 +38,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hrc.model import Task
 from hrc.plans import must_precede
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import MIN_STEP, Mover
+from hrc.sim.giveway import Ways
 from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
@@ -49,17 +49,11 @@ from hrc.sim.run import AgentFrame, RunResult, SimContext
 from hrc.sim.team_floor import TeamFloor
 from hrc.sim.team_policies import TeamController, TeamDispatched, make_team_controller
 
-__all__ = ["is_team", "simulate_team_run"]
+__all__ = ["simulate_team_run"]
 
 _EPS = 1e-9
 _ACK = 0.002  # s: a robot's acknowledgement snaps into its window when this close to it
 _HELD = 2.0  # s: an agent held up this long makes the loop look at the floor again at least this often
-
-
-def is_team(task: Task) -> bool:
-    """Whether `task` has other than one person and one robot (the team loop runs it)."""
-    people = sum(1 for a in task.agents if a.is_human)
-    return (people, len(task.agents) - people) != (1, 1)
 
 
 def simulate_team_run(ctx: SimContext, policy: str, index: int, record: bool = False,
@@ -101,6 +95,7 @@ class _TeamRun:
         s = ctx.settings
         self.model = s.human
         self.floor = TeamFloor(task, s.slowdown)
+        self.ways = Ways(self.floor.world, ctx.paths, ctx.cache)
         self.detector = Detector(s.detection_delay)
         self.agents = {a.id: _Agent(a.id, self.floor.movers[a.id], a.is_human, a.start, draws.get(a.id))
                        for a in task.agents}
@@ -192,8 +187,10 @@ class _TeamRun:
         if route is not None and math.dist(route.points[0], a.mover.xy) < 1e-6 \
                 and math.dist(route.points[-1], self.ctx.paths.locations[target]) < 1e-6:
             return route
-        if a.loc is None:
-            return SimRoute((a.mover.xy, self.ctx.paths.locations[target]))
+        if a.loc is None:  # somewhere on the floor (gave up a leg): the roadmap's way from there
+            goal = self.ctx.paths.locations[target]
+            return SimRoute(self.ways.route(a.mover.agent.radius + self.task.safety_margin, a.mover.xy, goal)
+                            or (a.mover.xy, goal))
         return SimRoute(self.ctx.paths.get(a.id, a.loc, target).points)
 
     def depart(self, a: _Agent, action: str, phase: str, speed: float) -> None:
@@ -229,7 +226,8 @@ class _TeamRun:
             if math.dist(a.mover.xy, home) < 1e-6:
                 a.loc = a.home
                 return False
-            points: tuple = (a.mover.xy, home)
+            points: tuple = self.ways.route(a.mover.agent.radius + self.task.safety_margin, a.mover.xy, home) \
+                or (a.mover.xy, home)
         else:
             points = self.ctx.paths.get(a.id, a.loc, a.home).points
         a.mover.set_route(points, a.mover.agent.speed)
@@ -300,6 +298,12 @@ class _TeamRun:
             assert a.draws is not None
             self.depart(a, action, phase, a.mover.agent.speed / a.draws.pace[(action, phase)])
             return True
+        if a.mode in ("travel", "parked", "arrived") and self._taken_by_another(a):
+            a.action, a.pi, a.mode = None, 0, "free"  # they see someone else on it: they choose again
+            a.mover.moving = False
+            a.loc = next((loc for loc, xy in self.ctx.paths.locations.items()
+                          if math.dist(xy, a.mover.xy) < 1e-6), None)
+            return True
         if a.mode == "travel":
             return self._arrival(a)
         assert a.action is not None
@@ -329,6 +333,12 @@ class _TeamRun:
             self._next_phase(a)
             return True
         return False
+
+    def _taken_by_another(self, a: _Agent) -> bool:
+        """`a` is on the way to the first phase of an action (not a joint one) that another agent left for
+        first (the same instant: the dispatcher took the other's; a person who chose freely sees it)."""
+        x = a.action
+        return x is not None and a.pi == 0 and x not in self.joint and self.started.get(x, a.id) != a.id
 
     # -- joint actions ---------------------------------------------------------------------------------
 
@@ -546,7 +556,9 @@ class _TeamRun:
             for _ in range(100):
                 changed = self.deliver()
                 for p in self.people:
-                    changed = self.person(p) or changed
+                    if self.person(p):  # the robots act on an answer that knows it (a detector without delay)
+                        changed = True
+                        self.deliver()
                 for r in self.robots:
                     changed = self.robot(r) or changed
                 if not changed:
