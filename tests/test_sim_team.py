@@ -199,3 +199,53 @@ def test_200_runs_of_each_team_keep_every_constraint_of_their_dc_plans(name: str
     for i in range(200):
         result, ctl = _run(ctx, i)
         _check(ctx, result, ctl)
+
+
+# ------------------------------------------------------------------------------ the team floor's rules, by hand
+def _floor() -> tuple[Any, Any, Any, Any]:
+    from hrc.sim.team_floor import TeamFloor
+
+    task = load_task(ROOT / "tasks" / "kitting_2robots.yaml")
+    floor = TeamFloor(task)
+    return floor, floor.movers["human"], floor.movers["robot"], floor.movers["robot2"]
+
+
+def _settle(floor: Any, seconds: float = 20.0) -> None:
+    t = 0.0
+    while t < seconds and any(m.moving for m in floor.movers.values()):
+        h = floor.safe_step()
+        floor.advance(h)
+        t += h
+
+
+def test_two_robots_driving_head_on_stop_short_of_each_other() -> None:
+    """Along the open aisle at y = 5.2 of the kitting cell: r1 from x = 3 and r2 from x = 9 drive at each other
+    (0.6 m/s each, radii 0.35): they stop where their free distance is 2 cm (CONTACT), neither touches the
+    other (pymunk), and both are held up; the person far away is not disturbed."""
+    floor, person, r1, r2 = _floor()
+    floor.place(person, (1.5, 1.0))
+    floor.place(r1, (3.0, 5.2))
+    floor.place(r2, (9.0, 5.2))
+    r1.set_route(((3.0, 5.2), (9.0, 5.2)), 0.6)
+    r2.set_route(((9.0, 5.2), (3.0, 5.2)), 0.6)
+    _settle(floor)
+    gap = math.dist(r1.xy, r2.xy) - 0.7
+    assert CONTACT - 1e-6 <= gap <= CONTACT + 0.05, gap
+    assert floor.robot_contacts() == 0 and r1.blocked_for > 0 and r2.blocked_for > 0
+    assert floor.min_free[("robot", "robot2")] >= CONTACT - 1e-6
+
+
+def test_a_robot_keeps_the_margin_from_every_person_and_a_person_stops_short_of_a_robot() -> None:
+    """r1 drives at the standing person (margin 0.1 m): it stops 0.1 m short; the person then walks at the
+    standing r2 and stops 2 cm short of it (a person stops in front of a machine)."""
+    floor, person, r1, r2 = _floor()
+    floor.place(person, (6.0, 5.2))
+    floor.place(r1, (2.0, 5.2))
+    floor.place(r2, (10.0, 5.2))
+    r1.set_route(((2.0, 5.2), (6.0, 5.2)), 0.6)
+    _settle(floor)
+    assert abs(math.dist(r1.xy, person.xy) - 0.65 - floor.margin) < 1e-6
+    person.set_route(((6.0, 5.2), (10.0, 5.2)), 1.2)
+    _settle(floor)
+    assert abs(math.dist(person.xy, r2.xy) - 0.65 - CONTACT) < 1e-6
+    assert floor.overlaps() == 0 and floor.separation() >= CONTACT - 1e-6

@@ -177,7 +177,7 @@ class TeamFloor:
         for p in people:
             before = self.gap(m, p)
             if self.gap(m, p, ahead) < before:
-                closing_in = closing_in or before < self.margin
+                closing_in = closing_in or before < self.margin - 1e-6  # the person came closer than it stopped
                 if self.slowdown > 0 and before < self.margin + self.slowdown:
                     scale = min(scale, max(0.0, min(1.0, (before - self.margin) / self.slowdown)))
         want *= scale
