@@ -12,6 +12,10 @@ What the runs must show is checked against independent truth, not the simulator'
   pair apart by the safety margin wherever the two are not co-working at the joint spot;
 - **each agent does only what the task lets it**: each agent's departures are for actions it may do.
 
+The team floor's rules by hand (`TeamFloor`, no run loop): two robots driving head-on stop 2 cm apart
+without touching, a robot stops at the margin from a standing person, a person 2 cm short of a standing
+robot.
+
 Default runs: 10 per task (two_workers, 120 plans; kitting_2robots cut to three picks, 60 plans). The issue's
 200 runs per whole task are `slow`.
 """
