@@ -23,6 +23,8 @@ the dispatcher).
                          "runs": [{...RunResult.to_json}]}},
      ["comparison": {"buttons_delay": s, "policies": {NAME: {"motion": {...}, "buttons": {...}}}}]}
 
+A team's (issue 37: other than one person and one robot; `run_one` runs it in `hrc.sim.team_run`) runs have
+``team`` (per agent, per pair) and its aggregate ``team``; a task of one person and one robot has neither.
 With ``--detector motion`` each dispatched policy's aggregate has ``detection``
 (`hrc.sim.detection.aggregate_detection`) and each run ``detection``; ``comparison`` holds the same
 policies with buttons as late as the detector's median delay, on the same seeds (`comparison`).
