@@ -421,8 +421,14 @@ def test_the_motion_detector_refuses_a_team_folder_in_one_line(command: str, tmp
     assert f"hrc {command} runs one person and one robot; this task has 1 person and 2 robots" in err
 
 
-def test_simulate_refuses_a_team_task_in_one_line(tmp_path: Path, capsys) -> None:
-    assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--out", str(tmp_path / "sim")]) == 2
+def test_simulate_runs_a_team_and_the_online_commands_still_refuse_it(tmp_path: Path, capsys) -> None:
+    """`hrc simulate` takes a team (tests/test_sim_team.py); what is still one person and one robot says so."""
+    assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--runs", "1", "--policy", "hrc",
+                 "--no-figures", "--out", str(tmp_path / "sim"), "-q"]) == 0
+    assert (tmp_path / "sim" / "simulation.json").exists()
+    capsys.readouterr()
+    assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--detector", "motion",
+                 "--out", str(tmp_path / "sim2")]) == 2
     got, err = capsys.readouterr()
     assert got == "" and ERROR_LINE.match(err), err
-    assert "2 people and 1 robot" in err and not (tmp_path / "sim").exists()
+    assert "2 people and 1 robot" in err and not (tmp_path / "sim2").exists()

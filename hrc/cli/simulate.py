@@ -19,13 +19,13 @@ from typing import Any
 
 from hrc.cli.argtypes import delay_range
 from hrc.cli.compile import _Progress, _stated_sensing
-from hrc.cli.team import refuse_team
+from hrc.cli.team import team_refusal
 from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
 
 __all__ = ["add_parser", "format_detection", "format_joint", "format_on_demand", "format_promise", "format_ssm",
-           "format_table", "run"]
+           "format_table", "format_team", "run"]
 
 POLICY_NAMES = ("hrc", "motion-blind", "feasible-only", "fixed")  # hrc.sim.policies.POLICIES, not imported here
 
@@ -240,6 +240,22 @@ def format_joint(sim: Any) -> list[str]:
     return lines
 
 
+def format_team(sim: Any) -> list[str]:
+    """A team's lines (issue 37): robot-robot contacts and the closest approach of every pair of agents."""
+    from hrc.sim.metrics import aggregate
+
+    lines = []
+    for name in sim.policies:
+        team = aggregate(sim.results[name]).get("team")
+        if team is None:
+            continue
+        pairs = ", ".join(f"{p} {'-' if d is None else f'{d:.2f} m'}" for p, d in team["min_distance"].items())
+        lines.append(f"team ({name}): robot-robot contacts {team['robot_contacts']} (in "
+                     f"{team['runs_with_robot_contacts']} runs), person-person {team['people_contacts']}; "
+                     f"closest per pair: {pairs}")
+    return lines
+
+
 def format_on_demand(sim: Any) -> list[str]:
     """With a searched compile (a task beyond enumeration): compile on demand's misses, time to recover and
     the wall time of its compiles (excluded from the dispatcher's latency), per dispatched policy."""
@@ -266,12 +282,13 @@ def format_on_demand(sim: Any) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from hrc.sim.human import HumanModel, scaled_truth
-    from hrc.sim.montecarlo import simulate, simulation_json
-    from hrc.sim.run import SimSettings, simulate_run
+    from hrc.sim.montecarlo import run_one, simulate, simulation_json
+    from hrc.sim.run import SimSettings
 
     task = load_task(args.task)
-    if refuse_team("simulate", task=task):
-        return 2
+    if args.record is not None and team_refusal("simulate --record", [a.kind.value for a in task.agents]):
+        raise SimulationError(f"{task.source}: --record: the MCAP recording holds one person and one robot; "
+                              f"a team's runs are not recorded yet (docs/simulate.md, \"Teams\")")
     if args.sensing is not None:
         from dataclasses import replace
 
@@ -329,7 +346,7 @@ def run(args: argparse.Namespace) -> int:
 
             if not args.quiet:
                 print(f"figures: one recorded run per policy into {out}/figures/ ...", file=sys.stderr, flush=True)
-            featured = {p: simulate_run(sim.context, p, 0, record=True) for p in sim.policies}
+            featured = {p: run_one(sim.context, p, 0, record=True) for p in sim.policies}
             write_simulation_figures(sim, featured, stage)
     if not args.quiet:
         print(f"simulated {args.runs} runs x {len(sim.policies)} policies of {task.name} in {elapsed:.1f} s "
@@ -342,7 +359,7 @@ def run(args: argparse.Namespace) -> int:
             print(format_detection(sim))
         if task.safety is not None:
             print(format_ssm(sim))
-        for line in format_on_demand(sim) + format_joint(sim):
+        for line in format_on_demand(sim) + format_joint(sim) + format_team(sim):
             print(line)
         print(f"wrote {out}/simulation.json" + ("" if args.no_figures else f", {out}/figures/")
               + ("" if sim.logs is None else f", {out}/runs/ (one dispatcher log per run)"))

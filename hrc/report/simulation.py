@@ -8,8 +8,12 @@
   happenings), so that where the run fell behind its plan shows; a joint phase on each agent's rows;
 - ``trajectories.png``: the workspace (`hrc.report.maps.draw_workspace`) with the path each agent's
   disc actually took, and the place where they came closest (outside co-work at a joint spot, issue 37);
-- ``run.gif``: the run animated, both discs at every half second of simulated time, with the time and
+  a team's: every agent's path, and the closest robot-person pair;
+- ``run.gif``: the run animated, every disc at every half second of simulated time, with the time and
   what each agent is doing.
+
+Each agent has one colour in every view (`hrc.report.figures.agent_color`: the first person orange, the
+first robot blue, a second of a kind teal, a third brown), the Gantt one row pair per agent.
 
 Deterministic: PNGs as the report writes them (`hrc.report.figures.save_png`), the GIF from Agg
 frames quantized by Pillow (no timestamps in either). Only this layer plots (house style).
@@ -192,6 +196,8 @@ def _map_figure(task: Task) -> tuple[Figure, object]:
 
 def trajectories_figure(task: Task, result: RunResult) -> Figure:
     """Where each disc went in the run, and where they came closest (module docstring)."""
+    if result.agent_frames:
+        return _team_trajectories(task, result)
     fig, ax = _map_figure(task)
     frames = result.frames
     handles = []
@@ -218,6 +224,39 @@ def trajectories_figure(task: Task, result: RunResult) -> Figure:
     return fig
 
 
+def _team_trajectories(task: Task, result: RunResult) -> Figure:
+    """A team's run (issue 37): every agent's path in its colour, and the closest robot-person approach
+    outside co-work (both discs dashed), as for one pair."""
+    fig, ax = _map_figure(task)
+    frames = result.agent_frames
+    handles = []
+    for k, agent in enumerate(task.agents):
+        color = agent_color(task, agent.id)
+        ax.plot([f[1][k][0] for f in frames], [f[1][k][1] for f in frames], color=color,  # type: ignore[attr-defined]
+                linewidth=1.4, alpha=0.8, zorder=3)
+        handles.append(Line2D([], [], color=color, linewidth=1.4, label=agent.id))
+    pairs = [(i, j) for i, a in enumerate(task.agents) for j, b in enumerate(task.agents)
+             if a.is_human and not b.is_human]
+    close = []
+    for f in frames:
+        for i, j in pairs:
+            (x, y, here), (u, v, _) = f[1][i], f[1][j]
+            if here and (task.agents[i].id, task.agents[j].id) not in f[2]:
+                close.append((math.hypot(x - u, y - v) - task.agents[i].radius - task.agents[j].radius, f, i, j))
+    if close:
+        d, f, i, j = min(close, key=lambda c: c[0])
+        for k in (i, j):
+            agent = task.agents[k]
+            ax.add_patch(Circle(f[1][k][:2], agent.radius, fill=False, edgecolor=agent_color(task, agent.id),  # type: ignore[attr-defined]
+                                linewidth=1.2, linestyle="--", zorder=6))
+        handles.append(Line2D([], [], color="#555555", linestyle="--",
+                              label=f"closest robot-person: {d:.2f} m ({task.agents[i].id}, {task.agents[j].id}) "
+                                    f"at {f[0]:.1f} s"))
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3,  # type: ignore[attr-defined]
+              fontsize=8, frameon=False, borderaxespad=0.2)
+    return fig
+
+
 def _doing(result: RunResult, agent: str, t: float) -> str:
     last = ""
     for h in result.happenings:
@@ -237,7 +276,12 @@ def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_S
     drawn on it by Pillow (a few ms a frame instead of a full matplotlib redraw)."""
     from PIL import Image, ImageDraw
 
-    frames = result.frames
+    frames: list[tuple[float, tuple[tuple[float, float], ...], tuple[bool, ...]]]
+    if result.agent_frames:  # a team (issue 37): every agent's disc, in its colour
+        frames = [(f[0], tuple((x, y) for x, y, _ in f[1]), tuple(here for _, _, here in f[1]))
+                  for f in result.agent_frames]
+    else:
+        frames = [(f[0], ((f[1], f[2]), (f[3], f[4])), (f[5], True)) for f in result.frames]
     if not frames:
         return
     fig, ax = _map_figure(task)
@@ -246,9 +290,12 @@ def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_S
     height = base.height
     to_px = ax.transData.transform  # type: ignore[attr-defined]
     scale = float(to_px((1.0, 0.0))[0] - to_px((0.0, 0.0))[0])  # pixels per metre
-    human = next(a for a in task.agents if a.is_human)
-    robot = next(a for a in task.agents if not a.is_human)
-    colors = {a.id: agent_color(task, a.id) for a in (human, robot)}
+    if result.agent_frames:
+        shown_agents = list(task.agents)
+    else:
+        shown_agents = [next(a for a in task.agents if a.is_human), next(a for a in task.agents if not a.is_human)]
+    colors = {a.id: agent_color(task, a.id) for a in shown_agents}
+    start = tuple(task.workspace.location(a.start).xy for a in shown_agents)
     ft = np.array([f[0] for f in frames])
     swatch = base.copy()  # one palette for every frame: the map plus the discs' colours
     sd = ImageDraw.Draw(swatch)
@@ -258,11 +305,10 @@ def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_S
     images = []
     for t in np.arange(0.0, frames[-1][0] + step / 2, step):
         i = int(np.searchsorted(ft, t, side="right")) - 1
-        f = frames[i] if i >= 0 else (0.0, *task.workspace.location(human.start).xy,
-                                      *task.workspace.location(robot.start).xy, True)
+        f = frames[i] if i >= 0 else (0.0, start, (True,) * len(shown_agents))
         img = base.copy()
         draw = ImageDraw.Draw(img)
-        for agent, (x, y), shown in ((human, (f[1], f[2]), f[5]), (robot, (f[3], f[4]), True)):
+        for agent, (x, y), shown in zip(shown_agents, f[1], f[2], strict=True):
             if not shown:
                 continue
             px, py = to_px((x, y))
@@ -273,7 +319,7 @@ def animation_gif(task: Task, result: RunResult, path: Path, step: float = GIF_S
         x0 = 8.0
         draw.text((x0, 6), f"t = {t:5.1f} s", fill="#222222")
         x0 += draw.textlength(f"t = {t:5.1f} s") + 14
-        for agent in (human, robot):
+        for agent in shown_agents:
             draw.ellipse((x0, 7, x0 + 9, 16), fill=colors[agent.id])
             text = f"{agent.id}: {_doing(result, agent.id, t) or '-'}"
             draw.text((x0 + 13, 6), text, fill="#222222")

@@ -13,6 +13,9 @@ seeded people.
     policies    POLICIES (hrc, motion-blind, feasible-only, fixed) and the controllers that carry them out
     blind       blind_compile: the motion-blind compile (straight lines, no interference)
     run         simulate_run: one run, and what it measured (RunResult)
+    team_run    simulate_team_run: one run of a team (issue 37: any number of people and robots)
+    team_floor  TeamFloor: every agent's disc on the floor, the separation per robot-person pair
+    team_policies  TeamDispatched, TeamFixed: each robot's order, each person's own hint
     replay      broken_constraints: a run checked against every constraint of its plan's STNU
     metrics     aggregate: per-policy measures
     montecarlo  simulate, simulation_json: many runs, in an executor; the deterministic JSON

@@ -37,7 +37,8 @@ import numpy as np
 from hrc.errors import SimulationError
 from hrc.model import Interval, Task
 
-__all__ = ["CHOICES", "DURATIONS", "HumanDraws", "HumanModel", "draw_human", "sample_duration", "scaled_truth"]
+__all__ = ["CHOICES", "DURATIONS", "HumanDraws", "HumanModel", "draw_human", "draw_people", "sample_duration",
+           "scaled_truth"]
 
 CHOICES = ("follow", "preferred", "free")
 DURATIONS = ("triangular", "uniform")
@@ -178,3 +179,37 @@ def draw_human(task: Task, model: HumanModel, rng: np.random.Generator) -> Human
         lo, hi = model.absence_seconds
         absence = (float(b) * window, None if c < model.leave_for_good_rate else lo + float(d) * (hi - lo))
     return HumanDraws(durations, frozenset(overrun), pace, choice, absence, robot)
+
+
+def draw_people(task: Task, model: HumanModel, rng: np.random.Generator) -> dict[str, HumanDraws]:
+    """Every person's random numbers for one run of a team (issue 37), by person id, drawn in a fixed order
+    (per action and phase: each person's four numbers in task order, then the robots' one quantile, shared
+    by every robot; then each person's choices): the same people under every policy, as `draw_human` for
+    one person. Absences are not drawn (a team's people do not leave, `hrc.sim.team_run`)."""
+    people = [a for a in task.agents if a.is_human]
+    durations: dict[str, dict[tuple[str, str], float]] = {p.id: {} for p in people}
+    overrun: dict[str, set[tuple[str, str]]] = {p.id: set() for p in people}
+    pace: dict[str, dict[tuple[str, str], float]] = {p.id: {} for p in people}
+    robot: dict[tuple[str, str], float] = {}
+    for action in task.actions:
+        for phase in action.phases:
+            key = (action.id, phase.id)
+            for person in people:
+                u, v, w, p = rng.random(4)
+                if person.id in action.agents:
+                    bounds = model.true_bounds(action.id, phase.id, phase.duration(person.id))
+                    d = sample_duration(bounds, float(u), model.durations)
+                    if v < model.overrun_rate:
+                        d = bounds.ub * (1.0 + float(w) * model.overrun_max)
+                        overrun[person.id].add(key)
+                    durations[person.id][key] = d
+                pace[person.id][key] = 1.0 + float(p) * (person.travel_slack - 1.0)
+            robot[key] = float(rng.random())
+    out = {}
+    for person in people:
+        choice = tuple(float(x) for x in rng.random(len(task.actions) + 1))
+        out[person.id] = HumanDraws(durations[person.id], frozenset(overrun[person.id]), pace[person.id], choice,
+                                    None, robot)
+    if not out:  # robots alone: their quantiles only
+        out[""] = HumanDraws({}, frozenset(), {}, (), None, robot)
+    return out

@@ -81,7 +81,26 @@ def aggregate(runs: Sequence[RunResult]) -> dict:
         **_ssm(runs),
         **_on_demand(runs),
         **_joint(runs),
+        **_team(runs),
     }
+
+
+def _team(runs: Sequence[RunResult]) -> dict:
+    """A team's (issue 37): robot-robot contacts (pymunk, over all runs; 0 expected) and the runs with one,
+    person-person contacts (people are not kept apart by the floor), and per pair of agents the smallest
+    free distance of all runs (`min_distance` above is the smallest of the robot-person pairs)."""
+    found = [r.team for r in runs if r.team is not None]
+    if not found:
+        return {}
+    pairs: dict[str, list[float]] = {}
+    for t in found:
+        for pair, d in t["min_distance"].items():
+            if d is not None:
+                pairs.setdefault(pair, []).append(d)
+    return {"team": {"robot_contacts": sum(t["robot_contacts"] for t in found),
+                     "runs_with_robot_contacts": sum(1 for t in found if t["robot_contacts"]),
+                     "people_contacts": sum(t["people_contacts"] for t in found),
+                     "min_distance": {pair: _r(min(ds)) for pair, ds in pairs.items()}}}
 
 
 def _joint(runs: Sequence[RunResult]) -> dict:

@@ -23,6 +23,8 @@ the dispatcher).
                          "runs": [{...RunResult.to_json}]}},
      ["comparison": {"buttons_delay": s, "policies": {NAME: {"motion": {...}, "buttons": {...}}}}]}
 
+A team's (issue 37: other than one person and one robot; `run_one` runs it in `hrc.sim.team_run`) runs have
+``team`` (per agent, per pair) and its aggregate ``team``; a task of one person and one robot has neither.
 With ``--detector motion`` each dispatched policy's aggregate has ``detection``
 (`hrc.sim.detection.aggregate_detection`) and each run ``detection``; ``comparison`` holds the same
 policies with buttons as late as the detector's median delay, on the same seeds (`comparison`).
@@ -45,9 +47,10 @@ from hrc.model import Task
 from hrc.sim.metrics import aggregate
 from hrc.sim.policies import POLICIES
 from hrc.sim.run import RunResult, SimContext, SimSettings, simulate_run
+from hrc.sim.team_floor import is_team
 
-__all__ = ["Simulation", "baseline_delay", "check_policies", "comparison", "separation_summary", "simulate",
-           "simulation_json"]
+__all__ = ["Simulation", "baseline_delay", "check_policies", "comparison", "run_one", "separation_summary",
+           "simulate", "simulation_json"]
 
 Progress = Callable[[str, int, int], None]
 CHUNK = 10
@@ -99,7 +102,7 @@ def _chunk(ctx: SimContext, keep_logs: object, work: list[tuple[str, int]]) -> l
     """The unit of work sent to an executor: some runs of one policy (module-level, so it pickles), each
     with its dispatcher log when `keep_logs` (`hrc.sim.runlog`: the same run, its exchanges caught)."""
     if not keep_logs:
-        return [(simulate_run(ctx, policy, i), None) for policy, i in work]
+        return [(run_one(ctx, policy, i), None) for policy, i in work]
     from hrc.sim.runlog import catching, log_bytes
 
     out: list[tuple[RunResult, bytes | None]] = []
@@ -108,6 +111,18 @@ def _chunk(ctx: SimContext, keep_logs: object, work: list[tuple[str, int]]) -> l
         result = simulate_run(ctx, policy, i, controller=catching(exchanges))
         out.append((result, log_bytes(ctx, POLICIES[policy], exchanges)))
     return out
+
+
+def run_one(ctx: SimContext, policy: str, index: int, record: bool = False) -> RunResult:
+    """Run `index` of `policy`: `hrc.sim.run.simulate_run` for one person and one robot, else the team loop
+    (`hrc.sim.team_run.simulate_team_run`, issue 37)."""
+    if ctx.cache.get("team") is None:
+        ctx.cache["team"] = is_team(ctx.task)
+    if ctx.cache["team"]:
+        from hrc.sim.team_run import simulate_team_run
+
+        return simulate_team_run(ctx, policy, index, record)
+    return simulate_run(ctx, policy, index, record)
 
 
 def _work(policies: Sequence[str], runs: int) -> Iterator[list[tuple[str, int]]]:
@@ -137,6 +152,7 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
         raise SimulationError(f"--runs must be at least 1, found {runs}")
     chosen = check_policies(policies)
     settings = settings or SimSettings()
+    _check_team(task, settings, keep_logs)
     joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
     if joint is not None and settings.motion:  # issue 37: the detector finds a person's start and end of each step
         raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
@@ -161,6 +177,28 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     buttons = SimContext(task, compiles, replace(settings, detector="buttons", detection_delay=delay), seed)
     base = _run_all(buttons, dispatched, runs, executor, jobs, progress, "buttons") if dispatched else {}
     return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay, logs)
+
+
+def _check_team(task: Task, settings: SimSettings, keep_logs: bool) -> None:
+    """A team (issue 37: other than one person and one robot) runs on the team floor (`hrc.sim.team_run`),
+    which leaves some things out: each is refused here in one line, before anything is compiled."""
+    if not is_team(task):
+        return
+    what = [name for name, on in (("--detector motion", settings.motion),
+                                  ("--absence-rate", settings.human.absence_rate > 0),
+                                  ("--keep-logs", keep_logs)) if on]
+    if task.safety is not None:
+        what.append("a task with safety: (speed and separation monitoring)")
+    from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
+
+    if estimate(task).plans.value > DEFAULT_MAX_PLANS:
+        what.append(f"more than {DEFAULT_MAX_PLANS:,} plans (compile on demand)")
+    if what:
+        people = sum(1 for a in task.agents if a.is_human)
+        robots = len(task.agents) - people
+        team = f"{people} {'person' if people == 1 else 'people'} and {robots} robot{'' if robots == 1 else 's'}"
+        raise SimulationError(f"{task.source}: agents: hrc simulate runs a team ({team}) "
+                              f"without {', '.join(what)} (docs/simulate.md, \"Teams\")")
 
 
 def _compile(task: Task, seed: int, jobs: int | None, executor: str | None, progress: Progress | None

@@ -41,6 +41,7 @@ import numpy as np
 
 from hrc.compile.compiler import CompiledPlanSet
 from hrc.detect.sensor import Sensor, SensorModel
+from hrc.errors import SimulationError
 from hrc.model import Task
 from hrc.motion import PathLibrary
 from hrc.plans import must_precede
@@ -61,14 +62,20 @@ from hrc.sim.policies import (
 from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
 from hrc.sim.ssm import SsmMeasures
 from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, AgentState, Standoffs
+from hrc.sim.team_floor import is_team
 
-__all__ = ["RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
+__all__ = ["AgentFrame", "RunResult", "SimContext", "SimSettings", "make_controller", "simulate_run"]
 
 _EPS = 1e-9
 _DETECTED = ("depart", "arrive", "start", "end")  # the events a motion detector gives
 _DRAIN = 12.0  # s after the last phase in which a motion detector may still give the person's last events
 _QUIET = 30.0  # s with nothing due but the tracker's positions: nobody can go on (stuck)
 _ACK = 0.002  # s: the robot's acknowledgement snaps into its window when this close to it
+
+
+AgentFrame = tuple[float, tuple[tuple[float, float, bool], ...], tuple[tuple[str, str], ...]]
+"""A team's recorded frame (issue 37): its time, each agent's ``(x, y, present)`` in task order, and the
+(person, robot) pairs co-working then (`hrc.sim.team_floor.TeamFloor.cowork`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,6 +180,8 @@ class RunResult:
     happenings: tuple[Happening, ...] = field(default=(), compare=False)
     frames: tuple[tuple[float, float, float, float, float, bool], ...] = field(default=(), compare=False)
     cowork_frames: tuple[bool, ...] = field(default=(), compare=False)  # per frame, a joint task's: in co-work
+    team: dict | None = None  # a team's (issue 37): per agent and per pair (`hrc.sim.team_run`); None for 1+1
+    agent_frames: tuple[AgentFrame, ...] = field(default=(), compare=False)  # a team's recorded frames
 
     def to_json(self) -> dict:
         def r(x: float | None) -> float | None:
@@ -195,7 +204,8 @@ class RunResult:
                 **({} if self.detection is None else {"detection": self.detection.to_json()}),
                 **({} if self.ssm is None else {"ssm": self.ssm.to_json()}),
                 **({} if self.on_demand is None else {"on_demand": self.on_demand}),
-                **({} if self.joint is None else {"joint": self.joint})}
+                **({} if self.joint is None else {"joint": self.joint}),
+                **({} if self.team is None else {"team": self.team})}
 
 
 def make_controller(ctx: SimContext, policy: Policy) -> Controller:
@@ -238,7 +248,11 @@ def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
                  controller: Callable[[SimContext, Policy], Controller] = make_controller) -> RunResult:
     """Run `index` of `policy`: the same person (drawn from ``(seed, index)``) under every policy.
 
-    `record` keeps the happenings and the agents' positions at every step (for figures)."""
+    `record` keeps the happenings and the agents' positions at every step (for figures). One person and
+    one robot: a team runs on the team floor (`hrc.sim.team_run.simulate_team_run`; `hrc.sim.montecarlo.run_one`
+    picks), `SimulationError` here."""
+    if is_team(ctx.task):
+        raise SimulationError(f"{ctx.task.source}: agents: a team runs in hrc.sim.team_run, not on the one-pair floor")
     rng = np.random.default_rng([ctx.seed, index])
     draws = draw_human(ctx.task, ctx.settings.human, rng)
     ctl = controller(ctx, POLICIES[policy])

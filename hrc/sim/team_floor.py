@@ -1,0 +1,274 @@
+"""The shop floor of a team (issue 37): every person and every robot as a disc in the pymunk world.
+
+`hrc.sim.floor.Floor` holds one person and one robot; `TeamFloor` holds any number of each, by the same
+rules taken pair by pair (`Mover`, the route walking and the closest-approach geometry are the floor's):
+
+- **each person walks on** at their pace and stops `CONTACT` short of every robot (a person stops in front
+  of a machine); people do not stop for each other (the task leaves two people to give way as people do,
+  docs/motion.md "More than two agents": the compile reports where they may meet), and their closest
+  approach is measured (`people_min`);
+- **each robot keeps the safety margin from every person present**, as the one robot does (it slows in
+  the `slowdown` band, never steps closer than the margin, and backs off along its route when a person
+  keeps coming closer), and **stops `CONTACT` short of every other robot**: two robots are kept apart by
+  the passing order their plan chose (`hrc.motion.conflicts`), and the floor never pushes one into the
+  other;
+- **co-work at a joint spot** (`cowork`: the pairs ``(person, robot)`` the run loop says co-work now,
+  `hrc.sim.team_run`): the separation is not asked for between the two of a pair, and their distance is
+  not measured, as on the one-pair floor.
+
+Measured: `min_free` per robot-person pair (the separation, outside co-work) and per other pair, and pymunk
+contacts per pair (`contacts`: each step in which two discs touched, asked of pymunk only when two discs
+are closer than `QUERY_GAP`): a robot-person contact is an `overlaps` of the one-pair floor, a robot-robot
+contact a violation (0 expected; `robot_contacts`).
+
+Persons move first, then robots, in task order; each is walked against where the others stand at that
+moment, so steps are short while two of them move near each other (`safe_step`). A task with `safety:`
+(speed and separation monitoring) is not run on a team floor yet (`hrc.sim.montecarlo` refuses it).
+Cost: O(agents^2) per step for the distances, one pymunk step only when two discs nearly touch.
+"""
+
+from __future__ import annotations
+
+import math
+from itertools import combinations
+
+import pymunk
+
+from hrc.model import Agent, Task
+from hrc.motion.world import World
+from hrc.sim.floor import CONTACT, MAX_STEP, MIN_STEP, QUERY_GAP, Mover, _closest, _entry
+
+__all__ = ["TeamFloor", "is_team"]
+
+Point = tuple[float, float]
+
+
+def is_team(task: Task) -> bool:
+    """Whether `task` has other than one person and one robot (it runs on this floor, `hrc.sim.team_run`)."""
+    people = sum(1 for a in task.agents if a.is_human)
+    return (people, len(task.agents) - people) != (1, 1)
+
+
+class TeamFloor:
+    """The world with every agent's disc (`movers`, by id, in task order); `advance` moves them by the rules
+    of the module docstring."""
+
+    def __init__(self, task: Task, slowdown: float = 0.0) -> None:
+        self.task = task
+        self.world = World(task.workspace)
+        self.margin = task.safety_margin
+        self.slowdown = slowdown
+        self.movers: dict[str, Mover] = {a.id: self._mover(a) for a in task.agents}
+        self.people = tuple(self.movers[a.id] for a in task.agents if a.is_human)
+        self.robots = tuple(self.movers[a.id] for a in task.agents if not a.is_human)
+        self.pairs = tuple(combinations(task.agent_ids, 2))  # task order: (a, b) with a before b
+        self.min_free: dict[tuple[str, str], float] = {p: math.inf for p in self.pairs}
+        self.contacts: dict[tuple[str, str], int] = {p: 0 for p in self.pairs}
+        self.cowork: frozenset[tuple[str, str]] = frozenset()  # (person, robot) pairs co-working now
+        self.cowork_time = 0.0  # s in which some pair co-worked
+
+    def _mover(self, agent: Agent) -> Mover:
+        xy = self.task.workspace.location(agent.start).xy
+        body = self.world.add_agent(agent, *xy)
+        shape = next(iter(body.shapes))
+        assert isinstance(shape, pymunk.Circle)
+        return Mover(agent, body, shape, xy)
+
+    # -- distances ---------------------------------------------------------------------------------------
+
+    @staticmethod
+    def gap(a: Mover, b: Mover, pa: Point | None = None, pb: Point | None = None) -> float:
+        """Free distance (m) between two discs (at `pa` / `pb` instead of where they are, if given); inf
+        when either is away from the floor."""
+        if not (a.present and b.present):
+            return math.inf
+        p, q = pa or a.xy, pb or b.xy
+        return math.hypot(p[0] - q[0], p[1] - q[1]) - a.agent.radius - b.agent.radius
+
+    def _key(self, a: Mover, b: Mover) -> tuple[str, str]:
+        x, y = a.agent.id, b.agent.id
+        return (x, y) if (x, y) in self.min_free else (y, x)
+
+    def shared(self, person: Mover, robot: Mover) -> bool:
+        """The two co-work now (their separation is not asked for)."""
+        return (person.agent.id, robot.agent.id) in self.cowork
+
+    def separation(self) -> float:
+        """The smallest free distance seen between a robot and a person (outside co-work), inf: never both
+        on the floor."""
+        return min((d for (a, b), d in self.min_free.items() if self._kinds(a, b) == {True, False}),
+                   default=math.inf)
+
+    def _kinds(self, a: str, b: str) -> set[bool]:
+        return {self.movers[a].agent.is_human, self.movers[b].agent.is_human}
+
+    def robot_contacts(self) -> int:
+        return sum(n for (a, b), n in self.contacts.items() if self._kinds(a, b) == {False})
+
+    def overlaps(self) -> int:
+        """Robot-person contacts (the one-pair floor's `overlaps`)."""
+        return sum(n for (a, b), n in self.contacts.items() if self._kinds(a, b) == {True, False})
+
+    # -- time --------------------------------------------------------------------------------------------
+
+    @staticmethod
+    def time_to_stop(m: Mover) -> float:
+        if not m.moving or m.speed <= 0:
+            return math.inf
+        return m.remaining / m.speed
+
+    def safe_step(self) -> float:
+        """A step (s) short enough that no two agents come near each other in it unseen: for every pair of
+        which both move (or a robot moves near a person with a `slowdown` band), half the time their joint
+        pace takes to close the gap down to what the rules keep between them (at least `MIN_STEP`); else
+        `MAX_STEP` (a walk against a standing disc stops exactly where it must, `_walk`)."""
+        step = MAX_STEP
+        for m, n in combinations(self.movers.values(), 2):
+            if not (m.present and n.present) or not (m.moving or n.moving):
+                continue
+            if not (m.moving and n.moving) and not (self.slowdown > 0 and m.agent.is_human != n.agent.is_human):
+                continue
+            if m.agent.is_human and n.agent.is_human:
+                keep = 0.0
+            elif m.agent.is_human != n.agent.is_human:
+                person, robot = (m, n) if m.agent.is_human else (n, m)
+                if self.shared(person, robot):
+                    continue
+                keep = self.margin + self.slowdown
+            else:
+                keep = CONTACT
+            g = self.gap(m, n) - keep
+            if math.isfinite(g):
+                step = min(step, max(MIN_STEP, g / (m.agent.speed + n.agent.speed) / 2))
+        return step
+
+    def advance(self, h: float) -> None:
+        """Move every agent for `h` seconds: the people first, then the robots (module docstring)."""
+        for m in self.people:
+            if m.present and m.moving:
+                self._person_step(m, h)
+        for m in self.robots:
+            if m.moving:
+                self._robot_step(m, h)
+        if self.cowork:
+            self.cowork_time += h
+        self._sync(h)
+
+    def _person_step(self, m: Mover, h: float) -> None:
+        want = min(m.speed * h, m.remaining)
+        got = want
+        stops = [r for r in self.robots if not self.shared(m, r)]
+        for r in stops:  # stop CONTACT short of every robot (or as close as it already is)
+            floor = min(CONTACT, self.gap(m, r)) - 1e-12
+            got = min(got, self._reach(m, want, r.xy, m.agent.radius + r.agent.radius + floor))
+        self._measure(m, got, stops + [p for p in self.people if p is not m])
+        self._move(m, got)
+        m.travelled += h
+        if want > 0 and got < want - 1e-9:
+            m.held += h * (1 - got / want)
+        m.blocked_for = m.blocked_for + h if want > 0 and got < want / 2 else 0.0
+
+    def _robot_step(self, m: Mover, h: float) -> None:
+        want = min(m.speed * h, m.remaining)
+        ahead = m.at(m.s + min(want, 1e-3) if want > 0 else m.s)
+        people = [p for p in self.people if p.present and not self.shared(p, m)]
+        others = [r for r in self.robots if r is not m]
+        scale, closing_in = 1.0, False
+        for p in people:
+            before = self.gap(m, p)
+            if self.gap(m, p, ahead) < before:
+                closing_in = closing_in or before < self.margin - 1e-6  # the person came closer than it stopped
+                if self.slowdown > 0 and before < self.margin + self.slowdown:
+                    scale = min(scale, max(0.0, min(1.0, (before - self.margin) / self.slowdown)))
+        want *= scale
+        got = want
+        for p in people:
+            limit = min(self.margin, self.gap(m, p))
+            got = min(got, self._reach(m, want, p.xy, m.agent.radius + p.agent.radius + limit - 1e-12))
+        for r in others:
+            limit = min(CONTACT, self.gap(m, r))
+            got = min(got, self._reach(m, want, r.xy, m.agent.radius + r.agent.radius + limit - 1e-12))
+        self._measure(m, got, people + others)
+        self._move(m, got)
+        if got <= 1e-12 and closing_in and m.s > 0:  # a person keeps coming: make room, back along the route
+            self._back_off(m, m.speed * h / 2, people)
+        m.travelled += h
+        full = min(m.speed * h, m.remaining + max(0.0, got))
+        if full > 0 and got < full - 1e-9:
+            m.held += h * (1 - max(0.0, got) / full)
+        m.blocked_for = m.blocked_for + h if full > 0 and got < full / 2 else 0.0
+
+    @staticmethod
+    def _reach(m: Mover, want: float, centre: Point, reach: float) -> float:
+        """How far `m` may go of `want` metres before its centre comes closer than `reach` to `centre`
+        (`hrc.sim.floor._entry`: exact on the route's segments)."""
+        if want <= 0:
+            return 0.0
+        ex, ey = m.at(m.s + want)
+        cx, cy = centre
+        if (ex - cx) ** 2 + (ey - cy) ** 2 >= reach * reach:
+            return want
+        return max(0.0, _entry(m, m.s + want, cx, cy, reach) - m.s)
+
+    def _measure(self, m: Mover, got: float, others: list[Mover]) -> None:
+        """The closest approach on the way of `m`'s step to each of `others` (free distance, per pair)."""
+        for o in others:
+            if not (m.present and o.present):
+                continue
+            key = self._key(m, o)
+            radii = m.agent.radius + o.agent.radius
+            if math.dist(m.xy, o.xy) - got - radii < self.min_free[key]:
+                self.min_free[key] = min(self.min_free[key], _closest(m, m.s + got, *o.xy) - radii)
+
+    @staticmethod
+    def _move(m: Mover, got: float) -> None:
+        m.s += max(0.0, got)
+        if m.s >= m.stop_at - 1e-9:
+            m.s, m.moving = m.stop_at, False
+        m.xy = m.at(m.s)
+
+    def _back_off(self, m: Mover, distance: float, people: list[Mover]) -> None:
+        s = max(0.0, m.s - distance)
+        p = m.at(s)
+        if min(self.gap(m, q, p) for q in people) > min(self.gap(m, q) for q in people) and \
+                all(self.gap(m, r, p) >= min(CONTACT, self.gap(m, r)) for r in self.robots if r is not m):
+            m.s, m.xy = s, p
+
+    def _sync(self, h: float) -> None:
+        """The pymunk bodies to the agents' positions; each pair's free distance at the step's end; pymunk
+        asked for contacts when two discs are closer than `QUERY_GAP` (co-working pairs left out)."""
+        close: list[tuple[Mover, Mover]] = []
+        for a, b in self.pairs:
+            m, n = self.movers[a], self.movers[b]
+            if {m.agent.is_human, n.agent.is_human} == {True, False}:
+                person, robot = (m, n) if m.agent.is_human else (n, m)
+                if self.shared(person, robot):
+                    continue
+            d = self.gap(m, n)
+            if math.isfinite(d):
+                self.min_free[(a, b)] = min(self.min_free[(a, b)], d)
+                if d <= QUERY_GAP:
+                    close.append((m, n))
+        if not close:
+            for m in self.movers.values():
+                m.body.position = m.xy
+            return
+        for m in self.movers.values():
+            old = m.body.position
+            m.body.velocity = ((m.xy[0] - old.x) / h, (m.xy[1] - old.y) / h) if h > 0 else (0.0, 0.0)
+        self.world.space.step(h if h > 0 else 1e-9)
+        for m in self.movers.values():
+            m.body.position = m.xy
+            m.body.velocity = (0.0, 0.0)
+            self.world.space.reindex_shapes_for_body(m.body)
+        for m, n in close:
+            hits = self.world.space.shape_query(m.shape)
+            if any(hit.shape is n.shape and any(p.distance < -1e-6 for p in hit.contact_point_set.points)
+                   for hit in hits):
+                self.contacts[self._key(m, n)] += 1
+
+    def place(self, m: Mover, xy: Point) -> None:
+        """Put `m` at `xy`, standing."""
+        m.xy = xy
+        m.points, m.cum, m.s, m.moving = [xy], [0.0], 0.0, False
+        m.body.position = xy

@@ -1,0 +1,203 @@
+"""The controllers of a team's simulated run (issue 37): the dispatcher in charge of every robot, or the
+fixed plan, and each person's reading of their own part of it.
+
+- `TeamDispatched`: the dispatcher (`hrc.dispatch.Dispatcher`, as ``hrc dispatch`` serves a team): each
+  robot's order is its own entry of the answer (`Decision.robots`); each person's next action and the
+  times of their events come from their own hint (`Decision.people`), their instruction ahead
+  (`Decision.aheads`), else the best plan's planned times of their own events (what their console page
+  would show): never another agent's part, never the true events;
+- `TeamFixed`: the compile's best plan, no adaptation: each robot does its legs in order at the plan's
+  earliest schedule, skipping an action another agent has started;
+- `make_team_controller`: a fresh one per run (a dispatcher forked from a per-process pristine one).
+
+The one-pair controllers are `hrc.sim.policies`'; the policies (`POLICIES`) are the same.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
+from hrc.compile.temporal_net_creator import leg_timepoint
+from hrc.errors import HrcError
+from hrc.plans import agent_legs
+from hrc.sim.detector import Happening
+from hrc.sim.policies import Order, Policy, SimRoute, leg_route
+from hrc.sim.run import SimContext
+
+__all__ = ["TeamController", "TeamDispatched", "TeamFixed", "make_team_controller"]
+
+
+class TeamDispatched:
+    """The dispatcher in charge of every robot (`Decision.robots`), each person reading their own hint."""
+
+    def __init__(self, dispatcher: Any, cps: CompiledPlanSet, ctx: SimContext, blind: bool) -> None:
+        self.d, self.cps, self.real, self.blind = dispatcher, cps, ctx.paths, blind
+        self.by_id = {cp.plan.id: cp for cp in cps.plans}
+        self.latencies: list[float] = []
+        self.refused: list[str] = []
+        self.switches = 0
+        self._orders: tuple[Any, dict[str, Order | None]] = (None, {})
+        self._times: dict | None = None
+        dec = dispatcher.decision
+        self.first_plan = self.plan_id = dec.plan
+        self.first_class = self.plan_class = dec.plan_class
+        self.stopped = bool(dec.stopped)
+
+    def observe(self, h: Happening) -> None:
+        import time
+
+        from hrc.dispatch import Observation
+
+        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
+                          delay=h.delay)
+        t0 = time.perf_counter()
+        try:
+            dec = self.d.observe(obs)
+        except HrcError as err:  # refused, state unchanged
+            self.latencies.append(time.perf_counter() - t0)
+            self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
+            return
+        self.latencies.append(time.perf_counter() - t0)
+        self._times = None
+        if dec.plan != self.plan_id and dec.plan is not None:
+            if self.plan_id is not None:
+                self.switches += 1
+            if self.first_plan is None:
+                self.first_plan, self.first_class = dec.plan, dec.plan_class
+        self.plan_id, self.plan_class = dec.plan, dec.plan_class
+        self.stopped = bool(dec.stopped)
+
+    def tick(self, t: float) -> None:
+        self.observe(Happening(t, "", "tick"))
+
+    def order(self, robot: str) -> Order | None:
+        """`robot`'s entry of the answer as an order (made once per answer)."""
+        dec = self.d.decision
+        if dec is not self._orders[0]:
+            self._orders = (dec, {})
+        made = self._orders[1]
+        if robot not in made:
+            step = (dec.robots or {}).get(robot)
+            if step is None and dec.fallback == "wait":
+                made[robot] = Order("", "", "wait")
+            elif step is None:
+                made[robot] = None
+            elif hasattr(step, "earliest"):
+                made[robot] = Order(step.action, step.phase, step.event, float(step.earliest),
+                                    None if step.latest is None else float(step.latest))
+            else:
+                made[robot] = Order(step.action, step.phase, "wait")
+        return made[robot]
+
+    def current(self) -> CompiledPlan | None:
+        return self.by_id.get(self.plan_id) if self.plan_id is not None else None
+
+    def human_next(self, person: str, taken: Mapping[str, str]) -> str | None:
+        hint = (self.d.decision.people or {}).get(person)
+        if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
+                and hint.action not in taken:
+            return str(hint.action)
+        cp = self.current()
+        if cp is None:
+            return None
+        return next((a for a in cp.plan.sequence(person) if a not in taken), None)
+
+    def guide_time(self, person: str, action: str, phase: str, event: str) -> float | None:
+        """When `person` does this event, from their own part of the answers (`DispatchedController.guide_time`
+        for one person): their hint's earliest when it is about this event, inf when it says to wait; their
+        instruction ahead; else the best plan's planned time of their event."""
+        if self.plan_id is None:
+            return None
+        dec = self.d.decision
+        hint = (dec.people or {}).get(person)
+        if hint is not None:
+            if not hasattr(hint, "earliest"):
+                return math.inf
+            if (hint.action, hint.phase, hint.event) == (action, phase, event):
+                return float(hint.earliest)
+        ahead = (dec.aheads or {}).get(person)
+        if hint is None and ahead is not None and ahead.next == f"{person}.{action}.{phase}.{event}":
+            if ahead.wait_for is None:
+                return None
+            seen = self.d.seen.times.get(tuple(ahead.wait_for.split(".")))
+            return math.inf if seen is None else float(seen) + float(ahead.gap)
+        if self._times is None:
+            self._times = dict(self.d.planned_times())
+        t = self._times.get((person, action, phase, event))
+        return None if t is None or not math.isfinite(t) else float(t)
+
+    def route(self, agent: str, action: str, phase: str) -> SimRoute | None:
+        cp = self.current()
+        return None if cp is None else leg_route(self.cps.task, cp, self.real, agent, action, phase, self.blind)
+
+
+class TeamFixed:
+    """The compile's best plan carried out as planned by every robot (no dispatcher): each robot does its
+    legs in order at the plan's earliest schedule (or as soon as it can), skipping an action another agent
+    has started."""
+
+    def __init__(self, cps: CompiledPlanSet) -> None:
+        self.cps, self.task = cps, cps.task
+        self.cp = cps.plans[0]
+        self.first_plan = self.plan_id = self.cp.plan.id
+        self.first_class = self.plan_class = self.cp.plan_class.value
+        self.schedule = dict(self.cp.classification.schedule)
+        self.legs = {a.id: agent_legs(self.task, self.cp.plan, a.id) for a in self.task.agents}
+        self.latencies: list[float] = []
+        self.refused: list[str] = []
+        self.switches = 0
+        self.stopped = False
+        self.seen: dict[str, str] = {}
+        self.done: set[tuple[str, str, str, str]] = set()
+
+    def observe(self, h: Happening) -> None:
+        if h.action is not None and h.event in ("depart", "start"):
+            self.seen.setdefault(h.action, h.agent)
+        if h.action is not None and h.phase is not None:
+            self.done.add((h.agent, h.action, h.phase, h.event))
+
+    def tick(self, t: float) -> None:
+        return None
+
+    def order(self, robot: str) -> Order | None:
+        for leg in self.legs[robot]:
+            if self.seen.get(leg.action, robot) != robot and not self.task.action(leg.action).joint:
+                continue
+            motion = next(m for m in self.cp.motions if m.agent == robot and m.leg == leg.index)
+            for ev in ["depart"] + (["park", "unpark"] if motion.park else []) + ["arrive", "start", "end"]:
+                if (robot, leg.action, leg.phase, ev) not in self.done:
+                    return Order(leg.action, leg.phase, ev, self.schedule.get(leg_timepoint(leg, ev), 0.0), None)
+        return None
+
+    def current(self) -> CompiledPlan | None:
+        return self.cp
+
+    def human_next(self, person: str, taken: Mapping[str, str]) -> str | None:
+        return next((a for a in self.cp.plan.sequence(person) if a not in taken), None)
+
+    def guide_time(self, person: str, action: str, phase: str, event: str) -> float | None:
+        leg = next((lg for lg in self.legs[person] if (lg.action, lg.phase) == (action, phase)), None)
+        return None if leg is None else self.schedule.get(leg_timepoint(leg, event))
+
+    def route(self, agent: str, action: str, phase: str) -> SimRoute | None:
+        return leg_route(self.task, self.cp, self.cps.paths, agent, action, phase, False)
+
+
+TeamController = TeamDispatched | TeamFixed
+
+
+def make_team_controller(ctx: SimContext, policy: Policy) -> TeamController:
+    """A fresh controller for one run of `policy` (a dispatcher forked from a per-process pristine one)."""
+    cps = ctx.compiles[policy.compile]
+    if not policy.dispatched:
+        return TeamFixed(cps)
+    key = ("team-dispatcher", policy.name)
+    pristine = ctx.cache.get(key)
+    if pristine is None:
+        from hrc.dispatch import Dispatcher
+
+        pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
+    return TeamDispatched(pristine.fork(), cps, ctx, policy.compile == "blind")

@@ -1,0 +1,707 @@
+"""One simulated run of a team (issue 37): every person and every robot of the task on one floor.
+
+The loop is `hrc.sim.run`'s (Strassmair & Taylor 2014, Fig. 5, every box simulated but the dispatcher),
+taken over every agent of the task (`hrc.sim.montecarlo.run_one` hands a task of other than one person and
+one robot here):
+
+- **each robot** carries out its own entry of the dispatcher's answer (`Decision.robots`, the same
+  `hrc.dispatch.Dispatcher` as ``hrc dispatch`` serves a team with), or its part of the fixed plan; each
+  of its events is acknowledged at once with the time it happened (snapped into its window within 2 ms,
+  `late` counts the others), with its own id;
+- **each person** is a simulated person (`hrc.sim.human`: their own draws, `draw_people`) who reads only
+  their own hint (`Decision.people`, their entry of `ahead`, else the best plan's planned times for their
+  events: what their console page would show): with ``--human follow`` they take the next action the
+  hint or the plan gives them and leave and start when it says; ``preferred`` and ``free`` choose among
+  what the task graph allows them, as one person does; their events reach the dispatcher through the
+  detector (its delay);
+- **joint actions** as the one-pair loop does them: every agent of the action walks or drives there;
+  its lead (its first robot, `Task.lead`) starts it when every other agent of it has arrived there, and
+  ends it when every role's time is done (each person's drawn time, each robot's own); the others work
+  from the lead's start and go on at its end; the person and the robot co-work at its spot
+  (`TeamFloor.cowork`) while the robot stands there over the joint stay and the person walks up, stays
+  or walks away;
+- **the floor** is `hrc.sim.team_floor.TeamFloor`: a person stops short of every robot, a robot keeps the
+  margin from every person and stops short of every other robot; the separation is measured for every
+  robot-person pair and a robot-robot contact is counted (a violation).
+
+Left out for a team (refused by `hrc.sim.montecarlo.simulate` in one line): the motion detector, the
+person's absences, speed and separation monitoring (`safety:`), compile on demand (a searched compile),
+dispatcher logs (``--keep-logs``, ``--record``); and the stand-off rules of `hrc.sim.standoff` (making
+room, going round): an agent held up waits, and a run in which nobody has moved for `stall` seconds while
+someone wanted to ends as a deadlock (counted, as in the one-pair loop).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from hrc.plans import must_precede
+from hrc.sim.detector import Detector, Happening
+from hrc.sim.floor import MIN_STEP, Mover
+from hrc.sim.giveway import Ways
+from hrc.sim.human import HumanDraws, draw_people
+from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
+from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
+from hrc.sim.run import AgentFrame, RunResult, SimContext
+from hrc.sim.team_floor import TeamFloor
+from hrc.sim.team_policies import TeamController, TeamDispatched, make_team_controller
+
+__all__ = ["simulate_team_run"]
+
+_EPS = 1e-9
+_ACK = 0.002  # s: a robot's acknowledgement snaps into its window when this close to it
+_HELD = 2.0  # s: an agent held up this long makes the loop look at the floor again at least this often
+
+
+def simulate_team_run(ctx: SimContext, policy: str, index: int, record: bool = False,
+                      controller: Callable[[SimContext, Policy], TeamController] = make_team_controller) -> RunResult:
+    """Run `index` of `policy` for a team: the same people (drawn from ``(seed, index)``) under every policy.
+    `record` keeps the happenings and every agent's position at every step (for figures)."""
+    rng = np.random.default_rng([ctx.seed, index])
+    draws = draw_people(ctx.task, ctx.settings.human, rng)
+    return _TeamRun(ctx, POLICIES[policy], draws, controller(ctx, POLICIES[policy]), record).run(index)
+
+
+# -- the run ---------------------------------------------------------------------------------------------------
+
+class _Agent:
+    """One agent's state in the loop (a mutable builder)."""
+
+    __slots__ = ("id", "mover", "human", "home", "loc", "mode", "action", "pi", "route", "parked", "work_start",
+                 "work_end", "duration", "order", "predicted", "moved", "draws")
+
+    def __init__(self, agent_id: str, mover: Mover, human: bool, home: str, draws: HumanDraws | None) -> None:
+        self.id, self.mover, self.human, self.home = agent_id, mover, human, home
+        self.loc: str | None = home
+        self.mode = "free"  # free, travel, parked, arrived, work, home
+        self.action: str | None = None
+        self.pi = 0
+        self.route: SimRoute | None = None
+        self.parked = False
+        self.work_start = self.work_end = self.duration = 0.0
+        self.order: Order | None = None
+        self.predicted = self.moved = 0.0
+        self.draws = draws
+
+
+class _TeamRun:
+    def __init__(self, ctx: SimContext, policy: Policy, draws: dict[str, HumanDraws], ctl: TeamController,
+                 record: bool) -> None:
+        self.ctx, self.policy, self.ctl, self.record = ctx, policy, ctl, record
+        task = self.task = ctx.task
+        s = ctx.settings
+        self.model = s.human
+        self.floor = TeamFloor(task, s.slowdown)
+        self.ways = Ways(self.floor.world, ctx.paths, ctx.cache)
+        self.detector = Detector(s.detection_delay)
+        self.agents = {a.id: _Agent(a.id, self.floor.movers[a.id], a.is_human, a.start, draws.get(a.id))
+                       for a in task.agents}
+        self.people = [self.agents[a.id] for a in task.agents if a.is_human]
+        self.robots = [self.agents[a.id] for a in task.agents if not a.is_human]
+        self.robot_q = next(iter(draws.values())).robot  # the robots' duration quantiles (one per phase)
+        self.t = 0.0
+        self.happenings: list[Happening] = []
+        self.started: dict[str, str] = {}
+        self.ended: set[tuple[str, str]] = set()
+        self.phases = {a.id: tuple(p.id for p in a.phases) for a in task.actions}
+        self.preds: dict[tuple[str, str], list[tuple[str, str]]] = {}
+        for pr in task.precedence:
+            self.preds.setdefault((pr.after.action, pr.after.phase), []).append((pr.before.action, pr.before.phase))
+        self.before = must_precede(task)
+        self.total = sum(len(v) for v in self.phases.values())
+        self.joint = {a.id: a.agents for a in task.actions if a.joint}
+        self.joined: dict[str, set[str]] = {a: set() for a in self.agents}  # joint actions each agent left for
+        self.joint_stay: dict[str, str] = {}  # agent -> the joint spot of its stay (until it is elsewhere)
+        self.last: dict[str, tuple[str, str]] = {}  # agent -> the last phase it ended (a joint one: all its agents)
+        self.told: set[tuple[str, str]] = set()
+        self.told_early: set[tuple[str, str]] = set()
+        self._told: dict[str, Order | None] = {}
+        self.choices = {a: 0 for a in self.agents}
+        self.last_obs = self.last_tick = 0.0
+        self.late = 0
+        self.excess = 0.0
+        self.finished_at: float | None = None
+        self.frames: list[AgentFrame] = []
+        deadline = task.deadline if task.deadline is not None else 120.0
+        self.cap = s.time_cap if s.time_cap is not None else 5 * deadline
+
+    # -- bookkeeping ---------------------------------------------------------------------------------
+
+    def emit(self, a: _Agent, event: str, action: str | None = None, phase: str | None = None) -> None:
+        h = Happening(self.t, a.id, event, action, phase)
+        self.happenings.append(h)
+        if action is not None and event == "depart":
+            self.started.setdefault(action, a.id)
+            if action in self.joint:
+                self.joined[a.id].add(action)
+        if action is not None and phase is not None:
+            self._joint_note(a, event, action, phase)
+        if event == "end" and action is not None and phase is not None:
+            self.ended.add((action, phase))
+        if a.human:
+            self.detector.see(h)
+            return
+        t = self.t
+        o = self.ctl.order(a.id)
+        if o is not None and (o.action, o.phase, o.event) == (action, phase, event):
+            if t < o.earliest - _EPS and o.earliest - t <= _ACK:
+                t = o.earliest
+            if o.latest is not None and t > o.latest + _EPS and t - o.latest <= _ACK:
+                t = o.latest
+            if t < o.earliest - _ACK or (o.latest is not None and t > o.latest + _ACK):
+                self.late += 1
+        self._tell(Happening(max(t, self.last_obs), a.id, event, action, phase))
+
+    def _tell(self, h: Happening) -> None:
+        self.last_obs = max(self.last_obs, h.t)
+        self.ctl.observe(h)
+
+    def _joint_note(self, a: _Agent, event: str, action: str, phase: str) -> None:
+        if event == "end":
+            for ag in self.joint.get(action, (a.id,)):
+                self.last[ag] = (action, phase)
+        where = self.task.action(action).phase(phase).location
+        if event == "start" and action in self.joint:  # every agent's stay there covers it
+            for ag in self.joint[action]:
+                self.joint_stay[ag] = where
+        elif event == "arrive" and self.joint_stay.get(a.id) != where:
+            self.joint_stay.pop(a.id, None)
+
+    def ready(self, action: str, phase: str) -> bool:
+        return all(p in self.ended for p in self.preds.get((action, phase), ()))
+
+    def done(self) -> bool:
+        return len(self.ended) == self.total
+
+    def taken(self, a: _Agent) -> dict[str, str]:
+        """`started` as `a` reads it: a joint action of theirs is theirs to go to until they have left for it."""
+        return {x: ag for x, ag in self.started.items()
+                if x not in self.joint or a.id not in self.joint[x] or x in self.joined[a.id]}
+
+    def route_for(self, a: _Agent, action: str, phase: str) -> SimRoute:
+        target = self.task.action(action).phase(phase).location
+        route = self.ctl.route(a.id, action, phase)
+        if route is not None and math.dist(route.points[0], a.mover.xy) < 1e-6 \
+                and math.dist(route.points[-1], self.ctx.paths.locations[target]) < 1e-6:
+            return route
+        if a.loc is None:  # somewhere on the floor (gave up a leg): the roadmap's way from there
+            goal = self.ctx.paths.locations[target]
+            return SimRoute(self.ways.route(a.mover.agent.radius + self.task.safety_margin, a.mover.xy, goal)
+                            or (a.mover.xy, goal))
+        return SimRoute(self.ctx.paths.get(a.id, a.loc, target).points)
+
+    def depart(self, a: _Agent, action: str, phase: str, speed: float) -> None:
+        route = self.route_for(a, action, phase)
+        a.route, a.parked, a.mode, a.moved = route, False, "travel", 0.0
+        length = sum(math.dist(p, q) for p, q in zip(route.points, route.points[1:], strict=False))
+        a.predicted = length / a.mover.agent.speed
+        a.mover.set_route(route.points, route.speed or speed, route.park_s)
+        a.loc = None
+        self.emit(a, "depart", action, phase)
+        self._arrival(a)
+
+    def _arrival(self, a: _Agent) -> bool:
+        if a.mode != "travel" or a.mover.moving:
+            return False
+        assert a.action is not None
+        phase = self.phases[a.action][a.pi]
+        if a.route is not None and a.route.park_s is not None and not a.parked:
+            a.parked, a.mode = True, "parked"
+            self.emit(a, "park", a.action, phase)
+            return True
+        a.mode, a.loc = "arrived", self.task.action(a.action).phase(phase).location
+        if not a.human:
+            self.excess += max(0.0, a.moved - a.predicted)
+        self.emit(a, "arrive", a.action, phase)
+        return True
+
+    def go_home(self, a: _Agent) -> bool:
+        if a.loc == a.home:
+            return False
+        home = self.ctx.paths.locations[a.home]
+        if a.loc is None:
+            if math.dist(a.mover.xy, home) < 1e-6:
+                a.loc = a.home
+                return False
+            points: tuple = self.ways.route(a.mover.agent.radius + self.task.safety_margin, a.mover.xy, home) \
+                or (a.mover.xy, home)
+        else:
+            points = self.ctx.paths.get(a.id, a.loc, a.home).points
+        a.mover.set_route(points, a.mover.agent.speed)
+        a.mode, a.loc = "home", None
+        return True
+
+    def _home(self, a: _Agent) -> bool | None:
+        if a.mode == "home":
+            if a.mover.moving:
+                return False
+            a.mode, a.loc = "free", a.home
+            self.joint_stay.pop(a.id, None)
+            return True
+        return None
+
+    def _next_phase(self, a: _Agent) -> None:
+        assert a.action is not None
+        a.pi += 1
+        if a.pi >= len(self.phases[a.action]):
+            a.action, a.pi = None, 0
+        a.mode = "free"
+
+    # -- the people ------------------------------------------------------------------------------------
+
+    def allowed(self, a: _Agent) -> list[str]:
+        taken = self.taken(a)
+        return [x.id for x in self.task.actions if x.id not in taken and a.id in x.agents
+                and all(b in taken for b, y in self.before if y == x.id)]
+
+    def choose(self, a: _Agent) -> str | None:
+        m = self.model
+        if m.choice == "follow" and not self.ctl.stopped:
+            return self.ctl.human_next(a.id, self.taken(a))
+        allowed = self.allowed(a)
+        if not allowed:
+            return None
+        if m.choice == "free":
+            assert a.draws is not None
+            u = a.draws.choice[min(self.choices[a.id], len(a.draws.choice) - 1)]
+            return allowed[min(int(u * len(allowed)), len(allowed) - 1)]
+        order = m.preferred or self.task.action_ids
+        return ([x for x in order if x in allowed] + [x for x in allowed if x not in order])[0]
+
+    def guide(self, a: _Agent, action: str, phase: str, event: str) -> float:
+        if self.model.choice != "follow" or self.ctl.stopped:
+            return self.t
+        g = self.ctl.guide_time(a.id, action, phase, event)
+        return self.t if g is None else g
+
+    def person(self, a: _Agent) -> bool:
+        t = self.t
+        moved = self._home(a)
+        if moved is not None:
+            return moved
+        if a.mode == "free":
+            if a.action is None:
+                nxt = self.choose(a)
+                if nxt is None:
+                    return self.go_home(a)
+                if t < self.guide(a, nxt, self.phases[nxt][0], "depart") - _EPS:
+                    return False
+                a.action, a.pi = nxt, 0
+                self.choices[a.id] += 1
+            action = a.action
+            phase = self.phases[action][a.pi]
+            if t < self.guide(a, action, phase, "depart") - _EPS:
+                return False
+            assert a.draws is not None
+            self.depart(a, action, phase, a.mover.agent.speed / a.draws.pace[(action, phase)])
+            return True
+        if a.mode in ("travel", "parked", "arrived") and self._taken_by_another(a):
+            a.action, a.pi, a.mode = None, 0, "free"  # they see someone else on it: they choose again
+            a.mover.moving = False
+            a.loc = next((loc for loc, xy in self.ctx.paths.locations.items()
+                          if math.dist(xy, a.mover.xy) < 1e-6), None)
+            return True
+        if a.mode == "travel":
+            return self._arrival(a)
+        assert a.action is not None
+        phase = self.phases[a.action][a.pi]
+        if a.mode == "parked":
+            if t >= self.guide(a, a.action, phase, "unpark") - _EPS:
+                a.mode = "travel"
+                a.mover.resume()
+                self.emit(a, "unpark", a.action, phase)
+                return True
+            return False
+        if a.action in self.joint:  # the lead starts and ends it (`_joint_start`)
+            if a.mode == "work" and (a.action, phase) in self.ended:
+                self._next_phase(a)
+                return True
+            return False
+        if a.mode == "arrived":
+            if self.ready(a.action, phase) and t >= self.guide(a, a.action, phase, "start") - _EPS:
+                assert a.draws is not None
+                a.mode, a.work_start = "work", t
+                a.work_end = t + a.draws.durations[(a.action, phase)]
+                self.emit(a, "start", a.action, phase)
+                return True
+            return False
+        if a.mode == "work" and t >= a.work_end - _EPS:
+            self.emit(a, "end", a.action, phase)
+            self._next_phase(a)
+            return True
+        return False
+
+    def _taken_by_another(self, a: _Agent) -> bool:
+        """`a` is on the way to the first phase of an action (not a joint one) that another agent left for
+        first (the same instant: the dispatcher took the other's; a person who chose freely sees it)."""
+        x = a.action
+        return x is not None and a.pi == 0 and x not in self.joint and self.started.get(x, a.id) != a.id
+
+    # -- joint actions ---------------------------------------------------------------------------------
+
+    def _there(self, a: _Agent, action: str, phase: str) -> bool:
+        return a.mode == "arrived" and a.action == action and self.phases[action][a.pi] == phase
+
+    def _joint_start(self, lead: _Agent, action: str, phase: str) -> None:
+        """The lead started the joint phase: every other agent of it works its role's time; the phase ends
+        when the last of them is done (the lead reports it)."""
+        for ag in self.joint[action]:
+            other = self.agents[ag]
+            if other is lead:
+                continue
+            if other.human:
+                assert other.draws is not None
+                d = other.draws.durations[(action, phase)]
+            else:
+                bounds = self.task.action(action).phase(phase).duration(ag)
+                d = bounds.lb + self.robot_q[(action, phase)] * (bounds.ub - bounds.lb)
+            other.mode, other.work_start, other.work_end = "work", self.t, self.t + d
+            lead.duration = max(lead.duration, d)
+
+    def _told_now(self, r: _Agent, o: Order | None) -> None:
+        """Each new order: a joint phase the robot is told to start, and told early when another agent of
+        it has not arrived there (the target: never)."""
+        self._told[r.id] = o
+        if o is None or o.event != "start" or o.action not in self.joint:
+            return
+        self.told.add((o.action, o.phase))
+        arrived = {(h.agent, h.action, h.phase) for h in self.happenings if h.event == "arrive"}
+        if any((ag, o.action, o.phase) not in arrived for ag in self.joint[o.action] if ag != r.id):
+            self.told_early.add((o.action, o.phase))
+
+    def _next_of(self, a: _Agent, step: tuple[str, str]) -> tuple[str, str] | None:
+        action, phase = step
+        phases = self.phases[action]
+        i = phases.index(phase)
+        if i + 1 < len(phases):
+            return (action, phases[i + 1])
+        cp = self.ctl.current()
+        seq = () if cp is None else cp.plan.sequence(a.id)
+        if action not in seq or seq.index(action) + 1 >= len(seq):
+            return None
+        nxt = seq[seq.index(action) + 1]
+        return (nxt, self.phases[nxt][0])
+
+    def _joint_at(self, step: tuple[str, str], spot: str, pair: tuple[str, str]) -> bool:
+        return step[0] in self.joint and set(pair) <= set(self.joint[step[0]]) \
+            and self.task.action(step[0]).phase(step[1]).location == spot
+
+    def _covers(self, a: _Agent, step: tuple[str, str] | None, spot: str, pair: tuple[str, str]) -> bool:
+        """Whether `a`'s stay at `spot` for `step` covers a joint phase of `pair` there (`step` is one, or the
+        next phase, at the same spot, is one)."""
+        if step is None:
+            return False
+        if self._joint_at(step, spot, pair):
+            return True
+        nxt = self._next_of(a, step)
+        return nxt is not None and self.task.action(step[0]).phase(step[1]).location == spot \
+            and self._joint_at(nxt, spot, pair)
+
+    def _now(self, a: _Agent) -> tuple[str, str] | None:
+        if a.action is not None:
+            return (a.action, self.phases[a.action][a.pi])
+        return self.last.get(a.id)
+
+    def _cowork(self) -> frozenset[tuple[str, str]]:
+        """The (person, robot) pairs co-working now (the one-pair loop's `_Run._cowork`, per pair of a joint
+        action): the robot stands at the spot over a stay that covers their joint phase, and the person
+        walks up to it for that stay, stays there or walks away after it."""
+        out = set()
+        for r in self.robots:
+            spot = r.loc
+            if spot is None or r.mover.moving:
+                continue
+            now = self._now(r) if r.mode in ("arrived", "work") else self.last.get(r.id)
+            for p in self.people:
+                pair = (p.id, r.id)
+                if not (self.joint_stay.get(r.id) == spot or self._covers(r, now, spot, pair)):
+                    continue
+                if not any(set(pair) <= set(ags) for ags in self.joint.values()) or not p.mover.present:
+                    continue
+                xy = self.ctx.paths.locations[spot]
+                if p.loc == spot:
+                    shared = self.joint_stay.get(p.id) == spot or self._covers(p, self._now(p), spot, pair)
+                elif p.loc is not None:
+                    shared = False
+                elif p.mode in ("travel", "parked") and math.dist(p.mover.points[-1], xy) < 1e-6 \
+                        and self._covers(p, self._now(p), spot, pair):
+                    shared = True
+                else:
+                    shared = p.mode in ("travel", "parked", "home") and math.dist(p.mover.points[0], xy) < 1e-6 \
+                        and self.joint_stay.get(p.id) == spot
+                if shared:
+                    out.add(pair)
+        return frozenset(out)
+
+    # -- the robots ------------------------------------------------------------------------------------
+
+    def robot(self, a: _Agent) -> bool:
+        t = self.t
+        o = self.ctl.order(a.id)
+        if self.joint and o is not self._told.get(a.id, False):
+            self._told_now(a, o)
+        moved = self._home(a)
+        if moved is not None:
+            return moved
+        if a.mode == "free":
+            if o is None:
+                if any(r == a.id and self.floor.gap(self.floor.movers[p], a.mover) < self.floor.margin
+                       for p, r in self.floor.cowork):
+                    return False  # done at the joint spot: it stands until the person is out of reach
+                return False if self.ctl.stopped else self.go_home(a)
+            if o.event != "depart" or t < o.earliest - _EPS:
+                return False
+            a.action, a.pi, a.order = o.action, self.phases[o.action].index(o.phase), o
+            self.depart(a, o.action, o.phase, a.mover.agent.speed)
+            return True
+        if a.mode == "travel":
+            return self._arrival(a)
+        assert a.action is not None
+        phase = self.phases[a.action][a.pi]
+        mine = o is not None and (o.action, o.phase) == (a.action, phase)
+        if a.mode == "parked":
+            if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and t >= o.earliest - _EPS)):
+                a.order, a.mode = o, "travel"
+                a.mover.resume()
+                self.emit(a, "unpark", a.action, phase)
+                return True
+            return False
+        joint = a.action in self.joint
+        if joint and self.task.lead(a.action) != a.id:  # another robot leads it: work from its start to its end
+            if a.mode == "work" and (a.action, phase) in self.ended:
+                self._next_phase(a)
+                return True
+            return False
+        if a.mode == "arrived":
+            if mine and o is not None and o.event == "start" and t >= o.earliest - _EPS and self.ready(a.action, phase):
+                if joint and not all(self._there(self.agents[ag], a.action, phase)
+                                     for ag in self.joint[a.action] if ag != a.id):
+                    return False  # a joint action starts when all its agents are there
+                bounds = self.task.action(a.action).phase(phase).duration(a.id)
+                a.order, a.mode, a.work_start = o, "work", t
+                a.duration = bounds.lb + self.robot_q[(a.action, phase)] * (bounds.ub - bounds.lb)
+                self.emit(a, "start", a.action, phase)
+                if joint:
+                    self._joint_start(a, a.action, phase)
+                return True
+            return False
+        if a.mode == "work":
+            end = a.work_start + a.duration
+            if mine and o is not None and o.event == "end":
+                end = max(end, o.earliest)
+                if o.latest is not None and not joint:  # a joint end is nature's
+                    end = min(end, o.latest)
+                a.order = o
+            a.work_end = end
+            if t >= end - _EPS:
+                self.emit(a, "end", a.action, phase)
+                self._next_phase(a)
+                return True
+        return False
+
+    # -- the loop --------------------------------------------------------------------------------------
+
+    def deliver(self) -> bool:
+        out = self.detector.release(self.t)
+        for h in out:
+            t = max(h.t, self.last_obs)
+            delay = None if h.delay is None else round(h.delay + t - h.t, 3)
+            self._tell(Happening(t, h.agent, h.event, h.action, h.phase, delay))
+        return bool(out)
+
+    def next_time(self) -> float:
+        t = self.t
+        cands = [self.detector.next_due()]
+        for a in self.agents.values():
+            m = a.mover
+            if m.moving:
+                cands.append(t + self.floor.time_to_stop(m))
+                if m.blocked_for > 0:
+                    cands.append(t + max(_HELD - m.blocked_for % _HELD, MIN_STEP))
+            if a.mode == "work":
+                cands.append(a.work_end)
+        if any(a.mover.moving for a in self.agents.values()):
+            cands.append(t + self.floor.safe_step())
+        if self.model.choice == "follow" and not self.ctl.stopped:
+            for p in self.people:
+                cands += self._guide_times(p)
+        for r in self.robots:
+            o = self.ctl.order(r.id)
+            if o is not None and o.event in ("depart", "unpark", "start"):
+                cands.append(o.earliest)
+        if isinstance(self.ctl, TeamDispatched) and self.ctx.settings.tick > 0 and not self.done():
+            cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
+        future = [c for c in cands if c > t + _EPS and math.isfinite(c)]
+        return min(min(future), self.cap) if future else math.inf
+
+    def _guide_times(self, a: _Agent) -> list[float]:
+        if a.mode == "free":
+            nxt = a.action or self.choose(a)
+            g = None if nxt is None else self.ctl.guide_time(a.id, nxt, self.phases[nxt][a.pi if a.action else 0],
+                                                             "depart")
+        elif a.mode in ("parked", "arrived") and a.action is not None:
+            g = self.ctl.guide_time(a.id, a.action, self.phases[a.action][a.pi],
+                                    "unpark" if a.mode == "parked" else "start")
+        else:
+            g = None
+        return [] if g is None else [g]
+
+    def run(self, index: int) -> RunResult:
+        reason = ""
+        stall_since: float | None = None
+        while True:
+            for _ in range(100):
+                changed = self.deliver()
+                for p in self.people:
+                    if self.person(p):  # the robots act on an answer that knows it (a detector without delay)
+                        changed = True
+                        self.deliver()
+                for r in self.robots:
+                    changed = self.robot(r) or changed
+                if not changed:
+                    break
+            if self.joint:
+                self.floor.cowork = self._cowork()
+            if self.done():
+                self.finished_at = self.t
+                break
+            if self.t >= self.cap - _EPS:
+                reason = "time cap"
+                break
+            nt = self.next_time()
+            if not math.isfinite(nt):
+                reason = "stuck: " + self._why_stuck()
+                break
+            tick_due = max(self.last_obs, self.last_tick) + self.ctx.settings.tick
+            before = (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings))
+            self.advance(nt - self.t)
+            for a in self.agents.values():
+                if a.mode == "travel" and a.mover.moving:
+                    a.moved += nt - self.t
+            self.t = nt
+            if self.ctx.settings.tick > 0 and abs(nt - tick_due) < _EPS:
+                self.last_tick = nt
+                self.ctl.tick(max(nt, self.last_obs))
+                self.last_obs = max(nt, self.last_obs)
+            moving = [a.mover for a in self.agents.values() if a.mover.moving]
+            held = bool(moving) and all(m.blocked_for > 0 for m in moving)  # everyone under way is held up
+            if held or (moving and before == (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings))):
+                stall_since = self.t if stall_since is None else stall_since
+                if self.t - stall_since > self.ctx.settings.stall:
+                    reason = "deadlock: agents block each other"
+                    break
+            else:
+                stall_since = None
+        return self._result(index, reason)
+
+    def advance(self, h: float) -> None:
+        if h <= 0:
+            return
+        self.floor.advance(h)
+        if self.record:
+            self.frames.append((self.t + h, tuple((a.mover.xy[0], a.mover.xy[1], a.mover.present)
+                                                  for a in self.agents.values()), tuple(sorted(self.floor.cowork))))
+
+    def _why_stuck(self) -> str:
+        if self.ctl.stopped:
+            return "the robots stopped (no plan left)"
+        robots = ", ".join(f"{r.id} {r.mode} ({self.ctl.order(r.id)})" for r in self.robots)
+        people = ", ".join(f"{p.id} {p.mode}" for p in self.people)
+        return f"waiting: {robots}; {people}"
+
+    def _result(self, index: int, reason: str) -> RunResult:
+        task = self.task
+        finished = self.done()
+        times = timepoint_times(self.happenings)
+        ends = [h.t for h in self.happenings if h.event == "end"]
+        makespan = max(ends) if finished and ends else None
+        deadline_met = finished and (task.deadline is None or (makespan or 0.0) <= task.deadline + 1e-3)
+        limits_met = deadline_met and self._constraints_met()
+        span = makespan if makespan is not None else self.t
+        busy = self._busy(times, span)
+        seqs = {a: tuple(dict.fromkeys(h.action for h in self.happenings
+                                       if h.agent == a and h.event == "depart" and h.action)) for a in self.agents}
+        ctl = self.ctl
+        cps = self.ctx.compiles[self.policy.compile]
+        first_cp = next((cp for cp in cps.plans if cp.plan.id == ctl.first_plan), None)
+        alloc = {x: (task.lead(x) if x in self.joint else ag) for x, ag in self.started.items()}
+        kept = first_cp is not None and finished and executed(first_cp, alloc, seqs)
+        broken: tuple[str, ...] = ()
+        if kept and first_cp is not None:
+            broken = tuple(broken_constraints(plan_network(cps, first_cp), times))
+        floor = self.floor
+        separation = floor.separation()
+        idle = {a: max(0.0, span - busy[a]) for a in self.agents}
+        people = [p.id for p in self.people]
+        robots = [r.id for r in self.robots]
+
+        def r3(x: float) -> float | None:
+            return round(x, 3) if math.isfinite(x) else None
+
+        team = {"agents": {a: {"kind": "human" if self.agents[a].human else "robot", "idle": r3(idle[a]),
+                               "held": r3(self.agents[a].mover.held), "sequence": list(seqs[a])}
+                           for a in self.agents},
+                "min_distance": {f"{a}-{b}": r3(d) for (a, b), d in floor.min_free.items()},
+                "robot_contacts": floor.robot_contacts(),
+                "people_contacts": sum(n for (a, b), n in floor.contacts.items()
+                                       if self.agents[a].human and self.agents[b].human)}
+        joint = None
+        if self.joint:
+            joint = {"told_to_start": len(self.told), "told_before_arrival": len(self.told_early),
+                     "cowork_seconds": round(floor.cowork_time, 3)}
+        return RunResult(
+            policy=self.policy.name, run=index, finished=finished, reason="" if finished else reason,
+            makespan=makespan, deadline_met=bool(deadline_met), limits_met=bool(limits_met),
+            human_idle=sum(idle[p] for p in people), robot_idle=sum(idle[r] for r in robots),
+            robot_yield=sum(self.agents[r].mover.held for r in robots),
+            human_held=sum(self.agents[p].mover.held for p in people), standoffs=0, robot_aside=0.0,
+            human_aside=0.0, min_distance=None if not math.isfinite(separation) else separation,
+            overlaps=floor.overlaps(), plan_switches=ctl.switches, first_plan=ctl.first_plan,
+            first_class=ctl.first_class, first_blocked=first_cp is not None and first_cp.blocked,
+            final_plan=ctl.plan_id, first_kept=bool(kept), first_broken=broken, refused=tuple(ctl.refused),
+            late=self.late, robot_travel_excess=self.excess, human_sequence=seqs[people[0]] if people else (),
+            robot_sequence=seqs[robots[0]] if robots else (), overruns=sum(
+                1 for p in self.people if p.draws is not None for x, ph in p.draws.overrun
+                if x in seqs[p.id] and f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
+            absent=0.0, latencies=tuple(ctl.latencies), joint=joint, team=team,
+            happenings=tuple(self.happenings) if self.record else (),
+            agent_frames=tuple(self.frames))
+
+    def _constraints_met(self) -> bool:
+        at: dict[str, float] = {}
+        for h in self.happenings:
+            if h.action and h.phase and h.event in ("start", "end"):
+                at.setdefault(f"{h.action}.{h.phase}.{h.event}", h.t)
+        for c in self.task.constraints:
+            a, b = at.get(str(c.source)), at.get(str(c.target))
+            if a is None or b is None or not (c.bounds.lb - 1e-3 <= b - a <= c.bounds.ub + 1e-3):
+                return False
+        return True
+
+    def _busy(self, times: dict[str, float], span: float) -> dict[str, float]:
+        busy = dict.fromkeys(self.agents, 0.0)
+        for action, ags in self.joint.items():  # every other agent works it from the lead's start to its end
+            lead = self.task.lead(action)
+            for phase in self.phases[action]:
+                a, b = times.get(f"{lead}.{phase}.{action}.start"), times.get(f"{lead}.{phase}.{action}.end")
+                if a is not None and b is not None:
+                    for ag in ags:
+                        if ag != lead:
+                            busy[ag] += min(b, span) - min(a, span)
+        for name, t in times.items():
+            if name.count(".") != 3:
+                continue
+            base, what = name.rsplit(".", 1)
+            agent = name.split(".", 1)[0]
+            if agent not in busy:
+                continue
+            if what == "end" and base + ".start" in times:
+                busy[agent] += min(t, span) - min(times[base + ".start"], span)
+            elif what == "arrive" and base + ".depart" in times:
+                busy[agent] += min(t, span) - min(times[base + ".depart"], span)
+                if base + ".unpark" in times and base + ".park" in times:
+                    busy[agent] -= times[base + ".unpark"] - times[base + ".park"]
+        return busy
