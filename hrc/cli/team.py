@@ -3,8 +3,8 @@
 The compile plans for any number of people and robots; `hrc dispatch` (and its ``--record``), `hrc
 simulate`, the console and the ROS 2 node serve them; the motion detector (``hrc detect``, ``--detect
 motion``) still runs one person and one robot (what it needs is listed in docs/dispatch.md, "What the
-N-agent step needs"). Each of them asks `refuse_team` first and ends with exit status 2 after one ``error:`` line, before it opens a
-log or a port.
+N-agent step needs"). Each of them asks `refuse_team` first and ends with exit status 2 after one
+``error:`` line, before it opens a log or a port.
 """
 
 from __future__ import annotations
