@@ -1,8 +1,9 @@
 """What the workshop's cold compile was made faster with (issue 38, fourth pass), each held to the
 library it replaces or to the slow way it takes a short cut from:
 
-- the 8-connected components of a route pair's close cells (`hrc.motion.conflicts._components`) and the
-  runs of a mask (`_runs`) against ``scipy.ndimage.label`` (which the compile no longer imports);
+- the 8-connected components of a route pair's close cells, labelled on their bounding box
+  (`hrc.motion.conflicts._components`), and the runs of a mask without scipy (`_runs`), against
+  ``scipy.ndimage.label`` on the whole grid;
 - the swept-disc test called straight into Chipmunk (`hrc.motion.world.World.segment_clear`) against
   pymunk's public ``Shape.segment_query`` on random segments, grazing ones included;
 - the acyclicity check of plan generation and of the task reader against networkx (no longer imported
@@ -39,7 +40,7 @@ def test_components_number_as_ndimage_label(h, w, density, seed):
         return
     perm = rng.permutation(len(rows))  # the close pairs come in any order
     rows, cols = rows[perm], cols[perm]
-    labels, n = _components(rows, cols, w)
+    labels, n = _components(rows, cols)
     want, m = ndimage.label(grid, structure=np.ones((3, 3), dtype=int))
     assert n == m
     assert (labels == want[rows, cols]).all()

@@ -211,38 +211,19 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), (edges[1::2] - 1).tolist(), strict=True))
 
 
-_NEIGHBOURS = ((-1, -1), (-1, 0), (-1, 1), (0, -1))
-"""The cells a raster scan meets before a cell among its eight neighbours (row, column offsets)."""
+def _components(rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, int]:
+    """The 8-connected components of the grid cells ``(rows[k], cols[k])`` (distinct cells, any
+    order): each cell's component number (1 to n) and n, numbered in raster order of each
+    component's first cell, as ``scipy.ndimage.label`` numbers them on the whole grid with a 3 x 3
+    structure. Labelled on the cells' bounding box only (a route pair's grid holds 10^5 cells, its close
+    ones a corner of it; raster order within the box is raster order in the grid)."""
+    from scipy import ndimage  # here: a compile taken from the cache finds no conflict (issue 38)
 
-
-def _components(rows: np.ndarray, cols: np.ndarray, width: int) -> tuple[np.ndarray, int]:
-    """The 8-connected components of the grid cells ``(rows[k], cols[k])`` (distinct cells, any order,
-    ``0 <= cols < width``): each cell's component number (1 to n) and n, numbered in raster order of each
-    component's first cell, as ``scipy.ndimage.label`` numbers them on the grid with a 3 x 3 structure.
-
-    Only the given cells are touched (the grid of a route pair holds 10^5 cells, a few hundred of them
-    close): the cells sorted by raster position, each joined to those of its four earlier neighbours
-    present (binary search), and the components of that graph found in the order of their smallest
-    node (``scipy.sparse.csgraph.connected_components``, which numbers them so). O(c log c) for c cells."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    keys = rows.astype(np.int64) * (width + 2) + cols.astype(np.int64)  # a spare column: no wrap-around
-    order = np.argsort(keys, kind="stable")
-    ordered = keys[order]
-    here, there = [], []
-    for dr, dc in _NEIGHBOURS:
-        want = ordered + dr * (width + 2) + dc
-        at = np.minimum(np.searchsorted(ordered, want), len(ordered) - 1)
-        hit = ordered[at] == want
-        here.append(np.flatnonzero(hit))
-        there.append(at[hit])
-    a, b = np.concatenate(here), np.concatenate(there)
-    graph = coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(len(keys), len(keys)))
-    n, labels = connected_components(graph, directed=False)
-    out = np.empty(len(keys), dtype=np.int64)
-    out[order] = labels + 1
-    return out, int(n)
+    r0, c0 = int(rows.min()), int(cols.min())
+    box = np.zeros((int(rows.max()) - r0 + 1, int(cols.max()) - c0 + 1), dtype=bool)
+    box[rows - r0, cols - c0] = True
+    labels, n = ndimage.label(box, structure=np.ones((3, 3), dtype=int))
+    return labels[rows - r0, cols - c0], int(n)
 
 
 # Geometry, per route pair, in route coordinates. Each component: (value for robot first, value for
@@ -265,7 +246,7 @@ def _travel_travel(paths: PathLibrary, rp: Path, hp: Path, reach: float, vr: flo
         pairs = cKDTree(rxy).sparse_distance_matrix(cKDTree(hxy), reach + STEP, output_type="ndarray")
         close = pairs[pairs["v"] < reach + STEP]
         if len(close):
-            lab, n = _components(close["i"], close["j"], len(hu))
+            lab, n = _components(close["i"], close["j"])
             pad = STEP / 2 / vr + STEP / 2 / vh
             length = hu[-1]
             for k in range(1, n + 1):
