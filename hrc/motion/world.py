@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import fcl
 import numpy as np
@@ -222,12 +223,15 @@ class _Swept:
 
     def __init__(self, static: list[tuple[pymunk.Shape, tuple[float, ...]]]) -> None:
         self.static = static
-        self.handles = None if _cp is None else [(sh._shape, bb) for sh, bb in static]
+        # each shape's box and handle in one flat tuple: the loop below is the compile's hottest in motion
+        self.handles: list[tuple[Any, ...]] | None = (None if _cp is None else
+                                                      [(*bb, sh._shape) for sh, bb in static])
         self.info = None if _ffi is None else _ffi.new("cpSegmentQueryInfo *")  # written by Chipmunk, unread
 
     def clear(self, a: tuple[float, float], b: tuple[float, float], clearance: float) -> bool:
-        left, right = min(a[0], b[0]) - clearance, max(a[0], b[0]) + clearance
-        bottom, top = min(a[1], b[1]) - clearance, max(a[1], b[1]) + clearance
+        (ax, ay), (bx, by) = a, b
+        left, right = (ax - clearance, bx + clearance) if ax < bx else (bx - clearance, ax + clearance)
+        bottom, top = (ay - clearance, by + clearance) if ay < by else (by - clearance, ay + clearance)
         if self.handles is None:  # pragma: no cover - see the import of `_cp`
             for shape, (sl, sb, sr, st) in self.static:
                 if not (sr < left or sl > right or st < bottom or sb > top) and \
@@ -235,7 +239,7 @@ class _Swept:
                     return False
             return True
         query, info = _cp.cpShapeSegmentQuery, self.info
-        for handle, (sl, sb, sr, st) in self.handles:
+        for sl, sb, sr, st, handle in self.handles:
             if sr < left or sl > right or st < bottom or sb > top:
                 continue
             if query(handle, a, b, clearance, info):
