@@ -28,8 +28,8 @@ if TYPE_CHECKING:  # networkx only for `phase_graph`'s callers: a compile does n
     import networkx as nx
 
 __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "count_plans",
-           "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical", "must_precede",
-           "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
+           "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_acyclic", "is_canonical",
+           "must_precede", "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
            "plan_from_code", "relabellings", "spread_families", "symmetry_factor"]
 
 R = TypeVar("R")
