@@ -19,16 +19,17 @@ import math
 from array import array
 from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, replace
-from typing import TypeVar
-
-import networkx as nx
+from typing import TYPE_CHECKING, TypeVar
 
 from hrc.errors import InputError
 from hrc.model import PhaseRef, Plan, Task
 
+if TYPE_CHECKING:  # networkx only for `phase_graph`'s callers: a compile does not import it (issue 38)
+    import networkx as nx
+
 __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "count_plans",
-           "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical", "must_precede",
-           "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
+           "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_acyclic", "is_canonical",
+           "must_precede", "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
            "plan_from_code", "relabellings", "spread_families", "symmetry_factor"]
 
 R = TypeVar("R")
@@ -60,15 +61,62 @@ def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
         yield tuple(zip(task.action_ids, combo, strict=True))
 
 
-def _task_phase_graph(task: Task) -> nx.DiGraph:
-    g: nx.DiGraph = nx.DiGraph()
+Graph = dict[str, list[str]]
+"""A directed graph as successor lists by node, nodes and edges in insertion order (networkx's
+``DiGraph`` had this role; a compile no longer imports networkx, about 0.3 s of its start-up)."""
+
+
+def _edge(g: Graph, u: str, v: str) -> None:
+    """Add the edge ``u -> v`` to `g` (and either node it does not hold yet), at most once."""
+    succ = g.setdefault(u, [])
+    g.setdefault(v, [])
+    if v not in succ:
+        succ.append(v)
+
+
+def _task_phase_graph(task: Task) -> Graph:
+    g: Graph = {}
     for a in task.actions:
-        g.add_nodes_from(str(PhaseRef(a.id, p.id)) for p in a.phases)
+        for p in a.phases:
+            g.setdefault(str(PhaseRef(a.id, p.id)), [])
         for p, q in itertools.pairwise(a.phases):
-            g.add_edge(str(PhaseRef(a.id, p.id)), str(PhaseRef(a.id, q.id)))
+            _edge(g, str(PhaseRef(a.id, p.id)), str(PhaseRef(a.id, q.id)))
     for pr in task.precedence:
-        g.add_edge(str(pr.before), str(pr.after))
+        _edge(g, str(pr.before), str(pr.after))
     return g
+
+
+def is_acyclic(g: Graph) -> bool:
+    """Whether `g` has no directed cycle (Kahn's algorithm: every node can be taken in a topological
+    order; O(nodes + edges))."""
+    indegree = dict.fromkeys(g, 0)
+    for succ in g.values():
+        for v in succ:
+            indegree[v] += 1
+    ready = [u for u, d in indegree.items() if d == 0]
+    taken = 0
+    while ready:
+        u = ready.pop()
+        taken += 1
+        for v in g[u]:
+            indegree[v] -= 1
+            if indegree[v] == 0:
+                ready.append(v)
+    return taken == len(g)
+
+
+def _descendants(g: Graph, node: str) -> set[str]:
+    """The nodes reachable from `node` by one or more edges, `node` itself never (as networkx's
+    ``descendants``)."""
+    seen: set[str] = set()
+    todo = list(g[node])
+    while todo:
+        u = todo.pop()
+        if u not in seen:
+            seen.add(u)
+            todo.extend(g[u])
+    seen.discard(node)
+    return seen
 
 
 def must_precede(task: Task) -> frozenset[tuple[str, str]]:
@@ -79,8 +127,8 @@ def must_precede(task: Task) -> frozenset[tuple[str, str]]:
     g = _task_phase_graph(task)
     owner = {str(PhaseRef(a.id, p.id)): a.id for a in task.actions for p in a.phases}
     pairs = set()
-    for node in g.nodes:
-        for reached in nx.descendants(g, node):
+    for node in g:
+        for reached in _descendants(g, node):
             if owner[node] != owner[reached]:
                 pairs.add((owner[node], owner[reached]))
     return frozenset(pairs)
@@ -100,7 +148,12 @@ def _linear_extensions(items: tuple[str, ...], before: frozenset[tuple[str, str]
 
 def phase_graph(task: Task, plan: Plan) -> nx.DiGraph:
     """The plan's phase graph (nodes ``ACTION.PHASE``); edges: phase order, agent sequence, task graph."""
-    g = _task_phase_graph(task)
+    import networkx as nx
+
+    g: nx.DiGraph = nx.DiGraph()
+    for u, succ in _task_phase_graph(task).items():
+        g.add_node(u)
+        g.add_edges_from((u, v) for v in succ)
     for _, seq in plan.sequences:
         for a, b in itertools.pairwise(seq):
             g.add_edge(str(PhaseRef(a, task.action(a).phases[-1].id)),
@@ -124,13 +177,14 @@ def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
     # (a joint action is in two agents' sequences: two of them can close a cycle on their own, and the
     # check is what makes the agents' orders of their joint actions agree)
     linked = (any(pr.before.action != pr.after.action for pr in task.precedence)
-              or not nx.is_directed_acyclic_graph(base) or bool(joint))
+              or not is_acyclic(base) or bool(joint))
     for combo in itertools.product(*per_agent):
         if linked and len(combo) > 1:  # cross-agent cycles need two or more busy agents
-            g = base.copy()
+            g = {u: list(succ) for u, succ in base.items()}
             for _, seq in combo:
-                g.add_edges_from((last[a], first[b]) for a, b in itertools.pairwise(seq))
-            if not nx.is_directed_acyclic_graph(g):
+                for a, b in itertools.pairwise(seq):
+                    _edge(g, last[a], first[b])
+            if not is_acyclic(g):
                 continue
         yield tuple(combo)
 

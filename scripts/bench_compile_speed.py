@@ -6,11 +6,12 @@
 Each run is a fresh ``python -m hrc COMMAND --out OUT -q`` process (start-up, path planning, the worker
 pool and the report counted, as a user sees them), from this checkout and, with ``--before DIR``, from
 another checkout of the code (e.g. ``git archive main | tar -x -C DIR`` with its C core built in place):
-the same hour, the same load. *cold*: the path cache (``HRC_CACHE_DIR``, a temporary folder) emptied
+the same hour, the same load, before and after alternating run by run. *cold*: the path cache
+(``HRC_CACHE_DIR``, a temporary folder) emptied
 before each run; *warm*: filled by one untimed run first. The table gives each run's wall time and CPU
 time (user + sys of the whole process tree: the compile, its workers and the figure processes, from
 ``getrusage(RUSAGE_CHILDREN)``; less sensitive to a shared machine's load than the wall time), their
-medians, and the load average (1 min) before the first and after the last run of each row.
+medians, and the lowest and highest load average (1 min) seen before each run of the row.
 
 *warm* for a compile of at most `hrc.compile.stream.RESULTS_MAX_PLANS` plans means the same task compiled
 before with the same code: its plans come from the cache of whole compiles. The same script times the
@@ -65,26 +66,30 @@ def main() -> int:
     print("| code | cache | wall, s (runs) | wall median | CPU, s (runs) | CPU median | load |")
     print("|---|---|---|---:|---|---:|---|")
     with tempfile.TemporaryDirectory(prefix="hrc-bench-speed-") as tmp:
-        for label, root in roots:
-            for mode in args.modes:
-                cache = Path(tmp) / f"cache-{label}"
-                out = Path(tmp) / "out"
-                shutil.rmtree(cache, ignore_errors=True)
+        out = Path(tmp) / "out"
+        for mode in args.modes:
+            # before and after alternate run by run (the shared machine's pace drifts within minutes)
+            walls: dict[str, list[float]] = {label: [] for label, _ in roots}
+            cpus: dict[str, list[float]] = {label: [] for label, _ in roots}
+            loads: dict[str, list[float]] = {label: [] for label, _ in roots}
+            for label, root in roots:
+                shutil.rmtree(Path(tmp) / f"cache-{label}", ignore_errors=True)
                 if mode == "warm":
-                    run_once(root, command, out, cache)
-                load0 = os.getloadavg()[0]
-                walls, cpus = [], []
-                for _ in range(args.repeat):
+                    run_once(root, command, out, Path(tmp) / f"cache-{label}")
+            for _ in range(args.repeat):
+                for label, root in roots:
+                    cache = Path(tmp) / f"cache-{label}"
                     if mode == "cold":
                         shutil.rmtree(cache, ignore_errors=True)
+                    loads[label].append(os.getloadavg()[0])
                     wall, cpu = run_once(root, command, out, cache)
-                    walls.append(wall)
-                    cpus.append(cpu)
-                load1 = os.getloadavg()[0]
-                runs = ", ".join(f"{w:.2f}" for w in walls)
-                print(f"| {label} | {mode} | {runs} | **{statistics.median(walls):.2f}** "
-                      f"| {', '.join(f'{c:.2f}' for c in cpus)} | **{statistics.median(cpus):.2f}** "
-                      f"| {load0:.1f}-{load1:.1f} |", flush=True)
+                    walls[label].append(wall)
+                    cpus[label].append(cpu)
+            for label, _ in roots:
+                runs = ", ".join(f"{w:.2f}" for w in walls[label])
+                print(f"| {label} | {mode} | {runs} | **{statistics.median(walls[label]):.2f}** "
+                      f"| {', '.join(f'{c:.2f}' for c in cpus[label])} | **{statistics.median(cpus[label]):.2f}** "
+                      f"| {min(loads[label]):.1f}-{max(loads[label]):.1f} |", flush=True)
     return 0
 
 

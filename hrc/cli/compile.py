@@ -391,7 +391,8 @@ def _times(start_cpu: float, stages: list[tuple[str, float, float]]) -> str:
     workers = children.ru_utime + children.ru_stime
     total = start_cpu + sum(cpu for _, _, cpu in stages)
     lines.append(f"  total: {sum(w for _, w, _ in stages):.2f} s after start-up / {total:.2f} s"
-                 + (f", and {workers:.2f} s CPU in worker processes" if workers else ""))
+                 + (f", and {workers:.2f} s CPU in worker processes (the pool, a second roadmap; not the figures')"
+                    if workers else ""))
     return "\n".join(lines)
 
 
@@ -474,8 +475,10 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
             path_wall = float(path_stats.get("seconds", 0.0))
             path_cpu = float(path_stats.get("cpu_seconds", 0.0))
             roadmaps, cached = int(path_stats.get("roadmaps", 0)), int(path_stats.get("cached", 0))
-            stages += [(f"paths ({roadmaps} roadmap{'s' * (roadmaps != 1)}, {cached} from the cache)", path_wall,
-                        path_cpu),  # planned in this process
+            apart = int(path_stats.get("apart", 0))
+            beside = f", {apart} planned in a second process (its CPU with the workers')" if apart else ""
+            stages += [(f"paths ({roadmaps} roadmap{'s' * (roadmaps != 1)}, {cached} from the cache{beside})",
+                        path_wall, path_cpu),  # planned in this process
                        (f"plans ({result.compiled:,}, "
                         + ("from the cache of whole compiles" if result.cached else
                            f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)}")

@@ -16,10 +16,12 @@ decides how to stop, and stops them after their unit of work), and die with the 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import ctypes
 import gc
 import multiprocessing as mp
 import os
+import pickle
 import signal
 import socket
 import sys
@@ -31,9 +33,9 @@ from urllib.parse import urlparse
 
 from hrc.errors import ExecutorError
 
-__all__ = ["EXECUTORS", "PARENT_POLL", "POLL_EVERY", "STOP_GRACE", "WORKER_GC_THRESHOLD", "DaskExecutor",
+__all__ = ["EXECUTORS", "PARENT_POLL", "POLL_EVERY", "STOP_GRACE", "WORKER_GC_THRESHOLD", "Apart", "DaskExecutor",
            "PoolExecutor", "SerialExecutor", "check_jobs", "default_jobs", "make_executor", "parse_executor_url",
-           "probe_scheduler"]
+           "probe_scheduler", "run_apart"]
 
 Poll = Callable[[], None]
 
@@ -136,6 +138,70 @@ def _init_worker(task: Any, paths: Any, parent: int, direct: bool) -> None:
     # counting before a scan at this threshold reaches them (docs/benchmarks.md, ninth pass).
     gc.freeze()
     gc.set_threshold(WORKER_GC_THRESHOLD, *gc.get_threshold()[1:])
+
+
+class Apart:
+    """`run_apart`'s handle: calling it waits for the result; `cancel` stops the process."""
+
+    def __init__(self, pid: int, read: int) -> None:
+        self.pid, self.read = pid, read
+
+    def __call__(self) -> Any:
+        """The function's result, or None if it failed (the caller computes it itself then)."""
+        try:
+            with os.fdopen(self.read, "rb") as pipe:
+                self.read = -1
+                data = pipe.read()
+            os.waitpid(self.pid, 0)
+        except BaseException:  # interrupted while waiting: the process is stopped, the interrupt goes on
+            self.cancel()
+            raise
+        self.pid = 0
+        try:
+            ok, value = pickle.loads(data)
+        except Exception:  # noqa: BLE001 - it died before writing all of it
+            return None
+        return value if ok else None
+
+    def cancel(self) -> None:
+        """Stop the process (if its result was not taken) and reap it."""
+        if self.read >= 0:
+            os.close(self.read)
+            self.read = -1
+        if self.pid:
+            with contextlib.suppress(OSError):
+                os.kill(self.pid, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                os.waitpid(self.pid, 0)
+            self.pid = 0
+
+
+def run_apart(fn: Callable[[], Any]) -> Apart:
+    """Start ``fn()`` in a process forked from this one (it has what this one has: nothing pickled going
+    in), at once; the returned `Apart` waits for its result (pickled back through a pipe). Like the pool's
+    workers, the process ignores SIGINT and SIGTERM and dies with this one. Used where two independent
+    pieces of a compile's start can run on two cores (`hrc.motion.paths.plan_paths`' roadmaps). Call it
+    from a process with no other threads (forking copies one)."""
+    read, write = os.pipe()
+    parent = os.getpid()
+    pid = os.fork()
+    if pid == 0:  # the child: its result, then out without the parent's exit handlers
+        code = 0
+        try:
+            os.close(read)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            _die_with_parent(parent, direct=True)
+            try:
+                data = pickle.dumps((True, fn()), protocol=pickle.HIGHEST_PROTOCOL)
+            except BaseException:  # noqa: BLE001 - the parent computes it itself
+                data, code = pickle.dumps((False, None)), 1
+            with os.fdopen(write, "wb") as pipe:
+                pipe.write(data)
+        finally:
+            os._exit(code)
+    os.close(write)
+    return Apart(pid, read)
 
 
 def _run_in_worker(fn: Callable[..., Any], chunk: Any) -> Any:

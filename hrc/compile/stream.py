@@ -39,7 +39,7 @@ import numpy as np
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, compile_family, rank_key
 from hrc.compile.dispatch_form import FORM_FOLDER
-from hrc.compile.executors import make_executor
+from hrc.compile.executors import make_executor, run_apart
 from hrc.compile.output import STNU_ARCHIVE, line_head, plan_line, write_input
 from hrc.compile.resume import RESUME_FILE
 from hrc.compile.sink import REPORT_TOP, Bar, PlanSink, Record
@@ -330,7 +330,9 @@ def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int |
             if progress:
                 progress("motion", done, total)
 
-        paths = plan_paths(task, seed=seed, progress=motion)
+        # a local pool's second core plans every other roadmap meanwhile (no threads here yet: a fork is safe)
+        apart = run_apart if getattr(ex, "local_processes", False) else None
+        paths = plan_paths(task, seed=seed, progress=motion, apart=apart)
         planned.append(paths)
         check()
         # the estimate's sample comes from allocations spread over the whole space (the stream's first

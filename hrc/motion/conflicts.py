@@ -206,11 +206,24 @@ def _samples(paths: PathLibrary, path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Maximal runs ``[i, j]`` of True in a 1-D mask."""
+    """Maximal runs ``[i, j]`` of True in a 1-D mask, in order (where a run starts, where it ends)."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([False], mask, [False])).astype(np.int8)))
+    return list(zip(edges[::2].tolist(), (edges[1::2] - 1).tolist(), strict=True))
+
+
+def _components(rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, int]:
+    """The 8-connected components of the grid cells ``(rows[k], cols[k])`` (distinct cells, any
+    order): each cell's component number (1 to n) and n, numbered in raster order of each
+    component's first cell, as ``scipy.ndimage.label`` numbers them on the whole grid with a 3 x 3
+    structure. Labelled on the cells' bounding box only (a route pair's grid holds 10^5 cells, its close
+    ones a corner of it; raster order within the box is raster order in the grid)."""
     from scipy import ndimage  # here: a compile taken from the cache finds no conflict (issue 38)
 
-    labels, n = ndimage.label(mask)
-    return [(int(idx[0]), int(idx[-1])) for idx in (np.flatnonzero(labels == k) for k in range(1, n + 1))]
+    r0, c0 = int(rows.min()), int(cols.min())
+    box = np.zeros((int(rows.max()) - r0 + 1, int(cols.max()) - c0 + 1), dtype=bool)
+    box[rows - r0, cols - c0] = True
+    labels, n = ndimage.label(box, structure=np.ones((3, 3), dtype=int))
+    return labels[rows - r0, cols - c0], int(n)
 
 
 # Geometry, per route pair, in route coordinates. Each component: (value for robot first, value for
@@ -228,16 +241,12 @@ def _travel_travel(paths: PathLibrary, rp: Path, hp: Path, reach: float, vr: flo
     hxy, hu = _samples(paths, hp)
     out: list[_Component] = []
     if _boxes_meet(rxy, hxy, reach + STEP):
-        from scipy import ndimage  # here: a compile taken from the cache finds no conflict (issue 38)
-        from scipy.spatial import cKDTree
+        from scipy.spatial import cKDTree  # here: a compile taken from the cache finds no conflict (issue 38)
 
         pairs = cKDTree(rxy).sparse_distance_matrix(cKDTree(hxy), reach + STEP, output_type="ndarray")
         close = pairs[pairs["v"] < reach + STEP]
         if len(close):
-            grid = np.zeros((len(rs), len(hu)), dtype=bool)
-            grid[close["i"], close["j"]] = True
-            labels, n = ndimage.label(grid, structure=np.ones((3, 3), dtype=int))
-            lab = labels[close["i"], close["j"]]
+            lab, n = _components(close["i"], close["j"])
             pad = STEP / 2 / vr + STEP / 2 / vh
             length = hu[-1]
             for k in range(1, n + 1):

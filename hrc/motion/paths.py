@@ -14,6 +14,9 @@ the agent's start and the locations of the phases of actions it may do, targets 
   would add ``v / a`` per stop; the task format has no acceleration, so none is modelled.)
 - Seeds: each roadmap / fallback query gets its own OMPL seed derived from ``(seed, clearance,
   locations)`` by SHA-256, so results do not depend on planning order; same seed, same library.
+- **Beside** (``apart``, issue 38): the roadmaps of distinct clearances do not depend on each other (each
+  has its own seed), so a caller with a second core can have every other one planned in another process
+  at once (`hrc.compile.executors.run_apart`); the library is the same, byte for byte.
 - **Cache** (`hrc.caches`, on disk, ``~/.cache/hrc/roadmaps``): a clearance's roadmap and its routes
   are kept, keyed by the obstacles and bounds, the clearance, the seed, the routed locations (ids and
   coordinates) and the digest of this code (planner, world, paths), so a compile of the same map and
@@ -24,6 +27,7 @@ Raises `hrc.errors.UnreachableLocationError` when a location pair has no collisi
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import itertools
@@ -139,10 +143,39 @@ def _code_digest() -> str:
     return source_digest("hrc.motion.planner", "hrc.motion.world", "hrc.motion.paths")
 
 
+Planned = tuple[Roadmap, dict[tuple[str, str], "tuple[Point, ...] | None"], int]
+"""A clearance's roadmap, its routes by unordered location pair (None: not joined) and the fallback
+queries it took (`_plan_clearance`)."""
+
+Apart = Callable[[Callable[[], Planned]], Callable[[], "Planned | None"]]
+"""Runs a function in another process at once and returns what waits for its result (None: it failed,
+and the caller computes it itself); `plan_paths`' ``apart``."""
+
+
+def _plan_clearance(task: Task, world: World | None, c: float, seed: int, ends: list[str],
+                    pairs: list[tuple[str, str]]) -> Planned:
+    """The roadmap of clearance `c` and the routes of `pairs` on it (`plan_paths`)."""
+    locs = {loc.id: loc.xy for loc in task.workspace.locations}
+    world = world or World(task.workspace)
+    roadmap = Roadmap.build(world, c, _seed(seed, c))
+    routes = roadmap.routes(world, [locs[e] for e in ends])
+    these: dict[tuple[str, str], tuple[Point, ...] | None] = {}
+    fallbacks = 0
+    for a, b in pairs:
+        pts = routes[(ends.index(a), ends.index(b))]
+        if pts is None:
+            fallbacks += 1
+            pts = plan_points(world, locs[a], locs[b], c, _seed(seed, c, a, b))
+        these[(a, b)] = None if pts is None else tuple(pts)
+    return roadmap, these, fallbacks
+
+
 def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] | None = None,
-               cache: bool = True) -> PathLibrary:
+               cache: bool = True, apart: Apart | None = None) -> PathLibrary:
     """Plan every path of `task` (see the module docstring); `progress(done, total)` per planned pair.
     `cache`: keep and reuse each clearance's roadmap and routes on disk (`hrc.caches.cache_folder`).
+    `apart`: with two or more roadmaps to plan, every other one is planned through it (in another
+    process, at once: the module docstring); the result is the same.
 
     Cost: one roadmap per distinct clearance plus one roadmap query (and shortening) per unordered
     location pair and clearance; with the cache, on the same map and agents, reading one file per
@@ -168,32 +201,39 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
     kept: dict[float, Roadmap] = {}
     folder = cache_folder("roadmaps") if cache else None
     cached = 0
-    for c in sorted(wanted):
-        ends = sorted({x for pair in wanted[c] for x in pair})
-        ckey = _cache_key(task, c, seed, ends, wanted[c]) if folder is not None else ""
-        found = disk_load(folder, ckey)
-        if found is not None:
-            kept[c], these = found
-            cached += 1
-        else:
-            world = world or World(task.workspace)
-            roadmap = kept[c] = Roadmap.build(world, c, _seed(seed, c))
-            routes = roadmap.routes(world, [locs[e] for e in ends])
-            these = {}
+    ends_of = {c: sorted({x for pair in wanted[c] for x in pair}) for c in wanted}
+    keys = {c: _cache_key(task, c, seed, ends_of[c], wanted[c]) if folder is not None else "" for c in wanted}
+    found_of = {c: disk_load(folder, keys[c]) for c in sorted(wanted)}
+    todo = [c for c in sorted(wanted) if found_of[c] is None]
+    elsewhere: dict[float, Callable[[], Planned | None]] = {}
+    if apart is not None and len(todo) > 1:
+        for c in todo[1::2]:
+            elsewhere[c] = apart(functools.partial(_plan_clearance, task, None, c, seed, ends_of[c], wanted[c]))
+    try:
+        for c in sorted(wanted):
+            found = found_of[c]
+            if found is not None:
+                kept[c], these = found
+                cached += 1
+            else:
+                got = elsewhere.pop(c)() if c in elsewhere else None
+                if got is None:  # here (or the other process failed: the same, planned here)
+                    world = world or World(task.workspace)
+                    got = _plan_clearance(task, world, c, seed, ends_of[c], wanted[c])
+                kept[c], these, more = got
+                fallbacks += more
+                disk_store(folder, keys[c], (kept[c], these))
+            roadmaps += 1
+            milestones += len(kept[c].points)
             for a, b in wanted[c]:
-                pts = routes[(ends.index(a), ends.index(b))]
-                if pts is None:
-                    fallbacks += 1
-                    pts = plan_points(world, locs[a], locs[b], c, _seed(seed, c, a, b))
-                these[(a, b)] = None if pts is None else tuple(pts)
-            disk_store(folder, ckey, (roadmap, these))
-        roadmaps += 1
-        milestones += len(kept[c].points)
-        for a, b in wanted[c]:
-            planned[(c, a, b)] = these[(a, b)]
-            done += 1
-            if progress is not None:
-                progress(done, total)
+                planned[(c, a, b)] = these[(a, b)]
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+    finally:
+        for wait in elsewhere.values():  # interrupted: the other process is stopped
+            with contextlib.suppress(Exception):
+                getattr(wait, "cancel", lambda: None)()
     paths: dict[tuple[str, str, str], Path] = {}
     for agent in task.agents:
         c = agent.radius + task.safety_margin
@@ -208,6 +248,7 @@ def plan_paths(task: Task, seed: int = 0, progress: Callable[[int, int], None] |
             length = sum(math.dist(p, q) for p, q in itertools.pairwise(route))
             paths[(agent.id, o, t)] = Path(agent.id, o, t, route, length, length / agent.speed)
     stats = {"requested": requested, "planned": total, "roadmaps": roadmaps, "milestones": milestones,
-             "fallbacks": fallbacks, "cached": cached, "seconds": time.perf_counter() - t0,
+             "fallbacks": fallbacks, "cached": cached, "apart": len(todo[1::2]) if apart is not None and len(todo) > 1
+             else 0, "seconds": time.perf_counter() - t0,
              "cpu_seconds": time.process_time() - c0}
     return PathLibrary(seed=seed, paths=paths, locations=locs, stats=stats, roadmaps=kept)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import fcl
 import numpy as np
@@ -28,6 +29,13 @@ import pymunk.autogeometry
 from shapely.geometry import Polygon
 
 from hrc.model import Agent, Task, Workspace
+
+try:  # Chipmunk's swept-disc query called directly (`World.segment_clear`): the same C function pymunk's
+    # ``Shape.segment_query`` calls, without its Python wrapper (half the compile's path-planning time)
+    from pymunk._chipmunk_cffi import ffi as _ffi
+    from pymunk._chipmunk_cffi import lib as _cp
+except ImportError:  # pragma: no cover - pymunk 7 has it; another layout falls back to the public method
+    _ffi = _cp = None
 
 __all__ = ["World"]
 
@@ -105,6 +113,7 @@ class World:
             shapes.append(pymunk.Segment(static, a, b, 0.0))
         self.space.add(*shapes)
         self._static = [(sh, tuple(sh.cache_bb())) for sh in shapes]
+        self._swept = _Swept(self._static)
         self._filter = pymunk.ShapeFilter()
         self.bodies: dict[str, pymunk.Body] = {}
 
@@ -198,16 +207,41 @@ class World:
         """
         if a == b:
             return not self._static_within(a, clearance)
-        left, right = min(a[0], b[0]) - clearance, max(a[0], b[0]) + clearance
-        bottom, top = min(a[1], b[1]) - clearance, max(a[1], b[1]) + clearance
-        for shape, (sl, sb, sr, st) in self._static:
-            if sr < left or sl > right or st < bottom or sb > top:
-                continue
-            if shape.segment_query(a, b, clearance) is not None:
-                return False
-        return True
+        return self._swept.clear(a, b, clearance)
 
     @staticmethod
     def agent_distance(a: tuple[float, float], ra: float, b: tuple[float, float], rb: float) -> float:
         """Free distance (m) between two agent discs (negative when they overlap)."""
         return math.hypot(a[0] - b[0], a[1] - b[1]) - ra - rb
+
+
+class _Swept:
+    """`World.segment_clear`'s test over the static shapes: each shape whose bounding box, grown by the
+    clearance, meets the segment's is asked Chipmunk's exact ``cpShapeSegmentQuery`` (through pymunk's
+    own cffi handle, the answer its ``Shape.segment_query`` gives, without building a query-info object
+    per call)."""
+
+    def __init__(self, static: list[tuple[pymunk.Shape, tuple[float, ...]]]) -> None:
+        self.static = static
+        # each shape's box and handle in one flat tuple: the loop below is the compile's hottest in motion
+        self.handles: list[tuple[Any, ...]] | None = (None if _cp is None else
+                                                      [(*bb, sh._shape) for sh, bb in static])
+        self.info = None if _ffi is None else _ffi.new("cpSegmentQueryInfo *")  # written by Chipmunk, unread
+
+    def clear(self, a: tuple[float, float], b: tuple[float, float], clearance: float) -> bool:
+        (ax, ay), (bx, by) = a, b
+        left, right = (ax - clearance, bx + clearance) if ax < bx else (bx - clearance, ax + clearance)
+        bottom, top = (ay - clearance, by + clearance) if ay < by else (by - clearance, ay + clearance)
+        if self.handles is None:  # pragma: no cover - see the import of `_cp`
+            for shape, (sl, sb, sr, st) in self.static:
+                if not (sr < left or sl > right or st < bottom or sb > top) and \
+                        shape.segment_query(a, b, clearance) is not None:
+                    return False
+            return True
+        query, info = _cp.cpShapeSegmentQuery, self.info
+        for sl, sb, sr, st, handle in self.handles:
+            if sr < left or sl > right or st < bottom or sb > top:
+                continue
+            if query(handle, a, b, clearance, info):
+                return False
+        return True
