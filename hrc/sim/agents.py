@@ -269,6 +269,25 @@ class AgentLoop(Generic[W]):
             return (agent.action, self.phases[agent.action][agent.pi])
         return self.last.get(agent.id)
 
+    # -- a robot's leg ---------------------------------------------------------------------------------
+
+    def _robot_depart(self, a: W, o: Order) -> bool:
+        """A free robot leaves for the phase its order names once the order's time has come."""
+        if o.event != "depart" or self.t < o.earliest - EPS:
+            return False
+        a.action, a.pi, a.order = o.action, self.phases[o.action].index(o.phase), o
+        self.depart(a, o.action, o.phase, a.mover.agent.speed)
+        return True
+
+    def _robot_parked(self, a: W, o: Order | None, mine: bool, phase: str) -> bool:
+        """A robot at its waiting place leaves it when told to; told to arrive, the plan followed now (one
+        compiled on demand, `hrc.sim.on_demand`) has no stop on this leg, so it goes on as if told to leave
+        the waiting place now."""
+        if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and self.t >= o.earliest - EPS)):
+            a.order = o
+            return self._unpark(a, phase)
+        return False
+
     # -- work phases --------------------------------------------------------------------------
 
     def _robot_start(self, a: W, o: Order, phase: str, quantile: float) -> None:

@@ -164,20 +164,34 @@ class Answering:
     """What a controller over the real dispatcher (`d`) does with each observation and keeps of the answers,
     for one pair (`DispatchedController`) and a team (`hrc.sim.team_policies.TeamDispatched`)."""
 
-    d: Any
-    by_id: dict[str, CompiledPlan]
     latencies: list[float]
     refused: list[str]
-    switches: int
-    stopped: bool
-    plan_id: str | None
     plan_class: str | None
-    first_plan: str | None
     first_class: str | None
-    _times: dict | None
+
+    def __init__(self, dispatcher: Any, cps: CompiledPlanSet, real: PathLibrary, blind: bool) -> None:
+        self.d, self.cps, self.real, self.blind = dispatcher, cps, real, blind
+        self.by_id = {cp.plan.id: cp for cp in cps.plans}
+        self.latencies = []
+        self.refused = []
+        self.switches = 0
+        self._times: dict | None = None
+        dec = dispatcher.decision
+        self.first_plan: str | None = dec.plan
+        self.plan_id: str | None = dec.plan
+        self.first_class = self.plan_class = dec.plan_class
+        self.stopped = bool(dec.stopped)
 
     def observe(self, h: Happening) -> None:
         raise NotImplementedError
+
+    @staticmethod
+    def _observation(h: Happening) -> Any:
+        """What the dispatcher is told of `h` (its time to the core's millisecond)."""
+        from hrc.dispatch import Observation
+
+        return Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
+                           delay=h.delay)
 
     def _answer(self, obs: Any, h: Happening) -> Any | None:
         """The dispatcher's answer to `obs` (its latency kept), or None: refused (logged), state unchanged."""
@@ -213,14 +227,8 @@ class DispatchedController(Answering, Controller):
     """The dispatcher in charge: observations in, the decision's robot step out (``hrc.dispatch``)."""
 
     def __init__(self, dispatcher: Any, cps: CompiledPlanSet, real: PathLibrary, blind: bool) -> None:
-        self.d = dispatcher
-        self.cps = cps
-        self.real = real
-        self.blind = blind
-        self.by_id = {cp.plan.id: cp for cp in cps.plans}
+        super().__init__(dispatcher, cps, real, blind)
         self.on_demand: OnDemandRun | None = None  # compile on demand (`hrc.sim.on_demand`): a searched compile
-        self.latencies = []
-        self.refused = []
         self.detected: list[tuple[float, float, str, str, str]] = []  # (given at, estimated t, event, action, phase)
         self.detect_refused: list[str] = []
         self.withdrawn = 0  # departures the detector gave and withdrew (undo)
@@ -228,18 +236,10 @@ class DispatchedController(Answering, Controller):
         # answers that said an observation came later than the stated maximum delay (`Decision.deviation`);
         # None when the dispatcher was given no maximum (a compile without `sensing:`)
         self.late_observations: int | None = None if dispatcher.max_observation_delay is None else 0
-        self._times: dict | None = None
         self._ordered: tuple[Any, Order | None] = (None, None)
-        dec = dispatcher.decision
-        self.first_plan = self.plan_id = dec.plan
-        self.first_class = self.plan_class = dec.plan_class
-        self.stopped = bool(dec.stopped)
 
     def observe(self, h: Happening) -> None:
-        from hrc.dispatch import Observation
-
-        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
-                          delay=h.delay)
+        obs = self._observation(h)
         if self.on_demand is not None:
             self._adopt(obs.t)
         dec = self._answer(obs, h)

@@ -569,23 +569,14 @@ class _Run(Standoffs):
                 if self.joint and self._cowork() and self.floor.free() < self.floor.margin:
                     return False  # done at the joint spot: it stands until the person is out of reach
                 return False if self.ctl.stopped else self.go_home(a)
-            if o.event != "depart" or t < o.earliest - _EPS:
-                return False
-            a.action, a.pi, a.order = o.action, self.phases[o.action].index(o.phase), o
-            self.depart(a, o.action, o.phase, a.mover.agent.speed, True)
-            return True
+            return self._robot_depart(a, o)
         if a.mode == "travel":
             return self._arrival_check(a)
         assert a.action is not None
         phase = self.phases[a.action][a.pi]
         mine = o is not None and (o.action, o.phase) == (a.action, phase)
         if a.mode == "parked":
-            # told to arrive: the plan followed now (one compiled on demand, `hrc.sim.on_demand`) has no stop
-            # on this leg, so the robot goes on as if told to leave the waiting place now
-            if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and t >= o.earliest - _EPS)):
-                a.order = o
-                return self._unpark(a, phase)
-            return False
+            return self._robot_parked(a, o, mine, phase)
         if a.mode == "arrived":
             if mine and o is not None and o.event == "start" and t >= o.earliest - _EPS and self.ready(a.action, phase):
                 joint = bool(self.joint) and a.action in self.joint

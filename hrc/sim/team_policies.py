@@ -33,24 +33,11 @@ class TeamDispatched(Answering):
     """The dispatcher in charge of every robot (`Decision.robots`), each person reading their own hint."""
 
     def __init__(self, dispatcher: Any, cps: CompiledPlanSet, ctx: SimContext, blind: bool) -> None:
-        self.d, self.cps, self.real, self.blind = dispatcher, cps, ctx.paths, blind
-        self.by_id = {cp.plan.id: cp for cp in cps.plans}
-        self.latencies: list[float] = []
-        self.refused: list[str] = []
-        self.switches = 0
+        super().__init__(dispatcher, cps, ctx.paths, blind)
         self._orders: tuple[Any, dict[str, Order | None]] = (None, {})
-        self._times: dict | None = None
-        dec = dispatcher.decision
-        self.first_plan = self.plan_id = dec.plan
-        self.first_class = self.plan_class = dec.plan_class
-        self.stopped = bool(dec.stopped)
 
     def observe(self, h: Happening) -> None:
-        from hrc.dispatch import Observation
-
-        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
-                          delay=h.delay)
-        dec = self._answer(obs, h)
+        dec = self._answer(self._observation(h), h)
         if dec is not None:
             self._after(dec)
 

@@ -337,21 +337,14 @@ class _TeamRun(AgentLoop[_Agent]):
                        for p, r in self.floor.cowork):
                     return False  # done at the joint spot: it stands until the person is out of reach
                 return False if self.ctl.stopped else self.go_home(a)
-            if o.event != "depart" or t < o.earliest - _EPS:
-                return False
-            a.action, a.pi, a.order = o.action, self.phases[o.action].index(o.phase), o
-            self.depart(a, o.action, o.phase, a.mover.agent.speed)
-            return True
+            return self._robot_depart(a, o)
         if a.mode == "travel":
             return self._arrival_check(a)
         assert a.action is not None
         phase = self.phases[a.action][a.pi]
         mine = o is not None and (o.action, o.phase) == (a.action, phase)
         if a.mode == "parked":
-            if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and t >= o.earliest - _EPS)):
-                a.order = o
-                return self._unpark(a, phase)
-            return False
+            return self._robot_parked(a, o, mine, phase)
         joint = a.action in self.joint
         if joint and self.task.lead(a.action) != a.id:  # another robot leads it: work from its start to its end
             return self._joint_done(a, phase)
