@@ -53,7 +53,7 @@ from hrc.motion.separation import protective_separation
 from hrc.motion.world import World
 from hrc.sim.ssm import SsmTally, ssm_speed
 
-__all__ = ["CONTACT", "MAX_STEP", "MIN_STEP", "Floor", "Mover"]
+__all__ = ["CONTACT", "MAX_STEP", "MIN_STEP", "Floor", "Mover", "add_mover", "tally", "time_to_stop"]
 
 Point = tuple[float, float]
 
@@ -134,8 +134,8 @@ class Floor:
         self.slowdown = slowdown
         human = next(a for a in task.agents if a.is_human)
         robot = next(a for a in task.agents if not a.is_human)
-        self.human = self._mover(human)
-        self.robot = self._mover(robot)
+        self.human = add_mover(self.world, task, human)
+        self.robot = add_mover(self.world, task, robot)
         self._radii = human.radius + robot.radius
         self.min_free = math.inf
         self.overlaps = 0
@@ -147,13 +147,6 @@ class Floor:
             self.margin = protective_separation(task.safety, 0.0).total
             self._band = protective_separation(task.safety, self.robot.agent.speed).total - self.margin
 
-    def _mover(self, agent: Agent) -> Mover:
-        xy = self.task.workspace.location(agent.start).xy
-        body = self.world.add_agent(agent, *xy)
-        shape = next(iter(body.shapes))
-        assert isinstance(shape, pymunk.Circle)
-        return Mover(agent, body, shape, xy)
-
     def free(self, a: Point | None = None, b: Point | None = None) -> float:
         """Free distance (m) between the discs (at `a` / `b` instead of where they are, if given)."""
         if not self.human.present:
@@ -161,11 +154,10 @@ class Floor:
         p, q = a or self.human.xy, b or self.robot.xy
         return math.hypot(p[0] - q[0], p[1] - q[1]) - self._radii
 
-    def time_to_stop(self, m: Mover) -> float:
+    @staticmethod
+    def time_to_stop(m: Mover) -> float:
         """Seconds until `m` reaches its stop at full pace (inf when it is not moving)."""
-        if not m.moving or m.speed <= 0:
-            return math.inf
-        return m.remaining / m.speed
+        return time_to_stop(m)
 
     def safe_step(self) -> float:
         """A step (s) short enough that neither agent can come near the other in it unseen.
@@ -198,10 +190,7 @@ class Floor:
             got = self._walk(hm, want, rm.xy, radii + floor)
             if self.ssm is not None:
                 self.ssm.person_step(not rm.moving or self.ssm.stopped, free_before, self.free())
-            hm.travelled += h
-            if want > 0 and got < want - 1e-9:
-                hm.held += h * (1 - got / want)
-            hm.blocked_for = hm.blocked_for + h if want > 0 and got < want / 2 else 0.0
+            tally(hm, h, want, got, got)
         if rm.moving:
             want = min(rm.speed * h, rm.remaining)
             before = self.free()
@@ -222,11 +211,7 @@ class Floor:
                 self.ssm.robot_step(h, rm.speed, allowed, closing, max(0.0, got), self.free())
             if got <= 1e-12 and closing and before < self.margin and rm.s > 0:
                 self._back_off(rm, rm.speed * h / 2)  # the person keeps coming: make room
-            rm.travelled += h
-            full = min(rm.speed * h, rm.remaining + max(0.0, got))
-            if full > 0 and got < full - 1e-9:
-                rm.held += h * (1 - max(0.0, got) / full)
-            rm.blocked_for = rm.blocked_for + h if full > 0 and got < full / 2 else 0.0
+            tally(rm, h, min(rm.speed * h, rm.remaining + max(0.0, got)), got, max(0.0, got))
         self._sync(h)
 
     def _cowork_step(self, h: float) -> None:
@@ -305,11 +290,40 @@ class Floor:
                    for hit in hits):
                 self.overlaps += 1
 
-    def place(self, m: Mover, xy: Point) -> None:
+    @staticmethod
+    def place(m: Mover, xy: Point) -> None:
         """Put `m` at `xy`, standing (the start of a run, or back on the floor)."""
         m.xy = xy
         m.points, m.cum, m.s, m.moving = [xy], [0.0], 0.0, False
         m.body.position = xy
+
+
+# -- a disc's mechanics, the same on the one-pair floor and the team's (`hrc.sim.team_floor`) ----------------
+
+def add_mover(world: World, task: Task, agent: Agent) -> Mover:
+    """`agent`'s disc, added to `world` at its start."""
+    xy = task.workspace.location(agent.start).xy
+    body = world.add_agent(agent, *xy)
+    shape = next(iter(body.shapes))
+    assert isinstance(shape, pymunk.Circle)
+    return Mover(agent, body, shape, xy)
+
+
+def time_to_stop(m: Mover) -> float:
+    """Seconds until `m` reaches its stop at full pace (inf when it is not moving)."""
+    if not m.moving or m.speed <= 0:
+        return math.inf
+    return m.remaining / m.speed
+
+
+def tally(m: Mover, h: float, want: float, got: float, moved: float) -> None:
+    """A step of `h` s in which `m` wanted to go `want` m and got `got` (`moved`: of it, what counts as
+    moved forward): its time under way, the share of the step it was held up, and how long it has been
+    blocked (under half of what it wanted)."""
+    m.travelled += h
+    if want > 0 and got < want - 1e-9:
+        m.held += h * (1 - moved / want)
+    m.blocked_for = m.blocked_for + h if want > 0 and got < want / 2 else 0.0
 
 
 def _entry(m: Mover, target: float, cx: float, cy: float, reach: float) -> float:

@@ -139,18 +139,96 @@ class Controller:
         raise NotImplementedError
 
 
-class DispatchedController(Controller):
+def order_of(step: Any, fallback: str | None) -> Order | None:
+    """A robot's step of a dispatcher's answer as an order: a timed event, a wait (a `WaitFor`, or no step
+    and the fallback says wait: no plan yet, stay, do not go home), or None (nothing: it goes home)."""
+    if step is None and fallback == "wait":
+        return Order("", "", "wait")
+    if step is None:
+        return None
+    if hasattr(step, "earliest"):
+        return Order(step.action, step.phase, step.event, float(step.earliest),
+                     None if step.latest is None else float(step.latest))
+    return Order(step.action, step.phase, "wait")
+
+
+def hinted(hint: Any, taken: Mapping[str, str]) -> str | None:
+    """The action a person's hint tells them to leave for next (None: it does not, or it is taken)."""
+    if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
+            and hint.action not in taken:
+        return str(hint.action)
+    return None
+
+
+class Answering:
+    """What a controller over the real dispatcher (`d`) does with each observation and keeps of the answers,
+    for one pair (`DispatchedController`) and a team (`hrc.sim.team_policies.TeamDispatched`)."""
+
+    latencies: list[float]
+    refused: list[str]
+    plan_class: str | None
+    first_class: str | None
+
+    def __init__(self, dispatcher: Any, cps: CompiledPlanSet, real: PathLibrary, blind: bool) -> None:
+        self.d, self.cps, self.real, self.blind = dispatcher, cps, real, blind
+        self.by_id = {cp.plan.id: cp for cp in cps.plans}
+        self.latencies = []
+        self.refused = []
+        self.switches = 0
+        self._times: dict | None = None
+        dec = dispatcher.decision
+        self.first_plan: str | None = dec.plan
+        self.plan_id: str | None = dec.plan
+        self.first_class = self.plan_class = dec.plan_class
+        self.stopped = bool(dec.stopped)
+
+    def observe(self, h: Happening) -> None:
+        raise NotImplementedError
+
+    @staticmethod
+    def _observation(h: Happening) -> Any:
+        """What the dispatcher is told of `h` (its time to the core's millisecond)."""
+        from hrc.dispatch import Observation
+
+        return Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
+                           delay=h.delay)
+
+    def _answer(self, obs: Any, h: Happening) -> Any | None:
+        """The dispatcher's answer to `obs` (its latency kept), or None: refused (logged), state unchanged."""
+        t0 = time.perf_counter()
+        try:
+            dec = self.d.observe(obs)
+        except HrcError as err:  # DispatchError: refused, state unchanged
+            self.latencies.append(time.perf_counter() - t0)
+            self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
+            return None
+        self.latencies.append(time.perf_counter() - t0)
+        return dec
+
+    def _after(self, dec: Any) -> None:
+        self._times = None
+        if dec.plan != self.plan_id and dec.plan is not None:
+            if self.plan_id is not None:
+                self.switches += 1
+            if self.first_plan is None:
+                self.first_plan, self.first_class = dec.plan, dec.plan_class
+        self.plan_id, self.plan_class = dec.plan, dec.plan_class
+        self.stopped = bool(dec.stopped)
+
+    def tick(self, t: float) -> None:
+        """Tell the dispatcher that time has passed (when it has nothing else to hear)."""
+        self.observe(Happening(t, "", "tick"))
+
+    def current(self) -> CompiledPlan | None:
+        return self.by_id.get(self.plan_id) if self.plan_id is not None else None
+
+
+class DispatchedController(Answering, Controller):
     """The dispatcher in charge: observations in, the decision's robot step out (``hrc.dispatch``)."""
 
     def __init__(self, dispatcher: Any, cps: CompiledPlanSet, real: PathLibrary, blind: bool) -> None:
-        self.d = dispatcher
-        self.cps = cps
-        self.real = real
-        self.blind = blind
-        self.by_id = {cp.plan.id: cp for cp in cps.plans}
+        super().__init__(dispatcher, cps, real, blind)
         self.on_demand: OnDemandRun | None = None  # compile on demand (`hrc.sim.on_demand`): a searched compile
-        self.latencies = []
-        self.refused = []
         self.detected: list[tuple[float, float, str, str, str]] = []  # (given at, estimated t, event, action, phase)
         self.detect_refused: list[str] = []
         self.withdrawn = 0  # departures the detector gave and withdrew (undo)
@@ -158,28 +236,15 @@ class DispatchedController(Controller):
         # answers that said an observation came later than the stated maximum delay (`Decision.deviation`);
         # None when the dispatcher was given no maximum (a compile without `sensing:`)
         self.late_observations: int | None = None if dispatcher.max_observation_delay is None else 0
-        self._times: dict | None = None
         self._ordered: tuple[Any, Order | None] = (None, None)
-        dec = dispatcher.decision
-        self.first_plan = self.plan_id = dec.plan
-        self.first_class = self.plan_class = dec.plan_class
-        self.stopped = bool(dec.stopped)
 
     def observe(self, h: Happening) -> None:
-        from hrc.dispatch import Observation
-
-        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
-                          delay=h.delay)
+        obs = self._observation(h)
         if self.on_demand is not None:
             self._adopt(obs.t)
-        t0 = time.perf_counter()
-        try:
-            dec = self.d.observe(obs)
-        except HrcError as err:  # DispatchError: refused, state unchanged
-            self.latencies.append(time.perf_counter() - t0)
-            self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
+        dec = self._answer(obs, h)
+        if dec is None:
             return
-        self.latencies.append(time.perf_counter() - t0)
         if dec.deviation is not None and "late" in dec.deviation and self.late_observations is not None:
             self.late_observations += 1
         self._after(dec)
@@ -254,45 +319,20 @@ class DispatchedController(Controller):
             self._after(self.d.decision)
         return bool(given)
 
-    def _after(self, dec: Any) -> None:
-        self._times = None
-        if dec.plan != self.plan_id and dec.plan is not None:
-            if self.plan_id is not None:
-                self.switches += 1
-            if self.first_plan is None:
-                self.first_plan, self.first_class = dec.plan, dec.plan_class
-        self.plan_id, self.plan_class = dec.plan, dec.plan_class
-        self.stopped = bool(dec.stopped)
-
-    def tick(self, t: float) -> None:
-        """Tell the dispatcher that time has passed (when it has nothing else to hear)."""
-        self.observe(Happening(t, "", "tick"))
-
     def order(self) -> Order | None:
         decision = self.d.decision
         if decision is self._ordered[0]:  # asked every step of the floor: made once per decision
             return self._ordered[1]
-        robot = decision.robot
-        if robot is None and decision.fallback == "wait":  # no plan yet: stay, do not go home
-            order = Order("", "", "wait")
-        elif robot is None:
-            order = None
-        elif hasattr(robot, "earliest"):
-            order = Order(robot.action, robot.phase, robot.event, float(robot.earliest),
-                          None if robot.latest is None else float(robot.latest))
-        else:
-            order = Order(robot.action, robot.phase, "wait")
+        order = order_of(decision.robot, decision.fallback)
         self._ordered = (decision, order)
         return order
 
-    def current(self) -> CompiledPlan | None:
-        return self.by_id.get(self.plan_id) if self.plan_id is not None else None
-
     def human_next(self, started: Mapping[str, str]) -> str | None:
-        hint = self.d.decision.human  # what to do next: what the console shows (the when: `guide_time`)
-        if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
-                and hint.action not in started:
-            return str(hint.action)  # the dispatcher's hint: the human's next departure in the best plan
+        # what to do next: what the console shows (the when: `guide_time`); the dispatcher's hint: the
+        # human's next departure in the best plan
+        hint = hinted(self.d.decision.human, started)
+        if hint is not None:
+            return hint
         cp = self.current()
         if cp is None:
             return None

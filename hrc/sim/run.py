@@ -44,7 +44,7 @@ from hrc.detect.sensor import Sensor, SensorModel
 from hrc.errors import SimulationError
 from hrc.model import Task
 from hrc.motion import PathLibrary
-from hrc.plans import must_precede
+from hrc.sim.agents import acknowledged, add_busy
 from hrc.sim.detection import Detection, detection_of
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import CONTACT, MIN_STEP, Floor
@@ -57,9 +57,7 @@ from hrc.sim.policies import (
     FixedController,
     Order,
     Policy,
-    SimRoute,
 )
-from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
 from hrc.sim.ssm import SsmMeasures
 from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, AgentState, Standoffs
 from hrc.sim.team_floor import is_team
@@ -70,7 +68,6 @@ _EPS = 1e-9
 _DETECTED = ("depart", "arrive", "start", "end")  # the events a motion detector gives
 _DRAIN = 12.0  # s after the last phase in which a motion detector may still give the person's last events
 _QUIET = 30.0  # s with nothing due but the tracker's positions: nobody can go on (stuck)
-_ACK = 0.002  # s: the robot's acknowledgement snaps into its window when this close to it
 
 
 AgentFrame = tuple[float, tuple[tuple[float, float, bool], ...], tuple[tuple[str, str], ...]]
@@ -263,6 +260,8 @@ def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
 
 
 class _Run(Standoffs):
+    ctx: SimContext
+
     def __init__(self, ctx: SimContext, policy: Policy, draws: HumanDraws, ctl: Controller, record: bool,
                  sensor: Sensor | None = None) -> None:
         self.ctx, self.policy, self.draws, self.ctl, self.record = ctx, policy, draws, ctl, record
@@ -279,16 +278,7 @@ class _Run(Standoffs):
         rob = next(a for a in task.agents if not a.is_human)
         self.h = AgentState(hum.id, self.floor.human, hum.start, hum.start)
         self.r = AgentState(rob.id, self.floor.robot, rob.start, rob.start)
-        self.t = 0.0
-        self.happenings: list[Happening] = []
-        self.started: dict[str, str] = {}  # action -> agent that started it (first depart)
-        self.ended: set[tuple[str, str]] = set()
-        self.phases = {a.id: tuple(p.id for p in a.phases) for a in task.actions}
-        self.preds: dict[tuple[str, str], list[tuple[str, str]]] = {}
-        for pr in task.precedence:
-            self.preds.setdefault((pr.after.action, pr.after.phase), []).append((pr.before.action, pr.before.phase))
-        self.before = must_precede(task)
-        self.total = sum(len(v) for v in self.phases.values())
+        self._init_task(task, s.time_cap)
         self._joint_init()
         self.choices = 0
         self.last_obs = 0.0
@@ -303,8 +293,6 @@ class _Run(Standoffs):
         self.standoffs = 0
         self.room_for: AgentState | None = None
         self.ways = Ways(self.floor.world, ctx.paths, ctx.cache)
-        deadline = task.deadline if task.deadline is not None else 120.0
-        self.cap = s.time_cap if s.time_cap is not None else 5 * deadline
 
     # -- bookkeeping ---------------------------------------------------------------------------------
 
@@ -324,82 +312,13 @@ class _Run(Standoffs):
                 assert isinstance(self.ctl, DispatchedController)
                 self.ctl.known.append(h)  # the person knows what they did (their guide: `_guide`)
             return
-        t = self.t
-        o = self.ctl.order()  # the window the robot was given for this event (arrive, park: the travel's end)
-        if o is not None and (o.action, o.phase, o.event) == (action, phase, event):
-            if t < o.earliest - _EPS:
-                t = o.earliest if o.earliest - t <= _ACK else t
-            if o.latest is not None and t > o.latest + _EPS:
-                t = o.latest if t - o.latest <= _ACK else t
-            if t < o.earliest - _ACK or (o.latest is not None and t > o.latest + _ACK):
-                self.late += 1
+        # against the window the robot was given for this event (arrive, park: the travel's end)
+        t, late = acknowledged(self.t, self.ctl.order(), event, action, phase)
+        self.late += late
         self._tell(Happening(max(t, self.last_obs), agent.id, event, action, phase))
 
-    def _tell(self, h: Happening) -> None:
-        self.last_obs = max(self.last_obs, h.t)
-        self.ctl.observe(h)
-
-    def ready(self, action: str, phase: str) -> bool:
-        return all(p in self.ended for p in self.preds.get((action, phase), ()))
-
-    def done(self) -> bool:
-        return len(self.ended) == self.total
-
-    def route_for(self, agent: AgentState, action: str, phase: str, planned: bool) -> SimRoute:
-        """The plan's route for the leg if the agent stands where it starts, else the shortest one."""
-        target = self.task.action(action).phase(phase).location
-        if planned:
-            route = self.ctl.route(agent.id, action, phase)
-            if route is not None and math.dist(route.points[0], agent.mover.xy) < 1e-6 \
-                    and math.dist(route.points[-1], self.ctx.paths.locations[target]) < 1e-6:
-                return route
-        if agent.loc is None:  # somewhere on the floor (it made room): the roadmap's way from there
-            goal = self.ctx.paths.locations[target]
-            return SimRoute(self.ways.route(self._clearance(agent), agent.mover.xy, goal) or (agent.mover.xy, goal))
-        return SimRoute(self.ctx.paths.get(agent.id, agent.loc, target).points)
-
-    def depart(self, agent: AgentState, action: str, phase: str, speed: float, planned: bool) -> None:
-        route = self.route_for(agent, action, phase, planned)
-        agent.route, agent.parked, agent.mode, agent.moved = route, False, "travel", 0.0
-        length = sum(math.dist(p, q) for p, q in zip(route.points, route.points[1:], strict=False))
-        agent.predicted = length / agent.mover.agent.speed
-        agent.mover.set_route(route.points, route.speed or speed, route.park_s)
-        agent.loc = None
-        self.emit(agent, "depart", action, phase)
-        self._arrival_check(agent)
-
-    def _arrival_check(self, agent: AgentState) -> bool:
-        """After a travel stopped: the waiting place or the arrival."""
-        if agent.mode != "travel" or agent.mover.moving:
-            return False
-        assert agent.action is not None
-        phase = self.phases[agent.action][agent.pi]
-        if agent.route is not None and agent.route.park_s is not None and not agent.parked:
-            agent.parked = True
-            agent.mode = "parked"
-            self.emit(agent, "park", agent.action, phase)
-            return True
-        agent.mode = "arrived"
-        agent.loc = self.task.action(agent.action).phase(phase).location
-        if agent is self.r:
-            self.excess += max(0.0, agent.moved - agent.predicted)
-        self.emit(agent, "arrive", agent.action, phase)
-        return True
-
-    def go_home(self, agent: AgentState) -> bool:
-        if agent.loc == agent.home:
-            return False
-        home = self.ctx.paths.locations[agent.home]
-        if agent.loc is None:  # somewhere on the floor (made room): the roadmap's way home
-            if math.dist(agent.mover.xy, home) < 1e-6:
-                agent.loc = agent.home
-                return False
-            points = self.ways.route(self._clearance(agent), agent.mover.xy, home) or (agent.mover.xy, home)
-        else:
-            points = self.ctx.paths.get(agent.id, agent.loc, agent.home).points
-        agent.mover.set_route(points, agent.mover.agent.speed)
-        agent.mode, agent.loc = "home", None
-        return True
+    def _robot(self, agent: AgentState) -> bool:
+        return agent is self.r
 
     # -- the person ------------------------------------------------------------------------------------
 
@@ -439,10 +358,7 @@ class _Run(Standoffs):
         """The steps both agents share: going home, and giving way to `other`. True or False when one of
         them decided this step (something happened, or nothing may), None when the agent's own rules
         decide."""
-        if a.mode == "home" and not a.mover.moving:
-            a.mode, a.loc = "free", a.home
-            if self.joint:  # home: a walk away from a joint spot is over
-                self.joint_stay.pop(a.id, None)
+        if self._home_reached(a):
             return True
         if self._give_way(a, other):
             return True
@@ -504,17 +420,9 @@ class _Run(Standoffs):
         assert a.action is not None
         phase = self.phases[a.action][a.pi]
         if a.mode == "parked":
-            if t >= self.guide(a.action, phase, "unpark") - _EPS:
-                a.mode = "travel"
-                a.mover.resume()
-                self.emit(a, "unpark", a.action, phase)
-                return True
-            return False
+            return t >= self.guide(a.action, phase, "unpark") - _EPS and self._unpark(a, phase)
         if self.joint and a.action in self.joint:  # the robot starts and ends it (`_joint_start`)
-            if a.mode == "work" and (a.action, phase) in self.ended:
-                self._next_phase(a)
-                return True
-            return False
+            return self._joint_done(a, phase)
         if a.mode == "arrived":
             if self.ready(a.action, phase) and t >= self.guide(a.action, phase, "start") - _EPS:
                 a.mode, a.work_start = "work", t
@@ -522,18 +430,7 @@ class _Run(Standoffs):
                 self.emit(a, "start", a.action, phase)
                 return True
             return False
-        if a.mode == "work" and t >= a.work_end - _EPS:
-            self.emit(a, "end", a.action, phase)
-            self._next_phase(a)
-            return True
-        return False
-
-    def _next_phase(self, a: AgentState) -> None:
-        assert a.action is not None
-        a.pi += 1
-        if a.pi >= len(self.phases[a.action]):
-            a.action, a.pi = None, 0
-        a.mode = "free"
+        return a.mode == "work" and self._work_done(a, phase)
 
     # -- joint actions (issue 37) ----------------------------------------------------------------------
     # A joint action is on both agents' legs: each walks or drives there (depart, arrive); the robot starts
@@ -604,20 +501,6 @@ class _Run(Standoffs):
     def _joint_at(self, step: tuple[str, str], spot: str) -> bool:
         return step[0] in self.joint and self.task.action(step[0]).phase(step[1]).location == spot
 
-    def _next_of(self, agent: AgentState, step: tuple[str, str]) -> tuple[str, str] | None:
-        """`agent`'s phase after `step` in the current plan (None: none, or no plan)."""
-        action, phase = step
-        phases = self.phases[action]
-        i = phases.index(phase)
-        if i + 1 < len(phases):
-            return (action, phases[i + 1])
-        cp = self.ctl.current()
-        seq = () if cp is None else cp.plan.sequence(agent.id)
-        if action not in seq or seq.index(action) + 1 >= len(seq):
-            return None
-        nxt = seq[seq.index(action) + 1]
-        return (nxt, self.phases[nxt][0])
-
     def _covers(self, agent: AgentState, step: tuple[str, str] | None, spot: str) -> bool:
         """Whether `agent`'s stay at `spot` for `step` covers a joint phase there: `step` is one, or the
         agent's next phase is one at the same spot (it stays)."""
@@ -626,12 +509,6 @@ class _Run(Standoffs):
         nxt = None if self._joint_at(step, spot) else self._next_of(agent, step)
         return self._joint_at(step, spot) or (nxt is not None and self.task.action(step[0]).phase(step[1]).location
                                              == spot and self._joint_at(nxt, spot))
-
-    def _now(self, agent: AgentState) -> tuple[str, str] | None:
-        """The phase `agent` is at (or on its way to), else the last it ended."""
-        if agent.action is not None:
-            return (agent.action, self.phases[agent.action][agent.pi])
-        return self.last.get(agent.id)
 
     def _cowork_spot(self) -> str | None:
         """The joint spot where the robot stands over a stay that covers a joint phase there, or None."""
@@ -692,62 +569,32 @@ class _Run(Standoffs):
                 if self.joint and self._cowork() and self.floor.free() < self.floor.margin:
                     return False  # done at the joint spot: it stands until the person is out of reach
                 return False if self.ctl.stopped else self.go_home(a)
-            if o.event != "depart" or t < o.earliest - _EPS:
-                return False
-            a.action, a.pi, a.order = o.action, self.phases[o.action].index(o.phase), o
-            self.depart(a, o.action, o.phase, a.mover.agent.speed, True)
-            return True
+            return self._robot_depart(a, o)
         if a.mode == "travel":
             return self._arrival_check(a)
         assert a.action is not None
         phase = self.phases[a.action][a.pi]
         mine = o is not None and (o.action, o.phase) == (a.action, phase)
         if a.mode == "parked":
-            # told to arrive: the plan followed now (one compiled on demand, `hrc.sim.on_demand`) has no stop
-            # on this leg, so the robot goes on as if told to leave the waiting place now
-            if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and t >= o.earliest - _EPS)):
-                a.order = o
-                a.mode = "travel"
-                a.mover.resume()
-                self.emit(a, "unpark", a.action, phase)
-                return True
-            return False
+            return self._robot_parked(a, o, mine, phase)
         if a.mode == "arrived":
             if mine and o is not None and o.event == "start" and t >= o.earliest - _EPS and self.ready(a.action, phase):
                 joint = bool(self.joint) and a.action in self.joint
                 if joint and not self._person_there(a.action, phase):
                     return False  # a joint action starts when both are there
-                bounds = self.task.action(a.action).phase(phase).duration(a.id)
-                a.order, a.mode, a.work_start = o, "work", t
-                a.duration = bounds.lb + self.draws.robot[(a.action, phase)] * (bounds.ub - bounds.lb)
-                self.emit(a, "start", a.action, phase)
+                self._robot_start(a, o, phase, self.draws.robot[(a.action, phase)])
                 if joint:
                     self._joint_start(a.action, phase)
                 return True
             return False
         if a.mode == "work":
-            end = a.work_start + a.duration
-            if mine and o is not None and o.event == "end":
-                end = max(end, o.earliest)
-                if o.latest is not None and not (self.joint and a.action in self.joint):  # nature's end
-                    end = min(end, o.latest)
-                a.order = o
-            a.work_end = end
-            if t >= end - _EPS:
-                self.emit(a, "end", a.action, phase)
-                self._next_phase(a)
-                return True
+            return self._robot_work(a, o, mine, bool(self.joint) and a.action in self.joint, phase)
         return False
 
     # -- the loop --------------------------------------------------------------------------------------
 
     def deliver(self) -> bool:
-        out = self.detector.release(self.t)
-        for h in out:
-            t = max(h.t, self.last_obs)  # later still when the clock has moved on: as late as it is told
-            delay = None if h.delay is None else round(h.delay + t - h.t, 3)
-            self._tell(Happening(t, h.agent, h.event, h.action, h.phase, delay))
-        changed = bool(out)
+        changed = self._deliver_detected()
         if self.sensor is not None:
             assert isinstance(self.ctl, DispatchedController)
             for t, x, y in self.sensor.due(self.t):
@@ -899,14 +746,7 @@ class _Run(Standoffs):
         return f"waiting: robot {self.r.mode} ({o}), person {self.h.mode}"
 
     def _result(self, index: int, reason: str) -> RunResult:
-        task = self.task
-        finished = self.done()
-        times = timepoint_times(self.happenings)
-        ends = [h.t for h in self.happenings if h.event == "end"]
-        makespan = max(ends) if finished and ends else None
-        deadline_met = finished and (task.deadline is None or (makespan or 0.0) <= task.deadline + 1e-3)
-        limits_met = deadline_met and self._constraints_met()
-        span = makespan if makespan is not None else self.t
+        finished, times, makespan, deadline_met, limits_met, span = self._outcome()
         human_busy, robot_busy = self._busy(times, span)
         human_seq = tuple(dict.fromkeys(h.action for h in self.happenings
                                         if h.agent == self.h.id and h.event == "depart" and h.action))
@@ -914,14 +754,8 @@ class _Run(Standoffs):
                                         if h.agent == self.r.id and h.event == "depart" and h.action))
         ctl = self.ctl
         first = ctl.first_plan
-        cps = self.ctx.compiles[self.policy.compile]
-        first_cp = next((cp for cp in cps.plans if cp.plan.id == first), None)
-        alloc = {a: (task.lead(a) if a in self.joint else ag) for a, ag in self.started.items()}
-        kept = first_cp is not None and finished and executed(first_cp, alloc, {self.h.id: human_seq,
-                                                                                 self.r.id: robot_seq})
-        broken: tuple[str, ...] = ()
-        if kept and first_cp is not None:
-            broken = tuple(broken_constraints(plan_network(cps, first_cp), times))
+        first_cp, kept, broken = self._first_kept(self.ctx.compiles[self.policy.compile], finished, times,
+                                                  {self.h.id: human_seq, self.r.id: robot_seq})
         if self.h.mode == "away" and self.away_since is not None:
             self.absent += span - self.away_since
         od = getattr(ctl, "on_demand", None)  # compile on demand (`hrc.sim.on_demand`), with a searched compile
@@ -959,18 +793,6 @@ class _Run(Standoffs):
                  if h.agent == self.h.id and h.action is not None and h.event in _DETECTED]
         return detection_of(truth, self.ctl.detected, tuple(self.ctl.detect_refused), self.ctl.withdrawn)
 
-    def _constraints_met(self) -> bool:
-        """The task's temporal constraints, on the times of the events whoever did them."""
-        at: dict[str, float] = {}
-        for h in self.happenings:
-            if h.action and h.phase and h.event in ("start", "end"):
-                at.setdefault(f"{h.action}.{h.phase}.{h.event}", h.t)
-        for c in self.task.constraints:
-            a, b = at.get(str(c.source)), at.get(str(c.target))
-            if a is None or b is None or not (c.bounds.lb - 1e-3 <= b - a <= c.bounds.ub + 1e-3):
-                return False
-        return True
-
     def _busy(self, times: dict[str, float], span: float) -> tuple[float, float]:
         busy = {self.h.id: 0.0, self.r.id: 0.0}
         for action in self.joint:  # the person works it too, from the robot's start to its end
@@ -978,17 +800,5 @@ class _Run(Standoffs):
                 a, b = times.get(f"{self.r.id}.{phase}.{action}.start"), times.get(f"{self.r.id}.{phase}.{action}.end")
                 if a is not None and b is not None:
                     busy[self.h.id] += min(b, span) - min(a, span)
-        for name, t in times.items():
-            if name.count(".") != 3:
-                continue
-            base, what = name.rsplit(".", 1)
-            agent = name.split(".", 1)[0]
-            if agent not in busy:
-                continue
-            if what == "end" and base + ".start" in times:
-                busy[agent] += min(t, span) - min(times[base + ".start"], span)
-            elif what == "arrive" and base + ".depart" in times:
-                busy[agent] += min(t, span) - min(times[base + ".depart"], span)
-                if base + ".unpark" in times and base + ".park" in times:
-                    busy[agent] -= times[base + ".unpark"] - times[base + ".park"]
+        add_busy(busy, times, span)
         return busy[self.h.id], busy[self.r.id]

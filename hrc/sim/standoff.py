@@ -49,6 +49,7 @@ import numpy as np
 
 from hrc.model import Task
 from hrc.motion import separation
+from hrc.sim.agents import AgentLoop
 from hrc.sim.floor import Mover
 from hrc.sim.giveway import Disc, Ways, polyline_length, samples
 from hrc.sim.policies import Controller, Order, SimRoute
@@ -119,7 +120,7 @@ class AgentState:
     moved: float = 0.0  # moving time of the current travel so far, pauses excluded
 
 
-class Standoffs:
+class Standoffs(AgentLoop[AgentState]):
     """The standoff rules (module docstring), as methods of the run loop that derives from this."""
 
     task: Task
@@ -131,9 +132,6 @@ class Standoffs:
     standoffs: int
     room_for: AgentState | None  # the agent room was last made for
 
-    def ready(self, action: str, phase: str) -> bool:
-        raise NotImplementedError
-
     def guide(self, action: str, phase: str, event: str) -> float:
         raise NotImplementedError
 
@@ -143,9 +141,6 @@ class Standoffs:
         (a spot nearer its way would leave the robot stopped by its own controller: `hrc.sim.ssm`)."""
         robot = next(a for a in self.task.agents if not a.is_human)
         return separation.reach(self.task, robot.speed)
-
-    def _clearance(self, a: AgentState) -> float:
-        return a.mover.agent.radius + self.task.safety_margin
 
     def _stuck(self, a: AgentState) -> float:
         """Seconds `a` has wanted to go on and could not because of the co-worker."""

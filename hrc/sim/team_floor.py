@@ -32,11 +32,21 @@ from __future__ import annotations
 import math
 from itertools import combinations
 
-import pymunk
-
-from hrc.model import Agent, Task
+from hrc.model import Task
 from hrc.motion.world import World
-from hrc.sim.floor import CONTACT, MAX_STEP, MIN_STEP, QUERY_GAP, Mover, _closest, _entry
+from hrc.sim.floor import (
+    CONTACT,
+    MAX_STEP,
+    MIN_STEP,
+    QUERY_GAP,
+    Floor,
+    Mover,
+    _closest,
+    _entry,
+    add_mover,
+    tally,
+    time_to_stop,
+)
 
 __all__ = ["TeamFloor", "is_team"]
 
@@ -58,7 +68,7 @@ class TeamFloor:
         self.world = World(task.workspace)
         self.margin = task.safety_margin
         self.slowdown = slowdown
-        self.movers: dict[str, Mover] = {a.id: self._mover(a) for a in task.agents}
+        self.movers: dict[str, Mover] = {a.id: add_mover(self.world, task, a) for a in task.agents}
         self.people = tuple(self.movers[a.id] for a in task.agents if a.is_human)
         self.robots = tuple(self.movers[a.id] for a in task.agents if not a.is_human)
         self.pairs = tuple(combinations(task.agent_ids, 2))  # task order: (a, b) with a before b
@@ -66,13 +76,6 @@ class TeamFloor:
         self.contacts: dict[tuple[str, str], int] = {p: 0 for p in self.pairs}
         self.cowork: frozenset[tuple[str, str]] = frozenset()  # (person, robot) pairs co-working now
         self.cowork_time = 0.0  # s in which some pair co-worked
-
-    def _mover(self, agent: Agent) -> Mover:
-        xy = self.task.workspace.location(agent.start).xy
-        body = self.world.add_agent(agent, *xy)
-        shape = next(iter(body.shapes))
-        assert isinstance(shape, pymunk.Circle)
-        return Mover(agent, body, shape, xy)
 
     # -- distances ---------------------------------------------------------------------------------------
 
@@ -111,12 +114,10 @@ class TeamFloor:
 
     # -- time --------------------------------------------------------------------------------------------
 
-    @staticmethod
-    def time_to_stop(m: Mover) -> float:
-        if not m.moving or m.speed <= 0:
-            return math.inf
-        return m.remaining / m.speed
+    time_to_stop = staticmethod(time_to_stop)
 
+    # `safe_step` and `advance` stay apart from `Floor`'s: the one-pair floor's steps carry speed and
+    # separation monitoring and co-work of its one pair (and `_sync` is being reworked on its own branch).
     def safe_step(self) -> float:
         """A step (s) short enough that no two agents come near each other in it unseen: for every pair of
         which both move (or a robot moves near a person with a `slowdown` band), half the time their joint
@@ -163,10 +164,7 @@ class TeamFloor:
             got = min(got, self._reach(m, want, r.xy, m.agent.radius + r.agent.radius + floor))
         self._measure(m, got, stops + [p for p in self.people if p is not m])
         self._move(m, got)
-        m.travelled += h
-        if want > 0 and got < want - 1e-9:
-            m.held += h * (1 - got / want)
-        m.blocked_for = m.blocked_for + h if want > 0 and got < want / 2 else 0.0
+        tally(m, h, want, got, got)
 
     def _robot_step(self, m: Mover, h: float) -> None:
         want = min(m.speed * h, m.remaining)
@@ -192,11 +190,7 @@ class TeamFloor:
         self._move(m, got)
         if got <= 1e-12 and closing_in and m.s > 0:  # a person keeps coming: make room, back along the route
             self._back_off(m, m.speed * h / 2, people)
-        m.travelled += h
-        full = min(m.speed * h, m.remaining + max(0.0, got))
-        if full > 0 and got < full - 1e-9:
-            m.held += h * (1 - max(0.0, got) / full)
-        m.blocked_for = m.blocked_for + h if full > 0 and got < full / 2 else 0.0
+        tally(m, h, min(m.speed * h, m.remaining + max(0.0, got)), got, max(0.0, got))
 
     @staticmethod
     def _reach(m: Mover, want: float, centre: Point, reach: float) -> float:
@@ -220,6 +214,9 @@ class TeamFloor:
             if math.dist(m.xy, o.xy) - got - radii < self.min_free[key]:
                 self.min_free[key] = min(self.min_free[key], _closest(m, m.s + got, *o.xy) - radii)
 
+    # Apart from the one-pair floor's `Floor._walk` on purpose: the step is split into how far (`_reach`,
+    # against every other disc) and the move, and a move never goes back (`max(0, got)`); `_walk` moves by
+    # its one limit as computed, so one shared walk would change the one-pair floor's numbers in the last bit.
     @staticmethod
     def _move(m: Mover, got: float) -> None:
         m.s += max(0.0, got)
@@ -267,8 +264,4 @@ class TeamFloor:
                    for hit in hits):
                 self.contacts[self._key(m, n)] += 1
 
-    def place(self, m: Mover, xy: Point) -> None:
-        """Put `m` at `xy`, standing."""
-        m.xy = xy
-        m.points, m.cum, m.s, m.moving = [xy], [0.0], 0.0, False
-        m.body.position = xy
+    place = staticmethod(Floor.place)

@@ -21,57 +21,25 @@ from typing import Any
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 from hrc.compile.temporal_net_creator import leg_timepoint
-from hrc.errors import HrcError
 from hrc.plans import agent_legs
 from hrc.sim.detector import Happening
-from hrc.sim.policies import Order, Policy, SimRoute, leg_route
+from hrc.sim.policies import Answering, Order, Policy, SimRoute, hinted, leg_route, order_of
 from hrc.sim.run import SimContext
 
 __all__ = ["TeamController", "TeamDispatched", "TeamFixed", "make_team_controller"]
 
 
-class TeamDispatched:
+class TeamDispatched(Answering):
     """The dispatcher in charge of every robot (`Decision.robots`), each person reading their own hint."""
 
     def __init__(self, dispatcher: Any, cps: CompiledPlanSet, ctx: SimContext, blind: bool) -> None:
-        self.d, self.cps, self.real, self.blind = dispatcher, cps, ctx.paths, blind
-        self.by_id = {cp.plan.id: cp for cp in cps.plans}
-        self.latencies: list[float] = []
-        self.refused: list[str] = []
-        self.switches = 0
+        super().__init__(dispatcher, cps, ctx.paths, blind)
         self._orders: tuple[Any, dict[str, Order | None]] = (None, {})
-        self._times: dict | None = None
-        dec = dispatcher.decision
-        self.first_plan = self.plan_id = dec.plan
-        self.first_class = self.plan_class = dec.plan_class
-        self.stopped = bool(dec.stopped)
 
     def observe(self, h: Happening) -> None:
-        import time
-
-        from hrc.dispatch import Observation
-
-        obs = Observation(t=round(h.t, 3), event=h.event, agent=h.agent, action=h.action, phase=h.phase,
-                          delay=h.delay)
-        t0 = time.perf_counter()
-        try:
-            dec = self.d.observe(obs)
-        except HrcError as err:  # refused, state unchanged
-            self.latencies.append(time.perf_counter() - t0)
-            self.refused.append(f"{obs.t:.3f} {h.agent}.{h.action}.{h.phase}.{h.event}: {str(err).splitlines()[0]}")
-            return
-        self.latencies.append(time.perf_counter() - t0)
-        self._times = None
-        if dec.plan != self.plan_id and dec.plan is not None:
-            if self.plan_id is not None:
-                self.switches += 1
-            if self.first_plan is None:
-                self.first_plan, self.first_class = dec.plan, dec.plan_class
-        self.plan_id, self.plan_class = dec.plan, dec.plan_class
-        self.stopped = bool(dec.stopped)
-
-    def tick(self, t: float) -> None:
-        self.observe(Happening(t, "", "tick"))
+        dec = self._answer(self._observation(h), h)
+        if dec is not None:
+            self._after(dec)
 
     def order(self, robot: str) -> Order | None:
         """`robot`'s entry of the answer as an order (made once per answer)."""
@@ -80,31 +48,21 @@ class TeamDispatched:
             self._orders = (dec, {})
         made = self._orders[1]
         if robot not in made:
-            step = (dec.robots or {}).get(robot)
-            if step is None and dec.fallback == "wait":
-                made[robot] = Order("", "", "wait")
-            elif step is None:
-                made[robot] = None
-            elif hasattr(step, "earliest"):
-                made[robot] = Order(step.action, step.phase, step.event, float(step.earliest),
-                                    None if step.latest is None else float(step.latest))
-            else:
-                made[robot] = Order(step.action, step.phase, "wait")
+            made[robot] = order_of((dec.robots or {}).get(robot), dec.fallback)
         return made[robot]
 
-    def current(self) -> CompiledPlan | None:
-        return self.by_id.get(self.plan_id) if self.plan_id is not None else None
-
     def human_next(self, person: str, taken: Mapping[str, str]) -> str | None:
-        hint = (self.d.decision.people or {}).get(person)
-        if hint is not None and getattr(hint, "event", "") == "depart" and hasattr(hint, "earliest") \
-                and hint.action not in taken:
-            return str(hint.action)
+        hint = hinted((self.d.decision.people or {}).get(person), taken)
+        if hint is not None:
+            return hint
         cp = self.current()
         if cp is None:
             return None
         return next((a for a in cp.plan.sequence(person) if a not in taken), None)
 
+    # Apart from `DispatchedController.guide_time` on purpose: each person's own hint and instruction ahead
+    # (`Decision.people`, `aheads`), and no widening of an instruction ahead to the person's whole stay
+    # (`_in_stay`, built for the one person's console).
     def guide_time(self, person: str, action: str, phase: str, event: str) -> float | None:
         """When `person` does this event, from their own part of the answers (`DispatchedController.guide_time`
         for one person): their hint's earliest when it is about this event, inf when it says to wait; their

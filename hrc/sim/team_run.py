@@ -38,13 +38,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hrc.plans import must_precede
+from hrc.sim.agents import AgentLoop, acknowledged, add_busy
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import MIN_STEP, Mover
 from hrc.sim.giveway import Ways
 from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
-from hrc.sim.replay import broken_constraints, executed, plan_network, timepoint_times
 from hrc.sim.run import AgentFrame, RunResult, SimContext
 from hrc.sim.team_floor import TeamFloor
 from hrc.sim.team_policies import TeamController, TeamDispatched, make_team_controller
@@ -52,7 +51,6 @@ from hrc.sim.team_policies import TeamController, TeamDispatched, make_team_cont
 __all__ = ["simulate_team_run"]
 
 _EPS = 1e-9
-_ACK = 0.002  # s: a robot's acknowledgement snaps into its window when this close to it
 _HELD = 2.0  # s: an agent held up this long makes the loop look at the floor again at least this often
 
 
@@ -87,7 +85,11 @@ class _Agent:
         self.draws = draws
 
 
-class _TeamRun:
+class _TeamRun(AgentLoop[_Agent]):
+    ctx: SimContext
+    ctl: TeamController
+    joint: dict[str, tuple[str, ...]]
+
     def __init__(self, ctx: SimContext, policy: Policy, draws: dict[str, HumanDraws], ctl: TeamController,
                  record: bool) -> None:
         self.ctx, self.policy, self.ctl, self.record = ctx, policy, ctl, record
@@ -102,16 +104,7 @@ class _TeamRun:
         self.people = [self.agents[a.id] for a in task.agents if a.is_human]
         self.robots = [self.agents[a.id] for a in task.agents if not a.is_human]
         self.robot_q = next(iter(draws.values())).robot  # the robots' duration quantiles (one per phase)
-        self.t = 0.0
-        self.happenings: list[Happening] = []
-        self.started: dict[str, str] = {}
-        self.ended: set[tuple[str, str]] = set()
-        self.phases = {a.id: tuple(p.id for p in a.phases) for a in task.actions}
-        self.preds: dict[tuple[str, str], list[tuple[str, str]]] = {}
-        for pr in task.precedence:
-            self.preds.setdefault((pr.after.action, pr.after.phase), []).append((pr.before.action, pr.before.phase))
-        self.before = must_precede(task)
-        self.total = sum(len(v) for v in self.phases.values())
+        self._init_task(task, s.time_cap)
         self.joint = {a.id: a.agents for a in task.actions if a.joint}
         self.joined: dict[str, set[str]] = {a: set() for a in self.agents}  # joint actions each agent left for
         self.joint_stay: dict[str, str] = {}  # agent -> the joint spot of its stay (until it is elsewhere)
@@ -125,8 +118,6 @@ class _TeamRun:
         self.excess = 0.0
         self.finished_at: float | None = None
         self.frames: list[AgentFrame] = []
-        deadline = task.deadline if task.deadline is not None else 120.0
-        self.cap = s.time_cap if s.time_cap is not None else 5 * deadline
 
     # -- bookkeeping ---------------------------------------------------------------------------------
 
@@ -144,21 +135,15 @@ class _TeamRun:
         if a.human:
             self.detector.see(h)
             return
-        t = self.t
-        o = self.ctl.order(a.id)
-        if o is not None and (o.action, o.phase, o.event) == (action, phase, event):
-            if t < o.earliest - _EPS and o.earliest - t <= _ACK:
-                t = o.earliest
-            if o.latest is not None and t > o.latest + _EPS and t - o.latest <= _ACK:
-                t = o.latest
-            if t < o.earliest - _ACK or (o.latest is not None and t > o.latest + _ACK):
-                self.late += 1
+        t, late = acknowledged(self.t, self.ctl.order(a.id), event, action, phase)
+        self.late += late
         self._tell(Happening(max(t, self.last_obs), a.id, event, action, phase))
 
-    def _tell(self, h: Happening) -> None:
-        self.last_obs = max(self.last_obs, h.t)
-        self.ctl.observe(h)
+    def _robot(self, a: _Agent) -> bool:
+        return not a.human
 
+    # The bookkeeping of `emit` stays apart from the one-pair loop's (`_Run.emit`, `_joint_emit`): there a
+    # motion tracker may stand between the person and the dispatcher, and the joint notes are the pair's.
     def _joint_note(self, a: _Agent, event: str, action: str, phase: str) -> None:
         if event == "end":
             for ag in self.joint.get(action, (a.id,)):
@@ -170,85 +155,15 @@ class _TeamRun:
         elif event == "arrive" and self.joint_stay.get(a.id) != where:
             self.joint_stay.pop(a.id, None)
 
-    def ready(self, action: str, phase: str) -> bool:
-        return all(p in self.ended for p in self.preds.get((action, phase), ()))
-
-    def done(self) -> bool:
-        return len(self.ended) == self.total
-
     def taken(self, a: _Agent) -> dict[str, str]:
         """`started` as `a` reads it: a joint action of theirs is theirs to go to until they have left for it."""
         return {x: ag for x, ag in self.started.items()
                 if x not in self.joint or a.id not in self.joint[x] or x in self.joined[a.id]}
 
-    def route_for(self, a: _Agent, action: str, phase: str) -> SimRoute:
-        target = self.task.action(action).phase(phase).location
-        route = self.ctl.route(a.id, action, phase)
-        if route is not None and math.dist(route.points[0], a.mover.xy) < 1e-6 \
-                and math.dist(route.points[-1], self.ctx.paths.locations[target]) < 1e-6:
-            return route
-        if a.loc is None:  # somewhere on the floor (gave up a leg): the roadmap's way from there
-            goal = self.ctx.paths.locations[target]
-            return SimRoute(self.ways.route(a.mover.agent.radius + self.task.safety_margin, a.mover.xy, goal)
-                            or (a.mover.xy, goal))
-        return SimRoute(self.ctx.paths.get(a.id, a.loc, target).points)
-
-    def depart(self, a: _Agent, action: str, phase: str, speed: float) -> None:
-        route = self.route_for(a, action, phase)
-        a.route, a.parked, a.mode, a.moved = route, False, "travel", 0.0
-        length = sum(math.dist(p, q) for p, q in zip(route.points, route.points[1:], strict=False))
-        a.predicted = length / a.mover.agent.speed
-        a.mover.set_route(route.points, route.speed or speed, route.park_s)
-        a.loc = None
-        self.emit(a, "depart", action, phase)
-        self._arrival(a)
-
-    def _arrival(self, a: _Agent) -> bool:
-        if a.mode != "travel" or a.mover.moving:
-            return False
-        assert a.action is not None
-        phase = self.phases[a.action][a.pi]
-        if a.route is not None and a.route.park_s is not None and not a.parked:
-            a.parked, a.mode = True, "parked"
-            self.emit(a, "park", a.action, phase)
-            return True
-        a.mode, a.loc = "arrived", self.task.action(a.action).phase(phase).location
-        if not a.human:
-            self.excess += max(0.0, a.moved - a.predicted)
-        self.emit(a, "arrive", a.action, phase)
-        return True
-
-    def go_home(self, a: _Agent) -> bool:
-        if a.loc == a.home:
-            return False
-        home = self.ctx.paths.locations[a.home]
-        if a.loc is None:
-            if math.dist(a.mover.xy, home) < 1e-6:
-                a.loc = a.home
-                return False
-            points: tuple = self.ways.route(a.mover.agent.radius + self.task.safety_margin, a.mover.xy, home) \
-                or (a.mover.xy, home)
-        else:
-            points = self.ctx.paths.get(a.id, a.loc, a.home).points
-        a.mover.set_route(points, a.mover.agent.speed)
-        a.mode, a.loc = "home", None
-        return True
-
     def _home(self, a: _Agent) -> bool | None:
-        if a.mode == "home":
-            if a.mover.moving:
-                return False
-            a.mode, a.loc = "free", a.home
-            self.joint_stay.pop(a.id, None)
+        if self._home_reached(a):
             return True
-        return None
-
-    def _next_phase(self, a: _Agent) -> None:
-        assert a.action is not None
-        a.pi += 1
-        if a.pi >= len(self.phases[a.action]):
-            a.action, a.pi = None, 0
-        a.mode = "free"
+        return False if a.mode == "home" else None
 
     # -- the people ------------------------------------------------------------------------------------
 
@@ -305,21 +220,13 @@ class _TeamRun:
                           if math.dist(xy, a.mover.xy) < 1e-6), None)
             return True
         if a.mode == "travel":
-            return self._arrival(a)
+            return self._arrival_check(a)
         assert a.action is not None
         phase = self.phases[a.action][a.pi]
         if a.mode == "parked":
-            if t >= self.guide(a, a.action, phase, "unpark") - _EPS:
-                a.mode = "travel"
-                a.mover.resume()
-                self.emit(a, "unpark", a.action, phase)
-                return True
-            return False
+            return t >= self.guide(a, a.action, phase, "unpark") - _EPS and self._unpark(a, phase)
         if a.action in self.joint:  # the lead starts and ends it (`_joint_start`)
-            if a.mode == "work" and (a.action, phase) in self.ended:
-                self._next_phase(a)
-                return True
-            return False
+            return self._joint_done(a, phase)
         if a.mode == "arrived":
             if self.ready(a.action, phase) and t >= self.guide(a, a.action, phase, "start") - _EPS:
                 assert a.draws is not None
@@ -328,11 +235,7 @@ class _TeamRun:
                 self.emit(a, "start", a.action, phase)
                 return True
             return False
-        if a.mode == "work" and t >= a.work_end - _EPS:
-            self.emit(a, "end", a.action, phase)
-            self._next_phase(a)
-            return True
-        return False
+        return a.mode == "work" and self._work_done(a, phase)
 
     def _taken_by_another(self, a: _Agent) -> bool:
         """`a` is on the way to the first phase of an action (not a joint one) that another agent left for
@@ -372,19 +275,6 @@ class _TeamRun:
         if any((ag, o.action, o.phase) not in arrived for ag in self.joint[o.action] if ag != r.id):
             self.told_early.add((o.action, o.phase))
 
-    def _next_of(self, a: _Agent, step: tuple[str, str]) -> tuple[str, str] | None:
-        action, phase = step
-        phases = self.phases[action]
-        i = phases.index(phase)
-        if i + 1 < len(phases):
-            return (action, phases[i + 1])
-        cp = self.ctl.current()
-        seq = () if cp is None else cp.plan.sequence(a.id)
-        if action not in seq or seq.index(action) + 1 >= len(seq):
-            return None
-        nxt = seq[seq.index(action) + 1]
-        return (nxt, self.phases[nxt][0])
-
     def _joint_at(self, step: tuple[str, str], spot: str, pair: tuple[str, str]) -> bool:
         return step[0] in self.joint and set(pair) <= set(self.joint[step[0]]) \
             and self.task.action(step[0]).phase(step[1]).location == spot
@@ -399,11 +289,6 @@ class _TeamRun:
         nxt = self._next_of(a, step)
         return nxt is not None and self.task.action(step[0]).phase(step[1]).location == spot \
             and self._joint_at(nxt, spot, pair)
-
-    def _now(self, a: _Agent) -> tuple[str, str] | None:
-        if a.action is not None:
-            return (a.action, self.phases[a.action][a.pi])
-        return self.last.get(a.id)
 
     def _cowork(self) -> frozenset[tuple[str, str]]:
         """The (person, robot) pairs co-working now (the one-pair loop's `_Run._cowork`, per pair of a joint
@@ -452,66 +337,39 @@ class _TeamRun:
                        for p, r in self.floor.cowork):
                     return False  # done at the joint spot: it stands until the person is out of reach
                 return False if self.ctl.stopped else self.go_home(a)
-            if o.event != "depart" or t < o.earliest - _EPS:
-                return False
-            a.action, a.pi, a.order = o.action, self.phases[o.action].index(o.phase), o
-            self.depart(a, o.action, o.phase, a.mover.agent.speed)
-            return True
+            return self._robot_depart(a, o)
         if a.mode == "travel":
-            return self._arrival(a)
+            return self._arrival_check(a)
         assert a.action is not None
         phase = self.phases[a.action][a.pi]
         mine = o is not None and (o.action, o.phase) == (a.action, phase)
         if a.mode == "parked":
-            if mine and o is not None and (o.event == "arrive" or (o.event == "unpark" and t >= o.earliest - _EPS)):
-                a.order, a.mode = o, "travel"
-                a.mover.resume()
-                self.emit(a, "unpark", a.action, phase)
-                return True
-            return False
+            return self._robot_parked(a, o, mine, phase)
         joint = a.action in self.joint
         if joint and self.task.lead(a.action) != a.id:  # another robot leads it: work from its start to its end
-            if a.mode == "work" and (a.action, phase) in self.ended:
-                self._next_phase(a)
-                return True
-            return False
+            return self._joint_done(a, phase)
         if a.mode == "arrived":
             if mine and o is not None and o.event == "start" and t >= o.earliest - _EPS and self.ready(a.action, phase):
                 if joint and not all(self._there(self.agents[ag], a.action, phase)
                                      for ag in self.joint[a.action] if ag != a.id):
                     return False  # a joint action starts when all its agents are there
-                bounds = self.task.action(a.action).phase(phase).duration(a.id)
-                a.order, a.mode, a.work_start = o, "work", t
-                a.duration = bounds.lb + self.robot_q[(a.action, phase)] * (bounds.ub - bounds.lb)
-                self.emit(a, "start", a.action, phase)
+                self._robot_start(a, o, phase, self.robot_q[(a.action, phase)])
                 if joint:
                     self._joint_start(a, a.action, phase)
                 return True
             return False
         if a.mode == "work":
-            end = a.work_start + a.duration
-            if mine and o is not None and o.event == "end":
-                end = max(end, o.earliest)
-                if o.latest is not None and not joint:  # a joint end is nature's
-                    end = min(end, o.latest)
-                a.order = o
-            a.work_end = end
-            if t >= end - _EPS:
-                self.emit(a, "end", a.action, phase)
-                self._next_phase(a)
-                return True
+            return self._robot_work(a, o, mine, joint, phase)
         return False
 
     # -- the loop --------------------------------------------------------------------------------------
 
     def deliver(self) -> bool:
-        out = self.detector.release(self.t)
-        for h in out:
-            t = max(h.t, self.last_obs)
-            delay = None if h.delay is None else round(h.delay + t - h.t, 3)
-            self._tell(Happening(t, h.agent, h.event, h.action, h.phase, delay))
-        return bool(out)
+        return self._deliver_detected()
 
+    # `next_time`, `run` and `_result` stay apart from `_Run`'s: the one pair has absences, stand-offs,
+    # compile on demand and a motion detector's drain, and a stall rule of its own (an agent making room
+    # waits on purpose); a team's result has its per-agent and per-pair part.
     def next_time(self) -> float:
         t = self.t
         cands = [self.detector.next_due()]
@@ -614,24 +472,12 @@ class _TeamRun:
 
     def _result(self, index: int, reason: str) -> RunResult:
         task = self.task
-        finished = self.done()
-        times = timepoint_times(self.happenings)
-        ends = [h.t for h in self.happenings if h.event == "end"]
-        makespan = max(ends) if finished and ends else None
-        deadline_met = finished and (task.deadline is None or (makespan or 0.0) <= task.deadline + 1e-3)
-        limits_met = deadline_met and self._constraints_met()
-        span = makespan if makespan is not None else self.t
+        finished, times, makespan, deadline_met, limits_met, span = self._outcome()
         busy = self._busy(times, span)
         seqs = {a: tuple(dict.fromkeys(h.action for h in self.happenings
                                        if h.agent == a and h.event == "depart" and h.action)) for a in self.agents}
         ctl = self.ctl
-        cps = self.ctx.compiles[self.policy.compile]
-        first_cp = next((cp for cp in cps.plans if cp.plan.id == ctl.first_plan), None)
-        alloc = {x: (task.lead(x) if x in self.joint else ag) for x, ag in self.started.items()}
-        kept = first_cp is not None and finished and executed(first_cp, alloc, seqs)
-        broken: tuple[str, ...] = ()
-        if kept and first_cp is not None:
-            broken = tuple(broken_constraints(plan_network(cps, first_cp), times))
+        first_cp, kept, broken = self._first_kept(self.ctx.compiles[self.policy.compile], finished, times, seqs)
         floor = self.floor
         separation = floor.separation()
         idle = {a: max(0.0, span - busy[a]) for a in self.agents}
@@ -670,17 +516,6 @@ class _TeamRun:
             happenings=tuple(self.happenings) if self.record else (),
             agent_frames=tuple(self.frames))
 
-    def _constraints_met(self) -> bool:
-        at: dict[str, float] = {}
-        for h in self.happenings:
-            if h.action and h.phase and h.event in ("start", "end"):
-                at.setdefault(f"{h.action}.{h.phase}.{h.event}", h.t)
-        for c in self.task.constraints:
-            a, b = at.get(str(c.source)), at.get(str(c.target))
-            if a is None or b is None or not (c.bounds.lb - 1e-3 <= b - a <= c.bounds.ub + 1e-3):
-                return False
-        return True
-
     def _busy(self, times: dict[str, float], span: float) -> dict[str, float]:
         busy = dict.fromkeys(self.agents, 0.0)
         for action, ags in self.joint.items():  # every other agent works it from the lead's start to its end
@@ -691,17 +526,5 @@ class _TeamRun:
                     for ag in ags:
                         if ag != lead:
                             busy[ag] += min(b, span) - min(a, span)
-        for name, t in times.items():
-            if name.count(".") != 3:
-                continue
-            base, what = name.rsplit(".", 1)
-            agent = name.split(".", 1)[0]
-            if agent not in busy:
-                continue
-            if what == "end" and base + ".start" in times:
-                busy[agent] += min(t, span) - min(times[base + ".start"], span)
-            elif what == "arrive" and base + ".depart" in times:
-                busy[agent] += min(t, span) - min(times[base + ".depart"], span)
-                if base + ".unpark" in times and base + ".park" in times:
-                    busy[agent] -= times[base + ".unpark"] - times[base + ".park"]
+        add_busy(busy, times, span)
         return busy
