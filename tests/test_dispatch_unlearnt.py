@@ -85,3 +85,26 @@ def test_an_unseen_departure_past_its_told_latest_keeps_the_class_and_the_best_p
                                 "latest": 71.338}
     got = json.loads(handle_line(d, log[press][0]))
     assert got["ok"] and got["plan"] == plan
+
+
+def test_a_start_pressed_later_than_its_window_by_less_than_the_delay_keeps_the_followed_plan(late_buttons):
+    """Buttons late by a delay drawn in [0, 0.5] s (seed 10): the arrival at S1 pressed 0.28 s late, the
+    start (at the same instant) 0.39 s late, 14 ms past the start's window [10.641, 10.735] told after the
+    arrival's press. Read at the press, the followed plan was inconsistent and the dispatcher moved to one
+    giving the person cube 4, which they never took: the run stalled with the first plan's constraints
+    broken. Read on the window's latest (`Dispatcher._on_bound`), the run keeps every link of its plan."""
+    from detect_client import PressingRun
+    from dispatch_client import broken_links
+    from measure_promise import routes_of
+
+    plan_set = load_plan_set(late_buttons)
+    d = Dispatcher(plan_set, threads=1)
+    routes, paths = routes_of(str(late_buttons), plan_set)
+    out = PressingRun(plan_set, lambda line: handle_line(d, line), 10, routes=routes, paths=paths, late=0.5,
+                      uniform=True).play()
+    first = plan_set.entry(plan_set.index(out.first["plan"]))
+    final = plan_set.entry(plan_set.index(out.answers[-1]["plan"]))
+    assert out.first["class"] == "DC" and not out.refused
+    assert dict(final.plan.sequences)["human"] == dict(first.plan.sequences)["human"]
+    assert broken_links(final.stnu, out.times) == []
+    assert not any("late" in (a.get("deviation") or {}) for a in out.answers)
