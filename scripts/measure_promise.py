@@ -3,7 +3,9 @@ outside driver seen by the motion detector.
 
     PYTHONPATH=. .venv/bin/python scripts/measure_promise.py OUT_DIR [--seeds 20] [--robot anywhere|near|earliest]
     PYTHONPATH=. .venv/bin/python scripts/measure_promise.py OUT_DIR --detect motion \\
-        [--sensor-sigma 0.05 --sensor-rate 10 --sensor-dropout 0] [--sensing motion | --observation-delay LO:HI]
+        [--sensor-sigma 0.05 --sensor-rate 10 --sensor-dropout 0 --sensor-latency 0]
+        [--sensing motion | --observation-delay LO:HI]
+    PYTHONPATH=. .venv/bin/python scripts/measure_promise.py OUT_DIR --buttons-late 0.5 [--buttons-uniform] [--tick 0.5]
 
 OUT_DIR is an `hrc compile` output. Each seed plays one run through `hrc.dispatch.protocol.handle_line`:
 
@@ -17,7 +19,11 @@ OUT_DIR is an `hrc compile` output. Each seed plays one run through `hrc.dispatc
   sensor's sigma), reading the answers alone. A run keeps the
   promise when its first plan is classed DC at the compile's sensing, every observation arrived within
   the stated delay (no answer with a ``deviation``), and every link of the final plan's STNU holds on the
-  true times. The same seeds are played with buttons on time for the makespan to compare with.
+  true times. The same seeds are played with buttons on time for the makespan to compare with;
+- ``--buttons-late D``: the same outside driver's person (`PressingRun`), heard through buttons instead:
+  each of their events pressed D seconds after it truly happened (``--buttons-uniform``: a delay drawn
+  uniformly in [0, D]), saying its delay, the next action announced on each end, a tick every ``--tick``
+  seconds; judged as the motion path (compile with the matching stated delay, ``sensing: buttons``).
 
 Either way the robot acts anywhere in its windows (``--robot near``: within 2 s of each opening;
 ``earliest``: at it, as `hrc simulate`'s robot).
@@ -126,12 +132,16 @@ def main() -> int:
     ap.add_argument("--sensor-sigma", type=float, default=0.05)
     ap.add_argument("--sensor-rate", type=float, default=10.0)
     ap.add_argument("--sensor-dropout", type=float, default=0.0)
+    ap.add_argument("--sensor-latency", type=float, default=0.0)
+    ap.add_argument("--buttons-late", type=float, default=None, metavar="D")
+    ap.add_argument("--buttons-uniform", action="store_true")
+    ap.add_argument("--tick", type=float, default=0.5)
     ap.add_argument("--sensing", choices=("buttons", "motion"), default=None)
     ap.add_argument("--observation-delay", metavar="LO:HI", default=None)
     args = ap.parse_args()
     plan_set = load_plan_set(args.out_dir)
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    if args.detect == "buttons":
+    if args.detect == "buttons" and args.buttons_late is None:
         base = Dispatcher(plan_set, threads=1)
         kept, spans = 0, []
         for seed in seeds:
@@ -144,15 +154,17 @@ def main() -> int:
         print(f"{kept} of {args.seeds} runs kept every constraint of the followed plan; makespan median "
               f"{statistics.median(spans):.2f} s")
         return 0
-    from detect_client import WalkingRun
+    from detect_client import PressingRun, WalkingRun
 
     from hrc.detect import DetectingDispatcher, DetectParams
     from hrc.detect.sensor import SensorModel
 
-    sensor = SensorModel(args.sensor_sigma, args.sensor_rate, args.sensor_dropout)
+    sensor = SensorModel(args.sensor_sigma, args.sensor_rate, args.sensor_dropout, args.sensor_latency)
     delay = stated_delay(args.out_dir, args.sensing, args.observation_delay)
-    detecting = DetectingDispatcher(plan_set, params=DetectParams(sigma=max(sensor.sigma, 0.01)), threads=1,
-                                    max_observation_delay=delay)
+    pressing = args.buttons_late is not None
+    detecting = Dispatcher(plan_set, threads=1, max_observation_delay=delay) if pressing else \
+        DetectingDispatcher(plan_set, params=DetectParams(sigma=max(sensor.sigma, 0.01)), threads=1,
+                            max_observation_delay=delay)
     routes, paths = routes_of(args.out_dir, plan_set)
     # buttons on time: no observation delay (the compile's stated one would read each press as up to that
     # late, and undated)
@@ -161,8 +173,13 @@ def main() -> int:
     judged, spans_b = [], []
     for seed in seeds:
         d = detecting.fork()
-        run = WalkingRun(plan_set, lambda line, d=d: handle_line(d, line), seed, routes=routes, paths=paths,
-                         sensor=sensor, robot_window=args.robot)
+        if pressing:
+            run: WalkingRun = PressingRun(plan_set, lambda line, d=d: handle_line(d, line), seed, routes=routes,
+                                          paths=paths, late=args.buttons_late, uniform=args.buttons_uniform,
+                                          tick=args.tick, robot_window=args.robot)
+        else:
+            run = WalkingRun(plan_set, lambda line, d=d: handle_line(d, line), seed, routes=routes, paths=paths,
+                             sensor=sensor, robot_window=args.robot)
         j = judge(plan_set, run.play(cap=cap))
         judged.append(j)
         spans_b.append(judge(plan_set, buttons_run(plan_set, buttons, seed, args.robot)).makespan)
@@ -175,7 +192,11 @@ def main() -> int:
     dc = [j for j in judged if j.first_class == "DC"]
     within = [j for j in dc if j.late == 0]
     md, mb = statistics.median(j.makespan for j in judged), statistics.median(spans_b)
-    print(f"motion detector {sensor.sigma:g} m / {sensor.rate:g} Hz / {100 * sensor.dropout:g} % dropouts, "
+    path = (f"buttons {args.buttons_late:g} s late ({'uniform in [0, D]' if args.buttons_uniform else 'fixed'}, "
+            f"tick {args.tick:g} s)" if pressing else
+            f"motion detector {sensor.sigma:g} m / {sensor.rate:g} Hz / {100 * sensor.dropout:g} % dropouts / "
+            f"{sensor.latency:g} s latency")
+    print(f"{path}, "
           f"stated delay {delay} s: {sum(j.kept for j in judged)} of {len(within)} runs on a DC-at-sensing "
           f"first plan with every observation within the delay kept every constraint ({len(dc)} on a DC plan); "
           f"{sum(1 for j in judged if j.late)} of {len(judged)} runs with a late observation "

@@ -22,7 +22,8 @@ motion`), and reads nothing but the answers:
   those).
 
 The tracker is `hrc.detect.sensor.Sensor` (the simulator's model: Gaussian noise per axis, a rate, lost
-positions; its own generator, ``(seed, 28)``). The true times of the person's events are the driver's
+positions, a latency from measurement to delivery; its own generator, ``(seed, 28)``). `PressingRun`:
+the same person heard through buttons pressed late instead. The true times of the person's events are the driver's
 own (`Outcome.times`, beside the robot's), so the promise is checked on what happened, never on what
 the detector estimated.
 """
@@ -251,9 +252,85 @@ class WalkingRun(Run):
                 self._human_did(human[1])
                 continue
             self.sensor.measure(sample, self.position(sample))
+            before = self.now  # a position lagging by the tracker's latency does not move the clock back
             for t, x, y in self.sensor.due(sample):
                 self.positions += 1
                 answer = self._say({"t": t, "agent": self.human, "event": "position", "x": x, "y": y})
                 assert answer["ok"], answer
-            self.now = max(self.now, sample)
+            self.now = max(before, self.now, sample)
+        raise AssertionError("the run did not end")
+
+
+class PressingRun(WalkingRun):
+    """The person of `WalkingRun` (the same steps, read from the answers alone), heard through buttons
+    pressed late instead of seen: each of their events (departure, arrival, stop, start, end) is pressed
+    `late` seconds after it truly happened (`uniform`: a delay drawn uniformly in ``[0, late]`` with the
+    driver's own generator, ``(seed, 29)``), each press no earlier than the one before (a later press of
+    an earlier event holds the next back: still within ``late`` of it), saying its ``delay`` as the
+    simulator's buttons do, and announcing the next action of the followed plan on each action's end
+    press. The dispatcher's clock moves with a tick every `tick` seconds (a console's clock) besides the
+    robot's messages and the presses. `Outcome.times` holds the true times; the presses never enter it."""
+
+    def __init__(self, plan_set: PlanSet, send: Callable[[str], str], seed: int, *,
+                 routes: Callable[[str], Mapping[str, list[dict[str, Any]]]], paths: PathLibrary,
+                 late: float, uniform: bool = False, tick: float = 0.5, robot_window: str = "anywhere") -> None:
+        super().__init__(plan_set, send, seed, routes=routes, paths=paths, sensor=SensorModel(),
+                         robot_window=robot_window)
+        self.late, self.uniform, self.tick = late, uniform, tick
+        self.delays = np.random.default_rng([seed, 29])
+        self.presses: list[tuple[float, dict]] = []  # (when pressed, the message), in time order
+        self.pressed: list[float] = []  # each press's delay (s)
+
+    def _human_did(self, msg: dict) -> None:
+        super()._human_did(msg)
+        t = self.out.times[(self.human, msg["action"], msg["phase"], msg["event"])]
+        delay = float(self.delays.uniform(0.0, self.late)) if self.uniform else self.late
+        at = round(max(t + delay, self.presses[-1][0] if self.presses else 0.0, self.now), 3)
+        press = {"t": at, "agent": self.human, "action": msg["action"], "phase": msg["phase"],
+                 "event": msg["event"], "delay": round(at - t, 3)}
+        phases = [p.id for p in self.task.action(msg["action"]).phases]
+        if msg["event"] == "end" and msg["phase"] == phases[-1]:
+            nxt = self._next_action()
+            if nxt is not None:
+                press["next"] = nxt
+        self.presses.append((at, press))
+        self.pressed.append(press["delay"])
+
+    def _say(self, obj: dict) -> dict:
+        key = (obj.get("agent"), obj.get("action"), obj.get("phase"), obj.get("event"))
+        true = self.out.times.get(key) if obj.get("agent") == self.human else None  # type: ignore[arg-type]
+        answer = super()._say(obj)
+        if true is not None:  # a press: the event's time stays the true one
+            self.out.times[key] = true  # type: ignore[index]
+        return answer
+
+    def play(self, max_messages: int = 100_000, cap: float = 600.0) -> Outcome:  # type: ignore[override]
+        self.out.first = self._say({"t": 0.0, "event": "tick"})
+        self.follow = self.decision["plan"]
+        next_tick = self.tick
+        for _ in range(max_messages):
+            human = self._human_step()
+            robot = self._robot_step()
+            if human is None and robot is None and not self.presses and self.home_at is not None \
+                    and self.now >= self.home_at and self.decision.get("robot") is None:
+                return self.out
+            if self.now > cap:
+                return self.out  # stuck: what never happened shows in `broken_links`
+            press = self.presses[0][0] if self.presses else math.inf
+            first = min(press, robot[0] if robot is not None else math.inf,
+                        human[0] if human is not None else math.inf, next_tick)
+            if press <= first:
+                answer = self._say(self.presses.pop(0)[1])
+                assert answer["ok"], answer
+            elif robot is not None and robot[0] <= first:
+                answer = self._say(robot[1])
+                assert answer["ok"], (robot[1], answer)
+                self.r_key = None
+            elif human is not None and human[0] <= first:
+                self._human_did(human[1])
+            else:
+                if next_tick >= self.now:
+                    answer = self._say({"t": round(next_tick, 3), "event": "tick"})
+                    assert answer["ok"], answer
+                next_tick = round(next_tick + self.tick, 3)
         raise AssertionError("the run did not end")

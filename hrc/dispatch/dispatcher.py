@@ -94,6 +94,7 @@ class _State:
     lead: np.ndarray | None  # per candidate: 1 for a DC plan that gives up the followed person's part
     deviation: Mapping[str, Any] | None  # this answer's: an observation later than the stated delay
     hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]  # what the person was told (`_hinted`)
+    read: bool = False  # cls, finish, idle from the person's events as they may truly have happened (`_reading`)
 
 
 class Dispatcher:
@@ -367,7 +368,9 @@ class Dispatcher:
         """`hinted` with the window `decision` gives the person for their next event, not yet seen: the
         hint's (`Decision.human`), or the instruction ahead's (`Decision.ahead`: the robot's event seen plus
         the gap, no latest), widened to every window told for it so far (the person may have acted on an
-        earlier one before the dispatcher learnt it: a hint's earliest moves up with the clock). Kept only
+        earlier one before the dispatcher learnt it: a hint's earliest moves up with the clock); not once
+        the latest told has passed, less than the stated delay ago (the person did it as told: `_unlearnt`;
+        a window told again then, from the reading "not yet", let a late button's time in). Kept only
         where a sensing path may err or be late (`_hinted` reads it)."""
         if self.bound_tolerance <= 0 and not self.max_observation_delay:
             return hinted
@@ -384,6 +387,9 @@ class Dispatcher:
         if window is None or key in history.times:
             return hinted
         before = hinted.get(key)
+        if before is not None and before[1] != NO_BOUND and \
+                before[1] < ticks(history.now) <= before[1] + ticks(self.max_observation_delay or 0.0):
+            return hinted  # its latest has passed unlearnt: done as told (`_unlearnt`), not told again
         if before is not None:
             window = (min(before[0], window[0]), NO_BOUND if NO_BOUND in (before[1], window[1])
                       else max(before[1], window[1]))
@@ -423,10 +429,19 @@ class Dispatcher:
         `bound_tolerance` of it, or within the span its sensing path states for it (`_span`), before its
         earliest, or after its latest but not before now: a sensor's estimate that close cannot tell the
         person from one who did as told, and reading it as a violation turned DC plans inconsistent (issue
-        32: departures estimated 2-40 ms before a hinted earliest)."""
+        32: departures estimated 2-40 ms before a hinted earliest). An undated press (buttons: no tolerance,
+        a stated delay) after the latest told, by no more than the stated delay, is read on it: the event
+        may have happened by then (a start pressed 0.39 s late after an arrival pressed 0.28 s late read 14 ms
+        past its window; the followed plan turned inconsistent and the dispatcher moved to a plan giving the
+        person another action: the outside driver, workshop, buttons uniform in [0, 0.5] s, seed 10)."""
         tol = self.bound_tolerance
         state = self._state
         hint = state.decision.human
+        if tol <= 0 and self.max_observation_delay and isinstance(hint, RobotStep) and hint.latest is not None \
+                and obs.event in LEG_EVENTS and obs.agent == state.history.human and \
+                (hint.action, hint.phase, hint.event) == (obs.action, obs.phase, obs.event) and \
+                hint.latest < obs.t <= hint.latest + self.max_observation_delay and hint.latest >= state.history.now:
+            return replace(obs, t=hint.latest)  # an undated press up to the stated delay after the latest told
         if tol <= 0 or obs.event not in LEG_EVENTS or obs.agent != state.history.human or \
                 not isinstance(hint, RobotStep) or (hint.action, hint.phase, hint.event) != (obs.action, obs.phase,
                                                                                                  obs.event):
@@ -534,8 +549,12 @@ class Dispatcher:
             hinted = previous.hinted if previous is not None else MappingProxyType({})
         seen, legs_seen = core if core is not None else seen_arrays(history, form.nodes.shape[2])
         now = ticks(history.now)
-        if previous is not None and previous.now == now and np.array_equal(previous.seen, seen) and \
-                np.array_equal(previous.legs_seen, legs_seen) and len(previous.plans):
+        read = self._reading(history, kept, (seen, legs_seen), hinted, previous)
+        if read is not None:
+            cls, finish, idle = read
+        elif previous is not None and not previous.read and previous.now == now and \
+                np.array_equal(previous.seen, seen) and np.array_equal(previous.legs_seen, legs_seen) and \
+                len(previous.plans):
             where = np.minimum(np.searchsorted(previous.plans, kept), len(previous.plans) - 1)
             known = previous.plans[where] == kept
             cls, finish, idle = previous.cls[where], previous.finish[where], previous.idle[where]
@@ -589,7 +608,59 @@ class Dispatcher:
         hinted = self._told(hinted, history, decision)
         return _State(history, accepted, effective, kept, cls, finish, idle, best, decision,
                       MappingProxyType(dict(do_forms)), seen, legs_seen, now, MappingProxyType(dict(told)), lead,
-                      deviation, hinted)
+                      deviation, hinted, read is not None)
+
+    def _reading(self, history: History, kept: np.ndarray, seen: tuple[np.ndarray, np.ndarray],
+                 hinted: Mapping[tuple[str, str, str, str], tuple[int, int]], previous: _State | None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """``(cls, finish, idle)`` of `kept` with the person's next event, told and not yet learnt although
+        its told latest has passed, less than the stated delay ago (`_unlearnt`), read as the windows read
+        it (`_windows`): done as told, at some time between the earliest told (not before the person's last
+        event seen) and the latest. The class is the worse of the two readings (Bhargava, Muise & Williams
+        2018: controllable under the delay when one strategy holds for every time the unobserved event may
+        have had), the remaining makespan and idle time the later one's. Read as "not yet" (the plain
+        history), the unseen departure was at now or later, past its told latest: the plan turned
+        "consistent" until the late button came, though the person had done as told, and the best plan
+        could move (issue 32). The event is the one of the plan being followed (the last best); a plan that
+        gives the person another next step is read without it. None when there is no such event (always
+        with buttons on time). While the told window is still open, the plain reading ("not yet", the
+        person may still do it) stands: the robot's windows hold for an early one too (`_windows`); reading
+        it here as well cost a set ranking per message (kitting under buttons' delay: p99 14 -> 90 ms)."""
+        if not hinted or not len(kept) or previous is None or previous.best < 0 or \
+                not np.any(kept == previous.best):
+            return None
+        form = self.plan_set.form
+        now = ticks(history.now)
+        p = previous.best
+        entry = self.plan_set.entry(p)
+        unlearnt = self._unlearnt(entry, executed(entry, history), history, hinted)
+        if unlearnt is None or unlearnt[3] is None:
+            return None
+        (_, _, _, e_name), _, lo, late, k = unlearnt
+        # not before the person's last event seen (a window told ahead may open before their work ends)
+        lo = max(lo, max((ticks(t) for key, t in history.times.items() if key[0] == history.human), default=0))
+        late = None if late is None else max(late, lo)
+        g, e = self.task.agent_ids.index(history.human), LEG_EVENTS.index(e_name)
+        counts = seen[1].copy()
+        counts[g] = max(int(counts[g]), k + 1)  # the first event of a leg not yet seen begun
+        readings = []
+        for t in (lo, late):
+            arr = seen[0].copy()
+            arr[g, k, e] = t
+            readings.append((arr, counts))
+        other = form.nodes[kept, g, k, e] < 0  # the plans whose person has another next step
+        n = len(history.actions_seen(history.human))
+        if k >= len(history.legs.get(history.human, ())) and n < form.seq.shape[2]:  # a leg not yet begun
+            other |= form.seq[kept, g, n] != form.seq[p, g, n]
+        mine = kept[~other]
+        cls_lo, _, _ = self.ranker.evaluate(mine, *readings[0], now)
+        cls_hi, finish_hi, idle_hi = self.ranker.evaluate(mine, *readings[1], now)
+        if not other.any():
+            return np.maximum(cls_lo, cls_hi), finish_hi, idle_hi
+        cls, finish, idle = (np.empty(len(kept), dtype=c.dtype) for c in (cls_hi, finish_hi, idle_hi))
+        cls[~other], finish[~other], idle[~other] = np.maximum(cls_lo, cls_hi), finish_hi, idle_hi
+        cls[other], finish[other], idle[other] = self.ranker.evaluate(kept[other], seen[0], seen[1], now)
+        return cls, finish, idle
 
     def _per_agent(self, steps: Mapping[str, RobotStep | WaitFor | None], aheads: Mapping[str, Ahead],
                    history: History) -> dict[str, Any]:
