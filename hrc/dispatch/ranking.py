@@ -252,8 +252,10 @@ class Ranker:
              lead: np.ndarray | None = None) -> int:
         """The position in `plans` of the best plan by `rank_key` (-1 if `plans` is empty): successive
         minima over the key's columns, O(len(plans))."""
-        if not len(plans):
-            return -1
+        if len(plans) <= 1:
+            return len(plans) - 1
+        if len(plans) <= 64:  # a few plans: one stable sort by the whole key (the same first one) costs less
+            return int(np.lexsort(self._columns(plans, cls, finish, idle, lead)[::-1])[0])
         at = np.arange(len(plans))
         for column in self._columns(plans, cls, finish, idle, lead):
             values = column[at]
