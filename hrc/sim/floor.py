@@ -142,6 +142,7 @@ class Floor:
         self.cowork = False  # the person and the standing robot co-work at a joint spot (module docstring)
         self.cowork_time = 0.0
         self._pair_filter = pymunk.ShapeFilter()
+        self._unsynced: tuple[Point, Point] | None = None  # where the bodies go before pymunk is next used
         self.ssm = None if task.safety is None else SsmTally(task.safety)
         if task.safety is not None:  # the robot keeps S_p(0) at least; driving, the band up to S_p at its speed
             self.margin = protective_separation(task.safety, 0.0).total
@@ -242,6 +243,7 @@ class Floor:
             hm.travelled += h
             hm.blocked_for = 0.0
         self.cowork_time += h
+        self._flush()
         for m in (hm, rm):
             m.body.position = m.xy
 
@@ -286,10 +288,10 @@ class Floor:
         if self.human.present:
             free = self.free()
             self.min_free = min(self.min_free, free)
-            if free > QUERY_GAP:
-                for m in (self.human, self.robot):
-                    m.body.position = m.xy
+            if free > QUERY_GAP:  # the bodies are moved when pymunk is next stepped or asked (`_flush`)
+                self._unsynced = (self.human.xy, self.robot.xy)
                 return
+        self._flush()
         for m in (self.human, self.robot):
             old = m.body.position
             m.body.velocity = ((m.xy[0] - old.x) / h, (m.xy[1] - old.y) / h) if h > 0 else (0.0, 0.0)
@@ -305,8 +307,17 @@ class Floor:
                    for hit in hits):
                 self.overlaps += 1
 
+    def _flush(self) -> None:
+        """The bodies where the last step left the agents, if `_sync` has not moved them there yet (pymunk
+        reads their positions only when it is stepped and asked for contacts: setting them at every step
+        cost more than the rest of a far step)."""
+        if self._unsynced is not None:
+            self.human.body.position, self.robot.body.position = self._unsynced
+            self._unsynced = None
+
     def place(self, m: Mover, xy: Point) -> None:
         """Put `m` at `xy`, standing (the start of a run, or back on the floor)."""
+        self._flush()
         m.xy = xy
         m.points, m.cum, m.s, m.moving = [xy], [0.0], 0.0, False
         m.body.position = xy
