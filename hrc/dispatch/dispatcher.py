@@ -143,8 +143,8 @@ class Dispatcher:
         self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
         self._dists: dict[tuple[int, tuple[str, ...]], np.ndarray | None] = {}  # (plan, steps) -> distances (`_ahead`)
         self._dos: dict[tuple, Any] = {}  # (plan, what happened, now) -> its DO form (`_preferred`)
-        self._same: dict[tuple[bytes, int], np.ndarray] = {}  # (candidates, last best) -> the person's part kept (`_lead`)
-        self._spans: dict[tuple[int, int, int], tuple[int, int | None]] = {}  # (plan, a, b) -> a drive's bounds (`_arrival`)
+        self._same: dict[tuple[bytes, int], np.ndarray] = {}  # (candidates, last best) -> person's part kept (`_lead`)
+        self._spans: dict[tuple[int, int, int], tuple[int, int | None]] = {}  # (plan, a, b) -> a drive's (`_arrival`)
         found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
         self._limits = None if found is None else MappingProxyType(found)
         history = History.start(plan_set.task)
@@ -1060,7 +1060,8 @@ class Dispatcher:
             back = w[(u == b) & (v == a)]  # T(a) - T(b) <= w: T(b) - T(a) >= -w
             if len(self._spans) >= 4096:
                 self._spans.clear()
-            span = self._spans[(p, a, b)] = (max(0, *(-int(x) for x in back)), min((int(x) for x in ahead), default=None))
+            span = self._spans[(p, a, b)] = (max(0, *(-int(x) for x in back)),
+                                             min((int(x) for x in ahead), default=None))
         lo, hi = span
         start = done[prev]
         earliest = max(now, start + lo)
