@@ -144,6 +144,8 @@ class Dispatcher:
         self._arcs: dict[int, tuple] = {}  # plan -> its distance graph, by head (`_ahead`)
         self._dists: dict[tuple[int, tuple[str, ...]], np.ndarray | None] = {}  # (plan, steps) -> distances (`_ahead`)
         self._dos: dict[tuple, Any] = {}  # (plan, what happened, now) -> its DO form (`_preferred`)
+        self._same: dict[tuple[bytes, int], np.ndarray] = {}  # (candidates, last best) -> person's part kept (`_lead`)
+        self._spans: dict[tuple[int, int, int], tuple[int, int | None]] = {}  # (plan, a, b) -> a drive's (`_arrival`)
         found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
         self._limits = None if found is None else MappingProxyType(found)
         history = History.start(plan_set.task)
@@ -416,6 +418,7 @@ class Dispatcher:
             self._arcs = {p: v for p, v in self._arcs.items() if p < n}
             self._dists = {k: v for k, v in self._dists.items() if k[0] < n}
             self._dos = {k: v for k, v in self._dos.items() if k[0] < n}
+            self._same, self._spans = {}, {k: v for k, v in self._spans.items() if k[0] < n}
         pool = np.arange(len(plan_set), dtype=np.int64)
         kept = agreeing(plan_set.form, st.history, pool)
         if not len(kept) and st.history.away:  # as `observe` reads an absence
@@ -781,12 +784,19 @@ class Dispatcher:
         g = self._human_g
         if previous is None or previous.best < 0 or g < 0 or not len(kept):
             return None
-        seq = self.plan_set.form.seq
-        if len(self._people_g) > 1:  # every person's part
-            gs = self._people_g
-            same = np.all((seq[kept][:, gs] == seq[previous.best, gs]).reshape(len(kept), -1), axis=1)
-        else:
-            same = np.all(seq[kept, g] == seq[previous.best, g], axis=1)
+        key = (kept.tobytes(), previous.best) if len(kept) <= 512 else None
+        same = None if key is None else self._same.get(key)
+        if same is None:
+            seq = self.plan_set.form.seq
+            if len(self._people_g) > 1:  # every person's part
+                gs = self._people_g
+                same = np.all((seq[kept][:, gs] == seq[previous.best, gs]).reshape(len(kept), -1), axis=1)
+            else:
+                same = np.all(seq[kept, g] == seq[previous.best, g], axis=1)
+            if key is not None:  # shared by forks: a function of the plans alone
+                if len(self._same) >= 1024:
+                    self._same.clear()
+                self._same[key] = same
         dc = cls == 0
         if not (same & dc).any() or not (dc & ~same).any():
             return None
@@ -1071,7 +1081,9 @@ class Dispatcher:
         if not task.preferences:
             return step
         form = do.get(index)
-        if form is None or (form is not False and not _within(form, done)):
+        past = None if form is None or form is False else _past(form, done)
+        if form is None or (form is not False and not _within(form, done, past)):
+            past = None
             # shared by forks: the same plan from the same events at the same time (each simulated run's
             # first) has the same DO form; its rows follow `done`'s order, so the key does too
             key = (index, tuple(done.items()), now)
@@ -1084,7 +1096,7 @@ class Dispatcher:
         if form is False:
             return step
         events, apsp = form
-        at, times = _past(form, done)
+        at, times = _past(form, done) if past is None else past
         i = events[node]
         lo = np.max(times - apsp[i, at])
         hi = np.min(times + apsp[at, i])
@@ -1110,13 +1122,18 @@ class Dispatcher:
             return None
         at = self.plan_set.node_index(p)
         a, b = at[prev], at[node]
-        form = self.plan_set.form
-        e0, e1 = int(form.edges_ptr[p]), int(form.edges_ptr[p + 1])
-        u, v, w = form.edges_u[e0:e1], form.edges_v[e0:e1], form.edges_w[e0:e1]
-        ahead = w[(u == a) & (v == b)]  # T(b) - T(a) <= w
-        back = w[(u == b) & (v == a)]  # T(a) - T(b) <= w: T(b) - T(a) >= -w
-        lo = max(0, *(-int(x) for x in back))
-        hi = min((int(x) for x in ahead), default=None)
+        span = self._spans.get((p, a, b))
+        if span is None:  # shared by forks: a function of the plan alone
+            form = self.plan_set.form
+            e0, e1 = int(form.edges_ptr[p]), int(form.edges_ptr[p + 1])
+            u, v, w = form.edges_u[e0:e1], form.edges_v[e0:e1], form.edges_w[e0:e1]
+            ahead = w[(u == a) & (v == b)]  # T(b) - T(a) <= w
+            back = w[(u == b) & (v == a)]  # T(a) - T(b) <= w: T(b) - T(a) >= -w
+            if len(self._spans) >= 4096:
+                self._spans.clear()
+            span = self._spans[(p, a, b)] = (max(0, *(-int(x) for x in back)),
+                                             min((int(x) for x in ahead), default=None))
+        lo, hi = span
         start = done[prev]
         earliest = max(now, start + lo)
         latest = None if hi is None else max(earliest, start + hi)
@@ -1234,16 +1251,23 @@ def _do_form(entry: PlanEntry, done: dict[str, int], now: int, preferences: Any)
 def _past(form: _DOForm, done: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
     """The index in the DO form and the tick of its origin and of every executed timepoint in it."""
     events = form[0]
-    at = [0] + [events[x] for x in done if x in events]
-    return np.array(at, dtype=np.int64), np.array([0] + [t for x, t in done.items() if x in events], dtype=np.int64)
+    at, times = [0], [0]
+    for x, t in done.items():
+        k = events.get(x)
+        if k is not None:
+            at.append(k)
+            times.append(t)
+    return np.array(at, dtype=np.int64), np.array(times, dtype=np.int64)
 
 
-def _within(form: _DOForm, done: dict[str, int]) -> bool:
+def _within(form: _DOForm, done: dict[str, int],
+            past: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
     """Whether what happened keeps to the DO form (every pair of executed timepoints within its bounds,
-    to the tick): otherwise the optimal policy was left and APA compiles again (Fig. 8, line 7)."""
-    at, times = _past(form, done)
+    to the tick): otherwise the optimal policy was left and APA compiles again (Fig. 8, line 7). `past`:
+    `_past` of the two, when the caller has it."""
+    at, times = _past(form, done) if past is None else past
     apart = times[None, :] - times[:, None]  # [i, j]: T(j) - T(i)
-    ok = apart <= form[1][np.ix_(at, at)] + 1
+    ok = apart <= form[1][at[:, None], at] + 1
     np.fill_diagonal(ok, True)
     return bool(ok.all())
 

@@ -55,6 +55,8 @@ CLASS_ORDER = ("DC", "consistent", "inconsistent")
 _CLASS_ORDER = {c: i for i, c in enumerate(CLASS_ORDER)}
 NO_FINISH = native.NO_FINISH
 """The finish of a plan with no schedule at all, in the arrays (ranks after every finish)."""
+_TWINS_KEPT = (512, 1024)
+"""`Ranker._twins` keeps candidate lists of up to this many plans, this many lists (a few MB at most)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,6 +156,7 @@ class Ranker:
         form = plan_set.form
         self.native = native.NativeForm(form) if native.available() else None
         self._nets: dict[int, PlanNet] = {}  # the Python path's, made as needed
+        self._reps: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # candidates -> one plan per shape (`_twins`)
         rows = form.plans
         self.shape = np.ascontiguousarray(rows["shape"], dtype=np.int64)
         self.blocked = np.ascontiguousarray(rows["blocked"], dtype=np.int8)
@@ -173,8 +176,7 @@ class Ranker:
         if not len(plans):
             empty = np.zeros(0, dtype=np.int64)
             return empty.astype(np.int8), empty, empty
-        shapes, first, back = np.unique(self.shape[plans], return_index=True, return_inverse=True)
-        reps = plans[first]
+        reps, back = self._twins(plans)
         if self.native is not None:
             cls, finish, idle = self.native.evaluate(reps, seen, legs_seen, now, self.plan_set.rank_by,
                                                      threads=self.threads)
@@ -186,6 +188,21 @@ class Ranker:
             finish = np.array([f[1] for f in found], dtype=np.int64)
             idle = np.array([f[2] for f in found], dtype=np.int64)
         return cls[back], finish[back], idle[back]
+
+    def _twins(self, plans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One plan of each shape among `plans` (the first) and, per plan, its shape's position among them;
+        kept by the plans' bytes (a run's candidates change only when set validation drops some: most
+        messages evaluate the same candidates again, and a simulator's forks share them)."""
+        key = plans.tobytes() if len(plans) <= _TWINS_KEPT[0] else None
+        found = None if key is None else self._reps.get(key)
+        if found is None:
+            _, first, back = np.unique(self.shape[plans], return_index=True, return_inverse=True)
+            found = (plans[first], back)
+            if key is not None:
+                if len(self._reps) >= _TWINS_KEPT[1]:
+                    self._reps.clear()
+                self._reps[key] = found
+        return found
 
     def _net(self, p: int) -> PlanNet:
         net = self._nets.get(p)
@@ -235,8 +252,10 @@ class Ranker:
              lead: np.ndarray | None = None) -> int:
         """The position in `plans` of the best plan by `rank_key` (-1 if `plans` is empty): successive
         minima over the key's columns, O(len(plans))."""
-        if not len(plans):
-            return -1
+        if len(plans) <= 1:
+            return len(plans) - 1
+        if len(plans) <= 64:  # a few plans: one stable sort by the whole key (the same first one) costs less
+            return int(np.lexsort(self._columns(plans, cls, finish, idle, lead)[::-1])[0])
         at = np.arange(len(plans))
         for column in self._columns(plans, cls, finish, idle, lead):
             values = column[at]

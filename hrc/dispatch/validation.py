@@ -47,7 +47,7 @@ import numpy as np
 from hrc.compile.dispatch_form import DispatchForm
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND
 from hrc.errors import DispatchError
-from hrc.model import Task
+from hrc.model import Action, Task
 
 from .messages import LEG_EVENTS, Observation
 from .plan_set import EventKey, PlanEntry
@@ -139,13 +139,14 @@ class History:
 
     def _leg_event(self, obs: Observation) -> History:
         task = self.task
+        names = _names(task)
         agent, action, phase, event = obs.key
-        if agent not in task.agent_ids:
+        if agent not in names.agents:
             raise DispatchError(f"unknown agent {agent!r} (agents: {', '.join(task.agent_ids)})")
-        if action not in task.action_ids:
+        act = names.actions.get(action)  # type: ignore[arg-type]
+        if act is None:
             raise DispatchError(f"unknown action {action!r}")
-        act = task.action(action)
-        phases = [p.id for p in act.phases]
+        phases = names.phases[act.id]
         if phase not in phases:
             raise DispatchError(f"action {action!r} has no phase {phase!r} (phases: {', '.join(phases)})")
         if agent not in act.agents:
@@ -181,9 +182,8 @@ class History:
         if event == "end" and (agent, action, phase, "start") not in self.times:
             raise DispatchError(f"{what} without a start")
         if _ORDER[event] >= _ORDER["start"]:
-            for p in task.precedence:
-                before = (p.before.action, p.before.phase)
-                if (p.after.action, p.after.phase) == leg and before not in self.ended:
+            for before in names.before.get(leg, ()):
+                if before not in self.ended:
                     raise DispatchError(f"{what}: the task graph wants {before[0]}.{before[1]} to end first")
         announced = dict(self.announced)
         if obs.next is not None:
@@ -208,6 +208,34 @@ class History:
                        doer=MappingProxyType(doer), announced=MappingProxyType(announced))
 
 
+@dataclass(frozen=True, slots=True)
+class _Names:
+    """What `History.add` looks up in a task at every message, as sets and maps (`_names`)."""
+
+    agents: frozenset[str]
+    actions: Mapping[str, Action]
+    phases: Mapping[str, tuple[str, ...]]  # action -> its phases' ids, in order
+    before: Mapping[tuple[str, str], tuple[tuple[str, str], ...]]  # leg -> the legs the task graph ends first
+
+
+_NAMES: dict[int, tuple[Task, _Names]] = {}
+
+
+def _names(task: Task) -> _Names:
+    """`task`'s `_Names`, made once per task (the task is kept with them: its id stays its own)."""
+    found = _NAMES.get(id(task))
+    if found is None or found[0] is not task:
+        if len(_NAMES) >= 64:
+            _NAMES.clear()
+        before: dict[tuple[str, str], list[tuple[str, str]]] = {}
+        for p in task.precedence:  # in the task's order: the first one not ended is named
+            before.setdefault((p.after.action, p.after.phase), []).append((p.before.action, p.before.phase))
+        found = _NAMES[id(task)] = (task, _Names(frozenset(task.agent_ids), {a.id: a for a in reversed(task.actions)},
+                                                 {a.id: tuple(p.id for p in a.phases) for a in reversed(task.actions)},
+                                                 {leg: tuple(v) for leg, v in before.items()}))
+    return found[1]
+
+
 def agrees(entry: PlanEntry, history: History) -> bool:
     """Whether the plan's allocation and per-agent order extend what was seen (set validation)."""
     for agent, seen in history.legs.items():
@@ -225,18 +253,20 @@ def executed(entry: PlanEntry, history: History) -> dict[str, int]:
     """The plan's executed timepoints (ticks) under `history`: the origin at 0, every reported event, and
     every unreported earlier event of a reported leg at the time of the next reported one."""
     out = {ORIGIN: 0}
+    times, points = history.times, entry.leg_points
     for agent, seen in history.legs.items():
         for action, phase in seen:
             pending: list[str] = []
-            for event, node in entry.leg_points[(agent, action, phase)]:
-                t = history.times.get((agent, action, phase, event))
+            for event, node in points[(agent, action, phase)]:
+                t = times.get((agent, action, phase, event))
                 if t is None:
                     pending.append(node)
                     continue
-                tick = ticks(t)
-                for p in pending:
-                    out[p] = tick
-                pending.clear()
+                tick = round(t * TICKS_PER_SECOND)  # `ticks`, inlined: a decision reads every seen event
+                if pending:
+                    for p in pending:
+                        out[p] = tick
+                    pending = []
                 out[node] = tick
     return out
 

@@ -18,6 +18,7 @@ between two agent discs. Construction is O(obstacles); a clearance query is O(ob
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -51,21 +52,33 @@ def _is_axis_rect(poly: Sequence[tuple[float, float]]) -> bool:
     return len(xs) == 2 and len(ys) == 2
 
 
-def _convex_pieces(poly: Sequence[tuple[float, float]]) -> list[list[tuple[float, float]]]:
-    """`poly` as convex pieces (pymunk's ``Poly`` takes the convex hull of what it is given)."""
+def _convex_pieces(poly: Sequence[tuple[float, float]]) -> tuple[tuple[tuple[float, float], ...], ...]:
+    """`poly` as convex pieces (pymunk's ``Poly`` takes the convex hull of what it is given). Kept per
+    polygon (the simulator builds a world per run: `hrc.sim.floor`); read-only."""
+    return _pieces(tuple((x, y) for x, y in poly))
+
+
+@functools.lru_cache(maxsize=1024)
+def _pieces(poly: tuple[tuple[float, float], ...]) -> tuple[tuple[tuple[float, float], ...], ...]:
     pts = [(float(x), float(y)) for x, y in poly]
     shp = Polygon(pts)
     if shp.convex_hull.area - shp.area <= 1e-12 * max(shp.area, 1.0):
-        return [pts]
+        return (tuple(pts),)
     if shp.exterior.is_ccw is False:  # Chipmunk's decomposition wants counter-clockwise winding
         pts = pts[::-1]
     closed = pts + [pts[0]]
     pieces = pymunk.autogeometry.convex_decomposition(closed, 0.0)
-    return [[(float(v.x), float(v.y)) for v in piece[:-1]] for piece in pieces]
+    return tuple(tuple((float(v.x), float(v.y)) for v in piece[:-1]) for piece in pieces)
 
 
 def _fcl_polygon(poly: Sequence[tuple[float, float]]) -> fcl.CollisionObject:
-    """A polygon as an FCL object: a box for an axis-aligned rectangle, else a prism mesh."""
+    """A polygon as an FCL object: a box for an axis-aligned rectangle, else a prism mesh. Kept per polygon
+    and shared by every world with it (never moved: obstacles stand still)."""
+    return _fcl_object(tuple((x, y) for x, y in poly))
+
+
+@functools.lru_cache(maxsize=1024)
+def _fcl_object(poly: tuple[tuple[float, float], ...]) -> fcl.CollisionObject:
     if _is_axis_rect(poly):
         xs = [p[0] for p in poly]
         ys = [p[1] for p in poly]

@@ -53,7 +53,7 @@ from hrc.motion.separation import protective_separation
 from hrc.motion.world import World
 from hrc.sim.ssm import SsmTally, ssm_speed
 
-__all__ = ["CONTACT", "MAX_STEP", "MIN_STEP", "Floor", "Mover", "add_mover", "tally", "time_to_stop"]
+__all__ = ["CONTACT", "MAX_STEP", "MIN_STEP", "Floor", "Mover", "add_mover", "place_mover", "tally", "time_to_stop"]
 
 Point = tuple[float, float]
 
@@ -142,6 +142,7 @@ class Floor:
         self.cowork = False  # the person and the standing robot co-work at a joint spot (module docstring)
         self.cowork_time = 0.0
         self._pair_filter = pymunk.ShapeFilter()
+        self._unsynced: tuple[Point, Point] | None = None  # where the bodies go before pymunk is next used
         self.ssm = None if task.safety is None else SsmTally(task.safety)
         if task.safety is not None:  # the robot keeps S_p(0) at least; driving, the band up to S_p at its speed
             self.margin = protective_separation(task.safety, 0.0).total
@@ -227,6 +228,7 @@ class Floor:
             hm.travelled += h
             hm.blocked_for = 0.0
         self.cowork_time += h
+        self._flush()
         for m in (hm, rm):
             m.body.position = m.xy
 
@@ -271,10 +273,10 @@ class Floor:
         if self.human.present:
             free = self.free()
             self.min_free = min(self.min_free, free)
-            if free > QUERY_GAP:
-                for m in (self.human, self.robot):
-                    m.body.position = m.xy
+            if free > QUERY_GAP:  # the bodies are moved when pymunk is next stepped or asked (`_flush`)
+                self._unsynced = (self.human.xy, self.robot.xy)
                 return
+        self._flush()
         for m in (self.human, self.robot):
             old = m.body.position
             m.body.velocity = ((m.xy[0] - old.x) / h, (m.xy[1] - old.y) / h) if h > 0 else (0.0, 0.0)
@@ -290,15 +292,28 @@ class Floor:
                    for hit in hits):
                 self.overlaps += 1
 
-    @staticmethod
-    def place(m: Mover, xy: Point) -> None:
+    def _flush(self) -> None:
+        """The bodies where the last step left the agents, if `_sync` has not moved them there yet (pymunk
+        reads their positions only when it is stepped and asked for contacts: setting them at every step
+        cost more than the rest of a far step)."""
+        if self._unsynced is not None:
+            self.human.body.position, self.robot.body.position = self._unsynced
+            self._unsynced = None
+
+    def place(self, m: Mover, xy: Point) -> None:
         """Put `m` at `xy`, standing (the start of a run, or back on the floor)."""
-        m.xy = xy
-        m.points, m.cum, m.s, m.moving = [xy], [0.0], 0.0, False
-        m.body.position = xy
+        self._flush()
+        place_mover(m, xy)
 
 
 # -- a disc's mechanics, the same on the one-pair floor and the team's (`hrc.sim.team_floor`) ----------------
+
+def place_mover(m: Mover, xy: Point) -> None:
+    """Put `m` at `xy`, standing."""
+    m.xy = xy
+    m.points, m.cum, m.s, m.moving = [xy], [0.0], 0.0, False
+    m.body.position = xy
+
 
 def add_mover(world: World, task: Task, agent: Agent) -> Mover:
     """`agent`'s disc, added to `world` at its start."""

@@ -132,18 +132,24 @@ class Ways:
         free = math.inf if avoid is None else math.dist(start, avoid.xy)
         if avoid is not None:
             keep = _seg_dist(pts[ij[:, 0]], pts[ij[:, 1]], avoid.xy) >= avoid.reach
-        rows, cols, weights = list(ij[keep, 0]), list(ij[keep, 1]), list(w[keep])
+        rows: list[int] = []  # the links from the start (and goal) to their nearest clear milestones
+        cols: list[int] = []
+        weights: list[float] = []
         ends = [start] + ([goal] if goal is not None else [])
         for e, p in enumerate(ends):
             order = np.lexsort((np.arange(n), np.hypot(pts[:, 0] - p[0], pts[:, 1] - p[1])))[:LINKS]
-            for i in order:
+            for i in order.tolist():
                 q = (float(pts[i, 0]), float(pts[i, 1]))
                 if self._clear(p, q, clearance, avoid, free if e == 0 else math.inf):
                     rows.append(n + e)
-                    cols.append(int(i))
+                    cols.append(i)
                     weights.append(max(math.dist(p, q), 1e-12))
         size = n + len(ends)
-        graph = csr_matrix((weights, (rows, cols)), shape=(size, size))
+        # the kept roadmap edges, then those links, as arrays (the same matrix as from lists, without
+        # converting thousands of numpy scalars one by one)
+        graph = csr_matrix((np.concatenate([w[keep], np.array(weights, dtype=float)]),
+                            (np.concatenate([ij[keep, 0], np.array(rows, dtype=ij.dtype)]),
+                             np.concatenate([ij[keep, 1], np.array(cols, dtype=ij.dtype)]))), shape=(size, size))
         dist, pred = dijkstra(graph, directed=False, indices=n, return_predecessors=True)
         nodes = np.vstack([pts, np.asarray(ends, dtype=float)])
         return nodes, dist, pred, n

@@ -621,10 +621,13 @@ class _Run(Standoffs):
     def next_time(self) -> float:
         t = self.t
         cands = [self.detector.next_due()]
+        step = None  # the floor's safe step, the same for both agents (asked once)
         for ag in (self.h, self.r):
             if ag.mover.moving:
                 cands.append(t + self.floor.time_to_stop(ag.mover))
-                cands.append(t + self.floor.safe_step())
+                if step is None:
+                    step = self.floor.safe_step()
+                cands.append(t + step)
                 if ag.mover.blocked_for > 0:  # held up: a standoff when it has been for ASIDE_AFTER seconds
                     cands.append(t + max(ASIDE_AFTER - ag.mover.blocked_for, MIN_STEP))
             if ag.mode == "work":

@@ -39,11 +39,11 @@ from hrc.sim.floor import (
     MAX_STEP,
     MIN_STEP,
     QUERY_GAP,
-    Floor,
     Mover,
     _closest,
     _entry,
     add_mover,
+    place_mover,
     tally,
     time_to_stop,
 )
@@ -264,4 +264,4 @@ class TeamFloor:
                    for hit in hits):
                 self.contacts[self._key(m, n)] += 1
 
-    place = staticmethod(Floor.place)
+    place = staticmethod(place_mover)
