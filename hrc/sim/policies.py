@@ -38,8 +38,8 @@ from hrc.plans import agent_legs
 from hrc.sim.detector import Happening
 from hrc.sim.on_demand import OnDemandRun
 
-__all__ = ["POLICIES", "Controller", "DispatchedController", "FixedController", "Order", "Policy", "SimRoute",
-           "leg_route"]
+__all__ = ["POLICIES", "Answering", "Controller", "DispatchedController", "FixedController", "Order", "Policy",
+           "SimRoute", "hinted", "leg_route", "order_of"]
 
 
 @dataclass(frozen=True, slots=True)
