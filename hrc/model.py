@@ -14,6 +14,7 @@ from __future__ import annotations
 import enum
 import functools
 import hashlib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 __all__ = [
@@ -37,6 +38,7 @@ __all__ = [
     "Task",
     "TemporalConstraint",
     "Workspace",
+    "is_acyclic",
 ]
 
 
@@ -410,3 +412,23 @@ class Plan:
             if agent == agent_id:
                 return seq
         raise KeyError(agent_id)
+
+
+def is_acyclic(g: Mapping[str, Sequence[str]]) -> bool:
+    """Whether the graph `g` (each node's successors; every node a key) has no directed cycle (Kahn's
+    algorithm: every node can be taken in a topological order; O(nodes + edges)). The task reader's
+    precedence check and plan generation's validity check (`hrc.plans`) both ask it."""
+    indegree = dict.fromkeys(g, 0)
+    for succ in g.values():
+        for v in succ:
+            indegree[v] += 1
+    ready = [u for u, d in indegree.items() if d == 0]
+    taken = 0
+    while ready:
+        u = ready.pop()
+        taken += 1
+        for v in g[u]:
+            indegree[v] -= 1
+            if indegree[v] == 0:
+                ready.append(v)
+    return taken == len(g)

@@ -22,13 +22,13 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, TypeVar
 
 from hrc.errors import InputError
-from hrc.model import PhaseRef, Plan, Task
+from hrc.model import PhaseRef, Plan, Task, is_acyclic
 
 if TYPE_CHECKING:  # networkx only for `phase_graph`'s callers: a compile does not import it (issue 38)
     import networkx as nx
 
 __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "count_plans",
-           "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_acyclic", "is_canonical",
+           "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical",
            "must_precede", "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
            "plan_from_code", "relabellings", "spread_families", "symmetry_factor"]
 
@@ -84,25 +84,6 @@ def _task_phase_graph(task: Task) -> Graph:
     for pr in task.precedence:
         _edge(g, str(pr.before), str(pr.after))
     return g
-
-
-def is_acyclic(g: Graph) -> bool:
-    """Whether `g` has no directed cycle (Kahn's algorithm: every node can be taken in a topological
-    order; O(nodes + edges))."""
-    indegree = dict.fromkeys(g, 0)
-    for succ in g.values():
-        for v in succ:
-            indegree[v] += 1
-    ready = [u for u, d in indegree.items() if d == 0]
-    taken = 0
-    while ready:
-        u = ready.pop()
-        taken += 1
-        for v in g[u]:
-            indegree[v] -= 1
-            if indegree[v] == 0:
-                ready.append(v)
-    return taken == len(g)
 
 
 def _descendants(g: Graph, node: str) -> set[str]:

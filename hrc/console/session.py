@@ -179,47 +179,28 @@ class ConsoleSession:
         msg = parse(text)
         if isinstance(msg, str):
             return Reply.error(msg)
-        if self.team:
-            return self._person_message(msg, person)
-        kind = msg.get("type")
-        if kind not in PAGE_MESSAGES:
-            return Reply.error(f"unknown message type {kind!r} (expected one of {', '.join(PAGE_MESSAGES)})")
-        missing = [k for k in ("hseq", *PAGE_MESSAGES[kind]) if k not in msg]
-        if missing:
-            return Reply.error(f"malformed {kind} message: missing {', '.join(missing)}")
-        if msg["hseq"] != self.hseq:
-            return Reply.error("refused: the run moved on since this page was drawn (another press); "
-                               "look again and press again")
-        if self.finished:
-            return Reply.error("refused: the run is over")
-        t = self.now()
-        if kind == "press":
-            fields = {k: msg[k] for k in PAGE_MESSAGES["press"]}
-            if not all(isinstance(v, str) for v in fields.values()):
-                return Reply.error("malformed press message: action, phase and event must be strings")
-            obs: dict[str, Any] = {"t": t, "agent": "human", **fields}
-        elif kind == "undo":
-            obs = {"t": t, "event": "undo"}
-        else:
-            obs = {"t": t, "agent": "human", "event": kind}
-        return self._submit(obs, "person")
-
-    def _person_message(self, msg: dict[str, Any], person: str | None) -> Reply:
-        """A team person's page message: as `page_message`, every observation that person's (issue 37)."""
+        if not self.team:
+            return self._page(msg, "human", self.hseq)
         if person is None:
             return Reply.error("refused: this page is the shared view; a person presses on their own page "
                                "(the address hrc console printed for them)")
         if person not in self.hseqs:
             return Reply.error(f"refused: unknown person {str(person)[:40]!r} (people: {', '.join(self.people)})")
+        return self._page(msg, person, self.hseqs[person])
+
+    def _page(self, msg: dict[str, Any], person: str, hseq: int) -> Reply:
+        """`person`'s page message (``"human"`` for one person and one robot), drawn at their `hseq`. A
+        team's page presses for its own person only, and undoes only that person's last observation (issue
+        37); the dispatcher withdraws the last one, whoever's it is."""
         kind = msg.get("type")
         if kind not in PAGE_MESSAGES:
             return Reply.error(f"unknown message type {kind!r} (expected one of {', '.join(PAGE_MESSAGES)})")
         missing = [k for k in ("hseq", *PAGE_MESSAGES[kind]) if k not in msg]
         if missing:
             return Reply.error(f"malformed {kind} message: missing {', '.join(missing)}")
-        if "agent" in msg and msg["agent"] != person:  # a page presses for its own person only
+        if self.team and "agent" in msg and msg["agent"] != person:
             return Reply.error(f"refused: this is {person}'s page; it cannot press for {str(msg['agent'])[:40]!r}")
-        if msg["hseq"] != self.hseqs[person]:
+        if msg["hseq"] != hseq:
             return Reply.error("refused: the run moved on since this page was drawn (another press); "
                                "look again and press again")
         if self.finished:
@@ -230,14 +211,15 @@ class ConsoleSession:
             if not all(isinstance(v, str) for v in fields.values()):
                 return Reply.error("malformed press message: action, phase and event must be strings")
             obs: dict[str, Any] = {"t": t, "agent": person, **fields}
-        elif kind == "undo":  # only the person's own last observation (the dispatcher withdraws the last one)
-            last = next((o for o in reversed(self.dispatcher.history) if o.event != "tick"), None)
-            if last is None or last.agent != person:
-                return Reply.error(f"refused: nothing of {person}'s to undo (the last observation is not theirs)")
+        elif kind == "undo":
+            if self.team:
+                last = next((o for o in reversed(self.dispatcher.history) if o.event != "tick"), None)
+                if last is None or last.agent != person:
+                    return Reply.error(f"refused: nothing of {person}'s to undo (the last observation is not theirs)")
             obs = {"t": t, "event": "undo"}
         else:
             obs = {"t": t, "agent": person, "event": kind}
-        return self._submit(obs, "person", person)
+        return self._submit(obs, "person", person if self.team else None)
 
     # -- the robot (its controller, or the simulated robot) ---------------------------------------
     def robot_message(self, text: str | bytes | Mapping[str, Any], source: str = "robot",

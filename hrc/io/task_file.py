@@ -38,6 +38,7 @@ from hrc.model import (
     Task,
     TemporalConstraint,
     Workspace,
+    is_acyclic,
 )
 
 __all__ = ["dump_task", "load_task", "task_digest", "task_to_dict"]
@@ -320,7 +321,11 @@ def _check_acyclic(doc: Doc, actions: list[Action], precedence: list[Precedence]
     edges = [(str(PhaseRef(a.id, p.id)), str(PhaseRef(a.id, q.id)))
              for a in actions for p, q in zip(a.phases, a.phases[1:], strict=False)]
     edges += [(str(pr.before), str(pr.after)) for pr in precedence]
-    if _acyclic(edges):
+    succ: dict[str, list[str]] = {}
+    for u, v in edges:
+        succ.setdefault(u, []).append(v)
+        succ.setdefault(v, [])
+    if is_acyclic(succ):
         return
     import networkx as nx  # only to name a cycle (as before): reading a task does not import it (issue 38)
 
@@ -332,26 +337,6 @@ def _check_acyclic(doc: Doc, actions: list[Action], precedence: list[Precedence]
         return
     names = [u for u, _ in cycle] + [cycle[0][0]]
     doc.fail(("precedence",), f"the task graph has a cycle: {' -> '.join(names)}")
-
-
-def _acyclic(edges: list[tuple[str, str]]) -> bool:
-    """Whether the graph of `edges` has no directed cycle (Kahn's algorithm, O(nodes + edges))."""
-    succ: dict[str, list[str]] = {}
-    indegree: dict[str, int] = {}
-    for u, v in edges:
-        succ.setdefault(u, []).append(v)
-        succ.setdefault(v, [])
-        indegree[v] = indegree.get(v, 0) + 1
-    ready = [u for u in succ if not indegree.get(u)]
-    taken = 0
-    while ready:
-        u = ready.pop()
-        taken += 1
-        for v in succ[u]:
-            indegree[v] -= 1
-            if not indegree[v]:
-                ready.append(v)
-    return taken == len(succ)
 
 
 def _constraint(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action]) -> TemporalConstraint:
