@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -222,6 +222,31 @@ class Answering:
     def current(self) -> CompiledPlan | None:
         return self.by_id.get(self.plan_id) if self.plan_id is not None else None
 
+    def guided(self, person: str, hint: Any, ahead: Any, key: tuple[str, str, str],
+               in_stay: Callable[[str, str, str, str], bool] | None = None) -> float | None:
+        """When `person` does their event `key` (action, phase, event) by their own part of the answers:
+        their `hint`'s earliest when it is about this event, inf when it says to wait; their instruction
+        `ahead` when it names the event (or, with `in_stay`, a step of the stay it names): `gap` seconds
+        after the event it waits for once seen (inf before), at once when it waits for none; else the best
+        plan's planned time. The one pair's `DispatchedController.guide_time` and a team's person's
+        (`hrc.sim.team_policies.TeamDispatched.guide_time`) both read it."""
+        action, phase, event = key
+        if hint is not None:
+            if not hasattr(hint, "earliest"):
+                return math.inf  # WaitFor: the person waits for the robot's event
+            if (hint.action, hint.phase, hint.event) == key:
+                return float(hint.earliest)
+        if hint is None and ahead is not None and (ahead.next == f"{person}.{action}.{phase}.{event}" or (
+                in_stay is not None and in_stay(ahead.next, action, phase, event))):
+            if ahead.wait_for is None:
+                return None
+            seen = self.d.seen.times.get(tuple(ahead.wait_for.split(".")))
+            return math.inf if seen is None else float(seen) + float(ahead.gap)
+        if self._times is None:
+            self._times = dict(self.d.planned_times())
+        t = self._times.get((person, action, phase, event))
+        return None if t is None or not math.isfinite(t) else float(t)
+
 
 class DispatchedController(Answering, Controller):
     """The dispatcher in charge: observations in, the decision's robot step out (``hrc.dispatch``)."""
@@ -349,24 +374,8 @@ class DispatchedController(Answering, Controller):
         if self.plan_id is None:
             return None
         decision = self.d.decision
-        hint = decision.human
-        if hint is not None:
-            if not hasattr(hint, "earliest"):
-                return math.inf  # WaitFor: the person waits for the robot's event
-            if (hint.action, hint.phase, hint.event) == (action, phase, event):
-                return float(hint.earliest)
-        human = _human(self.cps.task)
-        ahead = getattr(decision, "ahead", None)
-        if hint is None and ahead is not None and (ahead.next == f"{human}.{action}.{phase}.{event}"
-                                                   or self._in_stay(ahead.next, action, phase, event)):
-            if ahead.wait_for is None:
-                return None
-            seen = self.d.seen.times.get(tuple(ahead.wait_for.split(".")))
-            return math.inf if seen is None else float(seen) + float(ahead.gap)
-        if self._times is None:
-            self._times = dict(self.d.planned_times())
-        t = self._times.get((human, action, phase, event))
-        return None if t is None or not math.isfinite(t) else float(t)
+        return self.guided(_human(self.cps.task), decision.human, getattr(decision, "ahead", None),
+                           (action, phase, event), self._in_stay)
 
     def _in_stay(self, named: str, action: str, phase: str, event: str) -> bool:
         """Whether the person's `event` of `action`.`phase` is a step of the stay whose first step, a

@@ -15,7 +15,6 @@ The one-pair controllers are `hrc.sim.policies`'; the policies (`POLICIES`) are 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -60,8 +59,8 @@ class TeamDispatched(Answering):
             return None
         return next((a for a in cp.plan.sequence(person) if a not in taken), None)
 
-    # Apart from `DispatchedController.guide_time` on purpose: each person's own hint and instruction ahead
-    # (`Decision.people`, `aheads`), and no widening of an instruction ahead to the person's whole stay
+    # `Answering.guided` as `DispatchedController.guide_time`, on each person's own hint and instruction
+    # ahead (`Decision.people`, `aheads`), without widening an instruction ahead to the person's whole stay
     # (`_in_stay`, built for the one person's console).
     def guide_time(self, person: str, action: str, phase: str, event: str) -> float | None:
         """When `person` does this event, from their own part of the answers (`DispatchedController.guide_time`
@@ -70,22 +69,8 @@ class TeamDispatched(Answering):
         if self.plan_id is None:
             return None
         dec = self.d.decision
-        hint = (dec.people or {}).get(person)
-        if hint is not None:
-            if not hasattr(hint, "earliest"):
-                return math.inf
-            if (hint.action, hint.phase, hint.event) == (action, phase, event):
-                return float(hint.earliest)
-        ahead = (dec.aheads or {}).get(person)
-        if hint is None and ahead is not None and ahead.next == f"{person}.{action}.{phase}.{event}":
-            if ahead.wait_for is None:
-                return None
-            seen = self.d.seen.times.get(tuple(ahead.wait_for.split(".")))
-            return math.inf if seen is None else float(seen) + float(ahead.gap)
-        if self._times is None:
-            self._times = dict(self.d.planned_times())
-        t = self._times.get((person, action, phase, event))
-        return None if t is None or not math.isfinite(t) else float(t)
+        return self.guided(person, (dec.people or {}).get(person), (dec.aheads or {}).get(person),
+                           (action, phase, event))
 
     def route(self, agent: str, action: str, phase: str) -> SimRoute | None:
         cp = self.current()
