@@ -72,6 +72,10 @@ _MODES = {"DC": ExecutionMode.DC, "consistent": ExecutionMode.STN, "inconsistent
 _CORE_MODES = {ExecutionMode.DC: "DC", ExecutionMode.STN: "STN", ExecutionMode.EARLIEST: "EARLIEST"}
 _FROM_CORE = {name: mode for mode, name in _CORE_MODES.items()}
 
+_Unlearnt = tuple[tuple[str, str, str, str], str, int, "int | None", int]
+"""A person's next event that may have happened unlearnt (`Dispatcher._unlearnt`): its key, timepoint, the
+earliest it may have happened, the latest (None: it may still be to come) and its leg's position."""
+
 
 @dataclass(frozen=True, slots=True)
 class _State:
@@ -344,7 +348,7 @@ class Dispatcher:
         """
         hinted = state.hinted
         history = state.history
-        if obs.event not in LEG_EVENTS or obs.agent != history.human or obs.key in history.times:
+        if obs.event not in LEG_EVENTS or obs.agent not in self._people or obs.key in history.times:
             return hinted
         at = ticks(obs.t)
         if self.bound_tolerance > 0:
@@ -376,10 +380,25 @@ class Dispatcher:
         where a sensing path may err or be late (`_hinted` reads it)."""
         if self.bound_tolerance <= 0 and not self.max_observation_delay:
             return hinted
-        hint, ahead = decision.human, decision.ahead
+        for person in self._people:  # each person's own hint or instruction ahead (a team's: issue 37)
+            hint, ahead = self._told_to(decision, person)
+            hinted = self._told_one(hinted, history, person, hint, ahead)
+        return hinted
+
+    def _told_to(self, decision: Decision, person: str) -> tuple[RobotStep | WaitFor | None, Ahead | None]:
+        """What `decision` tells `person`: their hint and their instruction ahead (one person: `Decision.human`
+        and `ahead`; a team's: their entries of `people` and `aheads`)."""
+        if not self._team:
+            return decision.human, decision.ahead
+        return (decision.people or {}).get(person), (decision.aheads or {}).get(person)
+
+    def _told_one(self, hinted: Mapping[tuple[str, str, str, str], tuple[int, int]], history: History, person: str,
+                  hint: RobotStep | WaitFor | None, ahead: Ahead | None
+                  ) -> Mapping[tuple[str, str, str, str], tuple[int, int]]:
+        """`_told` for one person."""
         window = None
         if isinstance(hint, RobotStep):
-            key = (history.human, hint.action, hint.phase, hint.event)
+            key = (person, hint.action, hint.phase, hint.event)
             window = (ticks(hint.earliest), NO_BOUND if hint.latest is None else ticks(hint.latest))
         elif hint is None and ahead is not None and ahead.wait_for is not None:
             seen_t = history.times.get(tuple(ahead.wait_for.split(".")))  # type: ignore[arg-type]
@@ -439,13 +458,15 @@ class Dispatcher:
         person another action: the outside driver, workshop, buttons uniform in [0, 0.5] s, seed 10)."""
         tol = self.bound_tolerance
         state = self._state
-        hint = state.decision.human
+        if obs.agent not in self._people:
+            return obs
+        hint = self._told_to(state.decision, obs.agent)[0]  # what this person was told (a team's: issue 37)
         if tol <= 0 and self.max_observation_delay and isinstance(hint, RobotStep) and hint.latest is not None \
-                and obs.event in LEG_EVENTS and obs.agent == state.history.human and \
+                and obs.event in LEG_EVENTS and \
                 (hint.action, hint.phase, hint.event) == (obs.action, obs.phase, obs.event) and \
                 hint.latest < obs.t <= hint.latest + self.max_observation_delay and hint.latest >= state.history.now:
             return replace(obs, t=hint.latest)  # an undated press up to the stated delay after the latest told
-        if tol <= 0 or obs.event not in LEG_EVENTS or obs.agent != state.history.human or \
+        if tol <= 0 or obs.event not in LEG_EVENTS or \
                 not isinstance(hint, RobotStep) or (hint.action, hint.phase, hint.event) != (obs.action, obs.phase,
                                                                                                  obs.event):
             return obs
@@ -471,7 +492,7 @@ class Dispatcher:
         maximum delay (`max_observation_delay`): the guarantee of every class assumed no later sensing.
         None otherwise."""
         limit = self.max_observation_delay
-        if limit is None or obs.delay is None or obs.agent != self._state.history.human or obs.delay <= limit:
+        if limit is None or obs.delay is None or obs.agent not in self._people or obs.delay <= limit:
             return None
         return MappingProxyType({"late": {"event": f"{obs.agent}.{obs.action}.{obs.phase}.{obs.event}",
                                           "delay": round(obs.delay, 3), "max": limit}})
@@ -628,7 +649,8 @@ class Dispatcher:
         gives the person another next step is read without it. None when there is no such event (always
         with buttons on time). While the told window is still open, the plain reading ("not yet", the
         person may still do it) stands: the robot's windows hold for an early one too (`_windows`); reading
-        it here as well cost a set ranking per message (kitting under buttons' delay: p99 14 -> 90 ms)."""
+        it here as well cost a set ranking per message (kitting under buttons' delay: p99 14 -> 90 ms). In a
+        team every person's such event (issue 37), all at their earliest, then all at their latest."""
         if not hinted or not len(kept) or previous is None or previous.best < 0 or \
                 not np.any(kept == previous.best):
             return None
@@ -636,25 +658,25 @@ class Dispatcher:
         now = ticks(history.now)
         p = previous.best
         entry = self.plan_set.entry(p)
-        unlearnt = self._unlearnt(entry, executed(entry, history), history, hinted)
-        if unlearnt is None or unlearnt[3] is None:
+        passed = [u for u in self._unlearnts(entry, executed(entry, history), history, hinted) if u[3] is not None]
+        if not passed:
             return None
-        (_, _, _, e_name), _, lo, late, k = unlearnt
-        # not before the person's last event seen (a window told ahead may open before their work ends)
-        lo = max(lo, max((ticks(t) for key, t in history.times.items() if key[0] == history.human), default=0))
-        late = None if late is None else max(late, lo)
-        g, e = self.task.agent_ids.index(history.human), LEG_EVENTS.index(e_name)
         counts = seen[1].copy()
-        counts[g] = max(int(counts[g]), k + 1)  # the first event of a leg not yet seen begun
-        readings = []
-        for t in (lo, late):
-            arr = seen[0].copy()
-            arr[g, k, e] = t
-            readings.append((arr, counts))
-        other = form.nodes[kept, g, k, e] < 0  # the plans whose person has another next step
-        n = len(history.actions_seen(history.human))
-        if k >= len(history.legs.get(history.human, ())) and n < form.seq.shape[2]:  # a leg not yet begun
-            other |= form.seq[kept, g, n] != form.seq[p, g, n]
+        readings = [(seen[0].copy(), counts), (seen[0].copy(), counts)]
+        other = np.zeros(len(kept), dtype=bool)  # the plans whose person has another next step
+        for (human, _, _, e_name), _, lo, late, k in passed:
+            # not before the person's last event seen (a window told ahead may open before their work ends)
+            lo = max(lo, max((ticks(t) for key, t in history.times.items() if key[0] == human), default=0))
+            assert late is not None  # (`passed`)
+            late = max(late, lo)
+            g, e = self.task.agent_ids.index(human), LEG_EVENTS.index(e_name)
+            counts[g] = max(int(counts[g]), k + 1)  # the first event of a leg not yet seen begun
+            for (arr, _), t in zip(readings, (lo, late), strict=True):
+                arr[g, k, e] = t
+            other |= form.nodes[kept, g, k, e] < 0
+            n = len(history.actions_seen(human))
+            if k >= len(history.legs.get(human, ())) and n < form.seq.shape[2]:  # a leg not yet begun
+                other |= form.seq[kept, g, n] != form.seq[p, g, n]
         mine = kept[~other]
         cls_lo, _, _ = self.ranker.evaluate(mine, *readings[0], now)
         cls_hi, finish_hi, idle_hi = self.ranker.evaluate(mine, *readings[1], now)
@@ -914,24 +936,31 @@ class Dispatcher:
         20-90 ms late let the robot pass 20-90 ms late). Where the two do not meet (the error is more than
         the plan's slack) the window at the estimates, as without the sensor's error. The person's next
         event, when it may have happened unlearnt (`_unlearnt`), is read so for every ask but its own (the
-        person's window for it: nothing to read early)."""
-        unlearnt = self._unlearnt(entry, done, history, hinted) if hinted else None
-        own = [i for i, ask in enumerate(asks) if unlearnt is not None and ask[5] == unlearnt[1]]
-        if not own or len(own) == len(asks):
-            return self._read(entry, p, done, history, mode, asks, seen, hinted, None if own else unlearnt)
-        rest = [ask for i, ask in enumerate(asks) if i not in own]
-        mode_rest, found_rest = self._read(entry, p, done, history, mode, rest, seen, hinted, unlearnt)
-        mode_own, found_own = self._read(entry, p, done, history, mode, [asks[i] for i in own], seen, hinted, None)
-        merged = iter(found_rest), iter(found_own)
-        return (max(mode_rest, mode_own, key=_rank),
-                [next(merged[1]) if i in own else next(merged[0]) for i in range(len(asks))])
+        person's window for it: nothing to read early); in a team, every person's (issue 37), each ask read
+        with every other person's."""
+        unlearnts = self._unlearnts(entry, done, history, hinted)
+        groups: dict[tuple[_Unlearnt, ...], list[int]] = {}
+        for i, ask in enumerate(asks):  # the unlearnt events each ask reads: all but its own
+            groups.setdefault(tuple(u for u in unlearnts if u[1] != ask[5]), []).append(i)
+        if len(groups) == 1:
+            ((read, _),) = groups.items()
+            return self._read(entry, p, done, history, mode, asks, seen, hinted, read)
+        used: ExecutionMode | None = None
+        found: list[tuple[int, int | None] | list[str]] = [[] for _ in asks]
+        for read, at in sorted(groups.items(), key=lambda g: -len(g[0])):  # (one person's: the rest first)
+            mode_g, found_g = self._read(entry, p, done, history, mode, [asks[i] for i in at], seen, hinted, read)
+            used = mode_g if used is None else max(used, mode_g, key=_rank)
+            for i, f in zip(at, found_g, strict=True):
+                found[i] = f
+        assert used is not None
+        return used, found
 
     def _read(self, entry: PlanEntry, p: int, done: dict[str, int], history: History, mode: ExecutionMode,
               asks: list[tuple[int, str, str, str, str, str, frozenset[str]]], seen: tuple[np.ndarray, np.ndarray],
-              hinted: Mapping[tuple[str, str, str, str], tuple[int, int]],
-              unlearnt: tuple[tuple[str, str, str, str], str, int, int | None, int] | None
+              hinted: Mapping[tuple[str, str, str, str], tuple[int, int]], unlearnt: tuple[_Unlearnt, ...]
               ) -> tuple[ExecutionMode, list[tuple[int, int | None] | list[str]]]:
-        """`_windows` for `asks`, with `unlearnt` (or None) read as `_estimates` reads it."""
+        """`_windows` for `asks`, with `unlearnt` (the people's next events, or none) read as `_estimates`
+        reads them."""
         box = self._estimates(entry, done, history, seen, hinted, unlearnt)
         if box is None:
             return self._windows_at(entry, p, done, history, mode, asks, seen)
@@ -957,21 +986,21 @@ class Dispatcher:
 
     def _estimates(self, entry: PlanEntry, done: dict[str, int], history: History,
                    seen: tuple[np.ndarray, np.ndarray], hinted: Mapping[tuple[str, str, str, str], tuple[int, int]],
-                   unlearnt: tuple[tuple[str, str, str, str], str, int, int | None, int] | None = None
+                   unlearnt: tuple[_Unlearnt, ...] = ()
                    ) -> tuple[tuple[dict[str, int], tuple[np.ndarray, np.ndarray]],
                               tuple[dict[str, int], tuple[np.ndarray, np.ndarray]]] | None:
-        """`done` and `seen` with each seen event of the person at the earliest, then at the latest time it
-        may have happened (`_windows`), and `unlearnt`, their next event when it may have happened unlearnt
-        (`_unlearnt`), at the earliest it may have, then at the latest (or not yet); None without a sensor's
-        error or before any event of the person."""
-        human = history.human
-        if not human or not hinted:
+        """`done` and `seen` with each seen event of every person at the earliest, then at the latest time
+        it may have happened (`_windows`), and `unlearnt`, the people's next events when they may have
+        happened unlearnt (`_unlearnt`), at the earliest they may have, then at the latest (or not yet); None
+        without a sensor's error or before any event of a person. A team's people each by their own events
+        (issue 37: before, the first person's alone, and the robot's windows held for the others' events
+        at the times the late buttons gave)."""
+        if not self._people or not hinted:
             return None
-        g = self.task.agent_ids.index(human)
-        legs = history.legs.get(human, ())
         shift = {key: hinted[key] for key in history.times if key in hinted}
-        if not shift and unlearnt is None:
+        if not shift and not unlearnt:
             return None
+        ids = self.task.agent_ids
         nodes = {key: node for node, key in entry.events.items() if key in shift}
         ends = {c.target: c for c in entry.stnu.contingents}
         out = []
@@ -991,22 +1020,35 @@ class Dispatcher:
                 times[key] = (t, t)
             arr = seen[0].copy()
             for key, bounds in times.items():
-                arr[g, legs.index((key[1], key[2])), LEG_EVENTS.index(key[3])] = bounds[side]
+                arr[ids.index(key[0]), history.legs[key[0]].index((key[1], key[2])), LEG_EVENTS.index(key[3])] = \
+                    bounds[side]
             counts = seen[1]
-            at = None if unlearnt is None else (unlearnt[2], unlearnt[3])[side]
-            if unlearnt is not None and at is not None:
-                key, node, k = unlearnt[0], unlearnt[1], unlearnt[4]
+            for u in unlearnt:
+                at = (u[2], u[3])[side]
+                if at is None:
+                    continue
+                key, node, k = u[0], u[1], u[4]
+                g = ids.index(key[0])
                 moved[node] = at
                 arr[g, k, LEG_EVENTS.index(key[3])] = at
                 if k >= counts[g]:  # the first event of a leg not yet seen begun
-                    counts = counts.copy()
+                    counts = counts.copy() if counts is seen[1] else counts
                     counts[g] = k + 1
             out.append((moved, (arr, counts)))
         return out[0], out[1]
 
+    def _unlearnts(self, entry: PlanEntry, done: dict[str, int], history: History,
+                   hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]) -> tuple[_Unlearnt, ...]:
+        """`_unlearnt` of every person, in task order (a team's: each person's next event is their own, told
+        to them and learnt through their own sensing, issue 37); at most one for one person."""
+        if not hinted:
+            return ()
+        return tuple(u for person in self._people for u in [self._unlearnt(entry, done, history, hinted, person)]
+                     if u is not None)
+
     def _unlearnt(self, entry: PlanEntry, done: dict[str, int], history: History,
-                  hinted: Mapping[tuple[str, str, str, str], tuple[int, int]]
-                  ) -> tuple[tuple[str, str, str, str], str, int, int | None, int] | None:
+                  hinted: Mapping[tuple[str, str, str, str], tuple[int, int]], person: str | None = None
+                  ) -> _Unlearnt | None:
         """The person's next own event in `entry` when it may have happened without the robot knowing yet
         (issue 32): they were told a window ``[lo, hi]`` for it (`_told`) and ``lo`` has passed, no later than
         the stated delay after ``hi`` (beyond that, an event not seen was not done as told: the plain
@@ -1015,8 +1057,8 @@ class Dispatcher:
         executable one of a person who does as told lies in their window): ``(key, node, lo, late, leg)``,
         `late` the latest it may have happened (``hi`` once passed) or None while it may also be still to
         come, `leg` its position among the person's legs. None otherwise (and always with buttons on time:
-        nothing is told then, `_told`)."""
-        human = history.human
+        nothing is told then, `_told`). `person`: whose (default: the first; `_unlearnts`: every person's)."""
+        human = history.human if person is None else person
         legs = history.legs.get(human, ())
         now = ticks(history.now)
         contingent = entry.stnu.contingent_timepoints

@@ -34,10 +34,15 @@ class TeamDispatched(Answering):
     def __init__(self, dispatcher: Any, cps: CompiledPlanSet, ctx: SimContext, blind: bool) -> None:
         super().__init__(dispatcher, cps, ctx.paths, blind)
         self._orders: tuple[Any, dict[str, Order | None]] = (None, {})
+        # answers that said a person's observation came later than the stated maximum delay (as the one
+        # pair's `DispatchedController.late_observations`); None without a stated delay
+        self.late_observations: int | None = None if dispatcher.max_observation_delay is None else 0
 
     def observe(self, h: Happening) -> None:
         dec = self._answer(self._observation(h), h)
         if dec is not None:
+            if dec.deviation is not None and "late" in dec.deviation and self.late_observations is not None:
+                self.late_observations += 1
             self._after(dec)
 
     def order(self, robot: str) -> Order | None:

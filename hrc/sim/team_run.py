@@ -513,6 +513,8 @@ class _TeamRun(AgentLoop[_Agent]):
                 1 for p in self.people if p.draws is not None for x, ph in p.draws.overrun
                 if x in seqs[p.id] and f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
             absent=0.0, latencies=tuple(ctl.latencies), joint=joint, team=team,
+            late_observations=getattr(ctl, "late_observations", None),
+            first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
             happenings=tuple(self.happenings) if self.record else (),
             agent_frames=tuple(self.frames))
 
