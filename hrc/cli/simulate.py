@@ -19,7 +19,6 @@ from typing import Any
 
 from hrc.cli.argtypes import delay_range
 from hrc.cli.compile import _Progress, _stated_sensing
-from hrc.cli.team import team_refusal
 from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
 from hrc.io.task_file import load_task
@@ -286,9 +285,6 @@ def run(args: argparse.Namespace) -> int:
     from hrc.sim.run import SimSettings
 
     task = load_task(args.task)
-    if args.record is not None and team_refusal("simulate --record", [a.kind.value for a in task.agents]):
-        raise SimulationError(f"{task.source}: --record: the MCAP recording holds one person and one robot; "
-                              f"a team's runs are not recorded yet (docs/simulate.md, \"Teams\")")
     if args.sensing is not None:
         from dataclasses import replace
 

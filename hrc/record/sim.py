@@ -9,6 +9,11 @@ dispatcher gave; for ``fixed`` (no dispatcher) the answer is the robot's order f
 agents' positions are the floor's (`hrc.record.FRAME_PERIOD` apart). The recording is built in memory
 and returned as bytes, so that any executor (a local pool, Dask) can make it; `record_runs` makes many
 in parallel, in a fixed order: the same seed gives the same files, byte for byte.
+
+A team's run (issue 37) is `hrc.sim.team_run.simulate_team_run`'s, its controllers caught the same way
+(`hrc.sim.runlog.catching` over `make_team_controller`) and every agent's position from its frames: the
+recording is ``hrc dispatch --record``'s team form (a pose channel per agent, a goal channel per robot,
+each robot's step in ``/hrc/decision``: `hrc.record.recorder`).
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from hrc.record.recorder import RunRecorder
 from hrc.sim.policies import POLICIES, Policy
 from hrc.sim.run import RunResult, SimContext, simulate_run
 from hrc.sim.runlog import catching
+from hrc.sim.team_floor import is_team
 
 __all__ = ["check_record_folder", "file_name", "record_run", "record_runs", "write_recordings"]
 
@@ -48,11 +54,21 @@ def _routes(ctx: SimContext, policy: Policy) -> PlanRoutes:
 def record_run(ctx: SimContext, policy: str, index: int) -> tuple[bytes, RunResult]:
     """Run `index` of `policy` again, recorded: the MCAP file's bytes and the run's result."""
     exchanges: list[tuple[float, bytes, str]] = []
-    result = simulate_run(ctx, policy, index, record=True, controller=catching(exchanges))
+    team = is_team(ctx.task)
+    if team:  # issue 37: the team's loop, every agent's frames
+        from hrc.sim.team_policies import make_team_controller
+        from hrc.sim.team_run import simulate_team_run
+
+        result = simulate_team_run(ctx, policy, index, record=True,
+                                   controller=catching(exchanges, make_team_controller))
+    else:
+        result = simulate_run(ctx, policy, index, record=True, controller=catching(exchanges))
     human = next(a.id for a in ctx.task.agents if a.is_human)
     robot = next(a.id for a in ctx.task.agents if not a.is_human)
+    ids = [a.id for a in ctx.task.agents]
+    frames_of: Sequence[Any] = result.agent_frames if team else result.frames
     # frames (positions after the floor advanced to t) before the exchanges at t: events happen there
-    timeline: list[tuple[float, int, Any]] = [(f[0], 0, f) for f in result.frames]
+    timeline: list[tuple[float, int, Any]] = [(f[0], 0, f) for f in frames_of]
     timeline += [(t, 1, (data, answer)) for t, data, answer in exchanges]
     timeline.sort(key=lambda item: (item[0], item[1]))
     sink = io.BytesIO()
@@ -62,11 +78,16 @@ def record_run(ctx: SimContext, policy: str, index: int) -> tuple[bytes, RunResu
             "makespan": "" if result.makespan is None else f"{result.makespan:.3f}",
             "task_digest": task_digest(ctx.task)}  # what `hrc learn` checks a recording against
     rec = RunRecorder(sink, ctx.task, _routes(ctx, POLICIES[policy]).routes, measured=True, metadata=meta)
-    frames = len(result.frames)
+    frames = len(frames_of)
     seen = 0
     for t, kind, item in timeline:
         if kind == 0:
             seen += 1
+            if team:
+                where = item[1]
+                rec.positions(t, {a: (x, y) for a, (x, y, _) in zip(ids, where, strict=True)},
+                              {a: bool(here) for a, (_, _, here) in zip(ids, where, strict=True)}, last=seen == frames)
+                continue
             _, hx, hy, rx, ry, present = item
             rec.positions(t, {human: (hx, hy), robot: (rx, ry)}, {human: bool(present), robot: True},
                           last=seen == frames)

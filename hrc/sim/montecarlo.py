@@ -108,7 +108,13 @@ def _chunk(ctx: SimContext, keep_logs: object, work: list[tuple[str, int]]) -> l
     out: list[tuple[RunResult, bytes | None]] = []
     for policy, i in work:
         exchanges: list = []
-        result = simulate_run(ctx, policy, i, controller=catching(exchanges))
+        if is_team(ctx.task):  # issue 37: the team's loop, its controllers caught
+            from hrc.sim.team_policies import make_team_controller
+            from hrc.sim.team_run import simulate_team_run
+
+            result = simulate_team_run(ctx, policy, i, controller=catching(exchanges, make_team_controller))
+        else:
+            result = simulate_run(ctx, policy, i, controller=catching(exchanges))
         out.append((result, log_bytes(ctx, POLICIES[policy], exchanges)))
     return out
 
@@ -152,7 +158,7 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
         raise SimulationError(f"--runs must be at least 1, found {runs}")
     chosen = check_policies(policies)
     settings = settings or SimSettings()
-    _check_team(task, settings, keep_logs)
+    _check_team(task, settings)
     joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
     if joint is not None and settings.motion:  # issue 37: the detector finds a person's start and end of each step
         raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
@@ -179,14 +185,13 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay, logs)
 
 
-def _check_team(task: Task, settings: SimSettings, keep_logs: bool) -> None:
+def _check_team(task: Task, settings: SimSettings) -> None:
     """A team (issue 37: other than one person and one robot) runs on the team floor (`hrc.sim.team_run`),
     which leaves some things out: each is refused here in one line, before anything is compiled."""
     if not is_team(task):
         return
     what = [name for name, on in (("--detector motion", settings.motion),
-                                  ("--absence-rate", settings.human.absence_rate > 0),
-                                  ("--keep-logs", keep_logs)) if on]
+                                  ("--absence-rate", settings.human.absence_rate > 0)) if on]
     if task.safety is not None:
         what.append("a task with safety: (speed and separation monitoring)")
     from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate

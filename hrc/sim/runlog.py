@@ -8,17 +8,25 @@ and its answer the decision (or the refusal) the dispatcher gave; for ``fixed`` 
 answer is the robot's order from the fixed plan. `log_bytes` makes a log of them whose header names
 the compiled plan set (as ``hrc dispatch --log`` does) and the task (its digest), so that ``hrc learn``
 reads a simulated run as it reads a run on the floor.
+
+A team's run (issue 37, `hrc.sim.team_run`) is caught the same way (`catching` over
+`hrc.sim.team_policies.make_team_controller`): each answer is the team's (`Decision.to_json`: ``robots``,
+``people``, ``away``; for ``fixed`` each robot's order), and the header names the team as ``hrc dispatch
+--log`` does (``"team"``), so that ``hrc dispatch --replay`` over the same compile gives the same answers.
+Each message carries the ``delay`` the dispatcher was told (late buttons), and the header the stated
+maximum (``max_observation_delay``, a compile with ``sensing:``), as ``hrc dispatch --log`` writes them.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from hrc.sim.detector import Happening
-from hrc.sim.policies import Controller, DispatchedController, Policy
+from hrc.sim.policies import DispatchedController, Policy
 from hrc.sim.run import SimContext, make_controller
+from hrc.sim.team_policies import TeamFixed
 
 __all__ = ["Exchange", "catching", "log_bytes", "log_name"]
 
@@ -31,33 +39,43 @@ def log_name(policy: str, index: int) -> str:
     return f"{policy}-{index:04d}.jsonl"
 
 
-def _answer(ctl: Controller, before: int, t: float) -> dict[str, Any]:
+def _answer(ctl: Any, before: int, t: float) -> dict[str, Any]:
     """What the controller answered to the observation it has just been given."""
     if len(ctl.refused) > before:
         return {"t": t, "ok": False, "error": ctl.refused[-1].split(": ", 1)[-1]}
-    if isinstance(ctl, DispatchedController):
+    if hasattr(ctl, "d"):  # the dispatcher's answer (one pair's or a team's)
         return dict(ctl.d.decision.to_json())
-    order = ctl.order()  # the fixed plan: its order for the robot
-    robot = None if order is None else {"action": order.action, "phase": order.phase, "event": order.event,
-                                        "earliest": round(order.earliest, 3),
-                                        "latest": None if order.latest is None else round(order.latest, 3)}
+    if isinstance(ctl, TeamFixed):  # a team's fixed plan: each robot's order
+        robots = {r.id: _order(ctl.order(r.id)) for r in ctl.task.agents if not r.is_human}
+        people = {p.id: None for p in ctl.task.agents if p.is_human}
+        return {"t": t, "ok": True, "plan": ctl.plan_id, "class": ctl.plan_class, "candidates": {},
+                "robots": robots, "people": people, "away": [], "stopped": False, "policy": "fixed"}
+    robot = _order(ctl.order())  # the fixed plan: its order for the robot
     return {"t": t, "ok": True, "plan": ctl.plan_id, "class": ctl.plan_class, "candidates": {}, "robot": robot,
             "human": None, "human_away": False, "stopped": False, "policy": "fixed"}
 
 
-def catching(exchanges: list[Exchange]) -> Any:
-    """A controller factory for `hrc.sim.run.simulate_run` whose controllers also put every observation
-    and its answer into `exchanges` (the controller itself is unchanged)."""
+def _order(order: Any) -> dict[str, Any] | None:
+    return None if order is None else {"action": order.action, "phase": order.phase, "event": order.event,
+                                       "earliest": round(order.earliest, 3),
+                                       "latest": None if order.latest is None else round(order.latest, 3)}
 
-    def factory(ctx: SimContext, policy: Policy) -> Controller:
-        ctl = make_controller(ctx, policy)
+
+def catching(exchanges: list[Exchange], make: Callable[[SimContext, Policy], Any] = make_controller) -> Any:
+    """A controller factory for `hrc.sim.run.simulate_run` (or, with `make` =
+    `hrc.sim.team_policies.make_team_controller`, `hrc.sim.team_run.simulate_team_run`) whose controllers
+    also put every observation and its answer into `exchanges` (the controller itself is unchanged)."""
+
+    def factory(ctx: SimContext, policy: Policy) -> Any:
+        ctl = make(ctx, policy)
         inner = ctl.observe
 
         def observe(h: Happening) -> None:
             before = len(ctl.refused)
             inner(h)
             t = round(h.t, 3)
-            message = {"t": t, "agent": h.agent or None, "action": h.action, "phase": h.phase, "event": h.event}
+            message = {"t": t, "agent": h.agent or None, "action": h.action, "phase": h.phase, "event": h.event,
+                       "delay": h.delay}
             line = json.dumps({k: v for k, v in message.items() if v is not None})
             exchanges.append((t, line.encode("utf-8"), json.dumps(_answer(ctl, before, t))))
 
@@ -118,11 +136,16 @@ def log_bytes(ctx: SimContext, policy: Policy, exchanges: Sequence[Exchange]) ->
     key = ("task_digest",)
     if key not in ctx.cache:
         ctx.cache[key] = task_digest(ctx.task)
-    header = {"hrc_dispatch_log": LOG_VERSION, "compiled": digest, "plans": plans, "task": ctx.cache[key],
-              "policy": policy.name}
+    header: dict[str, Any] = {"hrc_dispatch_log": LOG_VERSION, "compiled": digest, "plans": plans,
+                              "task": ctx.cache[key], "policy": policy.name}
+    kinds = {a.id: a.kind.value for a in ctx.task.agents}
+    if sorted(kinds.values()) != ["human", "robot"]:  # a team (issue 37): as `hrc.dispatch.protocol.log_header`
+        header["team"] = kinds
     detect = ctx.cache.get(("dispatcher", policy.name, True)) if ctx.settings.motion and policy.dispatched else None
     if detect is not None:  # as `hrc.dispatch.protocol.log_header`: a replay needs the same detector
         header["detect"] = dict(detect.detect_settings())
+    if policy.dispatched and ctx.task.sensing is not None and ctx.task.sensing.delay[1] is not None:
+        header["max_observation_delay"] = ctx.task.sensing.delay[1]  # the dispatcher's default (its replay's)
     parts = [encode_header(header)]
     for _, data, answer in exchanges:
         parts += [encode_input(data), encode_answer(answer)]
