@@ -219,7 +219,7 @@ def test_hrc_simulate_runs_a_team_and_draws_every_agent(tmp_path: Path, capsys) 
         "gantt_hrc_run0.png", "makespans.png", "run_hrc_run0.gif", "trajectories_hrc_run0.png"]
 
 
-@pytest.mark.parametrize("option", [["--detector", "motion"], ["--absence-rate", "0.5"]])
+@pytest.mark.parametrize("option", [["--detector", "motion"]])
 def test_what_a_team_is_not_simulated_with_is_refused_in_one_line(option: list[str], tmp_path: Path,
                                                                    capsys) -> None:
     import re

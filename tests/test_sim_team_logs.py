@@ -12,6 +12,7 @@ message's ``delay`` and the stated maximum, so that its replay reads the sensing
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -107,3 +108,73 @@ def test_a_teams_run_is_recorded_as_hrc_dispatch_records_a_team(workers: SimCont
     assert rec.of("/hrc/out") == answers
     assert all(set(d["robots"]) == {"robot"} for d in rec.of("/hrc/decision"))
     assert result.finished and result.makespan == kept.results["hrc"][0].makespan
+
+
+# ------------------------------------------------------------------------------ a person's absence in a team
+def _absent_run(ctx: SimContext, index: int, model) -> tuple:
+    from hrc.sim.runlog import catching
+    from hrc.sim.team_policies import make_team_controller
+    from hrc.sim.team_run import simulate_team_run
+
+    exchanges: list = []
+    here = replace(ctx, settings=SimSettings(human=model))
+    result = simulate_team_run(here, "hrc", index, record=True, controller=catching(exchanges, make_team_controller))
+    return result, [(json.loads(m), json.loads(a)) for _, m, a in exchanges]
+
+
+def test_a_person_leaves_and_comes_back_while_the_others_go_on(workers: SimContext) -> None:
+    """``--absence-rate 1``: every person leaves once, between two actions, in the first 15 s, for 5-10 s.
+    The dispatcher is told that person's ``away`` and ``back`` (`History.gone`); while they are away every
+    answer names them in ``away`` and tells them nothing, and they do nothing; the robot and the other
+    person go on meanwhile (in some run); every run finishes with every phase ended once, by an agent the
+    task lets do it, and no message refused."""
+    from hrc.sim.human import HumanModel
+
+    model = HumanModel(absence_rate=1.0, absence_seconds=(5.0, 10.0), absence_window=15.0)
+    others_went_on = 0
+    came_back = 0
+    for index in range(6):
+        result, exchanges = _absent_run(workers, index, model)
+        assert result.finished and result.refused == (), result.reason
+        ends = sorted((h.action, h.phase) for h in result.happenings if h.event == "end")
+        assert ends == sorted((a.id, p.id) for a in workers.task.actions for p in a.phases)
+        for h in result.happenings:
+            if h.event == "depart" and h.action is not None:
+                assert h.agent in workers.task.action(h.action).agents
+        assert all(answer["ok"] for _, answer in exchanges)
+        for person in ("alice", "bob"):
+            went = [h.t for h in result.happenings if h.agent == person and h.event == "away"]
+            back = [h.t for h in result.happenings if h.agent == person and h.event == "back"]
+            assert len(went) <= 1 and len(back) <= len(went)
+            if not went:
+                continue
+            until = back[0] if back else math.inf
+            if back:
+                came_back += 1
+                assert 5.0 - 1e-6 <= until - went[0]  # away for the time drawn, or longer (a robot where they left)
+            assert not [h for h in result.happenings if h.agent == person and went[0] < h.t < until]
+            others_went_on += any(h.agent != person and h.action is not None and went[0] < h.t < until
+                                  for h in result.happenings)
+            # the dispatcher's answers while they were away: named in `away`, told nothing
+            said = [i for i, (m, _) in enumerate(exchanges)
+                    if m.get("agent") == person and m["event"] in ("away", "back")]
+            assert len(said) == 1 + bool(back)
+            while_away = [a for _, a in exchanges[said[0]:said[1] if back else None]]
+            assert all(person in a["away"] and a["people"][person] is None for a in while_away)
+            if back:  # and from their back on: not away
+                assert person not in exchanges[said[1]][1]["away"]
+        assert result.absent > 0
+    assert came_back >= 2 and others_went_on >= 2
+
+
+def test_a_team_simulation_takes_absences_on_the_command_line(tmp_path: Path, capsys) -> None:
+    from hrc.cli import main
+
+    out = tmp_path / "sim"
+    assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--runs", "3", "--policy", "hrc", "--seed",
+                 "1", "--absence-rate", "1", "--absence-seconds", "5", "10", "--no-figures", "--jobs", "1",
+                 "--keep-logs", "--out", str(out)]) == 0
+    doc = json.loads((out / "simulation.json").read_text("utf-8"))
+    runs = doc["policies"]["hrc"]["runs"]
+    assert all(r["finished"] for r in runs) and sum(r["absent"] for r in runs) > 0
+    assert sorted(p.name for p in (out / "runs").iterdir()) == [f"hrc-000{i}.jsonl" for i in range(3)]

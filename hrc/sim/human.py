@@ -30,7 +30,7 @@ durations for the same steps, whoever ends up doing which), which is what makes 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -172,20 +172,26 @@ def draw_human(task: Task, model: HumanModel, rng: np.random.Generator) -> Human
             pace[key] = 1.0 + float(p) * (human.travel_slack - 1.0)
             robot[key] = float(r)
     choice = tuple(float(x) for x in rng.random(len(task.actions) + 1))
-    a, b, c, d = rng.random(4)
-    absence = None
-    if a < model.absence_rate:
-        window = model.absence_window if model.absence_window is not None else (task.deadline or 60.0)
-        lo, hi = model.absence_seconds
-        absence = (float(b) * window, None if c < model.leave_for_good_rate else lo + float(d) * (hi - lo))
+    absence = _absence(task, model, rng)
     return HumanDraws(durations, frozenset(overrun), pace, choice, absence, robot)
+
+
+def _absence(task: Task, model: HumanModel, rng: np.random.Generator) -> tuple[float, float | None] | None:
+    """One person's absence (`HumanDraws.absence`) from four numbers of `rng`."""
+    a, b, c, d = rng.random(4)
+    if a >= model.absence_rate:
+        return None
+    window = model.absence_window if model.absence_window is not None else (task.deadline or 60.0)
+    lo, hi = model.absence_seconds
+    return float(b) * window, None if c < model.leave_for_good_rate else lo + float(d) * (hi - lo)
 
 
 def draw_people(task: Task, model: HumanModel, rng: np.random.Generator) -> dict[str, HumanDraws]:
     """Every person's random numbers for one run of a team (issue 37), by person id, drawn in a fixed order
     (per action and phase: each person's four numbers in task order, then the robots' one quantile, shared
     by every robot; then each person's choices): the same people under every policy, as `draw_human` for
-    one person. Absences are not drawn (a team's people do not leave, `hrc.sim.team_run`)."""
+    one person; then each person's absence, in task order (after everything else: a run without absences
+    draws what it drew before they were simulated for a team, issue 37)."""
     people = [a for a in task.agents if a.is_human]
     durations: dict[str, dict[tuple[str, str], float]] = {p.id: {} for p in people}
     overrun: dict[str, set[tuple[str, str]]] = {p.id: set() for p in people}
@@ -210,6 +216,8 @@ def draw_people(task: Task, model: HumanModel, rng: np.random.Generator) -> dict
         choice = tuple(float(x) for x in rng.random(len(task.actions) + 1))
         out[person.id] = HumanDraws(durations[person.id], frozenset(overrun[person.id]), pace[person.id], choice,
                                     None, robot)
+    for person in people:
+        out[person.id] = replace(out[person.id], absence=_absence(task, model, rng))
     if not out:  # robots alone: their quantiles only
         out[""] = HumanDraws({}, frozenset(), {}, (), None, robot)
     return out

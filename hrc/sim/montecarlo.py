@@ -190,8 +190,7 @@ def _check_team(task: Task, settings: SimSettings) -> None:
     which leaves some things out: each is refused here in one line, before anything is compiled."""
     if not is_team(task):
         return
-    what = [name for name, on in (("--detector motion", settings.motion),
-                                  ("--absence-rate", settings.human.absence_rate > 0)) if on]
+    what = ["--detector motion"] if settings.motion else []
     if task.safety is not None:
         what.append("a task with safety: (speed and separation monitoring)")
     from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate

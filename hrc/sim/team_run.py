@@ -24,9 +24,11 @@ one robot here):
   margin from every person and stops short of every other robot; the separation is measured for every
   robot-person pair and a robot-robot contact is counted (a violation).
 
-Left out for a team (refused by `hrc.sim.montecarlo.simulate` in one line): the motion detector, the
-person's absences, speed and separation monitoring (`safety:`), compile on demand (a searched compile),
-dispatcher logs (``--keep-logs``, ``--record``); and the stand-off rules of `hrc.sim.standoff` (making
+A person's absence (``--absence-rate``) is the one pair's, per person: between two actions they leave
+the floor and the dispatcher is told that person's ``away`` (the others and the robots go on), and
+``back`` when they return (`_TeamRun._leave`, `_come_back`). Left out for a team (refused by
+`hrc.sim.montecarlo.simulate` in one line): the motion detector, speed and separation monitoring
+(`safety:`), compile on demand (a searched compile); and the stand-off rules of `hrc.sim.standoff` (making
 room, going round): an agent held up waits, and a run in which nobody has moved for `stall` seconds while
 someone wanted to ends as a deadlock (counted, as in the one-pair loop).
 """
@@ -40,7 +42,7 @@ import numpy as np
 
 from hrc.sim.agents import AgentLoop, acknowledged, add_busy
 from hrc.sim.detector import Detector, Happening
-from hrc.sim.floor import MIN_STEP, Mover
+from hrc.sim.floor import CONTACT, MIN_STEP, Mover
 from hrc.sim.giveway import Ways
 from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
@@ -69,7 +71,8 @@ class _Agent:
     """One agent's state in the loop (a mutable builder)."""
 
     __slots__ = ("id", "mover", "human", "home", "loc", "mode", "action", "pi", "route", "parked", "work_start",
-                 "work_end", "duration", "order", "predicted", "moved", "draws")
+                 "work_end", "duration", "order", "predicted", "moved", "draws", "back_at", "away_since",
+                 "absence_done", "absent")
 
     def __init__(self, agent_id: str, mover: Mover, human: bool, home: str, draws: HumanDraws | None) -> None:
         self.id, self.mover, self.human, self.home = agent_id, mover, human, home
@@ -83,6 +86,11 @@ class _Agent:
         self.order: Order | None = None
         self.predicted = self.moved = 0.0
         self.draws = draws
+        # a person's absence (`HumanDraws.absence`): mode "away" until `back_at`, "gone" for good
+        self.back_at: float | None = None
+        self.away_since: float | None = None
+        self.absence_done = False
+        self.absent = 0.0  # s away so far
 
 
 class _TeamRun(AgentLoop[_Agent]):
@@ -192,13 +200,57 @@ class _TeamRun(AgentLoop[_Agent]):
         g = self.ctl.guide_time(a.id, action, phase, event)
         return self.t if g is None else g
 
+    # A person's absence follows the one pair's (`hrc.sim.run._Run.human`): between two actions, at the time
+    # drawn, they leave the floor ("away", seen by the dispatcher through the detector as that person's
+    # `away`: docs/dispatch.md, `History.gone`), the robots and the other people go on; they come back in
+    # where they left (at their start if a robot stands there), and say `back`. For good: "gone".
+    def _leave(self, a: _Agent) -> bool:
+        """`a` leaves now if their absence is due (they are between two actions)."""
+        absence = None if a.draws is None else a.draws.absence
+        if absence is None or a.absence_done or self.t < absence[0] - _EPS:
+            return False
+        a.absence_done = True
+        a.mode = "away" if absence[1] is not None else "gone"
+        a.back_at = None if absence[1] is None else self.t + absence[1]
+        a.away_since = self.t
+        a.mover.present = False
+        self.emit(a, "away")
+        return True
+
+    def _come_back(self, a: _Agent) -> bool:
+        """`a`, away, comes back once their time is up and no robot stands where they come in."""
+        if a.back_at is None or self.t < a.back_at - _EPS:
+            return False
+        def gap(xy: tuple[float, float]) -> float:  # to the nearest robot (they are off the floor: no `gap`)
+            return min((math.dist(xy, r.mover.xy) - a.mover.agent.radius - r.mover.agent.radius
+                        for r in self.robots), default=math.inf)
+
+        if gap(a.mover.xy) < CONTACT:
+            home = self.ctx.paths.locations[a.home]  # a robot stands where they left: in at their start
+            if gap(home) < self.task.safety_margin:
+                return False
+            self.floor.place(a.mover, home)
+            a.loc = a.home
+        a.mover.present = True
+        a.mode = "free"
+        a.absent += self.t - (a.away_since if a.away_since is not None else self.t)
+        a.away_since = None
+        self.emit(a, "back")
+        return True
+
     def person(self, a: _Agent) -> bool:
         t = self.t
+        if a.mode == "gone":
+            return False
+        if a.mode == "away":
+            return self._come_back(a)
         moved = self._home(a)
         if moved is not None:
             return moved
         if a.mode == "free":
             if a.action is None:
+                if self._leave(a):
+                    return True
                 nxt = self.choose(a)
                 if nxt is None:
                     return self.go_home(a)
@@ -383,9 +435,16 @@ class _TeamRun(AgentLoop[_Agent]):
                 cands.append(a.work_end)
         if any(a.mover.moving for a in self.agents.values()):
             cands.append(t + self.floor.safe_step())
+        for p in self.people:
+            if p.mode == "away" and p.back_at is not None:
+                cands.append(max(p.back_at, t + 0.1))  # (again a little later while a robot stands in the way)
+            absence = None if p.draws is None else p.draws.absence
+            if absence is not None and not p.absence_done:
+                cands.append(absence[0])
         if self.model.choice == "follow" and not self.ctl.stopped:
             for p in self.people:
-                cands += self._guide_times(p)
+                if p.mode not in ("away", "gone"):
+                    cands += self._guide_times(p)
         for r in self.robots:
             o = self.ctl.order(r.id)
             if o is not None and o.event in ("depart", "unpark", "start"):
@@ -464,6 +523,9 @@ class _TeamRun(AgentLoop[_Agent]):
                                                   for a in self.agents.values()), tuple(sorted(self.floor.cowork))))
 
     def _why_stuck(self) -> str:
+        gone = [p.id for p in self.people if p.mode == "gone"]
+        if gone:
+            return f"{', '.join(gone)} left for good"
         if self.ctl.stopped:
             return "the robots stopped (no plan left)"
         robots = ", ".join(f"{r.id} {r.mode} ({self.ctl.order(r.id)})" for r in self.robots)
@@ -480,7 +542,11 @@ class _TeamRun(AgentLoop[_Agent]):
         first_cp, kept, broken = self._first_kept(self.ctx.compiles[self.policy.compile], finished, times, seqs)
         floor = self.floor
         separation = floor.separation()
-        idle = {a: max(0.0, span - busy[a]) for a in self.agents}
+        for p in self.people:  # still away when the run ended
+            if p.mode in ("away", "gone") and p.away_since is not None:
+                p.absent += max(0.0, span - p.away_since)
+                p.away_since = None
+        idle = {a: max(0.0, span - busy[a] - self.agents[a].absent) for a in self.agents}
         people = [p.id for p in self.people]
         robots = [r.id for r in self.robots]
 
@@ -512,7 +578,7 @@ class _TeamRun(AgentLoop[_Agent]):
             robot_sequence=seqs[robots[0]] if robots else (), overruns=sum(
                 1 for p in self.people if p.draws is not None for x, ph in p.draws.overrun
                 if x in seqs[p.id] and f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
-            absent=0.0, latencies=tuple(ctl.latencies), joint=joint, team=team,
+            absent=sum(p.absent for p in self.people), latencies=tuple(ctl.latencies), joint=joint, team=team,
             late_observations=getattr(ctl, "late_observations", None),
             first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
             happenings=tuple(self.happenings) if self.record else (),
