@@ -245,6 +245,17 @@ def test_200_runs_of_each_team_keep_every_constraint_of_their_dc_plans(name: str
         _check(ctx, result, ctl)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["two_workers", "kitting_2robots"])
+def test_200_runs_of_each_team_under_late_buttons_keep_every_constraint(name: str) -> None:
+    """The target of issue 37's sensing per person: buttons 0.5 s late, the compile at buttons' stated delay:
+    every run on a plan DC at the sensing keeps every link of its STNU, judged on the true times."""
+    ctx = _late_buttons(name)
+    for i in range(200):
+        result, ctl = _run(ctx, i)
+        _check_late(ctx, result, ctl)
+
+
 # ------------------------------------------------------------------------------ the team floor's rules, by hand
 def _floor() -> tuple[Any, Any, Any, Any]:
     from hrc.sim.team_floor import TeamFloor
