@@ -49,7 +49,7 @@ def add_parser(sub: Any) -> None:
                    help="distribution of manipulation durations inside their bounds (default triangular)")
     g.add_argument("--overrun-rate", type=float, default=0.0, help="probability a manipulation overruns its bound")
     g.add_argument("--overrun-max", type=float, default=0.5, help="overrun of up to this fraction of the bound")
-    g.add_argument("--absence-rate", type=float, default=0.0, help="probability the person leaves once in a run")
+    g.add_argument("--absence-rate", type=float, default=0.0, help="probability each person leaves once in a run")
     g.add_argument("--absence-seconds", type=float, nargs=2, default=(10.0, 30.0), metavar=("LO", "HI"),
                    help="how long an absence lasts (uniform, default 10 30)")
     g.add_argument("--leave-for-good-rate", type=float, default=0.0,
