@@ -178,3 +178,49 @@ def test_a_team_simulation_takes_absences_on_the_command_line(tmp_path: Path, ca
     runs = doc["policies"]["hrc"]["runs"]
     assert all(r["finished"] for r in runs) and sum(r["absent"] for r in runs) > 0
     assert sorted(p.name for p in (out / "runs").iterdir()) == [f"hrc-000{i}.jsonl" for i in range(3)]
+
+
+# ---------------------------------------------------------------------- the robot's windows, against exact knowledge
+def test_the_robots_window_after_a_late_press_holds_at_the_true_time(workers_late: SimContext, tmp_path: Path) -> None:
+    """Against an oracle that knows the truth: in runs where every person's button is pressed exactly 0.5 s
+    late, at each answer once Bob (the second person) has pressed a button, the robot's window (DC)
+    must lie within the window a dispatcher over the same compile gives when told every person's event at its
+    true time (the press less 0.5 s; every message up to that answer, reordered by true time, and the same
+    clock): a window that holds for every time the event may have happened holds at the true one. 111
+    answers checked. Before (issue 37), Bob's events were read at the press, and the robot's latest was past
+    the oracle's (run 0, the robot's start of pick_e's place at 16.033 s: the first answer checked).
+    """
+    from hrc.dispatch.protocol import handle_line
+
+    kept = simulate(workers_late.task, 4, 0, ["hrc"], workers_late.settings, jobs=1, compiles=workers_late.compiles,
+                    keep_logs=True)
+    pristine = Dispatcher.from_compiled(workers_late.compiles["motion"])
+    checked = 0
+    for i in range(4):
+        contents = read_log_bytes(kept.logs["hrc"][i], tmp_path / f"w{i}.jsonl")
+        sent = [json.loads(m.data) for m in contents.messages]
+        answers = [json.loads(m.answer) for m in contents.messages]
+        for k, (m, a) in enumerate(zip(sent, answers, strict=True)):
+            step = a.get("robots", {}).get("robot") if a.get("ok") else None
+            if not any(x.get("agent") == "bob" and x.get("delay") is not None for x in sent[:k + 1]) or \
+                    a.get("class") != "DC" or not isinstance(step, dict) or step.get("latest") is None:
+                continue
+            truth = []
+            for x in sent[:k + 1]:
+                y = dict(x)
+                if y.get("delay") is not None:  # a person's press: the event happened `delay` earlier
+                    y["t"] = round(y["t"] - y.pop("delay"), 3)
+                truth.append(y)
+            truth.sort(key=lambda y: y["t"])
+            exact = Dispatcher(pristine.plan_set, max_observation_delay=0.0, ranker=pristine.ranker)
+            for y in truth:
+                assert json.loads(handle_line(exact, json.dumps(y)))["ok"]
+            out = json.loads(handle_line(exact, json.dumps({"t": m["t"], "event": "tick"})))
+            known = out["robots"]["robot"]
+            if out["plan"] != a["plan"] or not isinstance(known, dict) or \
+                    (known["action"], known["phase"], known["event"]) != (step["action"], step["phase"], step["event"]):
+                continue
+            checked += 1
+            assert known["earliest"] - 1e-3 <= step["earliest"], (i, m, step, known)
+            assert known["latest"] is None or step["latest"] <= known["latest"] + 1e-3, (i, m, step, known)
+    assert checked >= 3
