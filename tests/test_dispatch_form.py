@@ -3,6 +3,7 @@ dispatcher does with a form that is broken, from another compile, or missing."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 
@@ -74,6 +75,9 @@ def test_each_plans_line_is_where_the_form_says(compiled):
     ("remove", "does not match form.json"),
     ("form.json", "not the dispatch form compiled.json was written with"),
     ("no form.json", "cannot read the dispatch form"),
+    ("routes.npy", "does not match routes.json"),
+    ("routes", "not the route signatures of this dispatch form"),
+    ("routes.json", "expected version 1"),
 ])
 def test_a_broken_or_foreign_form_is_refused_in_one_line(compiled, tmp_path, capsys, damage, message):
     folder = tmp_path / "out"
@@ -90,6 +94,14 @@ def test_a_broken_or_foreign_form_is_refused_in_one_line(compiled, tmp_path, cap
         shutil.copytree(other, form)
     elif damage == "remove":
         (form / "nodes.npy").unlink()
+    elif damage == "routes.npy":  # one signature changed
+        data = (form / "routes.npy").read_bytes()
+        (form / "routes.npy").write_bytes(data[:-4] + bytes(4))
+    elif damage == "routes":  # another compile's route signatures, consistent in themselves
+        for name in ("routes.npy", "routes.json"):
+            shutil.copyfile(other / name, form / name)
+    elif damage == "routes.json":
+        (form / "routes.json").write_text('{"hrc_routes": 0}')
     elif damage == "form.json":
         meta = json.loads((form / "form.json").read_text())
         meta["plans"] += 1
@@ -114,6 +126,33 @@ def test_a_compile_without_a_form_still_dispatches_the_same(compiled, tmp_path):
     old, new = Dispatcher.from_folder(folder), Dispatcher.from_folder(compiled["zip"])
     assert old.plan_set.source == str(folder) and len(old.plan_set) == len(new.plan_set)
     assert old.decision == new.decision and old.candidates == new.candidates
+
+
+def test_the_route_signatures_beside_the_form(compiled, tmp_path):
+    """routes.json names the form.json it belongs to (the one compiled.json names: compiled.json is the
+    same bytes as without it) and routes.npy's digest; read back, they are the ones `build_form` makes.
+    A form without them (written before they existed) is still read, its routes made when asked: the
+    same decisions."""
+    folder = compiled["ws"]
+    form_dir = folder / FORM_FOLDER
+    meta = json.loads((form_dir / "routes.json").read_text())
+    header = json.loads((folder / "compiled.json").read_text().split(',\n "plans": [', 1)[0] + "\n}")
+    assert meta["form_sha256"] == header["dispatch_form"]["sha256"] == \
+        hashlib.sha256((form_dir / "form.json").read_bytes()).hexdigest()
+    assert "routes" not in (form_dir / "form.json").read_text()
+    task, entries, rank_by = read_entries(folder)
+    built = build_form(task, rank_by, [(e.id, e.compiled_class, e.preference, e.plan,
+                                        plan_record(task, e.plan, e.stnu, e.blocked, graphml_names=True))
+                                       for e in entries])
+    written = read_form(folder, task, rank_by)
+    assert written.routes is not None and np.array_equal(np.asarray(written.routes), built.routes)
+    old = tmp_path / "old"
+    shutil.copytree(folder, old)
+    for name in ("routes.json", "routes.npy"):
+        (old / FORM_FOLDER / name).unlink()
+    assert read_form(old, task, rank_by).routes is None
+    a, b = Dispatcher.from_folder(old), Dispatcher.from_folder(folder)
+    assert a.decision == b.decision and a.candidates == b.candidates
 
 
 def test_a_partial_or_stnu_less_output_is_refused(compiled, tmp_path, capsys):

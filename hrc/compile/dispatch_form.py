@@ -25,6 +25,13 @@ this instead: every plan of the compile, in rank order, as a few flat numpy arra
 ``form.json``: the version, the task's digest, the shapes, and the SHA-256 of every array file; with
     ``sensing`` (as ``compiled.json`` has it, `hrc.compile.sensing.sensing_dict`) when the task states how
     the human's events reach the robot: ``cls`` is then the class under that observation delay.
+``routes.npy`` (S, G, L, 3) int32 or int64 (as the weights), by shape number (S shapes): the route
+    signature of agent g's k-th leg in every plan of that shape (`hrc.compile.route_signatures`; -1 where
+    there is no such leg), what set validation reads of a leg under way. Beside the form, not in it:
+    ``routes.json`` names its version (`ROUTES_VERSION`), the SHA-256 of the ``form.json`` it belongs to
+    and its file's (shape, type, SHA-256), so ``form.json``, and with it ``compiled.json``, are the same
+    bytes as before it existed. A form without it (written before) is still read: the dispatcher then
+    makes the signatures as it needs them (`DispatchForm.routes` None).
 ``compiled.json``'s header names the SHA-256 of ``form.json`` (``"dispatch_form"``), so a form that is not
 the one compiled with it (a file truncated, swapped, or from another compile) is refused when read.
 
@@ -57,6 +64,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from hrc.compile.route_signatures import route_signatures
 from hrc.compile.temporal_net_creator import ORIGIN, block_target, leg_names
 from hrc.errors import InputError
 from hrc.io.task_file import task_digest
@@ -65,11 +73,14 @@ from hrc.plans import agent_legs
 from hrc.temporal.graphml import tool_name
 from hrc.temporal.network import STNU, ContingentLink, RequirementLink
 
-__all__ = ["FORM_FOLDER", "FORM_VERSION", "LEG_EVENTS", "PLAN_DTYPE", "DispatchForm", "FormWriter", "PlanArrays",
-           "build_form", "concat_forms", "parse_record", "plan_record", "plan_sequences", "read_form", "task_sizes"]
+__all__ = ["FORM_FOLDER", "FORM_VERSION", "LEG_EVENTS", "PLAN_DTYPE", "ROUTES_VERSION", "DispatchForm", "FormWriter",
+           "PlanArrays", "build_form", "concat_forms", "parse_record", "plan_record", "plans_routes", "plan_sequences",
+           "read_form", "task_sizes"]
 
 FORM_FOLDER = "dispatch"
 FORM_VERSION = 1
+ROUTES_VERSION = 1
+"""``routes.json``'s version (the module docstring: ``routes.npy``)."""
 LEG_EVENTS = ("depart", "park", "unpark", "arrive", "start", "end")
 """An agent's events on one leg, in the order they happen (as `hrc.dispatch.messages.LEG_EVENTS`)."""
 
@@ -237,6 +248,25 @@ def parse_record(data: bytes, sizes: tuple[int, int, int]) -> PlanArrays:
     return PlanArrays(n, edges, conts, nodes, bool(blocked))
 
 
+def plans_routes(batch: Sequence[PlanArrays]) -> np.ndarray:
+    """(len(batch), G, L, 3) int64: the route signature of each leg position of each plan
+    (`hrc.compile.route_signatures.route_signatures` of their arrays, in one call: a few hundred plans
+    at once cost about 30 us a plan, one alone about 300 us)."""
+    if not batch:
+        raise ValueError("no plans")
+    nodes = np.stack([a.nodes for a in batch])
+    e = np.concatenate([a.edges for a in batch]).reshape(-1, 3)
+    c = np.concatenate([a.conts for a in batch]).reshape(-1, 4)
+    e_ptr = np.cumsum([0, *(len(a.edges) for a in batch)], dtype=np.int64)
+    c_ptr = np.cumsum([0, *(len(a.conts) for a in batch)], dtype=np.int64)
+    return route_signatures(nodes, (e_ptr, e[:, 0], e[:, 1], e[:, 2]), (c_ptr, c[:, 0], c[:, 1], c[:, 3]),
+                            np.arange(len(batch), dtype=np.int64))
+
+
+_ROUTE_BATCH = 512
+"""Shapes whose route signatures are made in one call (`plans_routes`) as a form is written."""
+
+
 def plan_sequences(task: Task, plan: Plan) -> np.ndarray:
     """(G, A) int16: each agent's actions in order (task action indices), -1 after its last."""
     G, A, _L = task_sizes(task)
@@ -252,7 +282,8 @@ def plan_sequences(task: Task, plan: Plan) -> np.ndarray:
 @dataclass(frozen=True)
 class DispatchForm:
     """Every plan of a compile as arrays (the module docstring), in rank order; built by `read_form`
-    (memory-mapped) or `build_form` (in memory). `rank_by` is the compile's (`CompileOptions.rank_by`)."""
+    (memory-mapped) or `build_form` (in memory). `rank_by` is the compile's (`CompileOptions.rank_by`).
+    `routes`: ``routes.npy`` (by shape number), None for a form written without it."""
 
     task: Task
     rank_by: str
@@ -269,6 +300,7 @@ class DispatchForm:
     conts_lb: np.ndarray
     conts_ub: np.ndarray
     source: str = ""
+    routes: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.plans)
@@ -390,18 +422,21 @@ def _file_digest(path: Path) -> str:
 
 class FormWriter:
     """Writes the form of a compile into ``FOLDER/dispatch/``, plan after plan in rank order (`add`),
-    in memory that grows by about 60 bytes a plan; `close` writes ``plans.npy`` and ``form.json`` and
-    returns the SHA-256 of ``form.json`` for ``compiled.json``'s header. A bound that does not fit the
-    form's 32-bit weights raises OverflowError from `add`: write again with `wide`."""
+    in memory that grows by about 60 bytes a plan (and a shape's route signatures, `plans_routes`, made
+    for its first plan, `_ROUTE_BATCH` shapes at a time); `close` writes ``plans.npy``, ``form.json``,
+    then ``routes.npy`` and ``routes.json``, and returns the SHA-256 of ``form.json`` for
+    ``compiled.json``'s header. A bound that does not fit the form's 32-bit weights raises OverflowError
+    from `add`: write again with `wide`."""
 
     def __init__(self, folder: Path, task: Task, rank_by: str, wide: bool = False) -> None:
         self.task, self.rank_by = task, rank_by
         self.sizes = G, A, L = task_sizes(task)
         self.folder = Path(folder) / FORM_FOLDER
         self.folder.mkdir(exist_ok=True)
+        (self.folder / "routes.json").unlink(missing_ok=True)  # an earlier compile's, until this one's is written
         self.digest = task_digest(task)
         weight = np.dtype("<i8") if wide else np.dtype("<i4")
-        self.wide = wide
+        self.wide, self.weight = wide, weight
         d = self.folder
         self.cols = {
             "seq": _NpyColumn(d / "seq.npy", np.dtype("<i2"), (G, A)),
@@ -417,6 +452,8 @@ class FormWriter:
         self.rows: list[tuple] = []  # the plans.npy row of each plan
         self.edges_ptr, self.conts_ptr = [0], [0]
         self.shapes: dict[bytes, int] = {}
+        self.routes: list[np.ndarray] = []  # batches of route signatures, by shape number (`plans_routes`)
+        self.pending: list[PlanArrays] = []  # the first plan of each new shape, not in `routes` yet
 
     def add(self, plan_id: str, compiled_class: str, preference: float | None, sequences: np.ndarray,
             record: bytes, line_at: int = 0, line_len: int = 0) -> None:
@@ -427,7 +464,13 @@ class FormWriter:
         if (len(a.edges) and np.abs(a.edges[:, 2]).max() >= limit) or \
                 (len(a.conts) and np.abs(a.conts[:, 2:]).max() >= limit):
             raise OverflowError("a bound does not fit the form's weights")  # the caller goes wide
-        shape = self.shapes.setdefault(hashlib.sha256(record).digest(), len(self.shapes))
+        known = len(self.shapes)
+        shape = self.shapes.setdefault(hashlib.sha256(record).digest(), known)
+        if shape == known:  # a new shape
+            self.pending.append(a)
+            if len(self.pending) >= _ROUTE_BATCH:
+                self.routes.append(plans_routes(self.pending))
+                self.pending = []
         self.rows.append((plan_id.encode("ascii"), len(self.rows) + 1, _CLASS_CODE[compiled_class], a.blocked,
                           _preference(preference), a.n, shape, line_at, line_len))
         c = self.cols
@@ -469,7 +512,18 @@ class FormWriter:
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
-        return hashlib.sha256(text).hexdigest()
+        digest = hashlib.sha256(text).hexdigest()
+        G, _A, L = self.sizes
+        col = _NpyColumn(self.folder / "routes.npy", self.weight, (G, L, 3))
+        for batch in (*self.routes, *([plans_routes(self.pending)] if self.pending else [])):
+            col.add(batch)
+        name, entry = col.close()
+        routes = {"hrc_routes": ROUTES_VERSION, "form_sha256": digest, "files": {name: entry}}
+        with open(self.folder / "routes.json", "wb") as f:
+            f.write((json.dumps(routes, indent=1, sort_keys=True) + "\n").encode("utf-8"))
+            f.flush()
+            os.fsync(f.fileno())
+        return digest
 
 
 def build_form(task: Task, rank_by: str, entries: Iterable[tuple[str, str, float | None, Plan, bytes]],
@@ -483,9 +537,12 @@ def build_form(task: Task, rank_by: str, entries: Iterable[tuple[str, str, float
     edges: list[np.ndarray] = []
     conts: list[np.ndarray] = []
     shapes: dict[bytes, int] = {}
+    firsts: list[PlanArrays] = []  # the first plan of each shape
     for plan_id, cls, pref, plan, record in entries:
         a = parse_record(record, sizes)
         shape = shapes.setdefault(hashlib.sha256(record).digest(), len(shapes))
+        if shape == len(firsts):
+            firsts.append(a)
         rows.append((plan_id.encode("ascii"), len(rows) + 1, _CLASS_CODE[cls], a.blocked, _preference(pref), a.n,
                      shape, 0, 0))
         seqs.append(plan_sequences(task, plan))
@@ -501,7 +558,9 @@ def build_form(task: Task, rank_by: str, entries: Iterable[tuple[str, str, float
         np.cumsum([0, *(len(x) for x in edges)], dtype=np.int64), e[:, 0].astype(np.uint16),
         e[:, 1].astype(np.uint16), np.ascontiguousarray(e[:, 2]),
         np.cumsum([0, *(len(x) for x in conts)], dtype=np.int64), c[:, 0].astype(np.uint16),
-        c[:, 1].astype(np.uint16), np.ascontiguousarray(c[:, 2]), np.ascontiguousarray(c[:, 3]), source)
+        c[:, 1].astype(np.uint16), np.ascontiguousarray(c[:, 2]), np.ascontiguousarray(c[:, 3]), source,
+        np.concatenate([plans_routes(firsts[i:i + _ROUTE_BATCH]) for i in range(0, len(firsts), _ROUTE_BATCH)]
+                       or [np.zeros((0, G, L, 3), dtype=np.int64)]))
 
 
 def concat_forms(a: DispatchForm, b: DispatchForm) -> DispatchForm:
@@ -527,7 +586,9 @@ def concat_forms(a: DispatchForm, b: DispatchForm) -> DispatchForm:
         ptr(a.edges_ptr, b.edges_ptr), cat([a.edges_u, b.edges_u]), cat([a.edges_v, b.edges_v]),
         cat([wide(a.edges_w), wide(b.edges_w)]), ptr(a.conts_ptr, b.conts_ptr), cat([a.conts_a, b.conts_a]),
         cat([a.conts_c, b.conts_c]), cat([wide(a.conts_lb), wide(b.conts_lb)]),
-        cat([wide(a.conts_ub), wide(b.conts_ub)]), a.source)
+        cat([wide(a.conts_ub), wide(b.conts_ub)]), a.source,
+        None if a.routes is None or b.routes is None or len(a.routes) != int(np.max(a.plans["shape"], initial=-1)) + 1
+        else cat([wide(a.routes), wide(b.routes)]))
 
 
 _ARRAYS = ("seq", "nodes", "edges_ptr", "edges_u", "edges_v", "edges_w", "conts_ptr", "conts_a", "conts_c",
@@ -544,6 +605,7 @@ def read_form(folder: str | os.PathLike[str], task: Task, rank_by: str, *, expec
     meta_path = base / "form.json"
     meta: dict[str, Any] = {}
     files: dict[str, Any] = {}
+    raw = b""
     if check:
         try:
             raw = meta_path.read_bytes()
@@ -580,10 +642,45 @@ def read_form(folder: str | os.PathLike[str], task: Task, rank_by: str, *, expec
                       or descr != files[f"{name}.npy"].get("dtype")):
             raise InputError(str(path), "", "its shape or type differs from form.json")
     rows = arrays.pop("plans")
-    form = DispatchForm(task, rank_by, rows, source=str(folder), **arrays)
+    routes = _read_routes(base, raw if check else None, (int(np.max(rows["shape"], initial=-1)) + 1,
+                                                          *task_sizes(task)[::2], 3))
+    form = DispatchForm(task, rank_by, rows, source=str(folder), routes=routes, **arrays)
     if check:
         _check_consistent(form, meta, str(base))
     return form
+
+
+def _read_routes(base: Path, form_json: bytes | None, shape: tuple[int, ...]) -> np.ndarray | None:
+    """``routes.npy`` memory-mapped, None when ``routes.json`` is absent (a form written before it). With
+    `form_json` (the form's ``form.json``, read and checked), checked against ``routes.json``: the form it
+    belongs to, its file's SHA-256, type and `shape`; raises `InputError` naming the file otherwise."""
+    meta_path = base / "routes.json"
+    if not meta_path.is_file():
+        return None
+    path = base / "routes.npy"
+    if form_json is not None:
+        try:
+            meta = json.loads(meta_path.read_bytes())
+        except (OSError, ValueError) as err:
+            raise InputError(str(meta_path), "", f"cannot read it: {err}") from err
+        if not isinstance(meta, dict) or meta.get("hrc_routes") != ROUTES_VERSION:
+            raise InputError(str(meta_path), "hrc_routes", f"expected version {ROUTES_VERSION}")
+        if meta.get("form_sha256") != hashlib.sha256(form_json).hexdigest():
+            raise InputError(str(meta_path), "form_sha256", "not the route signatures of this dispatch form: compile "
+                                                            "again")
+        want = meta.get("files", {}).get("routes.npy") if isinstance(meta.get("files"), dict) else None
+        if not isinstance(want, dict):
+            raise InputError(str(meta_path), "files.routes.npy", "missing")
+        if (_file_digest(path) if path.is_file() else None) != want.get("sha256"):
+            raise InputError(str(path), "", "does not match routes.json (truncated, changed or from another compile): "
+                                            "compile again")
+    try:
+        routes = np.load(path, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError) as err:
+        raise InputError(str(path), "", f"cannot read it: {err}") from err
+    if routes.shape != shape or routes.dtype.kind != "i":
+        raise InputError(str(path), "", f"shape {routes.shape} ({routes.dtype}), expected {shape} of integers")
+    return routes
 
 
 def _check_consistent(form: DispatchForm, meta: Mapping[str, Any], where: str) -> None:

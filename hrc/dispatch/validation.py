@@ -26,7 +26,8 @@ only the plans with that route on that leg (`RouteIndex`, `route_signature`), so
 an event of a route it is not driving ("park" on a straight drive), and no plan is named whose
 instructions rest on a route nobody took. A route is told by its `route_signature`: whether it stops at
 a waiting place, and the upper bound of each stretch of travel (to the stop or the location, and from
-the stop on): a detour takes longer than the straight route.
+the stop on): a detour takes longer than the straight route. The compile computes them
+(`hrc.compile.route_signatures`) and stores them with the dispatch form, so set validation only reads them.
 
 `executed` turns a history into one plan's executed timepoints (ticks): each seen event pins its
 timepoint; an unreported earlier event of the same leg (a depart, an arrival, a stop at a waiting place
@@ -45,6 +46,8 @@ from types import MappingProxyType
 import numpy as np
 
 from hrc.compile.dispatch_form import DispatchForm
+from hrc.compile.route_signatures import RouteSig, route_signatures
+from hrc.compile.route_signatures import route_signature as _route_signature
 from hrc.compile.temporal_net_creator import ORIGIN, TICKS_PER_SECOND
 from hrc.errors import DispatchError
 from hrc.model import Action, Task
@@ -52,8 +55,8 @@ from hrc.model import Action, Task
 from .messages import LEG_EVENTS, Observation
 from .plan_set import EventKey, PlanEntry
 
-__all__ = ["MAX_JUMP", "History", "RouteIndex", "agreeing", "agrees", "executed", "route_signature", "seen_arrays",
-           "ticks"]
+__all__ = ["MAX_JUMP", "History", "RouteIndex", "RouteSig", "agreeing", "agrees", "executed", "route_signature",
+           "seen_arrays", "ticks"]
 
 MAX_JUMP = 3600.0
 """Seconds: a message more than this after the last one is refused as a clock error. One bad time (a
@@ -312,97 +315,38 @@ def seen_arrays(history: History, legs: int) -> tuple[np.ndarray, np.ndarray]:
     return seen, counts
 
 
-RouteSig = tuple[int, int, int]
-"""A leg's route (`route_signature`): stops at a waiting place (0/1), the upper bound (ticks) of its first
-stretch of travel (to the stop, or to the location), of its second (from the stop on; -1: none)."""
-
-
 def route_signature(entry: PlanEntry, agent: str, action: str, phase: str) -> RouteSig:
-    """The route of `agent`'s leg `action`.`phase` in the plan (see the module docstring), from its STNU:
-    the tightest bound of ``T(stop) - T(depart)`` its requirement links (and contingent links of one fixed
-    duration) give, else its contingent link's upper bound, else -1; the same for ``T(arrive) - T(unpark)``
-    after a waiting place. `RouteIndex` computes the same from the dispatch form's arrays."""
-    points = dict(entry.leg_points[(agent, action, phase)])
-    stnu = entry.stnu
-
-    def stretch(a: str, b: str) -> int:
-        found: list[int] = []
-        for r in stnu.requirements:
-            if (r.source, r.target) == (a, b) and r.ub is not None:
-                found.append(r.ub)
-            if (r.source, r.target) == (b, a) and r.lb is not None:
-                found.append(-r.lb)
-        for c in stnu.contingents:
-            if (c.source, c.target) == (a, b) and c.lb == c.ub:
-                found.append(c.ub)
-        if found:
-            return min(found)
-        return next((c.ub for c in stnu.contingents if (c.source, c.target) == (a, b)), -1)
-
-    if "park" in points:
-        return (1, stretch(points["depart"], points["park"]), stretch(points["unpark"], points["arrive"]))
-    return (0, stretch(points["depart"], points["arrive"]), -1)
+    """The route of `agent`'s leg `action`.`phase` in the plan, from its STNU
+    (`hrc.compile.route_signatures.route_signature`, the definition); `RouteIndex` reads the same from
+    the dispatch form."""
+    return _route_signature(entry.stnu, dict(entry.leg_points[(agent, action, phase)]))
 
 
 class RouteIndex:
-    """Each plan's route on each leg position (`route_signature`), from the dispatch form's arrays, made
-    for a plan when first asked and kept (shared by a dispatcher's forks): set validation reads it for a
-    leg under way. ``sig[p, g, k]``: plan p's route on agent g's k-th leg; -2 in the first column: not
-    made yet."""
+    """Each plan's route on each leg position (`route_signature`), shared by a dispatcher's forks: set
+    validation reads it for a leg under way. From the form's ``routes.npy`` (by shape, made by the
+    compile) where it has one; else (a form written before it) made for a plan when first asked and kept:
+    ``sig[p, g, k]``, -2 in the first column: not made yet."""
 
     def __init__(self, form: DispatchForm) -> None:
         self.form = form
         P, G, L, _ = form.nodes.shape
+        self.by_shape = form.routes
+        self.shape = None if form.routes is None else np.ascontiguousarray(form.plans["shape"], dtype=np.int64)
         self.sig: np.ndarray | None = None
         self._shape = (P, G, L, 3)
 
     def routes(self, plans: np.ndarray, g: int, k: int) -> np.ndarray:
         """``(len(plans), 3)``: the plans' routes on agent g's k-th leg (int64)."""
         plans = np.asarray(plans, dtype=np.int64)
+        if self.by_shape is not None and self.shape is not None:
+            return np.asarray(self.by_shape[self.shape[plans], g, k], dtype=np.int64)
         if self.sig is None:
-            self.sig = np.full(self._shape, -2, dtype=np.int32)
+            self.sig = np.full(self._shape, -2, dtype=np.int64)
         missing = plans[self.sig[plans, 0, 0, 0] == -2]
         if len(missing):
-            self._make(np.unique(missing))
-        return self.sig[plans, g, k].astype(np.int64)
-
-    def _make(self, plans: np.ndarray) -> None:
-        """Fill ``sig`` for `plans` (every leg), vectorised over their edges and contingent links: one pass
-        per stretch over the plans' rows, each row's leg found through the inverse of ``nodes``."""
-        form = self.form
-        assert self.sig is not None
-        nodes = form.nodes[plans].astype(np.int64)  # (n, G, L, 6)
-        n, G, L, _ = nodes.shape
-        dep, park, unpark, arr = (nodes[..., e].reshape(n, G * L) for e in (0, 1, 2, 3))
-        out = np.full((n, G * L, 3), -1, dtype=np.int64)
-        out[..., 0] = (park >= 0).astype(np.int64)
-        width = int(nodes.max(initial=0)) + 1
-        rows = np.repeat(np.arange(n), G * L).reshape(n, G * L)
-        legs = np.tile(np.arange(G * L), n).reshape(n, G * L)
-        for col, (a, b) in enumerate(((dep, np.where(park >= 0, park, arr)), (unpark, arr)), start=1):
-            ok = (a >= 0) & (b >= 0)
-            inverse = np.full((n, width), -1, dtype=np.int64)  # plan, timepoint -> the leg it starts a stretch of
-            inverse[rows[ok], a[ok]] = legs[ok]
-            for ptr, us, vs, ws, fixed in ((form.conts_ptr, form.conts_a, form.conts_c, form.conts_ub, False),
-                                           (form.edges_ptr, form.edges_u, form.edges_v, form.edges_w, True)):
-                start = np.asarray(ptr[plans], dtype=np.int64)
-                count = np.asarray(ptr[plans + 1], dtype=np.int64) - start
-                total = int(count.sum())
-                if not total:
-                    continue
-                owner = np.repeat(np.arange(n), count)
-                idx = np.arange(total) - np.repeat(np.cumsum(count) - count, count) + np.repeat(start, count)
-                u = np.asarray(us[idx], dtype=np.int64)
-                v = np.asarray(vs[idx], dtype=np.int64)
-                j = inverse[owner, np.minimum(u, width - 1)]
-                j = np.where(u < width, j, -1)
-                hit = j >= 0
-                hit[hit] = b[owner[hit], j[hit]] == v[hit]
-                o, jj, w = owner[hit], j[hit], np.asarray(ws[idx[hit]], dtype=np.int64)
-                if fixed:  # edges over contingent links: the tightest fixed bound wins
-                    best = np.full((n, G * L), np.iinfo(np.int64).max, dtype=np.int64)
-                    np.minimum.at(best, (o, jj), w)
-                    out[o, jj, col] = best[o, jj]
-                else:
-                    out[o, jj, col] = w
-        self.sig[plans] = out.reshape(n, G, L, 3).astype(np.int32)
+            form = self.form
+            self.sig[np.unique(missing)] = route_signatures(
+                form.nodes, (form.edges_ptr, form.edges_u, form.edges_v, form.edges_w),
+                (form.conts_ptr, form.conts_a, form.conts_c, form.conts_ub), np.unique(missing))
+        return self.sig[plans, g, k]

@@ -474,8 +474,10 @@ void hrc_rul_link(HrcRul *g, int l, int a, int c, int64_t x, int64_t y) {
 /* The check on the edges and links given since hrc_rul_begin (g->x, g->y, g->act, g->ctg set), step 1
  * starting from the potential p0 (NULL: all 0). Any start gives the same verdict; a feasible one (no edge
  * of the LO-graph and the pairs violated) makes step 1 a single pass over the edges. */
-static int run(Net *g, const int64_t *p0) {
-    int n = g->n, k = g->k;
+/* The links' edges (lower-case, and the pair of each link's bounds) and the links by activation. 0, or -1
+ * out of memory. */
+static int add_links(Net *g) {
+    int k = g->k;
     const int *act = g->act, *ctg = g->ctg;
     for (int l = k - 1; l >= 0; l--) {
         g->act_next[l] = g->act_first[act[l]];
@@ -486,15 +488,25 @@ static int run(Net *g, const int64_t *p0) {
         if (g->lc[l] < 0 || add_edge(g, act[l], ctg[l], g->y[l], PAIR) < 0 ||
             add_edge(g, ctg[l], act[l], -g->x[l], PAIR) < 0) return -1;
     }
+    return 0;
+}
+
+/* Step 1 failed (the LO-graph and the pairs have a negative cycle): not DC; inconsistent when the
+ * network without its lower-case edges has a negative cycle too. 1 or 2, -1 out of memory. */
+static int not_dc(Net *g) {
+    for (int v = 0; v < g->n; v++) g->p[v] = 0;
+    int stn = potential(g, g->p, LC);
+    return stn < 0 ? -1 : (stn ? 2 : 1);
+}
+
+static int run(Net *g, const int64_t *p0) {
+    int n = g->n, k = g->k;
+    const int *act = g->act;
+    if (add_links(g)) return -1;
     /* step 1: one potential for the LO-graph and the pairs */
     for (int v = 0; v < n; v++) g->p[v] = p0 ? (W)p0[v] : 0;
     int r = potential(g, g->p, -1);
-    if (r) {
-        if (r < 0) return -1;
-        for (int v = 0; v < n; v++) g->p[v] = 0;
-        int stn = potential(g, g->p, LC);
-        return stn < 0 ? -1 : (stn ? 2 : 1);
-    }
+    if (r) return r < 0 ? -1 : not_dc(g);
     /* steps 2-5, links by decreasing potential of their activation */
     int *links = g->links, *stack = g->stack;
     for (int l = 0; l < k; l++) { links[l] = l; g->lkeys[l] = g->p[act[l]]; }
@@ -523,6 +535,8 @@ static int run(Net *g, const int64_t *p0) {
 }
 
 int hrc_rul_run(HrcRul *g, const int64_t *p0) { return run(g, p0); }
+
+int hrc_rul_run_not_dc(HrcRul *g) { return add_links(g) ? -1 : not_dc(g); }
 
 int hrc_rul_verdict(int n, int m, const int *src, const int *dst, const int64_t *w_lo, const int64_t *w_hi,
                     int k, const int *act, const int *ctg, const int64_t *x_lo, const int64_t *x_hi,
