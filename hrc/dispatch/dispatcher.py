@@ -97,6 +97,12 @@ class _State:
     read: bool = False  # cls, finish, idle from the person's events as they may truly have happened (`_reading`)
 
 
+ANSWERED_DEPTH = 4
+"""`Dispatcher.observe` keeps the answers to the first this many messages from the start (`_answered`)."""
+ANSWERED_KEPT = 1024
+"""... and at most this many of them (a few MB)."""
+
+
 class Dispatcher:
     """A state machine over a compiled plan set: `observe` a message, get a `Decision`.
 
@@ -146,6 +152,8 @@ class Dispatcher:
         self._dos: dict[tuple, Any] = {}  # (plan, what happened, now) -> its DO form (`_preferred`)
         self._same: dict[tuple[bytes, int], np.ndarray] = {}  # (candidates, last best) -> person's part kept (`_lead`)
         self._spans: dict[tuple[int, int, int], tuple[int, int | None]] = {}  # (plan, a, b) -> a drive's (`_arrival`)
+        # (state, message) -> the state it led to, for a run's first messages (`observe`): shared by forks
+        self._answered: dict[tuple[int, Observation], tuple[_State, PlanSet, _State]] = {}
         found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
         self._limits = None if found is None else MappingProxyType(found)
         history = History.start(plan_set.task)
@@ -291,7 +299,33 @@ class Dispatcher:
 
     # ------------------------------------------------------------------ the cycle
     def observe(self, obs: Observation) -> Decision:
-        """Take one message; the new `Decision`. Raises `DispatchError` (state unchanged) when refused."""
+        """Take one message; the new `Decision`. Raises `DispatchError` (state unchanged) when refused.
+
+        A message is a function of the state it reaches and the plan set: the same message to the same
+        state object (a fork's, shared with the dispatcher it was forked from, and each state such a message
+        led to) leads to the same new state, kept (`_answered`) for the first `ANSWERED_DEPTH` messages from
+        the start. The simulator forks every run from one dispatcher, and every run of a policy begins with
+        the same messages (the robot's and the person's first departures, at the plan's times): these, the
+        costliest (every plan still a candidate), are decided once per process. Not with compile on demand
+        (`fallback`: the plan set grows under the forks) nor where the answer reads more than the state
+        (a subclass's own `_span`: a detector's estimates)."""
+        state = self._state
+        memo = self._answered if len(state.accepted) < ANSWERED_DEPTH and not self.fallback and \
+            type(self)._span is Dispatcher._span else None
+        if memo is not None:
+            hit = memo.get((id(state), obs))
+            if hit is not None and hit[0] is state and hit[1] is self.plan_set:
+                self._state = hit[2]
+                return hit[2].decision
+        decision = self._observe(obs)
+        if memo is not None:
+            if len(memo) >= ANSWERED_KEPT:
+                memo.clear()
+            memo[(id(state), obs)] = (state, self.plan_set, self._state)
+        return decision
+
+    def _observe(self, obs: Observation) -> Decision:
+        """`observe` (without `_answered`)."""
         state = self._state
         if obs.event == "undo":
             return self._undo(obs)
