@@ -173,7 +173,11 @@ class Floor:
         hm, rm = self.human, self.robot
         if self.cowork or (not (hm.present and hm.moving and rm.moving) and self.slowdown == 0 and self.ssm is None):
             return MAX_STEP
-        gap = self.free() - self.margin - (self.slowdown if self.ssm is None else self._band)
+        if not hm.present:  # no gap to close (`free` is inf)
+            return MAX_STEP
+        (px, py), (qx, qy) = hm.xy, rm.xy  # (`free`, inlined)
+        gap = math.hypot(px - qx, py - qy) - self._radii - self.margin - (self.slowdown if self.ssm is None
+                                                                            else self._band)
         closing = hm.agent.speed + rm.agent.speed
         return max(MIN_STEP, min(MAX_STEP, gap / closing / 2)) if math.isfinite(gap) else MAX_STEP
 
@@ -255,18 +259,21 @@ class Floor:
             return 0.0
         target = m.s + want
         got = want
+        end = None  # the point at `target`, where the step is taken whole (asked of the route once)
         if centre is not None:
             cx, cy = centre
-            ex, ey = m.at(target)
+            end = ex, ey = m.at(target)
             if (ex - cx) * (ex - cx) + (ey - cy) * (ey - cy) < reach * reach:
                 got = _entry(m, target, cx, cy, reach) - m.s
+                end = None
             if math.dist(m.xy, centre) - got - self._radii < self.min_free:  # else it cannot come closer
                 self.min_free = min(self.min_free, _closest(m, m.s + got, cx, cy) - self._radii)
-        m.s += got
+        m.s += got  # (taken whole: `target` itself, the same float)
         if m.s >= m.stop_at - 1e-9:
             m.s = m.stop_at
             m.moving = False
-        m.xy = m.at(m.s)
+            end = None
+        m.xy = m.at(m.s) if end is None else end
         return got
 
     def _back_off(self, m: Mover, distance: float) -> None:

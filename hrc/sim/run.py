@@ -359,6 +359,11 @@ class _Run(Standoffs):
         """The steps both agents share: going home, and giving way to `other`. True or False when one of
         them decided this step (something happened, or nothing may), None when the agent's own rules
         decide."""
+        mode = a.mode
+        if mode not in ("home", "aside", "aside_wait", "returning"):  # not going home, not making room: a
+            m = a.mover  # standoff only when held up `ASIDE_AFTER` s on its way (`_give_way`, `_stuck`)
+            if mode == "work" or not m.moving or m.blocked_for < ASIDE_AFTER:
+                return None
         if self._home_reached(a):
             return True
         if self._give_way(a, other):
