@@ -152,6 +152,7 @@ class Dispatcher:
         self._dos: dict[tuple, Any] = {}  # (plan, what happened, now) -> its DO form (`_preferred`)
         self._same: dict[tuple[bytes, int], np.ndarray] = {}  # (candidates, last best) -> person's part kept (`_lead`)
         self._spans: dict[tuple[int, int, int], tuple[int, int | None]] = {}  # (plan, a, b) -> a drive's (`_arrival`)
+        self._routed: dict[tuple, np.ndarray] = {}  # (candidates, legs told or parked) -> those on them (`_on_routes`)
         # (state, message) -> the state it led to, for a run's first messages (`observe`): shared by forks
         self._answered: dict[tuple[int, Observation], tuple[_State, PlanSet, _State]] = {}
         found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
@@ -453,6 +454,7 @@ class Dispatcher:
             self._dists = {k: v for k, v in self._dists.items() if k[0] < n}
             self._dos = {k: v for k, v in self._dos.items() if k[0] < n}
             self._same, self._spans = {}, {k: v for k, v in self._spans.items() if k[0] < n}
+            self._routed = {}
         pool = np.arange(len(plan_set), dtype=np.int64)
         kept = agreeing(plan_set.form, st.history, pool)
         if not len(kept) and st.history.away:  # as `observe` reads an absence
@@ -532,19 +534,34 @@ class Dispatcher:
         """The plans of `kept` that drive or walk each leg seen along its route (`_tell_route`): the one
         told, or with a stop at a waiting place where the agent was seen stopping although told otherwise.
         A fact is never refused for it: if no plan is left, `kept` as it was."""
-        out = kept
+        legs = []  # (g, k, the route told, seen parking) of each leg that narrows the plans
         for g, agent in enumerate(self.task.agent_ids):
             for k, (action, phase) in enumerate(history.legs.get(agent, ())):
                 sig = told.get((g, k))
                 parked = (agent, action, phase, "park") in history.times
-                if sig is None and not parked:
-                    continue
-                routes = self.routes.routes(out, g, k)
-                if parked and (sig is None or sig[0] == 0):
-                    out = out[routes[:, 0] == 1]
-                else:
-                    out = out[np.all(routes == np.array(sig, dtype=np.int64), axis=1)]
-        return out if len(out) else kept
+                if sig is not None or parked:
+                    legs.append((g, k, sig, parked))
+        if not legs:
+            return kept
+        # shared by forks: a function of the plans, the legs and their routes alone (no times), which the
+        # runs of a simulation meet again and again
+        key = (kept.tobytes(), tuple(legs)) if len(kept) <= 512 else None
+        found = None if key is None else self._routed.get(key)
+        if found is not None:
+            return found
+        out = kept
+        for g, k, sig, parked in legs:
+            routes = self.routes.routes(out, g, k)
+            if parked and (sig is None or sig[0] == 0):
+                out = out[routes[:, 0] == 1]
+            else:
+                out = out[np.all(routes == np.array(sig, dtype=np.int64), axis=1)]
+        found = out if len(out) else kept
+        if key is not None:
+            if len(self._routed) >= 1024:
+                self._routed.clear()
+            self._routed[key] = found
+        return found
 
     def _undo(self, obs: Observation) -> Decision:
         state = self._state
