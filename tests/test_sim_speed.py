@@ -22,7 +22,7 @@ from scipy.sparse.csgraph import connected_components
 
 from hrc.apa.compile import _anchors
 from hrc.compile.compiler import compile_task
-from hrc.dispatch import Dispatcher
+from hrc.dispatch import Dispatcher, Observation
 from hrc.io.task_file import load_task
 from hrc.motion.planner import LINKS
 from hrc.motion.world import World, _fcl_object, _pieces
@@ -153,3 +153,99 @@ def test_a_fork_after_other_runs_decides_as_a_fresh_dispatcher(workshop, compile
         forked = ctx.cache[("dispatcher", "hrc", False)].fork()
         for obs in accepted:
             assert forked.observe(obs).to_json() == fresh.observe(obs).to_json()
+
+
+def test_a_runs_first_messages_are_decided_once_and_as_a_fresh_dispatcher_decides(workshop, compiled):
+    """`Dispatcher._answered`: the same first messages to forks of one dispatcher lead to the very same
+    state objects (decided once), each decision as a fresh dispatcher (its own states: nothing to reuse)
+    gives it; a message at another time, or past `ANSWERED_DEPTH`, is decided again."""
+    from hrc.dispatch.dispatcher import ANSWERED_DEPTH
+
+    ctx = SimContext(workshop, {"motion": compiled}, SimSettings(), 5)
+    ctls: list = []
+    simulate_run(ctx, "hrc", 0, controller=lambda c, p: ctls.append(make_controller(c, p)) or ctls[-1])
+    accepted = ctls[0].d.accepted
+    assert len(accepted) > ANSWERED_DEPTH + 2
+    pristine = ctx.cache[("dispatcher", "hrc", False)]
+    a, b, fresh = pristine.fork(), pristine.fork(), Dispatcher.from_compiled(compiled, threads=1)
+    for k, obs in enumerate(accepted):
+        da, db, df = a.observe(obs), b.observe(obs), fresh.observe(obs)
+        assert da.to_json() == db.to_json() == df.to_json()
+        assert (a._state is b._state) == (k < ANSWERED_DEPTH)  # decided once for the first messages only
+        assert fresh._state is not a._state
+    other = pristine.fork()
+    later = Observation(accepted[0].t + 0.25, accepted[0].event, accepted[0].agent, accepted[0].action,
+                        accepted[0].phase)
+    first = pristine.fork()
+    first.observe(accepted[0])
+    assert other.observe(later).to_json() == Dispatcher.from_compiled(compiled, threads=1).observe(later).to_json()
+    assert other._state is not first._state
+
+
+def test_the_step_loops_shortcuts_agree_with_the_long_way(workshop, compiled, monkeypatch):
+    """At every step of real runs of each policy: `_Run.next_time` (the soonest kept as the candidates
+    come) against the minimum of the filtered list of every candidate, as it was computed; and where
+    `_home_or_aside` answers at once (None), the long way (`_home_reached`, `_give_way`) decides nothing."""
+    from hrc.sim import run as run_mod
+    from hrc.sim.floor import time_to_stop
+    from hrc.sim.policies import DispatchedController
+    from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP
+
+    def listed(self) -> float:  # the list version (no sensor here)
+        t = self.t
+        cands = [self.detector.next_due()]
+        step = None
+        for ag in (self.h, self.r):
+            if ag.mover.moving:
+                cands.append(t + time_to_stop(ag.mover))
+                step = self.floor.safe_step() if step is None else step
+                cands.append(t + step)
+                if ag.mover.blocked_for > 0:
+                    cands.append(t + max(ASIDE_AFTER - ag.mover.blocked_for, run_mod.MIN_STEP))
+            if ag.mode == "work":
+                cands.append(ag.work_end)
+        if self.h.mode == "away" and self.h.back_at is not None:
+            cands.append(max(self.h.back_at, t + 0.1))
+        if self.draws.absence is not None and not self.absence_done:
+            cands.append(self.draws.absence[0])
+        if self.h.mode in ("free", "parked", "arrived") and self.model.choice == "follow" and not self.ctl.stopped:
+            cands += self._guide_times()
+        if any(ag.mode == "aside_wait" and ag.held_up for ag in (self.h, self.r)):
+            cands.append(t + WAIT_STEP)
+        o = self.ctl.order()
+        if o is not None and o.event in ("depart", "unpark", "start"):
+            cands.append(o.earliest)
+        due = self.ctl.due() if isinstance(self.ctl, DispatchedController) else None
+        if due is not None:
+            cands.append(due)
+        future = [c for c in cands if c > t + 1e-9 and math.isfinite(c)]
+        return min(min(future), self.cap) if future else math.inf
+
+    fast_next, fast_home = run_mod._Run.next_time, run_mod._Run._home_or_aside
+    counts = {"steps": 0, "at_once": 0}
+
+    def next_time(self):
+        got = fast_next(self)
+        assert got == listed(self)
+        counts["steps"] += 1
+        return got
+
+    def home_or_aside(self, a, other):
+        got = fast_home(self, a, other)
+        if got is None:
+            counts["at_once"] += 1
+            mode, xy = a.mode, a.mover.xy
+            assert not self._home_reached(a) and not self._give_way(a, other)
+            assert (a.mode, a.mover.xy) == (mode, xy)
+        return got
+
+    monkeypatch.setattr(run_mod._Run, "next_time", next_time)
+    monkeypatch.setattr(run_mod._Run, "_home_or_aside", home_or_aside)
+    from hrc.sim.blind import blind_compile
+
+    ctx = SimContext(workshop, {"motion": compiled, "blind": blind_compile(workshop, seed=0, jobs=1)},
+                     SimSettings(), 11)
+    for policy in ("hrc", "motion-blind", "fixed"):
+        for i in range(3):
+            simulate_run(ctx, policy, i)
+    assert counts["steps"] > 500 and counts["at_once"] > 500

@@ -101,6 +101,12 @@ class _State:
     read: bool = False  # cls, finish, idle from the person's events as they may truly have happened (`_reading`)
 
 
+ANSWERED_DEPTH = 4
+"""`Dispatcher.observe` keeps the answers to the first this many messages from the start (`_answered`)."""
+ANSWERED_KEPT = 1024
+"""... and at most this many of them (a few MB)."""
+
+
 class Dispatcher:
     """A state machine over a compiled plan set: `observe` a message, get a `Decision`.
 
@@ -150,6 +156,9 @@ class Dispatcher:
         self._dos: dict[tuple, Any] = {}  # (plan, what happened, now) -> its DO form (`_preferred`)
         self._same: dict[tuple[bytes, int], np.ndarray] = {}  # (candidates, last best) -> person's part kept (`_lead`)
         self._spans: dict[tuple[int, int, int], tuple[int, int | None]] = {}  # (plan, a, b) -> a drive's (`_arrival`)
+        self._routed: dict[tuple, np.ndarray] = {}  # (candidates, legs told or parked) -> those on them (`_on_routes`)
+        # (state, message) -> the state it led to, for a run's first messages (`observe`): shared by forks
+        self._answered: dict[tuple[int, Observation], tuple[_State, PlanSet, _State]] = {}
         found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
         self._limits = None if found is None else MappingProxyType(found)
         history = History.start(plan_set.task)
@@ -295,7 +304,33 @@ class Dispatcher:
 
     # ------------------------------------------------------------------ the cycle
     def observe(self, obs: Observation) -> Decision:
-        """Take one message; the new `Decision`. Raises `DispatchError` (state unchanged) when refused."""
+        """Take one message; the new `Decision`. Raises `DispatchError` (state unchanged) when refused.
+
+        A message is a function of the state it reaches and the plan set: the same message to the same
+        state object (a fork's, shared with the dispatcher it was forked from, and each state such a message
+        led to) leads to the same new state, kept (`_answered`) for the first `ANSWERED_DEPTH` messages from
+        the start. The simulator forks every run from one dispatcher, and every run of a policy begins with
+        the same messages (the robot's and the person's first departures, at the plan's times): these, the
+        costliest (every plan still a candidate), are decided once per process. Not with compile on demand
+        (`fallback`: the plan set grows under the forks) nor where the answer reads more than the state
+        (a subclass's own `_span`: a detector's estimates)."""
+        state = self._state
+        memo = self._answered if len(state.accepted) < ANSWERED_DEPTH and not self.fallback and \
+            type(self)._span is Dispatcher._span else None
+        if memo is not None:
+            hit = memo.get((id(state), obs))
+            if hit is not None and hit[0] is state and hit[1] is self.plan_set:
+                self._state = hit[2]
+                return hit[2].decision
+        decision = self._observe(obs)
+        if memo is not None:
+            if len(memo) >= ANSWERED_KEPT:
+                memo.clear()
+            memo[(id(state), obs)] = (state, self.plan_set, self._state)
+        return decision
+
+    def _observe(self, obs: Observation) -> Decision:
+        """`observe` (without `_answered`)."""
         state = self._state
         if obs.event == "undo":
             return self._undo(obs)
@@ -438,6 +473,7 @@ class Dispatcher:
             self._dists = {k: v for k, v in self._dists.items() if k[0] < n}
             self._dos = {k: v for k, v in self._dos.items() if k[0] < n}
             self._same, self._spans = {}, {k: v for k, v in self._spans.items() if k[0] < n}
+            self._routed = {}
         pool = np.arange(len(plan_set), dtype=np.int64)
         kept = agreeing(plan_set.form, st.history, pool)
         if not len(kept) and st.history.away:  # as `observe` reads an absence
@@ -519,19 +555,34 @@ class Dispatcher:
         """The plans of `kept` that drive or walk each leg seen along its route (`_tell_route`): the one
         told, or with a stop at a waiting place where the agent was seen stopping although told otherwise.
         A fact is never refused for it: if no plan is left, `kept` as it was."""
-        out = kept
+        legs = []  # (g, k, the route told, seen parking) of each leg that narrows the plans
         for g, agent in enumerate(self.task.agent_ids):
             for k, (action, phase) in enumerate(history.legs.get(agent, ())):
                 sig = told.get((g, k))
                 parked = (agent, action, phase, "park") in history.times
-                if sig is None and not parked:
-                    continue
-                routes = self.routes.routes(out, g, k)
-                if parked and (sig is None or sig[0] == 0):
-                    out = out[routes[:, 0] == 1]
-                else:
-                    out = out[np.all(routes == np.array(sig, dtype=np.int64), axis=1)]
-        return out if len(out) else kept
+                if sig is not None or parked:
+                    legs.append((g, k, sig, parked))
+        if not legs:
+            return kept
+        # shared by forks: a function of the plans, the legs and their routes alone (no times), which the
+        # runs of a simulation meet again and again
+        key = (kept.tobytes(), tuple(legs)) if len(kept) <= 512 else None
+        found = None if key is None else self._routed.get(key)
+        if found is not None:
+            return found
+        out = kept
+        for g, k, sig, parked in legs:
+            routes = self.routes.routes(out, g, k)
+            if parked and (sig is None or sig[0] == 0):
+                out = out[routes[:, 0] == 1]
+            else:
+                out = out[np.all(routes == np.array(sig, dtype=np.int64), axis=1)]
+        found = out if len(out) else kept
+        if key is not None:
+            if len(self._routed) >= 1024:
+                self._routed.clear()
+            self._routed[key] = found
+        return found
 
     def _undo(self, obs: Observation) -> Decision:
         state = self._state
@@ -1310,7 +1361,7 @@ def _within(form: _DOForm, done: dict[str, int],
     at, times = _past(form, done) if past is None else past
     apart = times[None, :] - times[:, None]  # [i, j]: T(j) - T(i)
     ok = apart <= form[1][at[:, None], at] + 1
-    np.fill_diagonal(ok, True)
+    ok.flat[::len(at) + 1] = True  # the diagonal (`np.fill_diagonal`'s own step, without its checks)
     return bool(ok.all())
 
 

@@ -33,6 +33,7 @@ NO_BOUND = np.iinfo(np.int64).max
 """A window's latest tick when it has none."""
 
 _p = ctypes.c_void_p
+_I8, _I4, _U1 = np.dtype("<i8"), np.dtype("<i4"), np.dtype("u1")
 
 
 class _Form(ctypes.Structure):
@@ -155,27 +156,27 @@ class NativeForm:
         the last plan (ticks per timepoint) when it has one. `threads`: split a long list of plans into
         that many parts evaluated at once (each plan's result does not depend on the split)."""
         assert _CORE is not None
-        plans = _array(plans, "<i8")
-        seen = _array(seen, "<i8")
-        legs_seen = _array(legs_seen, "<i4")
+        plans = np.ascontiguousarray(plans, dtype=_I8)
+        seen = np.ascontiguousarray(seen, dtype=_I8)
+        legs_seen = np.ascontiguousarray(legs_seen, dtype=_I4)
         state = _State(seen.ctypes.data, legs_seen.ctypes.data, int(now), RANK_BY[rank_by])
         count = len(plans)
         cls = np.empty(count, dtype=np.int8)
         finish = np.empty(count, dtype=np.int64)
         idle = np.empty(count, dtype=np.int64)
-
-        def run(lo: int, hi: int) -> None:
-            assert _CORE is not None
-            _CORE[2](ctypes.byref(self.struct), ctypes.byref(state), _workspace().handle, hi - lo,
-                     plans.ctypes.data + 8 * lo, cls.ctypes.data + lo, finish.ctypes.data + 8 * lo,
-                     idle.ctypes.data + 8 * lo, _ptr(times))
-
+        # each array's address asked of numpy once (a message evaluates a few plans: this is most of the call)
+        at = (plans.ctypes.data, cls.ctypes.data, finish.ctypes.data, idle.ctypes.data, _ptr(times))
         parts = min(threads, count // _PER_THREAD) if times is None else 1
         if parts > 1:
+            def run(lo: int, hi: int) -> None:
+                assert _CORE is not None
+                _CORE[2](ctypes.byref(self.struct), ctypes.byref(state), _workspace().handle, hi - lo,
+                         at[0] + 8 * lo, at[1] + lo, at[2] + 8 * lo, at[3] + 8 * lo, at[4])
+
             cuts = [count * i // parts for i in range(parts + 1)]
             list(_pool(parts).map(run, cuts[:-1], cuts[1:]))
         elif count:
-            run(0, count)
+            _CORE[2](ctypes.byref(self.struct), ctypes.byref(state), _workspace().handle, count, *at)
         return cls, finish, idle
 
     def windows(self, p: int, seen: np.ndarray, legs_seen: np.ndarray, now: int, mode: str, queries: list[int],
@@ -187,24 +188,24 @@ class NativeForm:
         executables, per query. None when the core cannot (out of memory, numbers too large)."""
         assert _CORE is not None
         n = int(self._keep["n"][p])
-        seen = _array(seen, "<i8")
-        legs_seen = _array(legs_seen, "<i4")
+        seen = np.ascontiguousarray(seen, dtype=_I8)
+        legs_seen = np.ascontiguousarray(legs_seen, dtype=_I4)
         state = _State(seen.ctypes.data, legs_seen.ctypes.data, int(now), 0)
         nq = len(queries)
         code = ctypes.c_int(MODES.index(mode))
         q = np.array(queries, dtype=np.int32)
-        unc = _array(uncontrolled, "u1").reshape(nq, n)
-        earliest = np.zeros(nq, dtype=np.int64)
-        latest = np.zeros(nq, dtype=np.int64)
-        waits = np.zeros(nq, dtype=np.int32)
-        until = np.zeros(max(1, nq * n), dtype=np.int32)
+        unc = np.ascontiguousarray(uncontrolled, dtype=_U1).reshape(nq, n)
+        # the outputs in one block, one address asked of numpy: earliest, latest (int64), waits, until (int32)
+        out_ = np.zeros(2 * nq + (nq + max(1, nq * n) + 1) // 2, dtype=np.int64)
+        base = out_.ctypes.data
+        earliest, latest = out_[:nq], out_[nq:2 * nq]
+        small = out_[2 * nq:].view(np.int32)
+        waits, until = small[:nq], small[nq:]
         rc = _CORE[3](ctypes.byref(self.struct), ctypes.byref(state), _workspace().handle, p, ctypes.byref(code), nq,
-                      q.ctypes.data, unc.ctypes.data, earliest.ctypes.data, latest.ctypes.data, waits.ctypes.data,
-                      until.ctypes.data)
+                      q.ctypes.data, unc.ctypes.data, base, base + 8 * nq, base + 16 * nq, base + 16 * nq + 4 * nq)
         if rc != 0:
             return None
         out: list[tuple[int, int] | list[int]] = []
-        for i in range(nq):
-            w = int(waits[i])
-            out.append(until[i * n:i * n + w].tolist() if w else (int(earliest[i]), int(latest[i])))
+        for i, (w, lo, hi) in enumerate(zip(waits.tolist(), earliest.tolist(), latest.tolist(), strict=True)):
+            out.append(until[i * n:i * n + w].tolist() if w else (lo, hi))
         return MODES[code.value], out

@@ -57,6 +57,7 @@ NO_FINISH = native.NO_FINISH
 """The finish of a plan with no schedule at all, in the arrays (ranks after every finish)."""
 _TWINS_KEPT = (512, 1024)
 """`Ranker._twins` keeps candidate lists of up to this many plans, this many lists (a few MB at most)."""
+_NO_FINISH_LAST = np.iinfo(np.int64).max  # a plan without a schedule ranks last by finish (`_columns`)
 
 
 @dataclass(frozen=True, slots=True)
@@ -244,7 +245,7 @@ class Ranker:
                  idle: np.ndarray, lead: np.ndarray | None = None) -> list[np.ndarray]:
         """The rank key's columns (`rank_key`), most significant first; `lead` (after the class): 1 for a
         plan that gives up the person's part of the plan being followed (`hrc.dispatch.dispatcher`)."""
-        fin = np.where(finish == NO_FINISH, np.iinfo(np.int64).max, finish)
+        fin = np.where(finish == NO_FINISH, _NO_FINISH_LAST, finish)
         head = [cls.astype(np.int64)] + ([] if lead is None else [lead.astype(np.int64)])
         return [*head, self.blocked[plans], fin, idle, self.pref_key[plans], self.id_rank[plans]]
 

@@ -207,8 +207,9 @@ class History:
         ended = self.ended | {leg} if event == "end" else self.ended
         doer = dict(self.doer)
         doer.setdefault(action, agent)
-        return replace(self, now=obs.t, times=MappingProxyType(times), legs=MappingProxyType(legs), ended=ended,
-                       doer=MappingProxyType(doer), announced=MappingProxyType(announced))
+        # (`replace`, written out: its look at the fields cost as much as the rest at every message)
+        return History(task, self.human, obs.t, MappingProxyType(times), MappingProxyType(legs), ended,
+                       MappingProxyType(doer), MappingProxyType(announced), self.away, self.gone)
 
 
 @dataclass(frozen=True, slots=True)

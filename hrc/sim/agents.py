@@ -160,6 +160,8 @@ class AgentLoop(Generic[W]):
 
     def _deliver_detected(self) -> bool:
         """The detector's releases (the person's events) to the controller, each no earlier than the last."""
+        if not self.detector.pending:  # (asked at every step: nothing to release, most of the time)
+            return False
         out = self.detector.release(self.t)
         for h in out:
             t = max(h.t, self.last_obs)  # later still when the clock has moved on: as late as it is told

@@ -173,46 +173,59 @@ class Floor:
         hm, rm = self.human, self.robot
         if self.cowork or (not (hm.present and hm.moving and rm.moving) and self.slowdown == 0 and self.ssm is None):
             return MAX_STEP
-        gap = self.free() - self.margin - (self.slowdown if self.ssm is None else self._band)
+        if not hm.present:  # no gap to close (`free` is inf)
+            return MAX_STEP
+        (px, py), (qx, qy) = hm.xy, rm.xy  # (`free`, inlined)
+        gap = math.hypot(px - qx, py - qy) - self._radii - self.margin - (self.slowdown if self.ssm is None
+                                                                            else self._band)
         closing = hm.agent.speed + rm.agent.speed
         return max(MIN_STEP, min(MAX_STEP, gap / closing / 2)) if math.isfinite(gap) else MAX_STEP
 
     def advance(self, h: float) -> None:
-        """Move both agents for `h` seconds (person first, then the robot's response)."""
+        """Move both agents for `h` seconds (person first, then the robot's response). (`free` and
+        `Mover.remaining` are written out here: this runs at every step of every run, and the same
+        expressions give the same floats.)"""
         hm, rm = self.human, self.robot
         radii = self._radii
         if self.cowork:
             self._cowork_step(h)
             return
+        ssm = self.ssm
         if hm.present and hm.moving:
-            want = min(hm.speed * h, hm.remaining)
-            free_before = self.free()
+            want = min(hm.speed * h, max(0.0, hm.stop_at - hm.s))
+            (px, py), (qx, qy) = hm.xy, rm.xy
+            free_before = math.hypot(px - qx, py - qy) - radii
             floor = min(CONTACT, free_before) - 1e-12  # the free distance the person keeps (`free`, inlined)
             got = self._walk(hm, want, rm.xy, radii + floor)
-            if self.ssm is not None:
-                self.ssm.person_step(not rm.moving or self.ssm.stopped, free_before, self.free())
+            if ssm is not None:
+                ssm.person_step(not rm.moving or ssm.stopped, free_before, self.free())
             tally(hm, h, want, got, got)
         if rm.moving:
-            want = min(rm.speed * h, rm.remaining)
-            before = self.free()
-            ahead = rm.at(rm.s + min(want, 1e-3) if want > 0 else rm.s)
-            closing = self.free(hm.xy, ahead) < before
+            want = min(rm.speed * h, max(0.0, rm.stop_at - rm.s))
+            present = hm.present
+            if present:
+                (px, py), (qx, qy) = hm.xy, rm.xy
+                before = math.hypot(px - qx, py - qy) - radii
+                ax, ay = rm.at(rm.s + min(want, 1e-3) if want > 0 else rm.s)
+                closing = math.hypot(px - ax, py - ay) - radii < before
+            else:
+                before, closing = math.inf, False
             allowed = rm.speed
             limit = min(self.margin, before)
-            if self.ssm is not None:
+            if ssm is not None:
                 if closing:  # at the speed the rule allows, up to exactly S_p of that speed
-                    allowed = ssm_speed(self.ssm.safety, before, rm.speed)
+                    allowed = ssm_speed(ssm.safety, before, rm.speed)
                     want = min(want, allowed * h)
                     if allowed > 0:
-                        limit = protective_separation(self.ssm.safety, allowed).total
+                        limit = protective_separation(ssm.safety, allowed).total
             elif closing and before < self.margin + self.slowdown and self.slowdown > 0:
                 want *= max(0.0, min(1.0, (before - self.margin) / self.slowdown))
-            got = self._walk(rm, want, hm.xy if hm.present else None, radii + limit - 1e-12)
-            if self.ssm is not None:
-                self.ssm.robot_step(h, rm.speed, allowed, closing, max(0.0, got), self.free())
+            got = self._walk(rm, want, hm.xy if present else None, radii + limit - 1e-12)
+            if ssm is not None:
+                ssm.robot_step(h, rm.speed, allowed, closing, max(0.0, got), self.free())
             if got <= 1e-12 and closing and before < self.margin and rm.s > 0:
                 self._back_off(rm, rm.speed * h / 2)  # the person keeps coming: make room
-            tally(rm, h, min(rm.speed * h, rm.remaining + max(0.0, got)), got, max(0.0, got))
+            tally(rm, h, min(rm.speed * h, max(0.0, rm.stop_at - rm.s) + max(0.0, got)), got, max(0.0, got))
         self._sync(h)
 
     def _cowork_step(self, h: float) -> None:
@@ -246,18 +259,21 @@ class Floor:
             return 0.0
         target = m.s + want
         got = want
+        end = None  # the point at `target`, where the step is taken whole (asked of the route once)
         if centre is not None:
             cx, cy = centre
-            ex, ey = m.at(target)
+            end = ex, ey = m.at(target)
             if (ex - cx) * (ex - cx) + (ey - cy) * (ey - cy) < reach * reach:
                 got = _entry(m, target, cx, cy, reach) - m.s
+                end = None
             if math.dist(m.xy, centre) - got - self._radii < self.min_free:  # else it cannot come closer
                 self.min_free = min(self.min_free, _closest(m, m.s + got, cx, cy) - self._radii)
-        m.s += got
+        m.s += got  # (taken whole: `target` itself, the same float)
         if m.s >= m.stop_at - 1e-9:
             m.s = m.stop_at
             m.moving = False
-        m.xy = m.at(m.s)
+            end = None
+        m.xy = m.at(m.s) if end is None else end
         return got
 
     def _back_off(self, m: Mover, distance: float) -> None:
@@ -270,9 +286,12 @@ class Floor:
     def _sync(self, h: float) -> None:
         """Move the pymunk bodies to the agents' positions and ask pymunk whether the discs touch (only when
         they are closer than `QUERY_GAP`: farther apart they cannot, and the bodies are only moved)."""
-        if self.human.present:
-            free = self.free()
-            self.min_free = min(self.min_free, free)
+        hm = self.human
+        if hm.present:
+            (px, py), (qx, qy) = hm.xy, self.robot.xy
+            free = math.hypot(px - qx, py - qy) - self._radii  # (`free`, inlined)
+            if free < self.min_free:
+                self.min_free = free
             if free > QUERY_GAP:  # the bodies are moved when pymunk is next stepped or asked (`_flush`)
                 self._unsynced = (self.human.xy, self.robot.xy)
                 return

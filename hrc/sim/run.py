@@ -288,6 +288,7 @@ class _Run(Standoffs):
         self.absent = 0.0
         self.held_since: float | None = None
         self.late = 0
+        self._dctl = ctl if isinstance(ctl, DispatchedController) else None  # (asked at every step)
         self.frames: list[tuple[float, float, float, float, float, bool]] = []
         self.excess = 0.0
         self.standoffs = 0
@@ -358,6 +359,11 @@ class _Run(Standoffs):
         """The steps both agents share: going home, and giving way to `other`. True or False when one of
         them decided this step (something happened, or nothing may), None when the agent's own rules
         decide."""
+        mode = a.mode
+        if mode not in ("home", "aside", "aside_wait", "returning"):  # not going home, not making room: a
+            m = a.mover  # standoff only when held up `ASIDE_AFTER` s on its way (`_give_way`, `_stuck`)
+            if mode == "work" or not m.moving or m.blocked_for < ASIDE_AFTER:
+                return None
         if self._home_reached(a):
             return True
         if self._give_way(a, other):
@@ -619,44 +625,77 @@ class _Run(Standoffs):
         return wanted <= given or self.t >= self.finished_at[0] + _DRAIN
 
     def next_time(self) -> float:
+        """The next time something is due (module docstring, 2.): the soonest of the candidates below that
+        is later than now, capped at the time cap; inf when none is (stuck). (Run at every step: the
+        soonest kept as the candidates come, where a list of them was filtered and its minimum taken; the
+        same float.)"""
         t = self.t
-        cands = [self.detector.next_due()]
+        low = t + _EPS
+        best = math.inf
+        c = self.detector.next_due()
+        if low < c < best:
+            best = c
         step = None  # the floor's safe step, the same for both agents (asked once)
         for ag in (self.h, self.r):
-            if ag.mover.moving:
-                cands.append(t + self.floor.time_to_stop(ag.mover))
+            m = ag.mover
+            if m.moving:
+                if m.speed > 0:  # `time_to_stop`
+                    c = t + max(0.0, m.stop_at - m.s) / m.speed
+                    if low < c < best:
+                        best = c
                 if step is None:
                     step = self.floor.safe_step()
-                cands.append(t + step)
-                if ag.mover.blocked_for > 0:  # held up: a standoff when it has been for ASIDE_AFTER seconds
-                    cands.append(t + max(ASIDE_AFTER - ag.mover.blocked_for, MIN_STEP))
+                c = t + step
+                if low < c < best:
+                    best = c
+                if m.blocked_for > 0:  # held up: a standoff when it has been for ASIDE_AFTER seconds
+                    c = t + max(ASIDE_AFTER - m.blocked_for, MIN_STEP)
+                    if low < c < best:
+                        best = c
             if ag.mode == "work":
-                cands.append(ag.work_end)
-        if self.h.mode == "away" and self.h.back_at is not None:
-            cands.append(max(self.h.back_at, t + 0.1))
+                c = ag.work_end
+                if low < c < best:
+                    best = c
+        h = self.h
+        if h.mode == "away" and h.back_at is not None:
+            c = max(h.back_at, t + 0.1)
+            if low < c < best:
+                best = c
         absence = self.draws.absence
         if absence is not None and not self.absence_done:
-            cands.append(absence[0])
-        if self.h.mode in ("free", "parked", "arrived") and self.model.choice == "follow" and not self.ctl.stopped:
-            cands += self._guide_times()
-        if any(ag.mode == "aside_wait" and ag.held_up for ag in (self.h, self.r)):
-            cands.append(t + WAIT_STEP)  # an agent that made room looks again whether it may go back or on
+            c = absence[0]
+            if low < c < best:
+                best = c
+        if h.mode in ("free", "parked", "arrived") and self.model.choice == "follow" and not self.ctl.stopped:
+            for c in self._guide_times():
+                if low < c < best:
+                    best = c
+        if (h.mode == "aside_wait" and h.held_up) or (self.r.mode == "aside_wait" and self.r.held_up):
+            c = t + WAIT_STEP  # an agent that made room looks again whether it may go back or on
+            if low < c < best:
+                best = c
         o = self.ctl.order()
         if o is not None and o.event in ("depart", "unpark", "start"):
-            cands.append(o.earliest)
-        due = self.ctl.due() if isinstance(self.ctl, DispatchedController) else None
-        if due is not None:  # plans compiled on demand come then (`hrc.sim.on_demand`)
-            cands.append(due)
-        if isinstance(self.ctl, DispatchedController) and self.ctx.settings.tick > 0 and not self.done():
-            if o is None or o.event == "wait" or self.h.mode in ("free", "parked", "arrived"):
-                cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
-        future = [c for c in cands if c > t + _EPS and math.isfinite(c)]
+            c = o.earliest
+            if low < c < best:
+                best = c
+        if self._dctl is not None:
+            due = self._dctl.due()
+            if due is not None and low < due < best:  # plans compiled on demand come then (`hrc.sim.on_demand`)
+                best = due
+            if self.ctx.settings.tick > 0 and not self.done():
+                if o is None or o.event == "wait" or h.mode in ("free", "parked", "arrived"):
+                    c = max(self.last_obs, self.last_tick) + self.ctx.settings.tick
+                    if low < c < best:
+                        best = c
         if self.sensor is not None:  # the tracker goes on measuring; the detector may yet give an event
+            future = [] if best == math.inf else [best]
             quiet = not future and self.finished_at is None
             self.quiet_since = (self.quiet_since if self.quiet_since is not None else t) if quiet else None
             if self.quiet_since is None or t - self.quiet_since < _QUIET:
-                future += [c for c in (self.sensor.next_time, self.sensor.next_arrival()) if c > t + _EPS]
-        return min(min(future), self.cap) if future else math.inf  # nothing due: nobody can go on (stuck)
+                future += [c for c in (self.sensor.next_time, self.sensor.next_arrival()) if c > low]
+            return min(min(future), self.cap) if future else math.inf
+        return min(best, self.cap) if best < math.inf else math.inf  # nothing due: nobody can go on (stuck)
 
     def _guide_times(self) -> list[float]:
         a = self.h
@@ -677,8 +716,14 @@ class _Run(Standoffs):
     def run(self, index: int) -> RunResult:
         reason = ""
         stall_since: float | None = None
+        h, r = self.h, self.r
+        hm, rm = h.mover, r.mover
+        dctl = self._dctl
+        tick = self.ctx.settings.tick
+        stall = self.ctx.settings.stall
         while True:
-            self._sample()
+            if self.sensor is not None:
+                self._sample()
             for _ in range(100):
                 changed = self.deliver()
                 changed = self.human() or changed
@@ -700,29 +745,31 @@ class _Run(Standoffs):
             if not math.isfinite(nt):
                 reason = "stuck: " + self._why_stuck()
                 break
-            tick_due = max(self.last_obs, self.last_tick) + self.ctx.settings.tick
-            before = (self.h.mover.xy, self.r.mover.xy, len(self.happenings))
+            tick_due = max(self.last_obs, self.last_tick) + tick
+            hxy, rxy, seen = hm.xy, rm.xy, len(self.happenings)
             self.advance(nt - self.t)
-            for ag in (self.h, self.r):
-                if ag.mode == "travel" and ag.mover.moving:
-                    ag.moved += nt - self.t
-                if ag.mode in ("aside", "aside_wait", "returning"):
+            for ag in (h, r):
+                mode = ag.mode
+                if mode == "travel":
+                    if ag.mover.moving:
+                        ag.moved += nt - self.t
+                elif mode in ("aside", "aside_wait", "returning"):
                     ag.aside_time += nt - self.t
-                if ag.mode == "aside_wait" and ag.held_up:
-                    ag.wait_for += nt - self.t
+                    if mode == "aside_wait" and ag.held_up:
+                        ag.wait_for += nt - self.t
             self.t = nt
-            if isinstance(self.ctl, DispatchedController) and self.ctx.settings.tick > 0 and abs(nt - tick_due) < _EPS:
-                self.last_tick = nt
-                self.ctl.tick(max(nt, self.last_obs))
-                self.last_obs = max(nt, self.last_obs)
-            elif isinstance(self.ctl, DispatchedController) and (due := self.ctl.due()) is not None and \
-                    nt >= due - _EPS:  # the plans compiled on demand have come: a tick takes them in
-                self.ctl.tick(max(nt, self.last_obs))
-                self.last_obs = max(nt, self.last_obs)
-            waiting = any(ag.mover.moving or ag.mode == "aside_wait" for ag in (self.h, self.r))
-            if waiting and before == (self.h.mover.xy, self.r.mover.xy, len(self.happenings)):
+            if dctl is not None:
+                if tick > 0 and abs(nt - tick_due) < _EPS:
+                    self.last_tick = nt
+                    dctl.tick(max(nt, self.last_obs))
+                    self.last_obs = max(nt, self.last_obs)
+                elif (due := dctl.due()) is not None and nt >= due - _EPS:  # the plans compiled on demand
+                    dctl.tick(max(nt, self.last_obs))  # have come: a tick takes them in
+                    self.last_obs = max(nt, self.last_obs)
+            if (hm.moving or rm.moving or h.mode == "aside_wait" or r.mode == "aside_wait") and \
+                    hxy == hm.xy and rxy == rm.xy and seen == len(self.happenings):
                 stall_since = self.t if stall_since is None else stall_since
-                if self.t - stall_since > self.ctx.settings.stall:
+                if self.t - stall_since > stall:
                     reason = "deadlock: the two block each other"
                     break
             else:
