@@ -401,6 +401,7 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
     start_cpu = time.process_time()  # CPU since the process began: the imports, reading the task
     start = time.perf_counter()
     from hrc.compile.compiler import CompileOptions
+    from hrc.compile.defaults import SAMPLE_MIN_PLANS
     from hrc.compile.estimate import estimate, fmt_bytes, fmt_span
     from hrc.compile.stream import Sample
     from hrc.plans import allocation_count
@@ -438,7 +439,8 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                                     "(all are compiled)")
     say(f"{task.name}: {est.plans} plans{keeping}; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu "
         f"{args.stnu}{', less what is not kept' * bool(keeping)}); {fmt_span(lo, hi)} on "
-        f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)} until measured"
+        f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)}"
+        + (" until measured" if total >= SAMPLE_MIN_PLANS else "")
         + ("" if resume is None else f"; resuming: {len(resume[1]):,} compiled already"))
 
     def on_estimate(sample: Sample) -> None:
