@@ -110,9 +110,10 @@ def _serve(task: Task | None, conn: Connection, parent: int) -> None:
     failed: str | None = None
     bases: Bases = {}
     try:
+        _import_drawing()
         from hrc.report.plan_figures import drawing_digest
 
-        drawing_digest()  # matplotlib imported, its settings and font read: what every figure's cache key needs
+        drawing_digest()  # matplotlib's settings and font read: what every figure's cache key needs
     except BaseException:  # noqa: BLE001 - said when the work is asked for
         failed = traceback.format_exc()
     job: Any = ("task", task)
@@ -143,6 +144,31 @@ def _serve(task: Task | None, conn: Connection, parent: int) -> None:
         return
     work = pickle.loads(blob)
     conn.send(_draw_in_two(lambda share: draw_figures(work, Path(out), share, bases)))
+
+
+def _import_drawing() -> None:
+    """Import what drawing a figure needs (matplotlib's figure, Agg canvas and artists; the report's
+    drawing modules), without the text of matplotlib's generated ``Artist.set`` docstrings.
+
+    Each `matplotlib.artist.Artist` subclass, as it is defined, gets a ``set`` method whose docstring
+    lists every property with its accepted values (`matplotlib.artist.kwdoc`, through an
+    `~matplotlib.artist.ArtistInspector` reading each setter's docstring): about 0.2 s of CPU of
+    matplotlib's 0.7 s import, for text that only ``help()`` reads. This process only draws, so that
+    text is left empty here (`kwdoc` answers "" while these modules are imported, and is put back after;
+    the signatures, which matplotlib builds beside, are as ever). The figures' bytes do not depend on it
+    (tests/test_report.py draws them both ways)."""
+    import matplotlib.artist
+
+    kwdoc = matplotlib.artist.kwdoc
+    matplotlib.artist.kwdoc = lambda artist: ""
+    try:
+        import matplotlib.backends.backend_agg
+        import matplotlib.figure  # noqa: F401
+
+        importlib.import_module("hrc.report.gantt")
+        importlib.import_module("hrc.report.maps")
+    finally:
+        matplotlib.artist.kwdoc = kwdoc
 
 
 def _bases(task: Task, bases: Bases, conn: Connection) -> str | None:

@@ -191,12 +191,16 @@ _DRAWING_CODE = ("hrc.report.plan_figures", "hrc.report.figures", "hrc.report.ga
 
 @functools.cache
 def drawing_digest() -> str:
-    """What every figure's bytes depend on besides what it shows (`_figure_key`); imports matplotlib."""
+    """What every figure's bytes depend on besides what it shows (`_figure_key`); imports matplotlib (not
+    pyplot)."""
     import matplotlib
     import PIL
     from matplotlib.font_manager import FontProperties, findfont
 
-    settings = repr(sorted((k, repr(v)) for k, v in matplotlib.rcParams.items()))
+    # every setting but the backend: the figures are drawn on their own Agg canvas whatever it says, and
+    # reading it resolves the default backend, which imports pyplot and probes for a GUI toolkit
+    params = matplotlib.rcParams
+    settings = repr(sorted((k, repr(params[k])) for k in params if k != "backend"))
     return hashlib.sha256(repr((source_digest(*_DRAWING_CODE),
                                 matplotlib.__version__, PIL.__version__, settings,
                                 findfont(FontProperties()))).encode()).hexdigest()
