@@ -28,6 +28,7 @@ not interrupted again.
 from __future__ import annotations
 
 import functools
+import importlib
 import itertools
 import time
 import zlib
@@ -50,8 +51,8 @@ from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import generate_plans, identical_actions, plan_code, plan_families, spread_families, symmetry_factor
 
-__all__ = ["OUTPUT_FILES", "RESULTS_MAX_PLANS", "SAMPLE_MIN_PLANS", "Abandoned", "Sample", "StreamResult", "chunk_size",
-           "compact_records", "compile_records", "compile_stream", "sample_twice"]
+__all__ = ["FORKED_IMPORTS", "OUTPUT_FILES", "RESULTS_MAX_PLANS", "SAMPLE_MIN_PLANS", "Abandoned", "Sample",
+           "StreamResult", "chunk_size", "compact_records", "compile_records", "compile_stream", "sample_twice"]
 
 OUTPUT_FILES = ("compiled.json", "input", "stnu", STNU_ARCHIVE, RESUME_FILE, FORM_FOLDER)
 """Every name `compile_stream` may write into an output folder (``hrc compile`` adds the report's,
@@ -70,6 +71,13 @@ folder lost, a colleague's checkout of the same code) takes the plans from there
 bytes, without planning a motion or starting a worker (issue 38: the workshop in about a second).
 Larger compiles are not kept: a file per compile of hundreds of MB would cost more to write than a
 repeated compile saves."""
+
+FORKED_IMPORTS = ("scipy.sparse.csgraph", "scipy.ndimage", "scipy.spatial", "ompl.geometric", "hrc.apa.plan")
+"""What planning the paths and compiling a plan import on first use (a roadmap's Dijkstra, the conflicts'
+labelling and k-d tree, the roadmap planner, the preferences' QP: kept out of the start-up, so that a
+compile taken from the cache never pays them; about 0.5 s of CPU in all). A compile on a local pool
+imports them once before it forks (`_compile_into`): the second roadmap's process and every worker
+inherit them, where each imported them again before (issue 38: 0.25-0.3 s of CPU per process)."""
 
 
 def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
@@ -337,6 +345,9 @@ def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int |
 
         # a local pool's second core plans every other roadmap meanwhile (no threads here yet: a fork is safe)
         apart = run_apart if getattr(ex, "local_processes", False) else None
+        if apart is not None:  # imported once here, before the forks, rather than in each forked process
+            for name in FORKED_IMPORTS:
+                importlib.import_module(name)
         paths = plan_paths(task, seed=seed, progress=motion, apart=apart)
         planned.append(paths)
         check()
