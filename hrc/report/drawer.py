@@ -32,6 +32,8 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hrc.report.figures import shares
+
 if TYPE_CHECKING:
     from hrc.model import Task
     from hrc.report.plan_figures import Bases, FigureWork
@@ -228,15 +230,3 @@ def draw_in_two(draw: Callable[[tuple[int, int]], None]) -> None:
     failed = _draw_in_two(draw)
     if failed is not None:
         raise RuntimeError(f"drawing the figures failed:\n{failed}")
-
-
-def shares(weights: list[float], n: int = 2) -> list[list[int]]:
-    """Indices of `weights` in `n` groups of about equal total (longest first, each to the lightest
-    group so far; ties to the first): a fixed split, the same for the same weights."""
-    groups: list[list[int]] = [[] for _ in range(n)]
-    load = [0.0] * n
-    for i in sorted(range(len(weights)), key=lambda i: (-weights[i], i)):
-        k = load.index(min(load))
-        groups[k].append(i)
-        load[k] += weights[i]
-    return [sorted(g) for g in groups]
