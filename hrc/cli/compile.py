@@ -42,7 +42,6 @@ from typing import TYPE_CHECKING, Any
 from hrc.cli.argtypes import delay_range, real, whole
 from hrc.errors import InputError
 from hrc.io.claim import FolderClaim
-from hrc.io.task_file import MAX_SECONDS, load_task
 
 if TYPE_CHECKING:
     from hrc.cli.interrupt import DeferredInterrupt
@@ -323,6 +322,7 @@ def _stated_sensing(task: Task, delay: tuple[Fraction, Fraction | None]) -> Task
     else the path "stated", undated)."""
     from dataclasses import replace
 
+    from hrc.io.task_file import MAX_SECONDS
     from hrc.model import Sensing
 
     lo, hi = float(delay[0]), None if delay[1] is None else float(delay[1])
@@ -347,6 +347,7 @@ def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
 
 def _run_with(args: argparse.Namespace, interrupt: DeferredInterrupt, drawer: FigureDrawer | None) -> int:
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
+    from hrc.io.task_file import load_task  # here: the figure process is forked before numpy and shapely
     from hrc.plans import pin_actions
 
     task = load_task(args.task)
