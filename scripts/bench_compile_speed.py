@@ -13,8 +13,9 @@ time (user + sys of the whole process tree: the compile, its workers and the fig
 ``getrusage(RUSAGE_CHILDREN)``; less sensitive to a shared machine's load than the wall time), their
 medians, and the lowest and highest load average (1 min) seen before each run of the row.
 
-Python's bytecode of each checkout is compiled first, untimed, into a folder of its own
-(``PYTHONPYCACHEPREFIX``, nothing written into the checkouts), and the runs read it, as an installed hrc
+Python's bytecode of each checkout (and of the libraries it imports: one untimed run) is compiled first
+into a folder of its own (``PYTHONPYCACHEPREFIX``, nothing written into the checkouts), and the runs read
+it, as an installed hrc
 does (pip compiles it at install; the first import of a checkout writes it beside the sources). Without
 it (``--no-bytecode``; also what a run sees with ``PYTHONDONTWRITEBYTECODE`` set and no ``__pycache__``,
 as in these sessions' worktrees) every process compiles hrc's sources again at every run: about 2.3 s of
@@ -56,11 +57,14 @@ def environment(root: Path, cache: Path, pycache: Path | None) -> dict[str, str]
     return env
 
 
-def compile_bytecode(root: Path, pycache: Path) -> None:
-    """`root`'s hrc compiled to bytecode under `pycache` (untimed, once per checkout)."""
+def compile_bytecode(root: Path, pycache: Path, command: list[str], out: Path) -> None:
+    """`root`'s hrc compiled to bytecode under `pycache` (untimed, once per checkout), and the libraries'
+    modules the command imports (a prefix replaces every ``__pycache__``, the installed libraries' too:
+    one untimed run of the command writes theirs)."""
     env = environment(root, pycache, pycache)
     subprocess.run([sys.executable, "-m", "compileall", "-q", str(root / "hrc")], cwd=root, env=env, check=True,
                    stdout=subprocess.DEVNULL)
+    run_once(root, command, out, pycache / "hrc-cache", pycache)
 
 
 def run_once(root: Path, command: list[str], out: Path, cache: Path,
@@ -100,7 +104,7 @@ def main() -> int:
         for label, root in roots:
             pycache = None if args.no_bytecode else Path(tmp) / f"pycache-{label}"
             if pycache is not None:
-                compile_bytecode(root, pycache)
+                compile_bytecode(root, pycache, command, out)
             pycaches[label] = pycache
         for mode in args.modes:
             # before and after alternate run by run (the shared machine's pace drifts within minutes)
