@@ -129,3 +129,27 @@ def test_a_failed_process_apart_is_planned_here():
     slow = run_apart(lambda: __import__("time").sleep(30))
     slow.cancel()  # stopped and reaped at once
     assert slow.pid == 0
+
+
+def test_the_imports_done_before_the_forks_are_what_a_cold_compile_imports(tmp_path):
+    """`hrc.compile.stream.FORKED_IMPORTS` (imported once before a local pool's forks, issue 38) are each
+    imported on first use by a cold compile (paths planned, plans compiled: their conflicts, preferences),
+    not before: a stale name would cost every compile an import for nothing."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from hrc.compile.stream import FORKED_IMPORTS, compile_records\n"
+        "from hrc.compile.compiler import CompileOptions\n"
+        "from hrc.io.task_file import load_task\n"
+        "from hrc.motion import plan_paths\n"
+        "from hrc.plans import plan_families\n"
+        "task = load_task(sys.argv[1])\n"
+        "assert not [m for m in FORKED_IMPORTS if m in sys.modules], 'imported at start-up'\n"
+        "paths = plan_paths(task, seed=0)\n"
+        "compile_records(CompileOptions(), 'graphml', task, paths, list(plan_families(task)))\n"
+        "missing = [m for m in FORKED_IMPORTS if m not in sys.modules]\n"
+        "assert not missing, missing\n")
+    env = {**os.environ, "HRC_CACHE_DIR": str(tmp_path / "cache")}  # the roadmaps planned, not read
+    subprocess.run([sys.executable, "-c", code, str(WORKSHOP_TASK)], check=True, env=env)

@@ -566,6 +566,42 @@ def test_a_figure_process_that_fails_says_why(cps: CompiledPlanSet, tmp_path: Pa
         write_report(cps, tmp_path, drawer=drawer)
 
 
+def test_figures_drawn_after_the_figure_process_import_are_the_same_bytes(cps: CompiledPlanSet, report_dir: Path,
+                                                                          tmp_path: Path) -> None:
+    """Issue 38: the figure process imports matplotlib without its generated ``Artist.set`` docstrings
+    and without resolving the default backend (no pyplot): in a fresh interpreter that imports that way
+    (`hrc.report.drawer._import_drawing`), the docstrings are empty, `kwdoc` is matplotlib's again after,
+    pyplot is not imported, and every figure has the bytes this process (an ordinary import) draws."""
+    import pickle
+    import subprocess
+    import sys
+
+    from hrc.caches import CACHE_ENV
+    from hrc.report import figure_work
+
+    (tmp_path / "work.pickle").write_bytes(pickle.dumps(figure_work(cps)))
+    code = (
+        "import pickle, sys\n"
+        "from pathlib import Path\n"
+        "from hrc.report.drawer import _import_drawing\n"
+        "_import_drawing()\n"
+        "import matplotlib.artist, matplotlib.lines\n"
+        "from hrc.report.plan_figures import draw_figures, drawing_digest\n"
+        "drawing_digest()\n"
+        "assert 'Properties' not in (matplotlib.lines.Line2D.set.__doc__ or ''), 'docstrings made'\n"
+        "assert matplotlib.artist.kwdoc(matplotlib.lines.Line2D), 'kwdoc not put back'\n"
+        "assert 'matplotlib.pyplot' not in sys.modules, 'pyplot imported'\n"
+        "out = Path(sys.argv[1])\n"
+        "draw_figures(pickle.loads((out / 'work.pickle').read_bytes()), out / 'report')\n")
+    import os
+
+    env = {**os.environ, CACHE_ENV: ""}  # every figure drawn, none from the disk cache
+    subprocess.run([sys.executable, "-c", code, str(tmp_path)], check=True, env=env)
+    mine = _files(tmp_path / "report")
+    alone = {n: b for n, b in _files(report_dir).items() if n.startswith("figures/")}
+    assert len(alone) >= 10 and mine == alone
+
+
 def test_the_compile_imports_matplotlib_only_where_it_draws() -> None:
     """The command's own process never imports matplotlib (its import is a fifth of the start-up): the
     report's text needs only the figures' names and colours."""

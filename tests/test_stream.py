@@ -48,11 +48,29 @@ def test_stream_writes_the_bytes_of_the_in_memory_compile(mini_task, tmp_path):
     write_compiled(compile_task(mini_task, jobs=1), a)
     samples = []
     result = compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0,
-                            estimate=samples.append)
+                            estimate=samples.append, sample_min=1)
     assert not result.partial and result.compiled == len(list(generate_plans(mini_task)))
     assert _tree(a) == _tree(b)  # the sample's plans, compiled twice for the estimate, are written once
     (sample,) = samples
     assert sample.plans >= 1 and sample.seconds_per_plan > 0 and sample.first_seconds_per_plan > 0
+
+
+def test_a_small_compile_takes_no_sample_and_writes_the_same_bytes(mini_task, tmp_path):
+    """Below `SAMPLE_MIN_PLANS` no plan is compiled in the parent for the estimate (issue 38): the
+    estimate is never called, and the output is the in-memory compile's, byte for byte."""
+    from hrc.compile.stream import SAMPLE_MIN_PLANS
+
+    total = count_plans(mini_task)
+    assert total < SAMPLE_MIN_PLANS
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    write_compiled(compile_task(mini_task, jobs=1), a)
+    samples = []
+    result = compile_stream(mini_task, b, total, jobs=2, estimate=samples.append)
+    assert samples == [] and result.seconds_per_plan is None
+    assert result.compiled == len(list(generate_plans(mini_task)))
+    assert _tree(a) == _tree(b)
 
 
 def test_stream_writes_the_same_bytes_where_the_kernel_cannot_copy(mini_task, tmp_path, monkeypatch):

@@ -42,7 +42,6 @@ from typing import TYPE_CHECKING, Any
 from hrc.cli.argtypes import delay_range, real, whole
 from hrc.errors import InputError
 from hrc.io.claim import FolderClaim
-from hrc.io.task_file import MAX_SECONDS, load_task
 
 if TYPE_CHECKING:
     from hrc.cli.interrupt import DeferredInterrupt
@@ -323,6 +322,7 @@ def _stated_sensing(task: Task, delay: tuple[Fraction, Fraction | None]) -> Task
     else the path "stated", undated)."""
     from dataclasses import replace
 
+    from hrc.io.task_file import MAX_SECONDS
     from hrc.model import Sensing
 
     lo, hi = float(delay[0]), None if delay[1] is None else float(delay[1])
@@ -347,6 +347,7 @@ def _run(args: argparse.Namespace, interrupt: DeferredInterrupt) -> int:
 
 def _run_with(args: argparse.Namespace, interrupt: DeferredInterrupt, drawer: FigureDrawer | None) -> int:
     from hrc.compile.executors import check_jobs, default_jobs, parse_executor_url, probe_scheduler
+    from hrc.io.task_file import load_task  # here: the figure process is forked before numpy and shapely
     from hrc.plans import pin_actions
 
     task = load_task(args.task)
@@ -401,6 +402,7 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
     start_cpu = time.process_time()  # CPU since the process began: the imports, reading the task
     start = time.perf_counter()
     from hrc.compile.compiler import CompileOptions
+    from hrc.compile.defaults import SAMPLE_MIN_PLANS
     from hrc.compile.estimate import estimate, fmt_bytes, fmt_span
     from hrc.compile.stream import Sample
     from hrc.plans import allocation_count
@@ -438,7 +440,8 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                                     "(all are compiled)")
     say(f"{task.name}: {est.plans} plans{keeping}; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu "
         f"{args.stnu}{', less what is not kept' * bool(keeping)}); {fmt_span(lo, hi)} on "
-        f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)} until measured"
+        f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)}"
+        + (" until measured" if total >= SAMPLE_MIN_PLANS else "")
         + ("" if resume is None else f"; resuming: {len(resume[1]):,} compiled already"))
 
     def on_estimate(sample: Sample) -> None:

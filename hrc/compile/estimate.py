@@ -51,6 +51,7 @@ import zlib
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from hrc.compile.defaults import SAMPLE_MIN_PLANS
 from hrc.model import Task
 from hrc.plans import PlanCount, estimate_plan_count
 
@@ -124,7 +125,8 @@ MAX_FAMILY = 64
 START_SECONDS = 1.2
 """Wall seconds before a compile's first plan: interpreter, imports, reading the task (`hrc compile -v`)."""
 SAMPLE_SECONDS = 1.0
-"""The compile's own up-front sample (`hrc.compile.stream`, ``sample_seconds``), in its parent process."""
+"""The compile's own up-front sample (`hrc.compile.stream`, ``sample_seconds``), in its parent process (none
+below `hrc.compile.defaults.SAMPLE_MIN_PLANS` plans)."""
 PACE_FACTOR = 1.2
 """A long run's CPU per plan over `calibrate`'s second pace (fitted: docs/benchmarks.md)."""
 PARALLEL = 0.85
@@ -179,8 +181,9 @@ class Calibration:
             write = (lines + total * self.graphml_bytes) / WRITE_RATE
         else:
             write = lines / WRITE_RATE
-        return plans + serial * (START_SECONDS + self.paths_seconds + min(SAMPLE_SECONDS, total * self.first_pace)
-                                 + write + (REPORT_SECONDS if report else 0.0))
+        sample = min(SAMPLE_SECONDS, total * self.first_pace) if total >= SAMPLE_MIN_PLANS else 0.0
+        return plans + serial * (START_SECONDS + self.paths_seconds + sample + write
+                                 + (REPORT_SECONDS if report else 0.0))
 
 
 def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,

@@ -28,6 +28,7 @@ not interrupted again.
 from __future__ import annotations
 
 import functools
+import importlib
 import itertools
 import time
 import zlib
@@ -38,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet, CompileOptions, compile_family, rank_key
+from hrc.compile.defaults import SAMPLE_MIN_PLANS
 from hrc.compile.dispatch_form import FORM_FOLDER
 from hrc.compile.executors import make_executor, run_apart
 from hrc.compile.output import STNU_ARCHIVE, line_head, plan_line, write_input
@@ -49,8 +51,8 @@ from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
 from hrc.plans import generate_plans, identical_actions, plan_code, plan_families, spread_families, symmetry_factor
 
-__all__ = ["OUTPUT_FILES", "RESULTS_MAX_PLANS", "Abandoned", "Sample", "StreamResult", "chunk_size",
-           "compact_records", "compile_records", "compile_stream", "sample_twice"]
+__all__ = ["FORKED_IMPORTS", "OUTPUT_FILES", "RESULTS_MAX_PLANS", "SAMPLE_MIN_PLANS", "Abandoned", "Sample",
+           "StreamResult", "chunk_size", "compact_records", "compile_records", "compile_stream", "sample_twice"]
 
 OUTPUT_FILES = ("compiled.json", "input", "stnu", STNU_ARCHIVE, RESUME_FILE, FORM_FOLDER)
 """Every name `compile_stream` may write into an output folder (``hrc compile`` adds the report's,
@@ -69,6 +71,13 @@ folder lost, a colleague's checkout of the same code) takes the plans from there
 bytes, without planning a motion or starting a worker (issue 38: the workshop in about a second).
 Larger compiles are not kept: a file per compile of hundreds of MB would cost more to write than a
 repeated compile saves."""
+
+FORKED_IMPORTS = ("scipy.sparse.csgraph", "scipy.ndimage", "scipy.spatial", "ompl.geometric", "hrc.apa.plan")
+"""What planning the paths and compiling a plan import on first use (a roadmap's Dijkstra, the conflicts'
+labelling and k-d tree, the roadmap planner, the preferences' QP: kept out of the start-up, so that a
+compile taken from the cache never pays them; about 0.5 s of CPU in all). A compile on a local pool
+imports them once before it forks (`_compile_into`): the second roadmap's process and every worker
+inherit them, where each imported them again before (issue 38: 0.25-0.3 s of CPU per process)."""
 
 
 def compile_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,
@@ -240,11 +249,13 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
                    estimate: Callable[[Sample], None] | None = None, sample_seconds: float = 1.0,
                    symmetry: bool = False, best: int | None = None,
                    resume: tuple[Path, np.ndarray] | None = None, keep_partial: bool = True,
-                   stop: Callable[[], None] | None = None, reuse: bool = False) -> StreamResult:
+                   stop: Callable[[], None] | None = None, reuse: bool = False,
+                   sample_min: int = SAMPLE_MIN_PLANS) -> StreamResult:
     """Compile every plan of `task` into `out_dir` (a staging folder: ``input/``, ``compiled.json``,
     the STNUs). `total`: the plan count (or its bound) for progress. `estimate` is called once with the
     seconds per plan measured on the first plans (compiled here for `sample_seconds`), before the rest
-    goes to the executor. Interrupted (KeyboardInterrupt) after some plans: a partial output; before
+    goes to the executor; never for a `total` under `sample_min` (`SAMPLE_MIN_PLANS`: no sample is
+    taken). Interrupted (KeyboardInterrupt) after some plans: a partial output; before
     any: re-raised. `symmetry`: one plan per class of plans that differ only by swapping identical actions
     (`hrc.plans.identical_actions`; ``compiled.json`` names the groups). `best`: keep only the best this
     many plans of each allocation (all are compiled; the others are not written, ranked or reported).
@@ -292,7 +303,8 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
                 progress("plans", len(sink), total)
         else:
             per_plan = _compile_into(task, sink, total, seed, jobs, executor, options, stnu, progress, estimate,
-                                     sample_seconds, symmetry, taken, check, kept, planned)
+                                     sample_seconds if total >= sample_min else None, symmetry, taken, check,
+                                     kept, planned)
     except KeyboardInterrupt:
         if not planned or not len(sink):
             sink.abandon()
@@ -317,11 +329,12 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
 
 def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int | None, executor: str | None,
                   options: CompileOptions, stnu: str, progress: Progress | None,
-                  estimate: Callable[[Sample], None] | None, sample_seconds: float, symmetry: bool,
+                  estimate: Callable[[Sample], None] | None, sample_seconds: float | None, symmetry: bool,
                   taken: frozenset[str], check: Callable[[], None],
-                  kept: list[tuple[CompiledPlan, str]] | None, planned: list[PathLibrary]) -> float:
-    """`compile_stream`'s compile: the paths (appended to `planned` at once), the estimate's sample, then
-    the rest over the executor, every plan into `sink`; returns the sample's seconds per plan. With
+                  kept: list[tuple[CompiledPlan, str]] | None, planned: list[PathLibrary]) -> float | None:
+    """`compile_stream`'s compile: the paths (appended to `planned` at once), the estimate's sample (none
+    if `sample_seconds` is None), then the rest over the executor, every plan into `sink`; returns the
+    sample's seconds per plan (None without one). With
     `kept` (a compile to keep whole on disk), each plan's full record and line tail is also appended to
     it (the workers then send them whole: a small compile's few MB)."""
     with make_executor(executor, jobs) as ex:  # first, so a bad executor fails before any planning
@@ -332,20 +345,26 @@ def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int |
 
         # a local pool's second core plans every other roadmap meanwhile (no threads here yet: a fork is safe)
         apart = run_apart if getattr(ex, "local_processes", False) else None
+        if apart is not None:  # imported once here, before the forks, rather than in each forked process
+            for name in FORKED_IMPORTS:
+                importlib.import_module(name)
         paths = plan_paths(task, seed=seed, progress=motion, apart=apart)
         planned.append(paths)
         check()
-        # the estimate's sample comes from allocations spread over the whole space (the stream's first
-        # plans are all of one corner: the human doing everything), and is left out of the stream
-        spread = spread_families(task, 16, symmetry)
-        # at most a quarter of a small compile: this process compiles the sample alone (twice), while
-        # the workers share the rest
-        sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken,
-                         most=max(1, min(16, total // 4)), kept=kept)
-        done = {f[0] for f in spread[:sample.families]}
-        check()
-        if estimate is not None:
-            estimate(sample)
+        sample: Sample | None = None
+        done: set[Plan] = set()
+        if sample_seconds is not None:
+            # the estimate's sample comes from allocations spread over the whole space (the stream's first
+            # plans are all of one corner: the human doing everything), and is left out of the stream
+            spread = spread_families(task, 16, symmetry)
+            # at most a quarter of a small compile: this process compiles the sample alone (twice), while
+            # the workers wait
+            sample = _sample(task, paths, spread, options, stnu, sink, sample_seconds, taken,
+                             most=max(1, min(16, total // 4)), kept=kept)
+            done = {f[0] for f in spread[:sample.families]}
+            check()
+            if estimate is not None:
+                estimate(sample)
         stream = (((plan,) for plan in generate_plans(task, symmetry=True)) if symmetry
                   else plan_families(task))
         # a family the interrupted run took in part (interrupted between its plans) is compiled
@@ -366,7 +385,7 @@ def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int |
                 if progress:
                     progress("plans", len(sink), total)
                 check()
-            return sample.seconds_per_plan
+            return None if sample is None else sample.seconds_per_plan
         # workers on this machine write their plans' texts into the folder themselves
         folder = str(sink.out_dir) if getattr(ex, "local_processes", False) else None
         work = functools.partial(_records_with, options, stnu, folder, sink.stnu_to)
@@ -378,7 +397,7 @@ def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int |
             if progress:
                 progress("plans", len(sink), total)
             check()
-    return sample.seconds_per_plan
+    return None if sample is None else sample.seconds_per_plan
 
 
 def _whole_records(options: CompileOptions, stnu: str, task: Task, paths: PathLibrary,

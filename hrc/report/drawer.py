@@ -32,6 +32,8 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hrc.report.figures import shares
+
 if TYPE_CHECKING:
     from hrc.model import Task
     from hrc.report.plan_figures import Bases, FigureWork
@@ -110,9 +112,10 @@ def _serve(task: Task | None, conn: Connection, parent: int) -> None:
     failed: str | None = None
     bases: Bases = {}
     try:
+        _import_drawing()
         from hrc.report.plan_figures import drawing_digest
 
-        drawing_digest()  # matplotlib imported, its settings and font read: what every figure's cache key needs
+        drawing_digest()  # matplotlib's settings and font read: what every figure's cache key needs
     except BaseException:  # noqa: BLE001 - said when the work is asked for
         failed = traceback.format_exc()
     job: Any = ("task", task)
@@ -143,6 +146,31 @@ def _serve(task: Task | None, conn: Connection, parent: int) -> None:
         return
     work = pickle.loads(blob)
     conn.send(_draw_in_two(lambda share: draw_figures(work, Path(out), share, bases)))
+
+
+def _import_drawing() -> None:
+    """Import what drawing a figure needs (matplotlib's figure, Agg canvas and artists; the report's
+    drawing modules), without the text of matplotlib's generated ``Artist.set`` docstrings.
+
+    Each `matplotlib.artist.Artist` subclass, as it is defined, gets a ``set`` method whose docstring
+    lists every property with its accepted values (`matplotlib.artist.kwdoc`, through an
+    `~matplotlib.artist.ArtistInspector` reading each setter's docstring): about 0.2 s of CPU of
+    matplotlib's 0.7 s import, for text that only ``help()`` reads. This process only draws, so that
+    text is left empty here (`kwdoc` answers "" while these modules are imported, and is put back after;
+    the signatures, which matplotlib builds beside, are as ever). The figures' bytes do not depend on it
+    (tests/test_report.py draws them both ways)."""
+    import matplotlib.artist
+
+    kwdoc = matplotlib.artist.kwdoc
+    matplotlib.artist.kwdoc = lambda artist: ""
+    try:
+        import matplotlib.backends.backend_agg
+        import matplotlib.figure  # noqa: F401
+
+        importlib.import_module("hrc.report.gantt")
+        importlib.import_module("hrc.report.maps")
+    finally:
+        matplotlib.artist.kwdoc = kwdoc
 
 
 def _bases(task: Task, bases: Bases, conn: Connection) -> str | None:
@@ -202,15 +230,3 @@ def draw_in_two(draw: Callable[[tuple[int, int]], None]) -> None:
     failed = _draw_in_two(draw)
     if failed is not None:
         raise RuntimeError(f"drawing the figures failed:\n{failed}")
-
-
-def shares(weights: list[float], n: int = 2) -> list[list[int]]:
-    """Indices of `weights` in `n` groups of about equal total (longest first, each to the lightest
-    group so far; ties to the first): a fixed split, the same for the same weights."""
-    groups: list[list[int]] = [[] for _ in range(n)]
-    load = [0.0] * n
-    for i in sorted(range(len(weights)), key=lambda i: (-weights[i], i)):
-        k = load.index(min(load))
-        groups[k].append(i)
-        load[k] += weights[i]
-    return [sorted(g) for g in groups]

@@ -18,7 +18,7 @@ if TYPE_CHECKING:  # matplotlib is imported where a figure is made (`new_figure`
     from matplotlib.figure import Figure
 
 __all__ = ["AGENT_COLORS", "CLASS_COLORS", "DPI", "HUMAN_COLOR", "ROBOT_COLOR", "agent_color", "counts_figure",
-           "makespans_figure", "new_figure", "save_png"]
+           "makespans_figure", "new_figure", "save_png", "shares"]
 
 DPI = 100
 
@@ -102,3 +102,15 @@ def makespans_figure(bins: tuple[float, ...], histograms: Mapping[str, tuple[int
     ax.legend(frameon=False, fontsize=8)
     ax.spines[["top", "right"]].set_visible(False)
     return fig
+
+
+def shares(weights: list[float], n: int = 2) -> list[list[int]]:
+    """Indices of `weights` in `n` groups of about equal total (longest first, each to the lightest
+    group so far; ties to the first): a fixed split, the same for the same weights."""
+    groups: list[list[int]] = [[] for _ in range(n)]
+    load = [0.0] * n
+    for i in sorted(range(len(weights)), key=lambda i: (-weights[i], i)):
+        k = load.index(min(load))
+        groups[k].append(i)
+        load[k] += weights[i]
+    return [sorted(g) for g in groups]

@@ -21,8 +21,8 @@ if TYPE_CHECKING:
 
     from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 
-__all__ = ["BASE_KINDS", "Bases", "FigureWork", "copy_cached", "draw_figures", "drawing_digest", "figure_bases",
-           "figure_digests", "figure_names", "figure_work"]
+__all__ = ["BASE_KINDS", "FIGURE_COST", "Bases", "FigureWork", "copy_cached", "draw_figures", "drawing_digest",
+           "figure_bases", "figure_digests", "figure_names", "figure_work"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,6 +62,11 @@ Bases = dict[str, "tuple[Figure, Axes]"]
 and reused for every plan (`draw_figures`, `figure_bases`)."""
 
 
+FIGURE_COST = {"counts": 0.6, "makespans": 0.8, "gantt_earliest": 1.0, "gantt_worst": 1.0, "map": 0.7}
+"""Each kind of figure's drawing time, relative to a Gantt chart's (the workshop's: about 0.15 s of CPU):
+`draw_figures` splits a report's figures into shares of about equal cost (`hrc.report.figures.shares`;
+every second figure in drawing order gave one process a map more, 0.1-0.2 s of waiting for the other)."""
+
 BASE_KINDS = ("gantt_earliest", "gantt_worst", "map")
 """The kinds of plan figure, each drawn on its own base (`Bases`)."""
 
@@ -92,7 +97,7 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
     Each PNG is also kept in the disk cache (`hrc.caches.cache_folder` ``figures``) under everything its
     bytes depend on (`_figure_key`): a compile of the same task again copies its figures from there.
     """
-    from hrc.report.figures import counts_figure, makespans_figure, save_png
+    from hrc.report.figures import counts_figure, makespans_figure, save_png, shares
 
     fig_dir = Path(out_dir) / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -100,7 +105,8 @@ def draw_figures(work: FigureWork, out_dir: Path, share: tuple[int, int] = (0, 1
     k, n = share
     folder = cache_folder("figures")
     mine = []
-    for kind, key, cp in _todo(work)[k::n]:
+    todo = _todo(work)  # split the same way in every process, by each kind's usual cost
+    for kind, key, cp in (todo[i] for i in shares([FIGURE_COST[kind] for kind, _, _ in todo], n)[k]):
         payload = work.counts if kind == "counts" else work.histogram if kind == "makespans" else (task, cp)
         ckey = _figure_key(kind, payload) if folder is not None else ""
         found = disk_load(folder, ckey)
@@ -191,12 +197,16 @@ _DRAWING_CODE = ("hrc.report.plan_figures", "hrc.report.figures", "hrc.report.ga
 
 @functools.cache
 def drawing_digest() -> str:
-    """What every figure's bytes depend on besides what it shows (`_figure_key`); imports matplotlib."""
+    """What every figure's bytes depend on besides what it shows (`_figure_key`); imports matplotlib (not
+    pyplot)."""
     import matplotlib
     import PIL
     from matplotlib.font_manager import FontProperties, findfont
 
-    settings = repr(sorted((k, repr(v)) for k, v in matplotlib.rcParams.items()))
+    # every setting but the backend: the figures are drawn on their own Agg canvas whatever it says, and
+    # reading it resolves the default backend, which imports pyplot and probes for a GUI toolkit
+    params = matplotlib.rcParams
+    settings = repr(sorted((k, repr(params[k])) for k in params if k != "backend"))
     return hashlib.sha256(repr((source_digest(*_DRAWING_CODE),
                                 matplotlib.__version__, PIL.__version__, settings,
                                 findfont(FontProperties()))).encode()).hexdigest()
