@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import hashlib
 import heapq
+import itertools
 import json
 import os
 import struct
@@ -78,6 +79,7 @@ PLAN_DTYPE = np.dtype([("id", "S16"), ("rank", "<i4"), ("cls", "i1"), ("blocked"
 _CLASS_CODE = {"DC": 0, "consistent": 1, "inconsistent": 2}
 _RECORD_HEAD = struct.Struct("<HIHB")  # timepoints, edges, contingent links, blocked
 _MAX_NODES = 0xFFFF  # timepoints per plan: indices are uint16
+_PARSED_CAP = 4096  # records `FormWriter.add_many` keeps parsed (a few kB each)
 
 
 def _preference(value: float | None) -> float:
@@ -417,31 +419,59 @@ class FormWriter:
         self.rows: list[tuple] = []  # the plans.npy row of each plan
         self.edges_ptr, self.conts_ptr = [0], [0]
         self.shapes: dict[bytes, int] = {}
+        self._parsed: dict[bytes, tuple[PlanArrays, int]] = {}  # record -> its arrays and shape
 
     def add(self, plan_id: str, compiled_class: str, preference: float | None, sequences: np.ndarray,
             record: bytes, line_at: int = 0, line_len: int = 0) -> None:
         """The next plan (in rank order): its id, class, preference value, `plan_sequences`, its
         `plan_record`, and where its line lies in ``compiled.json``."""
-        a = parse_record(record, self.sizes)
+        self.add_many([plan_id], [compiled_class], [preference], sequences[None], [record], [line_at], [line_len])
+
+    def add_many(self, plan_ids: Sequence[str], classes: Sequence[str], preferences: Sequence[float | None],
+                 sequences: np.ndarray, records: Sequence[bytes], line_at: Sequence[int],
+                 line_len: Sequence[int]) -> None:
+        """The next plans (in rank order), as `add` takes one each, `sequences` stacked (k, G, A): the
+        same files as `add` plan by plan (each column's rows appended in one write). A record is parsed,
+        checked and numbered once however many plans share it (a family's plans do:
+        `hrc.compile.compiler.compile_family`), and each column gets one write per call, not per plan
+        (issue 38: kitting_7picks' 40,320 plans, written at the end of its compile, one after another)."""
         limit = (1 << 63) if self.wide else (1 << 31)
-        if (len(a.edges) and np.abs(a.edges[:, 2]).max() >= limit) or \
-                (len(a.conts) and np.abs(a.conts[:, 2:]).max() >= limit):
-            raise OverflowError("a bound does not fit the form's weights")  # the caller goes wide
-        shape = self.shapes.setdefault(hashlib.sha256(record).digest(), len(self.shapes))
-        self.rows.append((plan_id.encode("ascii"), len(self.rows) + 1, _CLASS_CODE[compiled_class], a.blocked,
-                          _preference(preference), a.n, shape, line_at, line_len))
+        parsed = self._parsed
+        known: list[tuple[PlanArrays, int]] = []
+        for record in records:
+            found = parsed.get(record)
+            if found is None:
+                a = parse_record(record, self.sizes)
+                if (len(a.edges) and np.abs(a.edges[:, 2]).max() >= limit) or \
+                        (len(a.conts) and np.abs(a.conts[:, 2:]).max() >= limit):
+                    raise OverflowError("a bound does not fit the form's weights")  # the caller goes wide
+                shape = self.shapes.setdefault(hashlib.sha256(record).digest(), len(self.shapes))
+                if len(parsed) >= _PARSED_CAP:  # a family's plans come together in rank order (same keys)
+                    parsed.clear()
+                found = parsed[record] = (a, shape)
+            known.append(found)
+        first = len(self.rows)
+        self.rows.extend((pid.encode("ascii"), first + j + 1, _CLASS_CODE[cls], a.blocked, _preference(pref), a.n,
+                          shape, at, size)
+                         for j, (pid, cls, pref, (a, shape), at, size)
+                         in enumerate(zip(plan_ids, classes, preferences, known, line_at, line_len, strict=True)))
+        if not known:
+            return
         c = self.cols
-        c["seq"].add(sequences[None])
-        c["nodes"].add(a.nodes[None])
-        c["edges_u"].add(a.edges[:, 0])
-        c["edges_v"].add(a.edges[:, 1])
-        c["edges_w"].add(a.edges[:, 2])
-        c["conts_a"].add(a.conts[:, 0])
-        c["conts_c"].add(a.conts[:, 1])
-        c["conts_lb"].add(a.conts[:, 2])
-        c["conts_ub"].add(a.conts[:, 3])
-        self.edges_ptr.append(self.edges_ptr[-1] + len(a.edges))
-        self.conts_ptr.append(self.conts_ptr[-1] + len(a.conts))
+        c["seq"].add(sequences)
+        c["nodes"].add(np.stack([a.nodes for a, _ in known]))
+        edges = np.concatenate([a.edges for a, _ in known])
+        conts = np.concatenate([a.conts for a, _ in known])
+        c["edges_u"].add(edges[:, 0])
+        c["edges_v"].add(edges[:, 1])
+        c["edges_w"].add(edges[:, 2])
+        c["conts_a"].add(conts[:, 0])
+        c["conts_c"].add(conts[:, 1])
+        c["conts_lb"].add(conts[:, 2])
+        c["conts_ub"].add(conts[:, 3])
+        for ptr, counts in ((self.edges_ptr, [len(a.edges) for a, _ in known]),
+                            (self.conts_ptr, [len(a.conts) for a, _ in known])):
+            ptr.extend(itertools.islice(itertools.accumulate(counts, initial=ptr[-1]), 1, None))
 
     def abandon(self) -> None:
         for col in self.cols.values():

@@ -38,7 +38,7 @@ from hrc.compile.compiler import (
     rank_key,
 )
 from hrc.compile.defaults import REPORT_TOP  # here too, as before
-from hrc.compile.dispatch_form import FormWriter, plan_record, plan_sequences, read_form
+from hrc.compile.dispatch_form import FormWriter, plan_record, read_form
 from hrc.compile.output import (
     FORM_PLACEHOLDER,
     INLINE_MAX_BYTES,
@@ -63,12 +63,13 @@ from hrc.errors import HrcError, InputError
 from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary
-from hrc.plans import family_of, plan_code, plan_from_code
+from hrc.plans import code_sequences, family_of, plan_code, plan_from_code
 from hrc.temporal.graphml import read_graphml
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "Bar", "PlanSink", "Record"]
 
 _CLASS_NAMES = {c.order: c.value for c in PlanClass}
+_FORM_BLOCK = 1024  # plans per block of the dispatch form written at the end (`PlanSink._write_form`)
 
 
 HISTOGRAM_BINS = 24
@@ -484,19 +485,24 @@ class PlanSink:
 
     def _write_form(self, order: np.ndarray, places: Sequence[tuple[int, int]], rank_by: str) -> str:
         """The dispatch form of the plans in `order` (rank order), from the spooled records; the SHA-256
-        of its ``form.json``. `places`: where each plan's line lies in ``compiled.json``."""
+        of its ``form.json``. `places`: where each plan's line lies in ``compiled.json``. In blocks of
+        `_FORM_BLOCK` plans, each read as arrays (`FormWriter.add_many`, `code_sequences`)."""
         spool = self._form
         assert spool is not None
-        width = self._width
+        codes = np.frombuffer(bytes(self._codes), dtype=np.uint16).reshape(len(self), self._width // 2)
+        cls_col = np.frombuffer(self._cols["cls"], dtype=np.float64)
+        pref_col = np.frombuffer(self._cols["pref"], dtype=np.float64)
+        ranked = order.tolist()
         for wide in (False, True):
             writer = FormWriter(self.out_dir, self.task, rank_by, wide)
             try:
-                for (at, size), i in zip(places, order.tolist(), strict=True):
-                    cls = int(self._cols["cls"][i])
-                    pref = self._cols["pref"][i]
-                    plan = plan_from_code(self.task, bytes(self._codes[width * i:width * (i + 1)]))
-                    writer.add(self._id(i), _CLASS_NAMES[cls], None if math.isinf(pref) else -pref,
-                               plan_sequences(self.task, plan), spool.read(i), at, size)
+                for start in range(0, len(ranked), _FORM_BLOCK):
+                    block = ranked[start:start + _FORM_BLOCK]
+                    at = places[start:start + _FORM_BLOCK]
+                    writer.add_many([self._id(i) for i in block], [_CLASS_NAMES[int(cls_col[i])] for i in block],
+                                    [None if math.isinf(p := float(pref_col[i])) else -p for i in block],
+                                    code_sequences(self.task, codes[block]), [spool.read(i) for i in block],
+                                    [a for a, _ in at], [n for _, n in at])
             except OverflowError:
                 writer.abandon()
                 if wide:  # pragma: no cover - every bound of the temporal core fits 64 bits
