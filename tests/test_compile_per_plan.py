@@ -49,3 +49,28 @@ def test_the_form_written_in_blocks_is_the_form_written_plan_by_plan(mini_task, 
     compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0)
     assert count_plans(mini_task) > 3
     assert _tree(a) == _tree(b)
+
+
+def test_conflicts_from_kept_rows_are_those_found_afresh():
+    """`find_conflicts` keeps a robot occupancy's conflicts with a whole itinerary of the person as a
+    row, reused by every plan with that itinerary: over 600 consecutive kitting_6picks plans (itineraries
+    recur) and their route trials (detours, waiting places), the conflicts are those found with every
+    per-process table emptied before each plan (nothing kept: each pair computed afresh)."""
+    import itertools
+
+    from hrc.compile.motion_pattern import _route_trials
+    from hrc.motion import find_conflicts, plan_paths
+    from hrc.plans import plan_families
+
+    task = load_task(ROOT / "tasks" / "kitting_6picks.yaml")
+    paths = plan_paths(task, seed=0)
+    plans = [f[0] for f in itertools.islice(plan_families(task), 1200, 1500)]
+    cases = [(plan, routes) for plan in plans for routes in [{}, *_route_trials(task, plan, paths, True)[:2]]]
+    warm = [find_conflicts(task, plan, paths, routes) for plan, routes in cases]
+    rows = sum(len(v) for k, v in paths.samples.items() if isinstance(k, tuple) and k[0] == "pair-rows")
+    assert rows > 0
+    for (plan, routes), kept in zip(cases, warm, strict=True):
+        for k in [k for k in paths.samples if isinstance(k, tuple) and k[0] in ("pairs", "pair-ids", "occupancies",
+                                                                                  "pair-rows", "itineraries")]:
+            del paths.samples[k]
+        assert find_conflicts(task, plan, paths, routes) == kept
