@@ -18,6 +18,7 @@ import json
 import math
 import os
 import zipfile
+import zlib
 from array import array
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -58,7 +59,20 @@ from hrc.compile.output import (
     split_lines,
 )
 from hrc.compile.resume import KEY_COLUMNS, RESUME_FILE, line_tails, resume_dtype
-from hrc.compile.spool import Spooled, Written, kernel_copy, link_or_copy, open_folder, write_stnu_file
+from hrc.compile.spool import (
+    ARCHIVE_LEVEL,
+    DEFLATED_HEAD,
+    SPOOLED,
+    Spooled,
+    Written,
+    deflated,
+    kernel_copy,
+    link_or_copy,
+    needs_zip64,
+    open_folder,
+    write_deflated_zip,
+    write_stnu_file,
+)
 from hrc.errors import HrcError, InputError
 from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
@@ -105,14 +119,16 @@ class PlanSink:
         self.symmetric, self.best = symmetric, best
         # where a plan's GraphML goes: its file at once; a spool, for the archive or, when only the best
         # of each allocation are kept, for the files of those alone, written at the end; or nowhere
-        self.stnu_to = "none" if stnu == "none" else "spool" if stnu == "archive" or best else "files"
+        # (for the archive, deflated where the plan was compiled: `hrc.compile.spool.deflated`)
+        self.stnu_to = ("none" if stnu == "none" else "deflate" if stnu == "archive" else "spool" if best
+                        else "files")
         self._lines = Spooled(self.out_dir, ".plans.spool", b"\n")
         self._graphml: Spooled | None = None
         self._stnu_dir: int | None = None
         if stnu == "graphml":
             (self.out_dir / "stnu").mkdir(exist_ok=True)
             self._stnu_dir = open_folder(str(self.out_dir / "stnu"))
-        if self.stnu_to == "spool":
+        if self.stnu_to in SPOOLED:
             self._graphml = Spooled(self.out_dir, ".stnu.spool", b"")
         # each plan's dispatch form record (`hrc.compile.dispatch_form`), written in rank order at the end;
         # none with --stnu none (such an output cannot be dispatched)
@@ -195,7 +211,8 @@ class PlanSink:
             self._lines.add_written(tail)
         if isinstance(graphml, str):
             if self._graphml is not None:
-                self._graphml.add_text(graphml.encode("utf-8"))
+                raw = graphml.encode("utf-8")
+                self._graphml.add_text(deflated(raw) if self.stnu_to == "deflate" else raw)
             elif self.stnu_to == "files":
                 write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, graphml)
         elif graphml is not None and self._graphml is not None:
@@ -390,7 +407,7 @@ class PlanSink:
                     graphml = None
                     if place is not None:
                         link_or_copy(old / "stnu" / f"{pid}.graphml", self.out_dir / "stnu" / f"{pid}.graphml")
-                elif place is not None and self.stnu_to == "spool":
+                elif place is not None and self.stnu_to in SPOOLED:
                     graphml = (archive.read(f"stnu/{pid}.graphml").decode("utf-8") if archive is not None
                                else (old / "stnu" / f"{pid}.graphml").read_text(encoding="utf-8"))
                 tail: str | Written = "" if place is None else (spool, *place)
@@ -464,18 +481,26 @@ class PlanSink:
     def _write_archive(self, order: np.ndarray) -> None:
         """``stnu.zip``: the GraphML files in rank order, deflated, with fixed dates (deterministic bytes).
 
-        Deflate level 1: this runs after the last plan (beside the copy of ``compiled.json``), and level 1
-        deflates kitting_7picks' GraphML (40,320 files, 1.25 GB) in about 6 s where the default level
-        took 17 s, for an archive about a quarter larger (135 MB)."""
+        Deflate level 1 (`ARCHIVE_LEVEL`): level 1 deflates kitting_7picks' GraphML (40,320 files, 1.25
+        GB) in about 6 s where the default level took 17 s, for an archive about a quarter larger (135 MB).
+        The spool holds each file deflated already (`hrc.compile.spool.deflated`: by the workers, as the
+        plans were compiled), so the archive is laid out around those bytes (`write_deflated_zip`); one
+        too large for that layout is written by `zipfile` from the same files inflated again."""
         spool = self._graphml
         assert spool is not None
+        ranked = order.tolist()
+        names = [f"stnu/{self._id(i)}.graphml" for i in ranked]
+        if not needs_zip64(names, [spool.size[i] for i in ranked]):
+            fds = spool.fds()
+            with open(self.out_dir / STNU_ARCHIVE, "wb") as out:
+                write_deflated_zip(out, names, [(fds[spool.file[i]], spool.at[i], spool.size[i]) for i in ranked])
+            return
         with zipfile.ZipFile(self.out_dir / STNU_ARCHIVE, "w", zipfile.ZIP_DEFLATED) as zf:
-            for i in order.tolist():
-                pid = self._id(i)
-                info = zipfile.ZipInfo(f"stnu/{pid}.graphml", date_time=(1980, 1, 1, 0, 0, 0))
+            for name, i in zip(names, ranked, strict=True):
+                info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
                 info.compress_type = zipfile.ZIP_DEFLATED
                 info.external_attr = 0o644 << 16
-                zf.writestr(info, spool.read(i), compresslevel=1)
+                zf.writestr(info, zlib.decompress(spool.read(i)[DEFLATED_HEAD.size:], -15), compresslevel=ARCHIVE_LEVEL)
 
     def _write_files(self, order: np.ndarray) -> None:
         """The GraphML files of the plans in `order` (the kept ones, with `best`) from the spool."""
