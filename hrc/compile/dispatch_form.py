@@ -65,6 +65,7 @@ from hrc.model import Plan, Task
 from hrc.plans import agent_legs
 from hrc.temporal.graphml import tool_name
 from hrc.temporal.network import STNU, ContingentLink, RequirementLink
+from hrc.temporal.rul import edge_arrays
 
 __all__ = ["FORM_FOLDER", "FORM_VERSION", "LEG_EVENTS", "PLAN_DTYPE", "DispatchForm", "FormWriter", "PlanArrays",
            "build_form", "concat_forms", "parse_record", "plan_record", "plan_sequences", "read_form", "task_sizes"]
@@ -145,42 +146,32 @@ def plan_record(task: Task, plan: Plan, stnu: STNU, blocked: bool, *, graphml_na
         else:
             raise InputError(where, "", f"timepoint {name!r} is no event of plan {plan.id} (not compiled from this "
                                         "task?)")
-    index = {v: i for i, v in enumerate(names)}
-    best: dict[tuple[int, int], int] = {}  # (u, v) -> tightest w of T(v) - T(u) <= w
-
-    def bound(u: int, v: int, w: int) -> None:
-        if u != v or w < 0:
-            old = best.get((u, v))
-            if old is None or w < old:
-                best[(u, v)] = w
-
-    for r in stnu.requirements:
-        s, t = index[r.source], index[r.target]
-        if r.ub is not None:
-            bound(s, t, r.ub)
-        if r.lb is not None:
-            bound(t, s, -r.lb)
-    # as the plan's GraphML file reads (`hrc.temporal.graphml`): every timepoint at or after the origin, and
-    # a contingent link of one fixed duration a requirement link (nature has no choice in it)
-    z = index[origin]
-    for i in range(n):
-        if i != z:
-            bound(i, z, 0)
-    if blocked:  # the block its file carries (`hrc.compile.temporal_net_creator.blocked_stnu`)
-        bound(z, block_target(names, origin), -1)
-    conts = []
-    for c in stnu.contingents:
-        a, t = index[c.source], index[c.target]
-        if c.lb == c.ub:
-            bound(a, t, c.ub)
-            bound(t, a, -c.lb)
-        else:
-            conts.append((a, t, c.lb, c.ub))
-    order = _topological(n, index[origin], key, best, conts)
-    new = [0] * n
-    for position, old in enumerate(order):
-        new[old] = position
-    edges = np.array(sorted((new[u], new[v], w) for (u, v), w in best.items()), dtype=np.int64).reshape(-1, 3)
+    # the distance edges (``T(v) - T(u) <= w``) as the plan's GraphML file reads (`hrc.temporal.graphml`):
+    # each requirement link's bounds (`edge_arrays`, kept by the compile for the network it classified),
+    # every timepoint at or after the origin, a contingent link of one fixed duration a requirement link
+    # (nature has no choice in it), and for a blocked plan the block its file carries (`blocked_stnu`)
+    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
+    z = names.index(origin)
+    fixed = [k for k in range(len(act)) if xs[k] == ys[k]]
+    conts = [(act[k], ctg[k], xs[k], ys[k]) for k in range(len(act)) if xs[k] != ys[k]]
+    others = [i for i in range(n) if i != z]
+    block = [(z, block_target(names, origin))] if blocked else []
+    u = np.array([*src, *others, *(a for a, _ in block), *(act[k] for k in fixed), *(ctg[k] for k in fixed)],
+                 dtype=np.int64)
+    v = np.array([*dst, *([z] * len(others)), *(b for _, b in block), *(ctg[k] for k in fixed),
+                  *(act[k] for k in fixed)], dtype=np.int64)
+    w = np.array([*wt, *([0] * len(others)), *([-1] * len(block)), *(ys[k] for k in fixed),
+                  *(-xs[k] for k in fixed)], dtype=np.int64)
+    keep = (u != v) | (w < 0)
+    u, v, w = u[keep], v[keep], w[keep]
+    pair = u * n + v
+    first = np.lexsort((w, pair))  # per pair, the tightest bound first
+    tight = first[np.r_[True, pair[first][1:] != pair[first][:-1]]] if len(first) else first
+    u, v, w = u[tight], v[tight], w[tight]
+    order = _topological(n, z, key, u.tolist(), v.tolist(), w.tolist(), conts)
+    new = np.empty(n, dtype=np.int64)
+    new[np.array(order, dtype=np.int64)] = np.arange(n)
+    edges = np.column_stack([new[u], new[v], w]).reshape(-1, 3)
     if len(edges):
         edges = edges[np.lexsort((edges[:, 0], edges[:, 1]))]  # by (v, u): a longest-path sweep's order
     cont_rows = np.array([(new[a], new[c], lb, ub) for a, c, lb, ub in conts], dtype=np.int64).reshape(-1, 4)
@@ -192,15 +183,17 @@ def plan_record(task: Task, plan: Plan, stnu: STNU, blocked: bool, *, graphml_na
     return head + edges.tobytes() + cont_rows.tobytes() + nodes.tobytes()
 
 
-def _topological(n: int, origin: int, key: list[tuple[int, int, int]], best: Mapping[tuple[int, int], int],
+def _topological(n: int, origin: int, key: list[tuple[int, int, int]], us: list[int], vs: list[int], ws: list[int],
                  conts: Sequence[tuple[int, int, int, int]]) -> list[int]:
     """The origin, then the other timepoints in a topological order of the orderings (an edge u -> v
     whenever T(v) >= T(u) whatever the bounds: a lower bound >= 0, or an upper bound <= 0 read
     backwards; contingent links, whose lower bound is >= 0), least (agent, leg, event) first among the
-    ready; timepoints on zero-length cycles last, in that order too."""
+    ready; timepoints on zero-length cycles last, in that order too. The distance edges are
+    ``T(vs[i]) - T(us[i]) <= ws[i]``, one per ordered pair (the order in which they come does not matter:
+    ties among the ready go by key, and every key is its timepoint's own)."""
     succ: list[list[int]] = [[] for _ in range(n)]
     indeg = [0] * n
-    for (u, v), w in best.items():  # T(v) - T(u) <= w, i.e. T(u) >= T(v) - w: an ordering v -> u if w <= 0
+    for u, v, w in zip(us, vs, ws, strict=True):  # T(u) >= T(v) - w: an ordering v -> u if w <= 0
         if w <= 0:
             succ[v].append(u)
             indeg[u] += 1
