@@ -80,7 +80,7 @@ PLAN_DTYPE = np.dtype([("id", "S16"), ("rank", "<i4"), ("cls", "i1"), ("blocked"
 _CLASS_CODE = {"DC": 0, "consistent": 1, "inconsistent": 2}
 _RECORD_HEAD = struct.Struct("<HIHB")  # timepoints, edges, contingent links, blocked
 _MAX_NODES = 0xFFFF  # timepoints per plan: indices are uint16
-_PARSED_CAP = 4096  # records `FormWriter.add_many` keeps parsed (a few kB each)
+_PARSED_CAP = 256  # records `FormWriter.add_many` keeps parsed (a few kB each; a family's come together)
 
 
 def _preference(value: float | None) -> float:
