@@ -26,8 +26,10 @@ from hrc.model import PhaseRef, Plan, Task, is_acyclic
 
 if TYPE_CHECKING:  # networkx only for `phase_graph`'s callers: a compile does not import it (issue 38)
     import networkx as nx
+    import numpy as np  # only `code_sequences` uses it (imported there): this module is read without numpy
 
-__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "count_plans",
+__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "code_sequences",
+           "count_plans",
            "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical",
            "must_precede", "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
            "plan_from_code", "relabellings", "spread_families", "symmetry_factor"]
@@ -459,6 +461,24 @@ def plan_code(task: Task, plan: Plan) -> bytes:
             out.append(_AGENT_BREAK)
         out.extend(index[a] for a in plan.sequence(agent))
     return out.tobytes()
+
+
+def code_sequences(task: Task, codes: np.ndarray) -> np.ndarray:
+    """(k, G, A) int16: each agent's actions in order (task action indices), -1 after its last, of the
+    plans whose `plan_code`s are the rows of `codes` ((k, W) uint16): what
+    ``plan_sequences(task, plan_from_code(task, code))`` gives each (`hrc.compile.dispatch_form`), read
+    off the codes as arrays, without a `Plan` per plan."""
+    import numpy as np
+
+    k, width = codes.shape
+    out = np.full((k, len(task.agents), len(task.actions)), -1, dtype=np.int16)
+    parts = codes == _AGENT_BREAK
+    column = np.arange(width)
+    agent = np.cumsum(parts, axis=1)  # an action's agent: the breaks before it
+    last = np.maximum.accumulate(np.where(parts, column, -1), axis=1)  # the last break before it (-1: none)
+    rows, cols = np.nonzero(~parts)
+    out[rows, agent[rows, cols], (column - last - 1)[rows, cols]] = codes[rows, cols]
+    return out
 
 
 def plan_from_code(task: Task, code: bytes) -> Plan:

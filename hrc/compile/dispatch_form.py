@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import hashlib
 import heapq
+import itertools
 import json
 import os
 import struct
@@ -72,6 +73,7 @@ from hrc.model import Plan, Task
 from hrc.plans import agent_legs
 from hrc.temporal.graphml import tool_name
 from hrc.temporal.network import STNU, ContingentLink, RequirementLink
+from hrc.temporal.rul import edge_arrays
 
 __all__ = ["FORM_FOLDER", "FORM_VERSION", "LEG_EVENTS", "PLAN_DTYPE", "ROUTES_VERSION", "DispatchForm", "FormWriter",
            "PlanArrays", "build_form", "concat_forms", "parse_record", "plan_record", "plans_routes", "plan_sequences",
@@ -89,6 +91,7 @@ PLAN_DTYPE = np.dtype([("id", "S16"), ("rank", "<i4"), ("cls", "i1"), ("blocked"
 _CLASS_CODE = {"DC": 0, "consistent": 1, "inconsistent": 2}
 _RECORD_HEAD = struct.Struct("<HIHB")  # timepoints, edges, contingent links, blocked
 _MAX_NODES = 0xFFFF  # timepoints per plan: indices are uint16
+_PARSED_CAP = 256  # records `FormWriter.add_many` keeps parsed (a few kB each; a family's come together)
 
 
 def _preference(value: float | None) -> float:
@@ -154,42 +157,32 @@ def plan_record(task: Task, plan: Plan, stnu: STNU, blocked: bool, *, graphml_na
         else:
             raise InputError(where, "", f"timepoint {name!r} is no event of plan {plan.id} (not compiled from this "
                                         "task?)")
-    index = {v: i for i, v in enumerate(names)}
-    best: dict[tuple[int, int], int] = {}  # (u, v) -> tightest w of T(v) - T(u) <= w
-
-    def bound(u: int, v: int, w: int) -> None:
-        if u != v or w < 0:
-            old = best.get((u, v))
-            if old is None or w < old:
-                best[(u, v)] = w
-
-    for r in stnu.requirements:
-        s, t = index[r.source], index[r.target]
-        if r.ub is not None:
-            bound(s, t, r.ub)
-        if r.lb is not None:
-            bound(t, s, -r.lb)
-    # as the plan's GraphML file reads (`hrc.temporal.graphml`): every timepoint at or after the origin, and
-    # a contingent link of one fixed duration a requirement link (nature has no choice in it)
-    z = index[origin]
-    for i in range(n):
-        if i != z:
-            bound(i, z, 0)
-    if blocked:  # the block its file carries (`hrc.compile.temporal_net_creator.blocked_stnu`)
-        bound(z, block_target(names, origin), -1)
-    conts = []
-    for c in stnu.contingents:
-        a, t = index[c.source], index[c.target]
-        if c.lb == c.ub:
-            bound(a, t, c.ub)
-            bound(t, a, -c.lb)
-        else:
-            conts.append((a, t, c.lb, c.ub))
-    order = _topological(n, index[origin], key, best, conts)
-    new = [0] * n
-    for position, old in enumerate(order):
-        new[old] = position
-    edges = np.array(sorted((new[u], new[v], w) for (u, v), w in best.items()), dtype=np.int64).reshape(-1, 3)
+    # the distance edges (``T(v) - T(u) <= w``) as the plan's GraphML file reads (`hrc.temporal.graphml`):
+    # each requirement link's bounds (`edge_arrays`, kept by the compile for the network it classified),
+    # every timepoint at or after the origin, a contingent link of one fixed duration a requirement link
+    # (nature has no choice in it), and for a blocked plan the block its file carries (`blocked_stnu`)
+    src, dst, wt, act, ctg, xs, ys = edge_arrays(stnu)
+    z = names.index(origin)
+    fixed = [k for k in range(len(act)) if xs[k] == ys[k]]
+    conts = [(act[k], ctg[k], xs[k], ys[k]) for k in range(len(act)) if xs[k] != ys[k]]
+    others = [i for i in range(n) if i != z]
+    block = [(z, block_target(names, origin))] if blocked else []
+    u = np.array([*src, *others, *(a for a, _ in block), *(act[k] for k in fixed), *(ctg[k] for k in fixed)],
+                 dtype=np.int64)
+    v = np.array([*dst, *([z] * len(others)), *(b for _, b in block), *(ctg[k] for k in fixed),
+                  *(act[k] for k in fixed)], dtype=np.int64)
+    w = np.array([*wt, *([0] * len(others)), *([-1] * len(block)), *(ys[k] for k in fixed),
+                  *(-xs[k] for k in fixed)], dtype=np.int64)
+    keep = (u != v) | (w < 0)
+    u, v, w = u[keep], v[keep], w[keep]
+    pair = u * n + v
+    first = np.lexsort((w, pair))  # per pair, the tightest bound first
+    tight = first[np.r_[True, pair[first][1:] != pair[first][:-1]]] if len(first) else first
+    u, v, w = u[tight], v[tight], w[tight]
+    order = _topological(n, z, key, u.tolist(), v.tolist(), w.tolist(), conts)
+    new = np.empty(n, dtype=np.int64)
+    new[np.array(order, dtype=np.int64)] = np.arange(n)
+    edges = np.column_stack([new[u], new[v], w]).reshape(-1, 3)
     if len(edges):
         edges = edges[np.lexsort((edges[:, 0], edges[:, 1]))]  # by (v, u): a longest-path sweep's order
     cont_rows = np.array([(new[a], new[c], lb, ub) for a, c, lb, ub in conts], dtype=np.int64).reshape(-1, 4)
@@ -201,15 +194,17 @@ def plan_record(task: Task, plan: Plan, stnu: STNU, blocked: bool, *, graphml_na
     return head + edges.tobytes() + cont_rows.tobytes() + nodes.tobytes()
 
 
-def _topological(n: int, origin: int, key: list[tuple[int, int, int]], best: Mapping[tuple[int, int], int],
+def _topological(n: int, origin: int, key: list[tuple[int, int, int]], us: list[int], vs: list[int], ws: list[int],
                  conts: Sequence[tuple[int, int, int, int]]) -> list[int]:
     """The origin, then the other timepoints in a topological order of the orderings (an edge u -> v
     whenever T(v) >= T(u) whatever the bounds: a lower bound >= 0, or an upper bound <= 0 read
     backwards; contingent links, whose lower bound is >= 0), least (agent, leg, event) first among the
-    ready; timepoints on zero-length cycles last, in that order too."""
+    ready; timepoints on zero-length cycles last, in that order too. The distance edges are
+    ``T(vs[i]) - T(us[i]) <= ws[i]``, one per ordered pair (the order in which they come does not matter:
+    ties among the ready go by key, and every key is its timepoint's own)."""
     succ: list[list[int]] = [[] for _ in range(n)]
     indeg = [0] * n
-    for (u, v), w in best.items():  # T(v) - T(u) <= w, i.e. T(u) >= T(v) - w: an ordering v -> u if w <= 0
+    for u, v, w in zip(us, vs, ws, strict=True):  # T(u) >= T(v) - w: an ordering v -> u if w <= 0
         if w <= 0:
             succ[v].append(u)
             indeg[u] += 1
@@ -454,37 +449,65 @@ class FormWriter:
         self.shapes: dict[bytes, int] = {}
         self.routes: list[np.ndarray] = []  # batches of route signatures, by shape number (`plans_routes`)
         self.pending: list[PlanArrays] = []  # the first plan of each new shape, not in `routes` yet
+        self._parsed: dict[bytes, tuple[PlanArrays, int]] = {}  # record -> its arrays and shape
 
     def add(self, plan_id: str, compiled_class: str, preference: float | None, sequences: np.ndarray,
             record: bytes, line_at: int = 0, line_len: int = 0) -> None:
         """The next plan (in rank order): its id, class, preference value, `plan_sequences`, its
         `plan_record`, and where its line lies in ``compiled.json``."""
-        a = parse_record(record, self.sizes)
+        self.add_many([plan_id], [compiled_class], [preference], sequences[None], [record], [line_at], [line_len])
+
+    def add_many(self, plan_ids: Sequence[str], classes: Sequence[str], preferences: Sequence[float | None],
+                 sequences: np.ndarray, records: Sequence[bytes], line_at: Sequence[int],
+                 line_len: Sequence[int]) -> None:
+        """The next plans (in rank order), as `add` takes one each, `sequences` stacked (k, G, A): the
+        same files as `add` plan by plan (each column's rows appended in one write). A record is parsed,
+        checked and numbered once however many plans share it (a family's plans do:
+        `hrc.compile.compiler.compile_family`), and each column gets one write per call, not per plan
+        (issue 38: kitting_7picks' 40,320 plans, written at the end of its compile, one after another)."""
         limit = (1 << 63) if self.wide else (1 << 31)
-        if (len(a.edges) and np.abs(a.edges[:, 2]).max() >= limit) or \
-                (len(a.conts) and np.abs(a.conts[:, 2:]).max() >= limit):
-            raise OverflowError("a bound does not fit the form's weights")  # the caller goes wide
-        known = len(self.shapes)
-        shape = self.shapes.setdefault(hashlib.sha256(record).digest(), known)
-        if shape == known:  # a new shape
-            self.pending.append(a)
-            if len(self.pending) >= _ROUTE_BATCH:
-                self.routes.append(plans_routes(self.pending))
-                self.pending = []
-        self.rows.append((plan_id.encode("ascii"), len(self.rows) + 1, _CLASS_CODE[compiled_class], a.blocked,
-                          _preference(preference), a.n, shape, line_at, line_len))
+        parsed = self._parsed
+        known: list[tuple[PlanArrays, int]] = []
+        for record in records:
+            found = parsed.get(record)
+            if found is None:
+                a = parse_record(record, self.sizes)
+                if (len(a.edges) and np.abs(a.edges[:, 2]).max() >= limit) or \
+                        (len(a.conts) and np.abs(a.conts[:, 2:]).max() >= limit):
+                    raise OverflowError("a bound does not fit the form's weights")  # the caller goes wide
+                new = len(self.shapes)
+                shape = self.shapes.setdefault(hashlib.sha256(record).digest(), new)
+                if shape == new:  # a new shape: its route signatures, `_ROUTE_BATCH` shapes at a time
+                    self.pending.append(a)
+                    if len(self.pending) >= _ROUTE_BATCH:
+                        self.routes.append(plans_routes(self.pending))
+                        self.pending = []
+                if len(parsed) >= _PARSED_CAP:  # a family's plans come together in rank order (same keys)
+                    parsed.clear()
+                found = parsed[record] = (a, shape)
+            known.append(found)
+        first = len(self.rows)
+        self.rows.extend((pid.encode("ascii"), first + j + 1, _CLASS_CODE[cls], a.blocked, _preference(pref), a.n,
+                          shape, at, size)
+                         for j, (pid, cls, pref, (a, shape), at, size)
+                         in enumerate(zip(plan_ids, classes, preferences, known, line_at, line_len, strict=True)))
+        if not known:
+            return
         c = self.cols
-        c["seq"].add(sequences[None])
-        c["nodes"].add(a.nodes[None])
-        c["edges_u"].add(a.edges[:, 0])
-        c["edges_v"].add(a.edges[:, 1])
-        c["edges_w"].add(a.edges[:, 2])
-        c["conts_a"].add(a.conts[:, 0])
-        c["conts_c"].add(a.conts[:, 1])
-        c["conts_lb"].add(a.conts[:, 2])
-        c["conts_ub"].add(a.conts[:, 3])
-        self.edges_ptr.append(self.edges_ptr[-1] + len(a.edges))
-        self.conts_ptr.append(self.conts_ptr[-1] + len(a.conts))
+        c["seq"].add(sequences)
+        c["nodes"].add(np.stack([a.nodes for a, _ in known]))
+        edges = np.concatenate([a.edges for a, _ in known])
+        conts = np.concatenate([a.conts for a, _ in known])
+        c["edges_u"].add(edges[:, 0])
+        c["edges_v"].add(edges[:, 1])
+        c["edges_w"].add(edges[:, 2])
+        c["conts_a"].add(conts[:, 0])
+        c["conts_c"].add(conts[:, 1])
+        c["conts_lb"].add(conts[:, 2])
+        c["conts_ub"].add(conts[:, 3])
+        for ptr, counts in ((self.edges_ptr, [len(a.edges) for a, _ in known]),
+                            (self.conts_ptr, [len(a.conts) for a, _ in known])):
+            ptr.extend(itertools.islice(itertools.accumulate(counts, initial=ptr[-1]), 1, None))
 
     def abandon(self) -> None:
         for col in self.cols.values():

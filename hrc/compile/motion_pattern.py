@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from hrc.compile.classify import (
+    CLASSES,
     Classification,
     EarliestStart,
     Fix,
@@ -485,7 +486,7 @@ def _class_of_ticks(row: np.ndarray) -> Classification:
     """The class and makespans of a C leaf, as the Python leaf (and ``classify(..., explained=False,
     full=False)``) gives them: its `pattern_key` is the key the Python leaf computes."""
     makespan = None if int(row[1]) == _INF_TICKS else (int(row[3]) / TICKS_PER_SECOND, int(row[2]) / TICKS_PER_SECOND)
-    return Classification(list(PlanClass)[int(row[0])], "", makespan, (), ())
+    return Classification(CLASSES[int(row[0])], "", makespan, (), ())
 
 
 def _search(task: Task, plan: Plan, routing: _Routing, rank_by: str, bound: tuple | None,

@@ -176,21 +176,33 @@ def _order_values(o: PassingOrder, named: bool = False) -> tuple[dict, dict, lis
             _s(o.separation.gap))
 
 
-_PARTS: list[tuple[MotionPattern, list[tuple[str, str]], list[tuple[TimeRef, TimeRef]]]] = []
+_Parts = tuple[list[tuple[str, str]], list[TimeRef], list[tuple[int, int]]]
+_PARTS: list[tuple[MotionPattern, _Parts]] = []
 
 
-def _pattern_parts(pattern: MotionPattern, named: bool = False) -> tuple[list[tuple[str, str]],
-                                                                         list[tuple[TimeRef, TimeRef]]]:
-    """Per passing order of `pattern` (not implied): its `_order_text` and its constraint's two
-    timepoints (as references, which each plan names). A family's plans share one pattern
-    (`hrc.compile.compiler.compile_family`), so these are gathered once, for the last pattern seen."""
+def _pattern_parts(pattern: MotionPattern, named: bool = False) -> _Parts:
+    """Per passing order of `pattern` (not implied): its `_order_text`; the distinct timepoints of their
+    constraints (as references, which each plan names), and per order the positions of its constraint's
+    two among them (a few dozen timepoints for a hundred or more orders: each plan names each once). A
+    family's plans share one pattern (`hrc.compile.compiler.compile_family`), so these are gathered once,
+    for the last pattern seen."""
     entry = _PARTS[0] if _PARTS else None  # read once: another thread may replace it meanwhile
     if entry is None or entry[0] is not pattern:
         orders = pattern.constrained
-        entry = (pattern, [_order_text(o, named) for o in orders],
-                 [(o.separation.earlier, o.separation.later) for o in orders])
+        at: dict[tuple[str, int, str], int] = {}
+        refs: list[TimeRef] = []
+
+        def slot(ref: TimeRef) -> int:
+            k = (ref.agent, ref.leg, ref.what)
+            if k not in at:
+                at[k] = len(refs)
+                refs.append(ref)
+            return at[k]
+
+        pairs = [(slot(o.separation.earlier), slot(o.separation.later)) for o in orders]
+        entry = (pattern, ([_order_text(o, named) for o in orders], refs, pairs))
         _PARTS[:] = [entry]
-    return entry[1], entry[2]
+    return entry[1]
 
 
 _json = json.JSONEncoder(separators=(",", ":")).encode  # as json.dumps(value, separators=...), one encoder
@@ -203,11 +215,10 @@ def _json_tool_name(name: str) -> str:
     return _json(tool_name(name))
 
 
-def _constraint_names(task: Task, cp: CompiledPlan, refs: list[tuple[TimeRef, TimeRef]]) -> list[tuple[str, str]]:
-    """Per passing order of the plan (`refs`: its constraint's timepoints, `_pattern_parts`), the two
-    timepoints as the GraphML names them, as JSON strings."""
+def _constraint_names(task: Task, cp: CompiledPlan, refs: list[TimeRef]) -> list[str]:
+    """The plan's names of timepoints `refs` (`_pattern_parts`), as the GraphML names them, as JSON strings."""
     name = ref_namer(task, cp.plan)
-    return [(_json_tool_name(name(a)), _json_tool_name(name(b))) for a, b in refs]
+    return [_json_tool_name(name(r)) for r in refs]
 
 
 _PASSING = "\x00hrc: the passing orders\x00"  # a stand-in no field of a plan's entry can hold
@@ -218,9 +229,10 @@ def plan_line(task: Task, cp: CompiledPlan, stnu: str | None = "graphml") -> str
     """``json.dumps(plan_dict(task, cp, stnu), separators=(",", ":"))``, the plan's ``compiled.json``
     line (tested equal), built faster: the passing orders, nine tenths of a line, are spliced in from
     their text parts (`_pattern_parts`) with this plan's names, not built as dicts and encoded."""
-    texts, refs = _pattern_parts(cp.pattern, _named(task))
-    entries = [f"{before}{a},\"to\":{b}{after}"
-               for (before, after), (a, b) in zip(texts, _constraint_names(task, cp, refs), strict=True)]
+    texts, refs, pairs = _pattern_parts(cp.pattern, _named(task))
+    names = _constraint_names(task, cp, refs)
+    entries = [f"{before}{names[a]},\"to\":{names[b]}{after}"
+               for (before, after), (a, b) in zip(texts, pairs, strict=True)]
     text = _json(_plan_fields(task, cp, stnu, _PASSING, len(entries), _MOTIONS))
     if text.count(_PASSING_JSON) != 1 or text.count(_MOTIONS_JSON) != 1:  # pragma: no cover - the stand-ins
         return _json(plan_dict(task, cp, stnu))                           # hold a NUL, which no id or name may

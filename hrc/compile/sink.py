@@ -18,6 +18,7 @@ import json
 import math
 import os
 import zipfile
+import zlib
 from array import array
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -38,7 +39,7 @@ from hrc.compile.compiler import (
     rank_key,
 )
 from hrc.compile.defaults import REPORT_TOP  # here too, as before
-from hrc.compile.dispatch_form import FormWriter, plan_record, plan_sequences, read_form
+from hrc.compile.dispatch_form import FormWriter, plan_record, read_form
 from hrc.compile.output import (
     FORM_PLACEHOLDER,
     INLINE_MAX_BYTES,
@@ -58,17 +59,31 @@ from hrc.compile.output import (
     split_lines,
 )
 from hrc.compile.resume import KEY_COLUMNS, RESUME_FILE, line_tails, resume_dtype
-from hrc.compile.spool import Spooled, Written, kernel_copy, link_or_copy, open_folder, write_stnu_file
+from hrc.compile.spool import (
+    ARCHIVE_LEVEL,
+    DEFLATED_HEAD,
+    SPOOLED,
+    Spooled,
+    Written,
+    deflated,
+    kernel_copy,
+    link_or_copy,
+    needs_zip64,
+    open_folder,
+    write_deflated_zip,
+    write_stnu_file,
+)
 from hrc.errors import HrcError, InputError
 from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary
-from hrc.plans import family_of, plan_code, plan_from_code
+from hrc.plans import code_sequences, family_of, plan_code, plan_from_code
 from hrc.temporal.graphml import read_graphml
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "Bar", "PlanSink", "Record"]
 
 _CLASS_NAMES = {c.order: c.value for c in PlanClass}
+_FORM_BLOCK = 1024  # plans per block of the dispatch form written at the end (`PlanSink._write_form`)
 
 
 HISTOGRAM_BINS = 24
@@ -104,14 +119,16 @@ class PlanSink:
         self.symmetric, self.best = symmetric, best
         # where a plan's GraphML goes: its file at once; a spool, for the archive or, when only the best
         # of each allocation are kept, for the files of those alone, written at the end; or nowhere
-        self.stnu_to = "none" if stnu == "none" else "spool" if stnu == "archive" or best else "files"
+        # (for the archive, deflated where the plan was compiled: `hrc.compile.spool.deflated`)
+        self.stnu_to = ("none" if stnu == "none" else "deflate" if stnu == "archive" else "spool" if best
+                        else "files")
         self._lines = Spooled(self.out_dir, ".plans.spool", b"\n")
         self._graphml: Spooled | None = None
         self._stnu_dir: int | None = None
         if stnu == "graphml":
             (self.out_dir / "stnu").mkdir(exist_ok=True)
             self._stnu_dir = open_folder(str(self.out_dir / "stnu"))
-        if self.stnu_to == "spool":
+        if self.stnu_to in SPOOLED:
             self._graphml = Spooled(self.out_dir, ".stnu.spool", b"")
         # each plan's dispatch form record (`hrc.compile.dispatch_form`), written in rank order at the end;
         # none with --stnu none (such an output cannot be dispatched)
@@ -194,7 +211,8 @@ class PlanSink:
             self._lines.add_written(tail)
         if isinstance(graphml, str):
             if self._graphml is not None:
-                self._graphml.add_text(graphml.encode("utf-8"))
+                raw = graphml.encode("utf-8")
+                self._graphml.add_text(deflated(raw) if self.stnu_to == "deflate" else raw)
             elif self.stnu_to == "files":
                 write_stnu_file(self._stnu_dir, str(self.out_dir / "stnu"), pid, graphml)
         elif graphml is not None and self._graphml is not None:
@@ -266,16 +284,17 @@ class PlanSink:
                                None if self.best is None else (self.best, compiled), form, self.extra,
                                None if split is None else (split[0], len(rows or ())), summary)
 
-        form = None
-        if self._form is not None:  # first: compiled.json's header names it, and it names the lines' places
-            places = line_places(header_of(FORM_PLACEHOLDER), sizes) if split is None else split[1]
-            form = self._write_form(order, places, options.rank_by)
-        header = header_of(form)
-        # the archive (deflating, which frees the GIL) or the kept files in a thread while compiled.json is
-        # copied: two files from two spools, so a second core shortens the end of a large compile
+        # the archive (deflating, which frees the GIL) or the kept files in a thread while the dispatch form
+        # is written and compiled.json copied: files from other spools, so a second core shortens the end of
+        # a large compile (kitting_7picks: about 6 s of deflating, beside the rest of the end)
         with ThreadPoolExecutor(max_workers=1) as pool:
             writer = self._write_archive if self.stnu == "archive" else self._write_files
             archive = pool.submit(writer, order) if self._graphml is not None else None
+            form = None
+            if self._form is not None:  # before compiled.json: its header names the form, and the form the lines
+                places = line_places(header_of(FORM_PLACEHOLDER), sizes) if split is None else split[1]
+                form = self._write_form(order, places, options.rank_by)
+            header = header_of(form)
             with open(self.out_dir / "compiled.json", "wb") as out:
                 out.write(json_head(header).encode("utf-8"))
                 if rows is None:
@@ -388,7 +407,7 @@ class PlanSink:
                     graphml = None
                     if place is not None:
                         link_or_copy(old / "stnu" / f"{pid}.graphml", self.out_dir / "stnu" / f"{pid}.graphml")
-                elif place is not None and self.stnu_to == "spool":
+                elif place is not None and self.stnu_to in SPOOLED:
                     graphml = (archive.read(f"stnu/{pid}.graphml").decode("utf-8") if archive is not None
                                else (old / "stnu" / f"{pid}.graphml").read_text(encoding="utf-8"))
                 tail: str | Written = "" if place is None else (spool, *place)
@@ -462,18 +481,26 @@ class PlanSink:
     def _write_archive(self, order: np.ndarray) -> None:
         """``stnu.zip``: the GraphML files in rank order, deflated, with fixed dates (deterministic bytes).
 
-        Deflate level 1: this runs after the last plan (beside the copy of ``compiled.json``), and level 1
-        deflates kitting_7picks' GraphML (40,320 files, 1.25 GB) in about 6 s where the default level
-        took 17 s, for an archive about a quarter larger (135 MB)."""
+        Deflate level 1 (`ARCHIVE_LEVEL`): level 1 deflates kitting_7picks' GraphML (40,320 files, 1.25
+        GB) in about 6 s where the default level took 17 s, for an archive about a quarter larger (135 MB).
+        The spool holds each file deflated already (`hrc.compile.spool.deflated`: by the workers, as the
+        plans were compiled), so the archive is laid out around those bytes (`write_deflated_zip`); one
+        too large for that layout is written by `zipfile` from the same files inflated again."""
         spool = self._graphml
         assert spool is not None
+        ranked = order.tolist()
+        names = [f"stnu/{self._id(i)}.graphml" for i in ranked]
+        if not needs_zip64(names, [spool.size[i] for i in ranked]):
+            fds = spool.fds()
+            with open(self.out_dir / STNU_ARCHIVE, "wb") as out:
+                write_deflated_zip(out, names, [(fds[spool.file[i]], spool.at[i], spool.size[i]) for i in ranked])
+            return
         with zipfile.ZipFile(self.out_dir / STNU_ARCHIVE, "w", zipfile.ZIP_DEFLATED) as zf:
-            for i in order.tolist():
-                pid = self._id(i)
-                info = zipfile.ZipInfo(f"stnu/{pid}.graphml", date_time=(1980, 1, 1, 0, 0, 0))
+            for name, i in zip(names, ranked, strict=True):
+                info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
                 info.compress_type = zipfile.ZIP_DEFLATED
                 info.external_attr = 0o644 << 16
-                zf.writestr(info, spool.read(i), compresslevel=1)
+                zf.writestr(info, zlib.decompress(spool.read(i)[DEFLATED_HEAD.size:], -15), compresslevel=ARCHIVE_LEVEL)
 
     def _write_files(self, order: np.ndarray) -> None:
         """The GraphML files of the plans in `order` (the kept ones, with `best`) from the spool."""
@@ -484,19 +511,24 @@ class PlanSink:
 
     def _write_form(self, order: np.ndarray, places: Sequence[tuple[int, int]], rank_by: str) -> str:
         """The dispatch form of the plans in `order` (rank order), from the spooled records; the SHA-256
-        of its ``form.json``. `places`: where each plan's line lies in ``compiled.json``."""
+        of its ``form.json``. `places`: where each plan's line lies in ``compiled.json``. In blocks of
+        `_FORM_BLOCK` plans, each read as arrays (`FormWriter.add_many`, `code_sequences`)."""
         spool = self._form
         assert spool is not None
-        width = self._width
+        codes = np.frombuffer(bytes(self._codes), dtype=np.uint16).reshape(len(self), self._width // 2)
+        cls_col = np.frombuffer(self._cols["cls"], dtype=np.float64)
+        pref_col = np.frombuffer(self._cols["pref"], dtype=np.float64)
+        ranked = order.tolist()
         for wide in (False, True):
             writer = FormWriter(self.out_dir, self.task, rank_by, wide)
             try:
-                for (at, size), i in zip(places, order.tolist(), strict=True):
-                    cls = int(self._cols["cls"][i])
-                    pref = self._cols["pref"][i]
-                    plan = plan_from_code(self.task, bytes(self._codes[width * i:width * (i + 1)]))
-                    writer.add(self._id(i), _CLASS_NAMES[cls], None if math.isinf(pref) else -pref,
-                               plan_sequences(self.task, plan), spool.read(i), at, size)
+                for start in range(0, len(ranked), _FORM_BLOCK):
+                    block = ranked[start:start + _FORM_BLOCK]
+                    at = places[start:start + _FORM_BLOCK]
+                    writer.add_many([self._id(i) for i in block], [_CLASS_NAMES[int(cls_col[i])] for i in block],
+                                    [None if math.isinf(p := float(pref_col[i])) else -p for i in block],
+                                    code_sequences(self.task, codes[block]), [spool.read(i) for i in block],
+                                    [a for a, _ in at], [n for _, n in at])
             except OverflowError:
                 writer.abandon()
                 if wide:  # pragma: no cover - every bound of the temporal core fits 64 bits

@@ -10,17 +10,87 @@ from __future__ import annotations
 
 import os
 import shutil
+import struct
+import zipfile
+import zlib
 from array import array
+from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
 from hrc.compile.compiler import CompiledPlan
 from hrc.errors import HrcError
 
-__all__ = ["Spooled", "WorkerFiles", "Written", "kernel_copy", "link_or_copy", "open_folder", "write_all",
-           "write_at", "write_stnu_file"]
+__all__ = ["ARCHIVE_LEVEL", "DEFLATED_HEAD", "SPOOLED", "Spooled", "WorkerFiles", "Written", "deflated", "kernel_copy",
+           "link_or_copy", "open_folder", "needs_zip64", "write_all", "write_at", "write_deflated_zip",
+           "write_stnu_file"]
 
 Written = tuple[str, int, int]  # what a worker wrote itself: a spool file's name, the offset and the length
+
+SPOOLED = ("spool", "deflate")
+"""The `PlanSink.stnu_to` values whose GraphML goes to spools: as text (``spool``: the files of the plans
+kept, with ``--best``), or deflated for ``stnu.zip`` (``deflate``: `deflated`, where the plan was compiled)."""
+
+ARCHIVE_LEVEL = 1
+"""The deflate level of ``stnu.zip`` (`hrc.compile.sink.PlanSink._write_archive` says why 1)."""
+
+DEFLATED_HEAD = struct.Struct("<II")  # a deflated spool entry's head: its text's CRC-32 and size
+_CENTRAL = struct.Struct("<4s4B4HL2L5H2L")  # a zip's central directory entry (`zipfile.structCentralDir`)
+_END = struct.Struct("<4s4H2LH")  # its end record (`zipfile.structEndArchive`)
+
+
+def deflated(raw: bytes) -> bytes:
+    """`raw` as a ``deflate`` spool holds it: its CRC-32 and size (`DEFLATED_HEAD`), then its bytes deflated
+    exactly as `zipfile` deflates a file written whole at level `ARCHIVE_LEVEL` (raw deflate, one
+    ``compress`` call and a ``flush``), so that `write_deflated_zip` writes the archive `zipfile` writes.
+    Done in the workers, as the plans are compiled (issue 38: deflating kitting_7picks' 1.25 GB of GraphML
+    was about 6 s at the end of its compile, with a core idle, and the spools held the whole of it)."""
+    compressor = zlib.compressobj(ARCHIVE_LEVEL, zlib.DEFLATED, -15)
+    return DEFLATED_HEAD.pack(zlib.crc32(raw), len(raw)) + compressor.compress(raw) + compressor.flush()
+
+
+def write_deflated_zip(out: IO[bytes], names: Sequence[str], places: Sequence[tuple[int, int, int]]) -> None:
+    """A zip archive of files `names` (in order), entry k's data a `deflated` spool entry at ``places[k]``
+    (a readable descriptor, the offset, the size), with the bytes `zipfile.ZipFile.writestr` writes for
+    each as a `ZipInfo` dated 1980-01-01, mode 0644, deflated at `ARCHIVE_LEVEL` (tested): each local
+    header (`ZipInfo.FileHeader`), the deflated data as it is (copied in the kernel where it can be), then
+    the central directory and its end record as `zipfile` lays them out. No ZIP64: an archive that needs
+    it (more than 65,535 files, or 2 GB) is the caller's to write with `zipfile` (`needs_zip64`)."""
+    central = []
+    copy = hasattr(os, "copy_file_range")
+    for name, (fd, at, size) in zip(names, places, strict=True):
+        info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+        info.compress_type = zipfile.ZIP_DEFLATED
+        info.external_attr = 0o644 << 16
+        info.flag_bits = 0
+        info.CRC, info.file_size = DEFLATED_HEAD.unpack(os.pread(fd, DEFLATED_HEAD.size, at))
+        info.compress_size = size - DEFLATED_HEAD.size
+        info.header_offset = out.tell()
+        out.write(info.FileHeader(False))
+        if copy:
+            out.flush()
+            copy = kernel_copy(fd, out.fileno(), info.compress_size, at + DEFLATED_HEAD.size)
+            out.seek(0, os.SEEK_END)
+        if not copy:
+            out.write(os.pread(fd, info.compress_size, at + DEFLATED_HEAD.size))
+        central.append(info)
+    start = out.tell()
+    for info in central:
+        filename = info.filename.encode("ascii")
+        out.write(_CENTRAL.pack(b"PK\x01\x02", info.create_version,
+                              info.create_system, info.extract_version, info.reserved, info.flag_bits,
+                              info.compress_type, 0, (1 << 5) | 1, info.CRC, info.compress_size, info.file_size,
+                              len(filename), 0, 0, 0, info.internal_attr, info.external_attr, info.header_offset))
+        out.write(filename)
+    end = out.tell()
+    out.write(_END.pack(b"PK\x05\x06", 0, 0, len(central), len(central), end - start, start, 0))
+
+
+def needs_zip64(names: Sequence[str], sizes: Sequence[int]) -> bool:
+    """Whether `zipfile` would write an archive of these files (their deflated spool entries' sizes) with
+    ZIP64 records (`write_deflated_zip` writes none): more than 65,535 files, or offsets past 2 GB."""
+    total = sum(sizes) + sum(76 + 2 * len(n) for n in names) + 22  # headers: 30 + 46 + the name twice
+    return len(names) > zipfile.ZIP_FILECOUNT_LIMIT or total > zipfile.ZIP64_LIMIT
 
 
 class WorkerFiles:
@@ -38,7 +108,7 @@ class WorkerFiles:
         self.names = (f".plans.{self.pid}.spool", f".stnu.{self.pid}.spool")
         flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND
         self.fds = [os.open(os.path.join(folder, self.names[0]), flags, 0o666),
-                    os.open(os.path.join(folder, self.names[1]), flags, 0o666) if stnu_to == "spool" else -1]
+                    os.open(os.path.join(folder, self.names[1]), flags, 0o666) if stnu_to in SPOOLED else -1]
         self.at = [os.fstat(fd).st_size if fd >= 0 else 0 for fd in self.fds]
         self.stnu_path = os.path.join(folder, "stnu")
         self.stnu_dir = open_folder(self.stnu_path) if stnu_to == "files" else None
@@ -59,13 +129,12 @@ class WorkerFiles:
                 if fd is not None and fd >= 0:
                     os.close(fd)
 
-    def _append(self, which: int, texts: list[str], newline: bool) -> list[Written]:
+    def _append(self, which: int, texts: list[bytes], newline: bool) -> list[Written]:
         """Append `texts` to spool `which` in one write; where each went."""
         out: list[Written] = []
         data = bytearray()
         at = self.at[which]
-        for text in texts:
-            raw = text.encode("utf-8")
+        for raw in texts:
             out.append((self.names[which], at + len(data), len(raw)))
             data += raw
             if newline:
@@ -75,16 +144,18 @@ class WorkerFiles:
         return out
 
     def lines(self, tails: list[str]) -> list[Written]:
-        return self._append(0, tails, newline=True)
+        return self._append(0, [tail.encode("utf-8") for tail in tails], newline=True)
 
     def stnus(self, compiled: list[CompiledPlan], texts: list[str]) -> list[str | Written | None]:
-        """Write each plan's GraphML `texts` where `stnu_to` says; where each went."""
+        """Write each plan's GraphML `texts` where `stnu_to` says (``deflate``: `deflated`); where each went."""
         if self.stnu_to == "files":
             for cp, text in zip(compiled, texts, strict=True):
                 write_stnu_file(self.stnu_dir, self.stnu_path, cp.plan.id, text)
             return [None] * len(compiled)
         if self.stnu_to == "spool":
-            return list(self._append(1, texts, newline=False))
+            return list(self._append(1, [text.encode("utf-8") for text in texts], newline=False))
+        if self.stnu_to == "deflate":
+            return list(self._append(1, [deflated(text.encode("utf-8")) for text in texts], newline=False))
         return [None] * len(compiled)
 
 

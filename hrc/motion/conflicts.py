@@ -367,10 +367,15 @@ def _pair_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, 
     ids = paths.samples.setdefault(("pair-ids", reach, robot.speed, human.speed), {})
     # an agent's occupancies on its shortest routes depend on its legs' places only, and recur too
     agents = paths.samples.setdefault(("occupancies", reach, robot.speed, human.speed), {})
-    if len(cache) > _PAIR_CACHE or len(ids) > _PAIR_CACHE:
+    # a robot occupancy's conflicts with a whole itinerary of the other (below), by number and itinerary
+    rows = paths.samples.setdefault(("pair-rows", reach, robot.speed, human.speed), {})
+    itineraries = paths.samples.setdefault(("itineraries", reach, robot.speed, human.speed), {})
+    if max(len(cache), len(ids), len(rows), len(itineraries)) > _PAIR_CACHE:
         cache.clear()
         ids.clear()  # the numbers the others hold
         agents.clear()
+        rows.clear()
+        itineraries.clear()
     elif len(agents) > _OCCUPANCY_CACHE:
         agents.clear()
 
@@ -381,7 +386,7 @@ def _pair_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, 
             found = ids[sig] = len(ids)
         return found
 
-    def numbered(agent: Agent) -> list[tuple[Occupancy, int]]:
+    def numbered(agent: Agent) -> tuple[list[tuple[Occupancy, int]], tuple]:
         # the route choices of the agent's legs, by what `signature` reads of them (a route trial's
         # itinerary recurs across the plans that share the agent's legs too)
         chosen = tuple(sorted((leg, _route_key(r)) for (a, leg), r in routes.items() if a == agent.id))
@@ -389,13 +394,27 @@ def _pair_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, 
         found = agents.get(key)
         if found is None:
             found = agents[key] = [(o, number(o)) for o in occupancies(task, plan, agent, routes)]
-        return found
+        return found, key
 
     out: list[Conflict] = []
-    h_occ = numbered(human)
+    h_occ, h_key = numbered(human)
     cowork = _coworking(task, plan, robot.id, human.id) if task.has_joint else None
-    for r, rn in numbered(robot):
+    # a robot occupancy's conflicts with the whole of the other's itinerary, kept as one row: that
+    # itinerary recurs across every plan that gives the other agent the same legs and routes (each of
+    # the other's orders of the robot's actions), so a plan looks up a row per robot occupancy, not a
+    # pair per two occupancies (a few hundred a plan); the same conflicts in the same order
+    row_of = None
+    if cowork is None:
+        h_number = itineraries.setdefault(h_key, len(itineraries))
+        row_of = rows
+    for r, rn in numbered(robot)[0]:
         rk = rn << 32
+        if row_of is not None:
+            row = row_of.get((rk, h_number))
+            if row is not None:
+                out.extend(row)
+                continue
+        start = len(out)
         for h, hk in h_occ:
             if cowork is not None and cowork(r, h):
                 continue
@@ -406,6 +425,8 @@ def _pair_conflicts(task: Task, plan: Plan, paths: PathLibrary, routes: Routes, 
                 vh = speed(h) if h.kind == "travel" else human.speed
                 found = cache[rk | hk] = tuple(_pair(r, h, route, locs, reaches, vr, vh, paths))
             out.extend(found)
+        if row_of is not None:
+            row_of[(rk, h_number)] = tuple(out[start:])
     return out
 
 
