@@ -69,6 +69,11 @@ MIN_TASK: dict[str, Any] = {
 }
 
 
+def tree_bytes(folder: Path) -> dict[str, bytes]:
+    """Every file under `folder`, by its relative path: its bytes (to compare two outputs whole)."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
 def dump(value: Any) -> str:
     """Block-style YAML, one key per line (so that error lines point at distinct keys)."""
     return yaml.safe_dump(value, sort_keys=False, default_flow_style=False)
@@ -91,3 +96,12 @@ def write_mini(tmp_path: Path):
         return path
 
     return write
+
+
+@pytest.fixture
+def mini_task(mini, write_mini):
+    """The minimal valid task, loaded (`hrc.task.load_task`)."""
+    from hrc.io.task_file import load_task
+
+    task, map_ = mini
+    return load_task(write_mini(task, map_))

@@ -33,7 +33,7 @@ import uuid
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, WORKSHOP_TASK
+from conftest import ROOT, WORKSHOP_TASK, tree_bytes
 
 from hrc.cli import main
 
@@ -41,10 +41,6 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="re
 
 DRIVER = Path(__file__).with_name("fault_driver.py")
 MARK = "HRC_FAULT_TEST_RUN"
-
-
-def _tree(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def _marked(mark: str) -> list[int]:
@@ -112,7 +108,7 @@ def truth(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     assert code == 0, err
     code, err = _compile(base / "earlier", "--seed", "1")
     assert code == 0, err
-    whole, earlier = _tree(base / "whole"), _tree(base / "earlier")
+    whole, earlier = tree_bytes(base / "whole"), tree_bytes(base / "earlier")
     assert whole != earlier and json.loads(whole["compiled.json"])["seed"] == 0
     return {"whole": whole, "earlier": earlier, "earlier_dir": base / "earlier", "seconds": seconds}
 
@@ -154,9 +150,9 @@ def _after_fault(out: Path, truth: dict[str, object], earlier: bool, sig: str, c
     if not out.exists():
         assert not earlier
         left = "nothing"
-    elif _tree(out) == whole:
+    elif tree_bytes(out) == whole:
         left = "complete"
-    elif earlier and _tree(out) == before:
+    elif earlier and tree_bytes(out) == before:
         left = "earlier"
     else:
         assert not earlier, "an earlier complete output was replaced by something else"
@@ -175,7 +171,7 @@ def _after_fault(out: Path, truth: dict[str, object], earlier: bool, sig: str, c
         for name in leftovers:  # what the killed run left beside --out, cleaned up and said so
             if name != ".out.lock":
                 assert name in err, (name, err)
-    assert _tree(out) == whole
+    assert tree_bytes(out) == whole
     assert sorted(p.name for p in case.iterdir()) == ["out"]
     return left
 
@@ -292,7 +288,7 @@ def test_the_workers_die_with_their_parent_and_the_next_compile_cleans_up(tmp_pa
     assert left[0] == ".out.lock" and left[1].startswith(".out.staging-") and len(left) == 2
     code, err = _compile(out)
     assert code == 0 and f"removed {left[1]}, left by a run (pid {proc.pid}) that was killed" in err, err
-    assert _tree(out) == truth["whole"] and sorted(p.name for p in case.iterdir()) == ["out"]
+    assert tree_bytes(out) == truth["whole"] and sorted(p.name for p in case.iterdir()) == ["out"]
 
 
 # --- files a compile did not write ----------------------------------------------------------------------
@@ -305,12 +301,12 @@ def test_console_logs_in_out_are_never_lost(tmp_path, capsys, truth):
     (out / "runs").mkdir()
     (out / "runs" / "console-1.jsonl").write_text('{"t": 0}\n')
     (out / "notes.txt").write_text("mine")
-    before = _tree(out)
+    before = tree_bytes(out)
     assert main(["compile", str(WORKSHOP_TASK), "--out", str(out), "-q"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"error: {out}: --out: holds notes.txt, runs/, which hrc "
                                                    "compile did not write"), err
-    assert "move them out of it" in err and _tree(out) == before
+    assert "move them out of it" in err and tree_bytes(out) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
@@ -330,7 +326,7 @@ def test_logs_that_appear_during_the_compile_stop_the_swap(tmp_path, capsys, mon
     assert main(["compile", str(WORKSHOP_TASK), "--out", str(out), "-q", "--jobs", "1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "runs/ appeared in it during the compile" in err, err
-    assert _tree(out) == {**truth["earlier"], "runs/console-1.jsonl": b'{"t": 0}\n'}
+    assert tree_bytes(out) == {**truth["earlier"], "runs/console-1.jsonl": b'{"t": 0}\n'}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 

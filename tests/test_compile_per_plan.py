@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, tree_bytes
 
 from hrc.compile import sink
 from hrc.compile.compiler import compile_task
@@ -27,16 +27,6 @@ def test_code_sequences_are_each_codes_plan_sequences(name):
     assert got.dtype == want.dtype and np.array_equal(got, want)
 
 
-@pytest.fixture
-def mini_task(mini, write_mini):
-    task, map_ = mini
-    return load_task(write_mini(task, map_))
-
-
-def _tree(folder):
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
 def test_the_form_written_in_blocks_is_the_form_written_plan_by_plan(mini_task, tmp_path, monkeypatch):
     """A streamed compile writes its dispatch form in blocks of plans (`FormWriter.add_many`); with blocks
     of 3 plans (every block boundary crossed), the same bytes as `write_compiled`, which adds one plan
@@ -48,7 +38,7 @@ def test_the_form_written_in_blocks_is_the_form_written_plan_by_plan(mini_task, 
     monkeypatch.setattr(sink, "_FORM_BLOCK", 3)
     compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0)
     assert count_plans(mini_task) > 3
-    assert _tree(a) == _tree(b)
+    assert tree_bytes(a) == tree_bytes(b)
 
 
 def test_conflicts_from_kept_rows_are_those_found_afresh():

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import ROOT, compiled_folder
+from conftest import ROOT, compiled_folder, tree_bytes
 from console_harness import ConsoleProcess
 
 from hrc.cli import main
@@ -32,10 +32,6 @@ from hrc.dispatch.protocol import replay
 from hrc.dispatch.routes import plan_motions
 
 ENV = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-
-
-def _tree(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 @pytest.fixture(scope="module")
@@ -103,14 +99,14 @@ def test_a_compile_into_the_folder_a_console_serves_is_refused_and_the_console_a
     from websockets.sync.client import connect
 
     out = _copy(compiles, "seed0", tmp_path / "out")
-    before = _tree(out)
+    before = tree_bytes(out)
     (tmp_path / "logs").mkdir()
     console = ConsoleProcess(out, tmp_path / "logs" / "run.jsonl", "--tick", "0")
     try:
         state = console.state()
         assert state["routes"], "the plan's routes (read from compiled.json at its offsets)"
         _refused(_compile(compiles["task"], out, "--seed", "1"), out)
-        assert _tree(out) == before
+        assert tree_bytes(out) == before
         again = console.state()
         assert again["routes"] == state["routes"] and again["decision"] == state["decision"]
         with connect(console.ws + "ws", open_timeout=10, close_timeout=5,
@@ -153,7 +149,7 @@ def test_a_run_that_starts_during_a_compile_stops_its_swap(compiles, tmp_path, m
     import hrc.compile.stream as stream
 
     out = _copy(compiles, "seed0", tmp_path / "out")
-    before = _tree(out)
+    before = tree_bytes(out)
     real = stream.compile_stream
     runs: list[DispatchProcess] = []
 
@@ -168,7 +164,7 @@ def test_a_run_that_starts_during_a_compile_stops_its_swap(compiles, tmp_path, m
                  "--seed", "1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "a run started during the compile" in err, err
-    assert _tree(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["out", "run.jsonl"]
+    assert tree_bytes(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["out", "run.jsonl"]
     assert runs[0].ask({"t": 1, "event": "tick"})["ok"]
     assert runs[0].end()[0] == 0
 

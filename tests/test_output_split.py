@@ -9,9 +9,9 @@ import json
 
 import numpy as np
 import pytest
-from conftest import ROOT, WORKSHOP_TASK, compiled_folder
+from conftest import ROOT, WORKSHOP_TASK, compiled_folder, tree_bytes
 from test_dispatch_oracle import Driver
-from test_stream import _interrupted, _resumed, _tree, picks4, picks4_file  # noqa: F401 - fixtures
+from test_stream import _interrupted, _resumed, picks4, picks4_file  # noqa: F401 - fixtures
 
 from hrc.cli import main
 from hrc.compile.compiler import CompileOptions
@@ -129,7 +129,7 @@ def test_a_split_partial_output_resumes_to_the_same_files(picks4, tmp_path, monk
     assert read_header(tmp_path / "first")["schema_version"] == 3 and (tmp_path / "first" / PLAN_LINES).is_file()
     last = _resumed(task, tmp_path / "first", tmp_path / "last", jobs=1, stnu="archive")
     assert not last.partial and last.compiled == 120
-    assert _tree(tmp_path / "last") == _tree(whole)
+    assert tree_bytes(tmp_path / "last") == tree_bytes(whole)
     assert read_resume is not None
 
 
@@ -208,7 +208,7 @@ def test_the_in_memory_writer_splits_as_the_stream_does(picks4, tmp_path, monkey
     write_compiled(full, a, inline_max=0)
     monkeypatch.setattr(PlanSink, "inline_max", 0)
     compile_stream(task, b, count_plans(task), jobs=1, sample_seconds=0.0)
-    assert _tree(a) == _tree(b) and (a / PLAN_LINES).is_file()
+    assert tree_bytes(a) == tree_bytes(b) and (a / PLAN_LINES).is_file()
 
 
 def test_a_split_output_lists_at_most_rows_max_rows(picks4, tmp_path, monkeypatch, capsys):  # noqa: F811

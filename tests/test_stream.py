@@ -9,7 +9,7 @@ import math
 import zipfile
 
 import pytest
-from conftest import ROOT, WORKSHOP_TASK
+from conftest import ROOT, WORKSHOP_TASK, tree_bytes
 
 from hrc.compile.compiler import CompileOptions, compile_task
 from hrc.compile.output import load_compiled_task, write_compiled
@@ -31,16 +31,6 @@ from hrc.plans import (
 )
 
 
-@pytest.fixture
-def mini_task(mini, write_mini):
-    task, map_ = mini
-    return load_task(write_mini(task, map_))
-
-
-def _tree(folder):
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
 def test_stream_writes_the_bytes_of_the_in_memory_compile(mini_task, tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     a.mkdir()
@@ -50,7 +40,7 @@ def test_stream_writes_the_bytes_of_the_in_memory_compile(mini_task, tmp_path):
     result = compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0,
                             estimate=samples.append, sample_min=1)
     assert not result.partial and result.compiled == len(list(generate_plans(mini_task)))
-    assert _tree(a) == _tree(b)  # the sample's plans, compiled twice for the estimate, are written once
+    assert tree_bytes(a) == tree_bytes(b)  # the sample's plans, compiled twice for the estimate, are written once
     (sample,) = samples
     assert sample.plans >= 1 and sample.seconds_per_plan > 0 and sample.first_seconds_per_plan > 0
 
@@ -70,7 +60,7 @@ def test_a_small_compile_takes_no_sample_and_writes_the_same_bytes(mini_task, tm
     result = compile_stream(mini_task, b, total, jobs=2, estimate=samples.append)
     assert samples == [] and result.seconds_per_plan is None
     assert result.compiled == len(list(generate_plans(mini_task)))
-    assert _tree(a) == _tree(b)
+    assert tree_bytes(a) == tree_bytes(b)
 
 
 def test_stream_writes_the_same_bytes_where_the_kernel_cannot_copy(mini_task, tmp_path, monkeypatch):
@@ -91,7 +81,7 @@ def test_stream_writes_the_same_bytes_where_the_kernel_cannot_copy(mini_task, tm
 
     monkeypatch.setattr(os, "copy_file_range", refuse, raising=False)
     compile_stream(mini_task, b, count_plans(mini_task), jobs=1, sample_seconds=0.0)
-    assert _tree(a) == _tree(b)
+    assert tree_bytes(a) == tree_bytes(b)
     assert len(calls) == 1  # tried once, then read and written
 
 
@@ -103,7 +93,7 @@ def test_stream_writes_the_workshop_bytes_of_the_in_memory_compile(tmp_path):
     b.mkdir()
     write_compiled(compile_task(task, jobs=2), a)
     compile_stream(task, b, 32, jobs=2)
-    assert _tree(a) == _tree(b)
+    assert tree_bytes(a) == tree_bytes(b)
 
 
 def test_a_small_report_top_keeps_the_best_plans_with_their_global_ranks(mini_task, tmp_path):
@@ -130,7 +120,7 @@ def test_stnu_archive_is_deterministic_and_named_as_the_plans_say(mini_task, tmp
         out.mkdir()
         compile_stream(mini_task, out, count_plans(mini_task), jobs=jobs, stnu="archive", sample_seconds=0.0)
         outs.append(out)
-    assert _tree(outs[0]) == _tree(outs[1])
+    assert tree_bytes(outs[0]) == tree_bytes(outs[1])
     data = json.loads((outs[0] / "compiled.json").read_text())
     assert data["stnu_files"] == "archive" and data["stnu_archive"] == "stnu.zip"
     assert not (outs[0] / "stnu").exists()
@@ -200,7 +190,7 @@ def test_two_workers_writing_their_own_files_give_the_same_bytes(mini_task, tmp_
         out.mkdir()
         compile_stream(mini_task, out, count_plans(mini_task), jobs=jobs, sample_seconds=0.0)
         outs.append(out)
-    assert _tree(outs[0]) == _tree(outs[1])
+    assert tree_bytes(outs[0]) == tree_bytes(outs[1])
     assert not list(outs[1].glob(".*.spool"))
 
 
@@ -215,7 +205,7 @@ def test_dask_workers_send_their_texts_and_give_the_same_bytes(mini_task, tmp_pa
                                   dashboard_address=None) as cluster:
         address = cluster.scheduler_address.replace("tcp://", "dask://")
         compile_stream(mini_task, outs[1], count_plans(mini_task), executor=address, sample_seconds=0.0)
-    assert _tree(outs[0]) == _tree(outs[1])
+    assert tree_bytes(outs[0]) == tree_bytes(outs[1])
 
 
 def test_the_sink_ranks_as_rank_key_does(mini_task, tmp_path):
@@ -675,7 +665,7 @@ def test_a_resumed_compile_writes_what_an_uninterrupted_one_does(picks4, tmp_pat
     assert second.partial and first.compiled < second.compiled < 120, (first.compiled, second.compiled)
     last = _resumed(task, tmp_path / "second", tmp_path / "last", jobs=jobs, stnu=stnu, best=best, keep=5)
     assert not last.partial and last.compiled == 120
-    assert _tree(tmp_path / "last") == _tree(whole)
+    assert tree_bytes(tmp_path / "last") == tree_bytes(whole)
     assert last.plan_set.plans == want.plan_set.plans and last.plan_set.summary == want.plan_set.summary
 
 
@@ -711,7 +701,7 @@ def test_a_family_taken_in_part_is_completed_on_resume(picks4, tmp_path):
     new = tmp_path / "new"
     new.mkdir()
     compile_stream(task, new, count_plans(task), jobs=1, sample_seconds=0.0, resume=(old, rows))
-    assert _tree(new) == _tree(whole)
+    assert tree_bytes(new) == tree_bytes(whole)
 
 
 def test_resume_refuses_what_it_cannot_go_on_with(picks4, tmp_path):
@@ -753,16 +743,16 @@ def test_the_cli_resumes_and_refuses_with_one_line(picks4_file, picks4, tmp_path
     task = picks4[0]
     assert main(["compile", str(picks4_file), "--out", str(tmp_path / "whole"), "--jobs", "1", "-q"]) == 0
     _interrupted(task, tmp_path / "out", 2, jobs=1)
-    before = _tree(tmp_path / "out")
+    before = tree_bytes(tmp_path / "out")
     for args, words in [(["--resume", "--seed", "3"], "seed"), (["--resume", "--stnu", "none"], "stnu_files")]:
         assert main(["compile", str(picks4_file), "--out", str(tmp_path / "out"), "-q", *args]) == 2
         err = capsys.readouterr().err
         assert err.startswith("error: ") and err.count("\n") == 1 and words in err and "--resume" in err, err
-    assert _tree(tmp_path / "out") == before
+    assert tree_bytes(tmp_path / "out") == before
     assert main(["compile", str(picks4_file), "--out", str(tmp_path / "nowhere"), "--resume", "-q"]) == 2
     assert "no such output folder" in capsys.readouterr().err and not (tmp_path / "nowhere").exists()
     assert main(["compile", str(picks4_file), "--out", str(tmp_path / "out"), "--resume", "--jobs", "1"]) == 0
     assert "resuming:" in capsys.readouterr().err
-    assert _tree(tmp_path / "out") == _tree(tmp_path / "whole")  # the report too
+    assert tree_bytes(tmp_path / "out") == tree_bytes(tmp_path / "whole")  # the report too
     assert main(["compile", str(picks4_file), "--out", str(tmp_path / "out"), "--resume", "-q"]) == 2
     assert "complete, nothing to resume" in capsys.readouterr().err
