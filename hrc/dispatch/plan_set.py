@@ -122,7 +122,8 @@ class PlanSet:
     `plans` view) make a plan's `PlanEntry` when asked for one."""
 
     def __init__(self, form: DispatchForm, source: str = "", content: str | None = None,
-                 use: FolderUse | None = None, compiled: BinaryIO | None = None) -> None:
+                 use: FolderUse | None = None, compiled: BinaryIO | None = None,
+                 settings: Mapping[str, Any] | None = None) -> None:
         self.form = form
         self.task: Task = form.task
         self.rank_by: str = form.rank_by
@@ -133,6 +134,7 @@ class PlanSet:
         """That folder's file of the plans' lines (``compiled.json``, or ``plans.jsonl`` beside a large
         one), open: read from at the form's offsets (a plan's motions), whatever is at its path later."""
         self._content = content
+        self._settings = settings  # the compile's seed and options, where `content` is a folder's (`named_by`)
         self._index: dict[str, int] | None = None
         self._entries: OrderedDict[int, tuple[PlanEntry, dict[str, int]]] = OrderedDict()
         self._digest: str | None = None
@@ -169,13 +171,24 @@ class PlanSet:
         options, which determine every motion), so that a log of another compile of the same task (another
         seed) is refused as such when it is opened, not at its first answer that differs."""
         if self._digest is None:
-            from hrc.io.task_file import task_digest
-
-            ids = ",".join(raw.decode("ascii").rstrip() for raw in self.form.plans["id"].tolist())
             content = self._content if self._content is not None else content_digest(self.form)
-            text = f"{task_digest(self.task)}:{ids}:{content}"
-            self._digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+            self._digest = self._name(content)
         return self._digest
+
+    def _name(self, content: str) -> str:
+        from hrc.io.task_file import task_digest
+
+        ids = ",".join(raw.decode("ascii").rstrip() for raw in self.form.plans["id"].tolist())
+        return hashlib.sha256(f"{task_digest(self.task)}:{ids}:{content}".encode()).hexdigest()[:16]
+
+    def named_by(self, digest: object) -> bool:
+        """Whether a log naming its set by `digest` was written for this set: `digest`, or for a set read
+        from a folder's dispatch form (whose `digest` hashes ``form.json``, at no cost), the digest the same
+        compile has in memory (`content_digest` of the arrays, as ``hrc simulate --keep-logs`` names its
+        runs' logs): compared only when the first is not it, O(size of the form)."""
+        if digest == self.digest:
+            return True
+        return self._settings is not None and digest == self._name(content_digest(self.form, self._settings))
 
     def entry(self, p: int) -> PlanEntry:
         """Plan `p`'s `PlanEntry`, its STNU made from the form's arrays (a few are kept)."""
@@ -359,7 +372,7 @@ def _load(folder: Path, allow_partial: bool) -> PlanSet:
         form = read_form(folder, task, rank_by, expected=str(meta.get("sha256")))
         if len(form) == 0:
             raise InputError(file, "plans", "no plans: nothing to dispatch")
-        return PlanSet(form, str(folder), _folder_content(header))
+        return PlanSet(form, str(folder), _folder_content(header), settings=header)
     return _from_graphml(folder, task, rank_by, header)
 
 

@@ -182,8 +182,15 @@ def _detect(dispatcher: Dispatcher) -> dict[str, Any] | None:
 
 def check_header(dispatcher: Dispatcher, contents: LogContents, path: str) -> None:
     """Raise `HrcError` when the log was written for another compiled plan set than `dispatcher`'s."""
+    policy = contents.header.get("policy")  # a simulated run's (`hrc simulate --keep-logs`)
+    if policy == "fixed":
+        raise HrcError(f"{path}: the log of a simulated run under the fixed policy: no dispatcher gave its "
+                       "answers (the fixed plan's orders), so none replays them")
+    if (policy == "feasible-only") != dispatcher.feasible_only and policy is not None:
+        raise HrcError(f"{path}: the log of a simulated run under the {policy} policy: "
+                       + ("give --feasible-only" if policy == "feasible-only" else "leave out --feasible-only"))
     digest = _digest(dispatcher)
-    if contents.header.get("compiled") != digest:
+    if not dispatcher.plan_set.named_by(contents.header.get("compiled")):
         raise HrcError(f"{path}: the log was written for another compiled plan set "
                        f"(compiled {contents.header.get('compiled')!r}, this folder {digest!r})")
     if contents.header.get("team") != _team(dispatcher):
