@@ -322,3 +322,42 @@ def test_sim_time_ticks_from_clock_and_stamps_goals_with_it(folder: Path, tmp_pa
     ticks_logged = [json.loads(m.data) for m in read_log(tmp_path / "run.log").messages
                     if json.loads(m.data).get("event") == "tick"]
     assert len(ticks_logged) >= 2 and all(t["t"] in published for t in ticks_logged)
+
+
+def test_the_robots_first_goal_is_there_before_any_message(mini, write_mini, tmp_path: Path) -> None:
+    """A robot controller whose first message is its own departure learns where to drive from the goal the
+    node publishes at its start: the dispatcher's decision before any message (the same step ``hrc
+    dispatch`` names in its first answer, whatever the message); that departure names no new drive."""
+    from ros2_client import Client, NodeProcess, ros_env
+
+    task, map_ = mini
+    a1 = task["actions"][0]
+    a1["agents"] = ["robot"]  # the robot leaves first
+    for phase in a1["phases"]:
+        del phase["duration"]["human"]
+    folder = compiled_folder(tmp_path / "out", write_mini(task, map_))
+    step = Dispatcher.from_folder(folder).decision.to_json()["robot"]
+    assert step["event"] == "depart"
+    task = load_plan_set(folder).task
+    want = MapFrame("map", *ORIGIN).to_frame(
+        *task.workspace.location(task.action(step["action"]).phase(step["phase"]).location).xy)
+    env = ros_env(tmp_path)
+    node = NodeProcess(folder, env, "--map-origin", *(str(v) for v in ORIGIN))
+    client = None
+    try:
+        client = Client(env)
+        client.wait_matched()
+        client.spin_until(lambda: client.goals and client.routes, 20, "the first goal, before any message")
+        goal = client.goals[-1]
+        assert math.dist((goal.pose.position.x, goal.pose.position.y), want) < 1e-9
+        assert goal.header.stamp.sec == goal.header.stamp.nanosec == 0  # the run's start
+        depart = {"t": round(step["earliest"], 3), "agent": "robot", "action": step["action"],
+                  "phase": step["phase"], "event": "depart"}
+        assert json.loads(client.send(json.dumps(depart)))["ok"]
+        client.spin_for(0.5)
+        assert len(client.goals) == 1
+        assert node.stop(signal.SIGTERM) == 0
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()

@@ -12,7 +12,8 @@ pose is refused in one line, here, and never logged.
 
 **Out.** Each answer, exactly as ``hrc dispatch`` prints it, on ``answers``; when an answer names a new
 drive of the robot (`hrc.ros2.drive.next_drive`), its destination on ``robot/goal`` and its planned
-points on ``robot/route``, in the frame `MapFrame.frame_id`. Both are reliable and transient local: a
+points on ``robot/route``, in the frame `MapFrame.frame_id`; at the start, the drive of the dispatcher's
+decision before any message (after ``--resume``, its last). Both are reliable and transient local: a
 late subscriber gets the latest.
 
 **A team** (issue 37: other than one person and one robot): each robot has its own ``ROBOT/acks`` in and
@@ -153,6 +154,10 @@ class DispatcherNode:
                            "a team's ids must be ROS 2 names (letters, digits, _)") from err
         if self.tick > 0 and self.sim_time:
             node.create_timer(self.tick, self._supervised(self._on_tick))  # on the node's clock: /clock
+        # the drive the dispatcher has in mind before any message (at the start, or where --resume left it):
+        # a robot whose first message is its own departure knows where to (before, its first goal came
+        # with the answer to a message, that departure's own included)
+        self._drives(self.logged.dispatcher.decision.to_json())
 
     def _supervised(self, callback: Callable[[Any], None] | Callable[[], None]) -> Callable[..., None]:
         """`callback`, whatever goes wrong in it answered with a one-line refusal on ``answers`` and
@@ -242,8 +247,11 @@ class DispatcherNode:
     def _answer(self, answer: str) -> None:
         self._say(answer)
         out = json.loads(answer)
-        if not out.get("ok"):
-            return
+        if out.get("ok"):
+            self._drives(out)
+
+    def _drives(self, out: dict[str, Any]) -> None:
+        """Each robot's goal and route where the accepted answer `out` names a drive new to it."""
         legs = self.routes(out["plan"]) if self.routes is not None and out.get("plan") else None
         for r in self.team:  # a team: each robot's drive on its own topics
             drive = next_drive(self.task, out, legs, r)
