@@ -10,7 +10,20 @@
  *     workspace): its distance edges are the plan's edges but those between two executed timepoints,
  *     a pin for each executed timepoint, "at now or later" for every other executable, and its contingent
  *     links but those observed, one in progress shortened by what it has lasted (past its upper bound an
- *     overrun: [e, e]); a blocked plan is inconsistent whatever the verdict;
+ *     overrun: [e, e]); a blocked plan is inconsistent whatever the verdict. Most residuals are decided
+ *     without the RUL check, by two longest-path computations that give the same verdict:
+ *       1. strongly controllable (one schedule of the executables meets every constraint whatever the
+ *          durations still to come: Vidal & Fargier 1999, substituting each unobserved contingent
+ *          timepoint C of link A --[l, u]--> C by T(A) + [l, u], so T(Y) - T(C) <= w becomes
+ *          T(Y) - T(A) <= w + l and T(C) - T(X) <= w becomes T(A) - T(X) <= w - u): then DC, since
+ *          that schedule is a dynamic strategy that never reads an observation (strongly);
+ *       2. else, no schedule at all with each duration still to come anywhere in its range now (the STN
+ *          of the residual, its links as requirements, inconsistent): then "inconsistent", which is the
+ *          RUL check's own second test after its first fails, and the first (a schedule at the lower
+ *          bounds) does fail then (ranges_consistent);
+ *     only the rest (consistent, not strongly controllable: not DC, or DC by reacting to observations)
+ *     takes the RUL check. In the runs of kitting and the two-robot teams most plans are settled by 1
+ *     or 2, and no residual seen was DC without being strongly controllable;
  *   - finish: the end of the earliest schedule with each unrevealed duration fixed as rank_by reads it
  *     (0 worst: upper bound, 1 earliest: lower bound, 2 nominal: midpoint, floored), a longest-path
  *     computation (Bellman-Ford swept in the plan's topological numbering: one or two sweeps); when no
@@ -63,6 +76,8 @@ typedef struct {
     int *lu, *lv, *order;
     int64_t *len;
     int64_t *lb, *ub, *fixed;       /* per contingent link: its range now, its fixed duration */
+    int *root;                      /* strongly: a timepoint's controllable root (itself, or its link's activation) */
+    int64_t *dlo, *dhi;             /* strongly: the range of T(x) - T(root[x]) (0, 0 for a root) */
 } HrcWork;
 
 HrcWork *hrc_dispatch_work_new(void) {
@@ -77,18 +92,22 @@ void hrc_dispatch_work_free(HrcWork *w) {
     free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
     free(w->first); free(w->next_src); free(w->lu); free(w->lv);
     free(w->order); free(w->len); free(w->lb); free(w->ub); free(w->fixed);
+    free(w->root); free(w->dlo); free(w->dhi);
     free(w);
 }
 
 static int reserve(HrcWork *w, int n, int m) {
     if (n > w->ncap) {
         free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
-        free(w->first);
+        free(w->first); free(w->root); free(w->dlo); free(w->dhi);
+        w->root = malloc(sizeof(int) * (size_t)n);
+        w->dlo = malloc(sizeof(int64_t) * (size_t)n); w->dhi = malloc(sizeof(int64_t) * (size_t)n);
         w->ex = malloc(sizeof(int64_t) * (size_t)n); w->t = malloc(sizeof(int64_t) * (size_t)n);
         w->pot = malloc(sizeof(int64_t) * (size_t)n); w->pot2 = malloc(sizeof(int64_t) * (size_t)n);
         w->map = malloc(sizeof(int) * (size_t)n); w->unmap = malloc(sizeof(int) * (size_t)n);
         w->contingent = malloc((size_t)n); w->first = malloc(sizeof(int) * (size_t)(n + 1));
-        if (!w->ex || !w->t || !w->pot || !w->pot2 || !w->map || !w->unmap || !w->contingent || !w->first) {
+        if (!w->ex || !w->t || !w->pot || !w->pot2 || !w->map || !w->unmap || !w->contingent || !w->first ||
+            !w->root || !w->dlo || !w->dhi) {
             w->ncap = 0;
             return -1;
         }
@@ -155,6 +174,7 @@ static int schedule(const HrcForm *f, HrcWork *w, int64_t p, int n, int strict, 
         int u = f->eu[i], v = f->ev[i];  /* T(v) - T(u) <= w: T(u) >= T(v) - w */
         if (ex[u] != NONE && ex[v] != NONE) continue;
         int64_t len = -weight(f->ew32, f->ew64, i);
+        if (v == 0 && len <= 0) continue;  /* T(u) >= -w <= 0: every time here is at 0 or later */
         if (!strict && (ex[u] != NONE || len < 0)) continue;
         w->lu[nl] = v; w->lv[nl] = u; w->len[nl] = len; nl++;
     }
@@ -233,6 +253,69 @@ static int64_t folded(const HrcWork *w, int u, int v, int64_t wt) {
     return wt + (w->ex[u] != NONE ? w->ex[u] : 0) - (w->ex[v] != NONE ? w->ex[v] : 0);
 }
 
+/* 1 when plan p's residual (w set by prepare) is strongly controllable (see the file's comment), 0 when
+ * it is not or this test cannot tell (a chain: a link whose activation is itself a contingent timepoint
+ * still to come). Each edge u -> v, T(v) - T(u) <= w, must hold for every duration: with T(x) = T(root x)
+ * + d(x), d(x) in [dlo x, dhi x] (0 for a root) and the two durations independent (two links, or a root
+ * and a link), the worst case is d(v) = dhi v, d(u) = dlo u: T(root v) - T(root u) <= w - dhi v + dlo u;
+ * between one root and itself a condition on nature alone. The roots' earliest schedule (longest paths,
+ * executed timepoints and the origin pinned, the rest at now or later) exists iff the residual is SC. */
+static int strongly(const HrcForm *f, HrcWork *w, int64_t p, int n) {
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int k = (int)(c1 - c0), nl = 0;
+    int64_t *ex = w->ex, *t = w->t;
+    int *root = w->root;
+    for (int x = 0; x < n; x++) { root[x] = x; w->dlo[x] = 0; w->dhi[x] = 0; }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (ex[c] != NONE) continue;
+        root[c] = a; w->dlo[c] = w->lb[j]; w->dhi[c] = w->ub[j];
+    }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (ex[c] == NONE && root[a] != a) return 0;  /* a chain */
+    }
+    for (int64_t i = e0; i < e1; i++) {
+        int u = f->eu[i], v = f->ev[i];  /* T(v) - T(u) <= wt for every duration */
+        if (ex[u] != NONE && ex[v] != NONE) continue;
+        int64_t wt = weight(f->ew32, f->ew64, i) - w->dhi[v] + w->dlo[u];
+        if (v == 0 && wt >= 0) continue;  /* (as in schedule) */
+        int ru = root[u], rv = root[v];
+        if (ru == rv) { if (wt < 0) return 0; continue; }
+        w->lu[nl] = rv; w->lv[nl] = ru; w->len[nl] = -wt; nl++;
+    }
+    for (int x = 0; x < n; x++) t[x] = ex[x] != NONE ? ex[x] : w->now;
+    t[0] = 0;
+    return longest(w, n, nl) == 0;
+}
+
+/* 1 when plan p's residual (w set by prepare) is consistent: a schedule keeps every requirement and puts
+ * each contingent duration still to come somewhere in its range now; 0 when none does. The network is the
+ * RUL check's without its lower-case edges (hrc/temporal/_rulcore.c, not_dc), unfolded: the executed
+ * timepoints pinned instead of merged into the origin; every time is at 0 or later (executed ones are,
+ * the rest are at now or after an activation by a lower bound >= 0), so starting from 0 adds nothing. */
+static int ranges_consistent(const HrcForm *f, HrcWork *w, int64_t p, int n) {
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int k = (int)(c1 - c0), nl = 0;
+    int64_t *ex = w->ex, *t = w->t;
+    for (int64_t i = e0; i < e1; i++) {
+        int u = f->eu[i], v = f->ev[i];
+        if (ex[u] != NONE && ex[v] != NONE) continue;
+        int64_t len = -weight(f->ew32, f->ew64, i);
+        if (v == 0 && len <= 0) continue;  /* (as in schedule) */
+        w->lu[nl] = v; w->lv[nl] = u; w->len[nl] = len; nl++;
+    }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (ex[c] != NONE) continue;
+        w->lu[nl] = a; w->lv[nl] = c; w->len[nl] = w->lb[j]; nl++;
+        w->lu[nl] = c; w->lv[nl] = a; w->len[nl] = -w->ub[j]; nl++;
+    }
+    for (int x = 0; x < n; x++) t[x] = ex[x] != NONE ? ex[x] : w->contingent[x] ? 0 : w->now;
+    t[0] = 0;
+    return longest(w, n, nl) == 0;
+}
+
 static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, int8_t *cls, int64_t *finish,
                     int64_t *idle, int64_t *times) {
     int n = f->n[p];
@@ -243,15 +326,31 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
     int64_t *ex = w->ex, *t = w->t, now = s->now;
     int G = f->agents, L = f->legs;
     const int16_t *nodes = f->nodes + (int64_t)p * G * L * EVENTS;
-    /* a schedule with every unrevealed duration at its lower bound: if there is one, it is a feasible
+    /* strongly controllable: DC; else not consistent: inconsistent (see the file's comment). Else a
+     * schedule with every unrevealed duration at its lower bound: if there is one, it is a feasible
      * potential for the DC check's step 1 (hrc/temporal/_rulcore.h), and the residual is DC when no
-     * contingent link is left; if there is none, the residual's LO-graph has a negative cycle: not DC */
-    int lb_found = schedule(f, w, p, n, 1, w->lb) == 0;
-    if (lb_found) memcpy(w->pot, t, sizeof(int64_t) * (size_t)n);
-    if (f->blocked[p]) {
+     * contingent link is left; if there is none, the residual's LO-graph has a negative cycle: not DC
+     * (consistent, as the STN check said) */
+    int blocked = f->blocked[p], strong = 0, lb_found = 0, consistent = -1;  /* -1: not known */
+    if (!blocked && active > 0) {
+        strong = strongly(f, w, p, n);
+        if (!strong) consistent = ranges_consistent(f, w, p, n);
+    }
+    if (!strong && consistent != 0) {
+        lb_found = schedule(f, w, p, n, 1, w->lb) == 0;
+        if (lb_found) memcpy(w->pot, t, sizeof(int64_t) * (size_t)n);
+    }
+    if (blocked) {
+        *cls = 2;
+    } else if (strong) {
+        *cls = 0;
+    } else if (consistent == 0) {
         *cls = 2;
     } else if (lb_found && active == 0) {
         *cls = 0;
+    } else if (!lb_found) {
+        if (consistent < 0) consistent = ranges_consistent(f, w, p, n);
+        *cls = consistent ? 1 : 2;
     } else {
         const int *map = w->map;
         if (hrc_rul_begin(w->rul, w->nn, active)) return -1;
@@ -275,13 +374,15 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
         if (verdict < 0) return -1;
         *cls = (int8_t)verdict;
     }
-    /* the schedule: strict, then on the orderings and lower bounds still to come */
+    /* the schedule: strict, then on the orderings and lower bounds still to come; the strict one is
+     * known not to exist when the residual is inconsistent (each fixed duration is in its range now) or,
+     * for rank_by 1, when the schedule at the lower bounds was not found */
     int found;
     if (s->rank_by == 1 && lb_found) {
         memcpy(t, w->pot, sizeof(int64_t) * (size_t)n);
         found = 0;
     } else {
-        found = schedule(f, w, p, n, 1, w->fixed);
+        found = consistent == 0 || (s->rank_by == 1 && !strong && !lb_found) ? 1 : schedule(f, w, p, n, 1, w->fixed);
         if (found) found = schedule(f, w, p, n, 0, w->fixed);
     }
     if (found) {
