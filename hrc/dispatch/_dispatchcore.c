@@ -413,11 +413,34 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
 /* Evaluate plans[0..count-1] (see the file's comment); returns how many could not be (-1 class: out of
  * memory, or an index out of range in the form). `times`, when set, receives the schedule of the last
  * plan evaluated (its n timepoints' ticks). */
+/* Ask the memory for plan p's arrays (its edges, links and leg timepoints), which its evaluation reads
+ * first: the form is a memory-mapped file of a few tens of MB, and a message's plans are scattered in it,
+ * so without this most of a plan's evaluation waited for the first reads of each of its arrays. */
+static void fetch(const HrcForm *f, int64_t p) {
+    if (p < 0 || p >= f->plans) return;
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    const char *spans[][2] = {
+        {(const char *)(f->eu + e0), (const char *)(f->eu + e1)}, {(const char *)(f->ev + e0), (const char *)(f->ev + e1)},
+        {f->ew32 ? (const char *)(f->ew32 + e0) : (const char *)(f->ew64 + e0),
+         f->ew32 ? (const char *)(f->ew32 + e1) : (const char *)(f->ew64 + e1)},
+        {(const char *)(f->ca + c0), (const char *)(f->ca + c1)}, {(const char *)(f->cc + c0), (const char *)(f->cc + c1)},
+        {f->clb32 ? (const char *)(f->clb32 + c0) : (const char *)(f->clb64 + c0),
+         f->clb32 ? (const char *)(f->clb32 + c1) : (const char *)(f->clb64 + c1)},
+        {f->cub32 ? (const char *)(f->cub32 + c0) : (const char *)(f->cub64 + c0),
+         f->cub32 ? (const char *)(f->cub32 + c1) : (const char *)(f->cub64 + c1)},
+        {(const char *)(f->nodes + p * f->agents * f->legs * EVENTS),
+         (const char *)(f->nodes + (p + 1) * f->agents * f->legs * EVENTS)}};
+    for (size_t a = 0; a < sizeof spans / sizeof spans[0]; a++)
+        for (const char *at = spans[a][0]; at < spans[a][1]; at += 64) __builtin_prefetch(at);
+}
+
 int hrc_dispatch_evaluate(const HrcForm *f, const HrcState *s, HrcWork *w, int count, const int64_t *plans,
                           int8_t *cls, int64_t *finish, int64_t *idle, int64_t *times) {
     int failed = 0;
+    if (count > 0) fetch(f, plans[0]);
     for (int i = 0; i < count; i++) {
         int64_t p = plans[i];
+        if (i + 1 < count) fetch(f, plans[i + 1]);
         if (p < 0 || p >= f->plans || evaluate(f, s, p, w, cls + i, finish + i, idle + i, times) < 0) {
             cls[i] = -1; finish[i] = NONE; idle[i] = 0;
             failed++;
