@@ -78,6 +78,8 @@ typedef struct {
     int64_t *lb, *ub, *fixed;       /* per contingent link: its range now, its fixed duration */
     int *root;                      /* strongly: a timepoint's controllable root (itself, or its link's activation) */
     int64_t *dlo, *dhi;             /* strongly: the range of T(x) - T(root[x]) (0, 0 for a root) */
+    int64_t *fx, *t2, *len2;        /* strongly: T(x) - T(root[x]) as rank_by fixes it; the strict schedule */
+    int strict;                     /* strongly found the strict schedule (into t) */
 } HrcWork;
 
 HrcWork *hrc_dispatch_work_new(void) {
@@ -92,22 +94,23 @@ void hrc_dispatch_work_free(HrcWork *w) {
     free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
     free(w->first); free(w->next_src); free(w->lu); free(w->lv);
     free(w->order); free(w->len); free(w->lb); free(w->ub); free(w->fixed);
-    free(w->root); free(w->dlo); free(w->dhi);
+    free(w->root); free(w->dlo); free(w->dhi); free(w->fx); free(w->t2); free(w->len2);
     free(w);
 }
 
 static int reserve(HrcWork *w, int n, int m) {
     if (n > w->ncap) {
         free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
-        free(w->first); free(w->root); free(w->dlo); free(w->dhi);
+        free(w->first); free(w->root); free(w->dlo); free(w->dhi); free(w->fx); free(w->t2);
         w->root = malloc(sizeof(int) * (size_t)n);
+        w->fx = malloc(sizeof(int64_t) * (size_t)n); w->t2 = malloc(sizeof(int64_t) * (size_t)n);
         w->dlo = malloc(sizeof(int64_t) * (size_t)n); w->dhi = malloc(sizeof(int64_t) * (size_t)n);
         w->ex = malloc(sizeof(int64_t) * (size_t)n); w->t = malloc(sizeof(int64_t) * (size_t)n);
         w->pot = malloc(sizeof(int64_t) * (size_t)n); w->pot2 = malloc(sizeof(int64_t) * (size_t)n);
         w->map = malloc(sizeof(int) * (size_t)n); w->unmap = malloc(sizeof(int) * (size_t)n);
         w->contingent = malloc((size_t)n); w->first = malloc(sizeof(int) * (size_t)(n + 1));
         if (!w->ex || !w->t || !w->pot || !w->pot2 || !w->map || !w->unmap || !w->contingent || !w->first ||
-            !w->root || !w->dlo || !w->dhi) {
+            !w->root || !w->dlo || !w->dhi || !w->fx || !w->t2) {
             w->ncap = 0;
             return -1;
         }
@@ -115,12 +118,13 @@ static int reserve(HrcWork *w, int n, int m) {
     }
     if (m > w->mcap) {
         free(w->next_src); free(w->lu); free(w->lv); free(w->order); free(w->len); free(w->lb); free(w->ub);
-        free(w->fixed);
+        free(w->fixed); free(w->len2);
         size_t c = (size_t)m;
+        w->len2 = malloc(sizeof(int64_t) * c);
         w->next_src = malloc(sizeof(int) * c); w->lu = malloc(sizeof(int) * c); w->lv = malloc(sizeof(int) * c);
         w->order = malloc(sizeof(int) * c); w->len = malloc(sizeof(int64_t) * c);
         w->lb = malloc(sizeof(int64_t) * c); w->ub = malloc(sizeof(int64_t) * c); w->fixed = malloc(sizeof(int64_t) * c);
-        if (!w->next_src || !w->lu || !w->lv || !w->order || !w->len || !w->lb || !w->ub || !w->fixed) {
+        if (!w->next_src || !w->lu || !w->lv || !w->order || !w->len || !w->lb || !w->ub || !w->fixed || !w->len2) {
             w->mcap = 0;
             return -1;
         }
@@ -159,6 +163,39 @@ static int longest(HrcWork *w, int n, int nl) {
             }
         }
         if (!again) return 0;
+    }
+    return 1;
+}
+
+/* longest, on two sets of lengths over the same edges at once (w->len into w->t, w->len2 into w->t2):
+ * 0 when the first is done, *second set to 0 when the second is done too, 1 when the second has no end
+ * (a pinned timepoint would have to move); 1 when the first has no schedule (or the two need more than
+ * n + 1 sweeps together). */
+static int longest2(HrcWork *w, int n, int nl, int *second) {
+    int *first = w->first, *nxt = w->next_src;
+    for (int x = 0; x <= n; x++) first[x] = -1;
+    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
+    int64_t *t = w->t, *t2 = w->t2, *ex = w->ex;
+    int ok2 = 1;
+    for (int sweep = 0; sweep <= n; sweep++) {
+        int again = 0;
+        for (int u = 0; u < n; u++) {
+            int64_t tu = t[u], tu2 = t2[u];
+            for (int i = first[u]; i >= 0; i = nxt[i]) {
+                int v = w->lv[i];
+                int64_t val = tu + w->len[i];
+                if (val > t[v]) {
+                    if (ex[v] != NONE || v == 0) return 1;
+                    t[v] = val;
+                    if (v <= u) again = 1;
+                }
+                if (ok2 && (val = tu2 + w->len2[i]) > t2[v]) {
+                    if (ex[v] != NONE || v == 0) ok2 = 0;
+                    else { t2[v] = val; if (v <= u) again = 1; }
+                }
+            }
+        }
+        if (!again) { *second = ok2 ? 0 : 1; return 0; }
     }
     return 1;
 }
@@ -262,14 +299,18 @@ static int64_t folded(const HrcWork *w, int u, int v, int64_t wt) {
  * executed timepoints and the origin pinned, the rest at now or later) exists iff the residual is SC. */
 static int strongly(const HrcForm *f, HrcWork *w, int64_t p, int n) {
     int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
-    int k = (int)(c1 - c0), nl = 0;
-    int64_t *ex = w->ex, *t = w->t;
+    int k = (int)(c1 - c0), nl = 0, strict = 1;
+    int64_t *ex = w->ex, *t = w->t, *fx = w->fx;
     int *root = w->root;
-    for (int x = 0; x < n; x++) { root[x] = x; w->dlo[x] = 0; w->dhi[x] = 0; }
+    w->strict = 0;
+    for (int x = 0; x < n; x++) { root[x] = x; w->dlo[x] = 0; w->dhi[x] = 0; fx[x] = 0; }
     for (int j = 0; j < k; j++) {
         int a = f->ca[c0 + j], c = f->cc[c0 + j];
-        if (ex[c] != NONE) continue;
-        root[c] = a; w->dlo[c] = w->lb[j]; w->dhi[c] = w->ub[j];
+        if (ex[c] != NONE) {
+            if (ex[a] == NONE) return 0;  /* (not in these plans) the strict schedule has this link: not here */
+            continue;
+        }
+        root[c] = a; w->dlo[c] = w->lb[j]; w->dhi[c] = w->ub[j]; fx[c] = w->fixed[j];
     }
     for (int j = 0; j < k; j++) {
         int a = f->ca[c0 + j], c = f->cc[c0 + j];
@@ -278,15 +319,27 @@ static int strongly(const HrcForm *f, HrcWork *w, int64_t p, int n) {
     for (int64_t i = e0; i < e1; i++) {
         int u = f->eu[i], v = f->ev[i];  /* T(v) - T(u) <= wt for every duration */
         if (ex[u] != NONE && ex[v] != NONE) continue;
-        int64_t wt = weight(f->ew32, f->ew64, i) - w->dhi[v] + w->dlo[u];
-        if (v == 0 && wt >= 0) continue;  /* (as in schedule) */
+        int64_t wt0 = weight(f->ew32, f->ew64, i);
+        if (v == 0 && wt0 >= 0) continue;  /* (as in schedule) */
+        int64_t wt = wt0 - w->dhi[v] + w->dlo[u], wf = wt0 - fx[v] + fx[u];
         int ru = root[u], rv = root[v];
-        if (ru == rv) { if (wt < 0) return 0; continue; }
-        w->lu[nl] = rv; w->lv[nl] = ru; w->len[nl] = -wt; nl++;
+        if (ru == rv) {
+            if (wt < 0) return 0;
+            if (wf < 0) strict = 0;
+            continue;
+        }
+        w->lu[nl] = rv; w->lv[nl] = ru; w->len[nl] = -wt; w->len2[nl] = -wf; nl++;
     }
     for (int x = 0; x < n; x++) t[x] = ex[x] != NONE ? ex[x] : w->now;
     t[0] = 0;
-    return longest(w, n, nl) == 0;
+    memcpy(w->t2, t, sizeof(int64_t) * (size_t)n);
+    int second = 1;
+    if (longest2(w, n, nl, &second)) return 0;
+    if (strict && !second) {  /* the strict schedule on the roots, each contingent timepoint after its root */
+        for (int x = 0; x < n; x++) t[x] = w->t2[root[x]] + fx[x];
+        w->strict = 1;
+    }
+    return 1;
 }
 
 /* 1 when plan p's residual (w set by prepare) is consistent: a schedule keeps every requirement and puts
@@ -378,7 +431,9 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
      * known not to exist when the residual is inconsistent (each fixed duration is in its range now) or,
      * for rank_by 1, when the schedule at the lower bounds was not found */
     int found;
-    if (s->rank_by == 1 && lb_found) {
+    if (strong && w->strict) {
+        found = 0;  /* strongly left it in t */
+    } else if (s->rank_by == 1 && lb_found) {
         memcpy(t, w->pot, sizeof(int64_t) * (size_t)n);
         found = 0;
     } else {
