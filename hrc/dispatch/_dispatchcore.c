@@ -200,6 +200,37 @@ static int longest2(HrcWork *w, int n, int nl, int *second) {
     return 1;
 }
 
+/* longest, on two sets of lengths over the same edges, each on its own (w->len into w->t, w->len2 into
+ * w->t2): *ok1, *ok2 set to 1 for each that is done, 0 for each with no schedule. */
+static void longest_both(HrcWork *w, int n, int nl, int *ok1, int *ok2) {
+    int *first = w->first, *nxt = w->next_src;
+    for (int x = 0; x <= n; x++) first[x] = -1;
+    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
+    int64_t *t = w->t, *t2 = w->t2, *ex = w->ex;
+    int live1 = 1, live2 = 1;
+    *ok1 = 0; *ok2 = 0;
+    for (int sweep = 0; sweep <= n && (live1 || live2); sweep++) {
+        int again1 = 0, again2 = 0;
+        for (int u = 0; u < n; u++) {
+            int64_t tu = t[u], tu2 = t2[u];
+            for (int i = first[u]; i >= 0; i = nxt[i]) {
+                int v = w->lv[i];
+                int64_t val;
+                if (live1 && (val = tu + w->len[i]) > t[v]) {
+                    if (ex[v] != NONE || v == 0) live1 = 0;
+                    else { t[v] = val; if (v <= u) again1 = 1; }
+                }
+                if (live2 && (val = tu2 + w->len2[i]) > t2[v]) {
+                    if (ex[v] != NONE || v == 0) live2 = 0;
+                    else { t2[v] = val; if (v <= u) again2 = 1; }
+                }
+            }
+        }
+        if (live1 && !again1) { live1 = 0; *ok1 = 1; }
+        if (live2 && !again2) { live2 = 0; *ok2 = 1; }
+    }
+}
+
 /* The earliest schedule of plan p's residual into w->t, each contingent link's duration fixed at
  * durations[j]: strict (every constraint not yet history; a duration exactly), or not (only the orderings
  * and lower bounds into timepoints still to come). 0 found, 1 none. w->ex, w->contingent set. */
@@ -343,30 +374,40 @@ static int strongly(const HrcForm *f, HrcWork *w, int64_t p, int n) {
 }
 
 /* 1 when plan p's residual (w set by prepare) is consistent: a schedule keeps every requirement and puts
- * each contingent duration still to come somewhere in its range now; 0 when none does. The network is the
+ * each contingent duration still to come somewhere in its range now; 0 when none does. In the same sweeps,
+ * *loose: 1 when schedule(..., strict 0, w->fixed) has a schedule, left in w->t2 (the same edges but those
+ * that are not orderings or lower bounds into timepoints still to come; each link's fixed duration as a
+ * lower bound), else 0. The network is the
  * RUL check's without its lower-case edges (hrc/temporal/_rulcore.c, not_dc), unfolded: the executed
  * timepoints pinned instead of merged into the origin; every time is at 0 or later (executed ones are,
  * the rest are at now or after an activation by a lower bound >= 0), so starting from 0 adds nothing. */
-static int ranges_consistent(const HrcForm *f, HrcWork *w, int64_t p, int n) {
+static int ranges_consistent(const HrcForm *f, HrcWork *w, int64_t p, int n, int *loose) {
     int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
     int k = (int)(c1 - c0), nl = 0;
     int64_t *ex = w->ex, *t = w->t;
+    const int64_t never = INT64_MIN / 4;  /* a length that never moves anything: no such edge */
     for (int64_t i = e0; i < e1; i++) {
         int u = f->eu[i], v = f->ev[i];
         if (ex[u] != NONE && ex[v] != NONE) continue;
         int64_t len = -weight(f->ew32, f->ew64, i);
         if (v == 0 && len <= 0) continue;  /* (as in schedule) */
-        w->lu[nl] = v; w->lv[nl] = u; w->len[nl] = len; nl++;
+        w->lu[nl] = v; w->lv[nl] = u; w->len[nl] = len;
+        w->len2[nl] = ex[u] != NONE || len < 0 ? never : len;  /* (schedule, not strict) */
+        nl++;
     }
     for (int j = 0; j < k; j++) {
         int a = f->ca[c0 + j], c = f->cc[c0 + j];
         if (ex[c] != NONE) continue;
-        w->lu[nl] = a; w->lv[nl] = c; w->len[nl] = w->lb[j]; nl++;
-        w->lu[nl] = c; w->lv[nl] = a; w->len[nl] = -w->ub[j]; nl++;
+        w->lu[nl] = a; w->lv[nl] = c; w->len[nl] = w->lb[j]; w->len2[nl] = w->fixed[j]; nl++;
+        w->lu[nl] = c; w->lv[nl] = a; w->len[nl] = -w->ub[j]; w->len2[nl] = never; nl++;
     }
     for (int x = 0; x < n; x++) t[x] = ex[x] != NONE ? ex[x] : w->contingent[x] ? 0 : w->now;
     t[0] = 0;
-    return longest(w, n, nl) == 0;
+    memcpy(w->t2, t, sizeof(int64_t) * (size_t)n);
+    int ok1, ok2;
+    longest_both(w, n, nl, &ok1, &ok2);
+    *loose = ok2;
+    return ok1;
 }
 
 static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, int8_t *cls, int64_t *finish,
@@ -384,10 +425,10 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
      * potential for the DC check's step 1 (hrc/temporal/_rulcore.h), and the residual is DC when no
      * contingent link is left; if there is none, the residual's LO-graph has a negative cycle: not DC
      * (consistent, as the STN check said) */
-    int blocked = f->blocked[p], strong = 0, lb_found = 0, consistent = -1;  /* -1: not known */
+    int blocked = f->blocked[p], strong = 0, lb_found = 0, consistent = -1, loose = 0;  /* -1: not known */
     if (!blocked && active > 0) {
         strong = strongly(f, w, p, n);
-        if (!strong) consistent = ranges_consistent(f, w, p, n);
+        if (!strong) consistent = ranges_consistent(f, w, p, n, &loose);
     }
     if (!strong && consistent != 0) {
         lb_found = schedule(f, w, p, n, 1, w->lb) == 0;
@@ -402,7 +443,7 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
     } else if (lb_found && active == 0) {
         *cls = 0;
     } else if (!lb_found) {
-        if (consistent < 0) consistent = ranges_consistent(f, w, p, n);
+        if (consistent < 0) consistent = ranges_consistent(f, w, p, n, &loose);
         *cls = consistent ? 1 : 2;
     } else {
         const int *map = w->map;
@@ -433,11 +474,14 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
     int found;
     if (strong && w->strict) {
         found = 0;  /* strongly left it in t */
+    } else if (consistent == 0) {  /* no strict schedule; ranges_consistent found the other one, or not */
+        found = !loose;
+        if (loose) memcpy(t, w->t2, sizeof(int64_t) * (size_t)n);
     } else if (s->rank_by == 1 && lb_found) {
         memcpy(t, w->pot, sizeof(int64_t) * (size_t)n);
         found = 0;
     } else {
-        found = consistent == 0 || (s->rank_by == 1 && !strong && !lb_found) ? 1 : schedule(f, w, p, n, 1, w->fixed);
+        found = s->rank_by == 1 && !strong && !lb_found ? 1 : schedule(f, w, p, n, 1, w->fixed);
         if (found) found = schedule(f, w, p, n, 0, w->fixed);
     }
     if (found) {
