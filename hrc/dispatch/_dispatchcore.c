@@ -462,9 +462,8 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
             int64_t shift = ex[a] != NONE ? ex[a] : 0;  /* a link in progress: from the origin */
             if (ex[c] == NONE) hrc_rul_link(w->rul, l++, map[a], map[c], w->lb[j] + shift, w->ub[j] + shift);
         }
-        if (lb_found) for (int y = 0; y < w->nn; y++) w->pot2[y] = w->pot[w->unmap[y]];
-        /* no schedule on the lower bounds: step 1 of the check would only find that cycle (again) */
-        int verdict = lb_found ? hrc_rul_run(w->rul, w->pot2) : hrc_rul_run_not_dc(w->rul);
+        for (int y = 0; y < w->nn; y++) w->pot2[y] = w->pot[w->unmap[y]];  /* (lb_found here) */
+        int verdict = hrc_rul_run(w->rul, w->pot2);
         if (verdict < 0) return -1;
         *cls = (int8_t)verdict;
     }
