@@ -10,7 +10,20 @@
  *     workspace): its distance edges are the plan's edges but those between two executed timepoints,
  *     a pin for each executed timepoint, "at now or later" for every other executable, and its contingent
  *     links but those observed, one in progress shortened by what it has lasted (past its upper bound an
- *     overrun: [e, e]); a blocked plan is inconsistent whatever the verdict;
+ *     overrun: [e, e]); a blocked plan is inconsistent whatever the verdict. Most residuals are decided
+ *     without the RUL check, by two longest-path computations that give the same verdict:
+ *       1. strongly controllable (one schedule of the executables meets every constraint whatever the
+ *          durations still to come: Vidal & Fargier 1999, substituting each unobserved contingent
+ *          timepoint C of link A --[l, u]--> C by T(A) + [l, u], so T(Y) - T(C) <= w becomes
+ *          T(Y) - T(A) <= w + l and T(C) - T(X) <= w becomes T(A) - T(X) <= w - u): then DC, since
+ *          that schedule is a dynamic strategy that never reads an observation (strongly);
+ *       2. else, no schedule at all with each duration still to come anywhere in its range now (the STN
+ *          of the residual, its links as requirements, inconsistent): then "inconsistent", which is the
+ *          RUL check's own second test after its first fails, and the first (a schedule at the lower
+ *          bounds) does fail then (ranges_consistent);
+ *     only the rest (consistent, not strongly controllable: not DC, or DC by reacting to observations)
+ *     takes the RUL check. In the runs of kitting and the two-robot teams most plans are settled by 1
+ *     or 2, and no residual seen was DC without being strongly controllable;
  *   - finish: the end of the earliest schedule with each unrevealed duration fixed as rank_by reads it
  *     (0 worst: upper bound, 1 earliest: lower bound, 2 nominal: midpoint, floored), a longest-path
  *     computation (Bellman-Ford swept in the plan's topological numbering: one or two sweeps); when no
@@ -63,6 +76,10 @@ typedef struct {
     int *lu, *lv, *order;
     int64_t *len;
     int64_t *lb, *ub, *fixed;       /* per contingent link: its range now, its fixed duration */
+    int *root;                      /* strongly: a timepoint's controllable root (itself, or its link's activation) */
+    int64_t *dlo, *dhi;             /* strongly: the range of T(x) - T(root[x]) (0, 0 for a root) */
+    int64_t *fx, *t2, *len2;        /* strongly: T(x) - T(root[x]) as rank_by fixes it; the strict schedule */
+    int strict;                     /* strongly found the strict schedule (into t) */
 } HrcWork;
 
 HrcWork *hrc_dispatch_work_new(void) {
@@ -77,18 +94,23 @@ void hrc_dispatch_work_free(HrcWork *w) {
     free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
     free(w->first); free(w->next_src); free(w->lu); free(w->lv);
     free(w->order); free(w->len); free(w->lb); free(w->ub); free(w->fixed);
+    free(w->root); free(w->dlo); free(w->dhi); free(w->fx); free(w->t2); free(w->len2);
     free(w);
 }
 
 static int reserve(HrcWork *w, int n, int m) {
     if (n > w->ncap) {
         free(w->ex); free(w->t); free(w->pot); free(w->pot2); free(w->map); free(w->unmap); free(w->contingent);
-        free(w->first);
+        free(w->first); free(w->root); free(w->dlo); free(w->dhi); free(w->fx); free(w->t2);
+        w->root = malloc(sizeof(int) * (size_t)n);
+        w->fx = malloc(sizeof(int64_t) * (size_t)n); w->t2 = malloc(sizeof(int64_t) * (size_t)n);
+        w->dlo = malloc(sizeof(int64_t) * (size_t)n); w->dhi = malloc(sizeof(int64_t) * (size_t)n);
         w->ex = malloc(sizeof(int64_t) * (size_t)n); w->t = malloc(sizeof(int64_t) * (size_t)n);
         w->pot = malloc(sizeof(int64_t) * (size_t)n); w->pot2 = malloc(sizeof(int64_t) * (size_t)n);
         w->map = malloc(sizeof(int) * (size_t)n); w->unmap = malloc(sizeof(int) * (size_t)n);
         w->contingent = malloc((size_t)n); w->first = malloc(sizeof(int) * (size_t)(n + 1));
-        if (!w->ex || !w->t || !w->pot || !w->pot2 || !w->map || !w->unmap || !w->contingent || !w->first) {
+        if (!w->ex || !w->t || !w->pot || !w->pot2 || !w->map || !w->unmap || !w->contingent || !w->first ||
+            !w->root || !w->dlo || !w->dhi || !w->fx || !w->t2) {
             w->ncap = 0;
             return -1;
         }
@@ -96,12 +118,13 @@ static int reserve(HrcWork *w, int n, int m) {
     }
     if (m > w->mcap) {
         free(w->next_src); free(w->lu); free(w->lv); free(w->order); free(w->len); free(w->lb); free(w->ub);
-        free(w->fixed);
+        free(w->fixed); free(w->len2);
         size_t c = (size_t)m;
+        w->len2 = malloc(sizeof(int64_t) * c);
         w->next_src = malloc(sizeof(int) * c); w->lu = malloc(sizeof(int) * c); w->lv = malloc(sizeof(int) * c);
         w->order = malloc(sizeof(int) * c); w->len = malloc(sizeof(int64_t) * c);
         w->lb = malloc(sizeof(int64_t) * c); w->ub = malloc(sizeof(int64_t) * c); w->fixed = malloc(sizeof(int64_t) * c);
-        if (!w->next_src || !w->lu || !w->lv || !w->order || !w->len || !w->lb || !w->ub || !w->fixed) {
+        if (!w->next_src || !w->lu || !w->lv || !w->order || !w->len || !w->lb || !w->ub || !w->fixed || !w->len2) {
             w->mcap = 0;
             return -1;
         }
@@ -144,6 +167,70 @@ static int longest(HrcWork *w, int n, int nl) {
     return 1;
 }
 
+/* longest, on two sets of lengths over the same edges at once (w->len into w->t, w->len2 into w->t2):
+ * 0 when the first is done, *second set to 0 when the second is done too, 1 when the second has no end
+ * (a pinned timepoint would have to move); 1 when the first has no schedule (or the two need more than
+ * n + 1 sweeps together). */
+static int longest2(HrcWork *w, int n, int nl, int *second) {
+    int *first = w->first, *nxt = w->next_src;
+    for (int x = 0; x <= n; x++) first[x] = -1;
+    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
+    int64_t *t = w->t, *t2 = w->t2, *ex = w->ex;
+    int ok2 = 1;
+    for (int sweep = 0; sweep <= n; sweep++) {
+        int again = 0;
+        for (int u = 0; u < n; u++) {
+            int64_t tu = t[u], tu2 = t2[u];
+            for (int i = first[u]; i >= 0; i = nxt[i]) {
+                int v = w->lv[i];
+                int64_t val = tu + w->len[i];
+                if (val > t[v]) {
+                    if (ex[v] != NONE || v == 0) return 1;
+                    t[v] = val;
+                    if (v <= u) again = 1;
+                }
+                if (ok2 && (val = tu2 + w->len2[i]) > t2[v]) {
+                    if (ex[v] != NONE || v == 0) ok2 = 0;
+                    else { t2[v] = val; if (v <= u) again = 1; }
+                }
+            }
+        }
+        if (!again) { *second = ok2 ? 0 : 1; return 0; }
+    }
+    return 1;
+}
+
+/* longest, on two sets of lengths over the same edges, each on its own (w->len into w->t, w->len2 into
+ * w->t2): *ok1, *ok2 set to 1 for each that is done, 0 for each with no schedule. */
+static void longest_both(HrcWork *w, int n, int nl, int *ok1, int *ok2) {
+    int *first = w->first, *nxt = w->next_src;
+    for (int x = 0; x <= n; x++) first[x] = -1;
+    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
+    int64_t *t = w->t, *t2 = w->t2, *ex = w->ex;
+    int live1 = 1, live2 = 1;
+    *ok1 = 0; *ok2 = 0;
+    for (int sweep = 0; sweep <= n && (live1 || live2); sweep++) {
+        int again1 = 0, again2 = 0;
+        for (int u = 0; u < n; u++) {
+            int64_t tu = t[u], tu2 = t2[u];
+            for (int i = first[u]; i >= 0; i = nxt[i]) {
+                int v = w->lv[i];
+                int64_t val;
+                if (live1 && (val = tu + w->len[i]) > t[v]) {
+                    if (ex[v] != NONE || v == 0) live1 = 0;
+                    else { t[v] = val; if (v <= u) again1 = 1; }
+                }
+                if (live2 && (val = tu2 + w->len2[i]) > t2[v]) {
+                    if (ex[v] != NONE || v == 0) live2 = 0;
+                    else { t2[v] = val; if (v <= u) again2 = 1; }
+                }
+            }
+        }
+        if (live1 && !again1) { live1 = 0; *ok1 = 1; }
+        if (live2 && !again2) { live2 = 0; *ok2 = 1; }
+    }
+}
+
 /* The earliest schedule of plan p's residual into w->t, each contingent link's duration fixed at
  * durations[j]: strict (every constraint not yet history; a duration exactly), or not (only the orderings
  * and lower bounds into timepoints still to come). 0 found, 1 none. w->ex, w->contingent set. */
@@ -155,6 +242,7 @@ static int schedule(const HrcForm *f, HrcWork *w, int64_t p, int n, int strict, 
         int u = f->eu[i], v = f->ev[i];  /* T(v) - T(u) <= w: T(u) >= T(v) - w */
         if (ex[u] != NONE && ex[v] != NONE) continue;
         int64_t len = -weight(f->ew32, f->ew64, i);
+        if (v == 0 && len <= 0) continue;  /* T(u) >= -w <= 0: every time here is at 0 or later */
         if (!strict && (ex[u] != NONE || len < 0)) continue;
         w->lu[nl] = v; w->lv[nl] = u; w->len[nl] = len; nl++;
     }
@@ -233,6 +321,95 @@ static int64_t folded(const HrcWork *w, int u, int v, int64_t wt) {
     return wt + (w->ex[u] != NONE ? w->ex[u] : 0) - (w->ex[v] != NONE ? w->ex[v] : 0);
 }
 
+/* 1 when plan p's residual (w set by prepare) is strongly controllable (see the file's comment), 0 when
+ * it is not or this test cannot tell (a chain: a link whose activation is itself a contingent timepoint
+ * still to come). Each edge u -> v, T(v) - T(u) <= w, must hold for every duration: with T(x) = T(root x)
+ * + d(x), d(x) in [dlo x, dhi x] (0 for a root) and the two durations independent (two links, or a root
+ * and a link), the worst case is d(v) = dhi v, d(u) = dlo u: T(root v) - T(root u) <= w - dhi v + dlo u;
+ * between one root and itself a condition on nature alone. The roots' earliest schedule (longest paths,
+ * executed timepoints and the origin pinned, the rest at now or later) exists iff the residual is SC. */
+static int strongly(const HrcForm *f, HrcWork *w, int64_t p, int n) {
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int k = (int)(c1 - c0), nl = 0, strict = 1;
+    int64_t *ex = w->ex, *t = w->t, *fx = w->fx;
+    int *root = w->root;
+    w->strict = 0;
+    for (int x = 0; x < n; x++) { root[x] = x; w->dlo[x] = 0; w->dhi[x] = 0; fx[x] = 0; }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (ex[c] != NONE) {
+            if (ex[a] == NONE) return 0;  /* (not in these plans) the strict schedule has this link: not here */
+            continue;
+        }
+        root[c] = a; w->dlo[c] = w->lb[j]; w->dhi[c] = w->ub[j]; fx[c] = w->fixed[j];
+    }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (ex[c] == NONE && root[a] != a) return 0;  /* a chain */
+    }
+    for (int64_t i = e0; i < e1; i++) {
+        int u = f->eu[i], v = f->ev[i];  /* T(v) - T(u) <= wt for every duration */
+        if (ex[u] != NONE && ex[v] != NONE) continue;
+        int64_t wt0 = weight(f->ew32, f->ew64, i);
+        if (v == 0 && wt0 >= 0) continue;  /* (as in schedule) */
+        int64_t wt = wt0 - w->dhi[v] + w->dlo[u], wf = wt0 - fx[v] + fx[u];
+        int ru = root[u], rv = root[v];
+        if (ru == rv) {
+            if (wt < 0) return 0;
+            if (wf < 0) strict = 0;
+            continue;
+        }
+        w->lu[nl] = rv; w->lv[nl] = ru; w->len[nl] = -wt; w->len2[nl] = -wf; nl++;
+    }
+    for (int x = 0; x < n; x++) t[x] = ex[x] != NONE ? ex[x] : w->now;
+    t[0] = 0;
+    memcpy(w->t2, t, sizeof(int64_t) * (size_t)n);
+    int second = 1;
+    if (longest2(w, n, nl, &second)) return 0;
+    if (strict && !second) {  /* the strict schedule on the roots, each contingent timepoint after its root */
+        for (int x = 0; x < n; x++) t[x] = w->t2[root[x]] + fx[x];
+        w->strict = 1;
+    }
+    return 1;
+}
+
+/* 1 when plan p's residual (w set by prepare) is consistent: a schedule keeps every requirement and puts
+ * each contingent duration still to come somewhere in its range now; 0 when none does. In the same sweeps,
+ * *loose: 1 when schedule(..., strict 0, w->fixed) has a schedule, left in w->t2 (the same edges but those
+ * that are not orderings or lower bounds into timepoints still to come; each link's fixed duration as a
+ * lower bound), else 0. The network is the
+ * RUL check's without its lower-case edges (hrc/temporal/_rulcore.c, not_dc), unfolded: the executed
+ * timepoints pinned instead of merged into the origin; every time is at 0 or later (executed ones are,
+ * the rest are at now or after an activation by a lower bound >= 0), so starting from 0 adds nothing. */
+static int ranges_consistent(const HrcForm *f, HrcWork *w, int64_t p, int n, int *loose) {
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    int k = (int)(c1 - c0), nl = 0;
+    int64_t *ex = w->ex, *t = w->t;
+    const int64_t never = INT64_MIN / 4;  /* a length that never moves anything: no such edge */
+    for (int64_t i = e0; i < e1; i++) {
+        int u = f->eu[i], v = f->ev[i];
+        if (ex[u] != NONE && ex[v] != NONE) continue;
+        int64_t len = -weight(f->ew32, f->ew64, i);
+        if (v == 0 && len <= 0) continue;  /* (as in schedule) */
+        w->lu[nl] = v; w->lv[nl] = u; w->len[nl] = len;
+        w->len2[nl] = ex[u] != NONE || len < 0 ? never : len;  /* (schedule, not strict) */
+        nl++;
+    }
+    for (int j = 0; j < k; j++) {
+        int a = f->ca[c0 + j], c = f->cc[c0 + j];
+        if (ex[c] != NONE) continue;
+        w->lu[nl] = a; w->lv[nl] = c; w->len[nl] = w->lb[j]; w->len2[nl] = w->fixed[j]; nl++;
+        w->lu[nl] = c; w->lv[nl] = a; w->len[nl] = -w->ub[j]; w->len2[nl] = never; nl++;
+    }
+    for (int x = 0; x < n; x++) t[x] = ex[x] != NONE ? ex[x] : w->contingent[x] ? 0 : w->now;
+    t[0] = 0;
+    memcpy(w->t2, t, sizeof(int64_t) * (size_t)n);
+    int ok1, ok2;
+    longest_both(w, n, nl, &ok1, &ok2);
+    *loose = ok2;
+    return ok1;
+}
+
 static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, int8_t *cls, int64_t *finish,
                     int64_t *idle, int64_t *times) {
     int n = f->n[p];
@@ -243,15 +420,31 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
     int64_t *ex = w->ex, *t = w->t, now = s->now;
     int G = f->agents, L = f->legs;
     const int16_t *nodes = f->nodes + (int64_t)p * G * L * EVENTS;
-    /* a schedule with every unrevealed duration at its lower bound: if there is one, it is a feasible
+    /* strongly controllable: DC; else not consistent: inconsistent (see the file's comment). Else a
+     * schedule with every unrevealed duration at its lower bound: if there is one, it is a feasible
      * potential for the DC check's step 1 (hrc/temporal/_rulcore.h), and the residual is DC when no
-     * contingent link is left; if there is none, the residual's LO-graph has a negative cycle: not DC */
-    int lb_found = schedule(f, w, p, n, 1, w->lb) == 0;
-    if (lb_found) memcpy(w->pot, t, sizeof(int64_t) * (size_t)n);
-    if (f->blocked[p]) {
+     * contingent link is left; if there is none, the residual's LO-graph has a negative cycle: not DC
+     * (consistent, as the STN check said) */
+    int blocked = f->blocked[p], strong = 0, lb_found = 0, consistent = -1, loose = 0;  /* -1: not known */
+    if (!blocked && active > 0) {
+        strong = strongly(f, w, p, n);
+        if (!strong) consistent = ranges_consistent(f, w, p, n, &loose);
+    }
+    if (!strong && consistent != 0) {
+        lb_found = schedule(f, w, p, n, 1, w->lb) == 0;
+        if (lb_found) memcpy(w->pot, t, sizeof(int64_t) * (size_t)n);
+    }
+    if (blocked) {
+        *cls = 2;
+    } else if (strong) {
+        *cls = 0;
+    } else if (consistent == 0) {
         *cls = 2;
     } else if (lb_found && active == 0) {
         *cls = 0;
+    } else if (!lb_found) {
+        if (consistent < 0) consistent = ranges_consistent(f, w, p, n, &loose);
+        *cls = consistent ? 1 : 2;
     } else {
         const int *map = w->map;
         if (hrc_rul_begin(w->rul, w->nn, active)) return -1;
@@ -269,19 +462,25 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
             int64_t shift = ex[a] != NONE ? ex[a] : 0;  /* a link in progress: from the origin */
             if (ex[c] == NONE) hrc_rul_link(w->rul, l++, map[a], map[c], w->lb[j] + shift, w->ub[j] + shift);
         }
-        if (lb_found) for (int y = 0; y < w->nn; y++) w->pot2[y] = w->pot[w->unmap[y]];
-        /* no schedule on the lower bounds: step 1 of the check would only find that cycle (again) */
-        int verdict = lb_found ? hrc_rul_run(w->rul, w->pot2) : hrc_rul_run_not_dc(w->rul);
+        for (int y = 0; y < w->nn; y++) w->pot2[y] = w->pot[w->unmap[y]];  /* (lb_found here) */
+        int verdict = hrc_rul_run(w->rul, w->pot2);
         if (verdict < 0) return -1;
         *cls = (int8_t)verdict;
     }
-    /* the schedule: strict, then on the orderings and lower bounds still to come */
+    /* the schedule: strict, then on the orderings and lower bounds still to come; the strict one is
+     * known not to exist when the residual is inconsistent (each fixed duration is in its range now) or,
+     * for rank_by 1, when the schedule at the lower bounds was not found */
     int found;
-    if (s->rank_by == 1 && lb_found) {
+    if (strong && w->strict) {
+        found = 0;  /* strongly left it in t */
+    } else if (consistent == 0) {  /* no strict schedule; ranges_consistent found the other one, or not */
+        found = !loose;
+        if (loose) memcpy(t, w->t2, sizeof(int64_t) * (size_t)n);
+    } else if (s->rank_by == 1 && lb_found) {
         memcpy(t, w->pot, sizeof(int64_t) * (size_t)n);
         found = 0;
     } else {
-        found = schedule(f, w, p, n, 1, w->fixed);
+        found = s->rank_by == 1 && !strong && !lb_found ? 1 : schedule(f, w, p, n, 1, w->fixed);
         if (found) found = schedule(f, w, p, n, 0, w->fixed);
     }
     if (found) {
@@ -312,11 +511,34 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
 /* Evaluate plans[0..count-1] (see the file's comment); returns how many could not be (-1 class: out of
  * memory, or an index out of range in the form). `times`, when set, receives the schedule of the last
  * plan evaluated (its n timepoints' ticks). */
+/* Ask the memory for plan p's arrays (its edges, links and leg timepoints), which its evaluation reads
+ * first: the form is a memory-mapped file of a few tens of MB, and a message's plans are scattered in it,
+ * so without this most of a plan's evaluation waited for the first reads of each of its arrays. */
+static void fetch(const HrcForm *f, int64_t p) {
+    if (p < 0 || p >= f->plans) return;
+    int64_t e0 = f->edges_ptr[p], e1 = f->edges_ptr[p + 1], c0 = f->conts_ptr[p], c1 = f->conts_ptr[p + 1];
+    const char *spans[][2] = {
+        {(const char *)(f->eu + e0), (const char *)(f->eu + e1)}, {(const char *)(f->ev + e0), (const char *)(f->ev + e1)},
+        {f->ew32 ? (const char *)(f->ew32 + e0) : (const char *)(f->ew64 + e0),
+         f->ew32 ? (const char *)(f->ew32 + e1) : (const char *)(f->ew64 + e1)},
+        {(const char *)(f->ca + c0), (const char *)(f->ca + c1)}, {(const char *)(f->cc + c0), (const char *)(f->cc + c1)},
+        {f->clb32 ? (const char *)(f->clb32 + c0) : (const char *)(f->clb64 + c0),
+         f->clb32 ? (const char *)(f->clb32 + c1) : (const char *)(f->clb64 + c1)},
+        {f->cub32 ? (const char *)(f->cub32 + c0) : (const char *)(f->cub64 + c0),
+         f->cub32 ? (const char *)(f->cub32 + c1) : (const char *)(f->cub64 + c1)},
+        {(const char *)(f->nodes + p * f->agents * f->legs * EVENTS),
+         (const char *)(f->nodes + (p + 1) * f->agents * f->legs * EVENTS)}};
+    for (size_t a = 0; a < sizeof spans / sizeof spans[0]; a++)
+        for (const char *at = spans[a][0]; at < spans[a][1]; at += 64) __builtin_prefetch(at);
+}
+
 int hrc_dispatch_evaluate(const HrcForm *f, const HrcState *s, HrcWork *w, int count, const int64_t *plans,
                           int8_t *cls, int64_t *finish, int64_t *idle, int64_t *times) {
     int failed = 0;
+    if (count > 0) fetch(f, plans[0]);
     for (int i = 0; i < count; i++) {
         int64_t p = plans[i];
+        if (i + 1 < count) fetch(f, plans[i + 1]);
         if (p < 0 || p >= f->plans || evaluate(f, s, p, w, cls + i, finish + i, idle + i, times) < 0) {
             cls[i] = -1; finish[i] = NONE; idle[i] = 0;
             failed++;

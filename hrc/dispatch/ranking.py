@@ -26,8 +26,10 @@ rest by index, `hrc.dispatch.validation.agreeing`), and their number falls fast 
 come in. Plans whose networks are the same arrays (the compile's `shape`: plans that differ only by which
 of two identical actions comes where) have the same residual network under any history they both agree
 with (an observed leg is at the same position in both), so each shape among the candidates is evaluated
-once (`Ranker.evaluate`). An evaluation is one residual network, one DC check and one or two longest-path
-searches, in the C core over the dispatch form's arrays (`hrc.dispatch.native`, many plans per call),
+once (`Ranker.evaluate`). An evaluation is one residual network, its class and one or two longest-path
+searches, in the C core over the dispatch form's arrays (`hrc.dispatch.native`, many plans per call: a
+residual that is strongly controllable is DC, one whose STN has no schedule is inconsistent, each found by
+a longest-path pass, and only the rest take the RUL check; docs/dispatch.md, "Speed"),
 else in Python (`hrc.dispatch.fastnet`): the same results as `reference_evaluate`, the definition on the
 residual network, which the tests compare on every message of many runs. The best plan is found by
 successive minima over the rank key's columns, the full ranking only when asked for (`Ranker.order`).
