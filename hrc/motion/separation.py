@@ -121,14 +121,15 @@ def describe(task: Task) -> str:
             f"{robot.speed:g} m/s S_p = {terms} = {moving.total:.3f} m, standing {standing.total:.3f} m{zone}")
 
 
-def limits(task: Task) -> dict[str, float] | None:
-    """What a plan of `task` assumed of the robot's safety controller, for the robot to be told with each
-    step (`hrc.dispatch`): its top ``speed`` (m/s) and the protective ``separation`` at it, the separation
-    ``standing`` (m), and the ``reduced_speed`` and its ``reduced_separation`` when the task allows a
-    reduced-speed zone; None for a task without `safety` (its answers stay as they were)."""
+def limits(task: Task, robot: Agent | None = None) -> dict[str, float] | None:
+    """What a plan of `task` assumed of `robot`'s safety controller (default: the task's first robot), for
+    the robot to be told with each step (`hrc.dispatch`): its top ``speed`` (m/s) and the protective
+    ``separation`` at it, the separation ``standing`` (m), and the ``reduced_speed`` and its
+    ``reduced_separation`` when the task allows a reduced-speed zone; None for a task without `safety` (its
+    answers stay as they were). A team's robots are told each their own (issue 37: S_p at its own speed)."""
     if task.safety is None:
         return None
-    robot = next(a for a in task.agents if not a.is_human)
+    robot = robot or next(a for a in task.agents if not a.is_human)
     out = {"speed": robot.speed, "separation": round(protective_separation(task.safety, robot.speed).total, 6),
            "standing": round(protective_separation(task.safety, 0.0).total, 6)}
     slow = task.safety.reduced_speed
