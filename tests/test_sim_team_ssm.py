@@ -286,3 +286,32 @@ def test_200_runs_of_kitting_2robots_iso_keep_the_separation_and_every_constrain
     for i in range(200):
         result, ctl = _run(ctx, i)
         _check(ctx, result, ctl)
+
+
+def test_each_robot_is_told_the_separation_at_its_own_speed() -> None:
+    """A team whose second robot drives at 0.4 m/s: each robot step of `hrc dispatch`'s answers carries the
+    limits of *that* robot (before, every robot was told the first robot's): S_p by hand with kitting_iso's
+    safety: (C 0.2 m, Z_d + Z_r 0.1 m), 1.66 m at 0.6 m/s and 1.22 m at 0.4 m/s, 0.46 m standing, the reduced
+    speed 0.3 m/s's 1.015 m for both."""
+    from hrc.dispatch import Dispatcher
+    from hrc.dispatch.messages import Observation, RobotStep
+
+    full = load_task(ROOT / "tasks" / "kitting_2robots_iso.yaml")
+    agents = tuple(replace(a, speed=0.4) if a.id == "robot2" else a for a in full.agents)
+    a, b, c = full.actions[:3]  # one pick for each robot alone (both have a step from the start), one for all
+    task = replace(full, agents=agents, actions=(replace(a, agents=("robot",)), replace(b, agents=("robot2",)), c))
+    d = Dispatcher.from_compiled(compile_task(task, seed=0, jobs=1))
+    told: dict[str, dict] = {}
+    decision = d.decision
+    for _ in range(3):  # (a robot may first be told to wait for the other's departure)
+        for rid, step in (decision.robots or {}).items():
+            if isinstance(step, RobotStep):
+                told.setdefault(rid, step.to_json()["separation"])
+                if step.event == "depart" and len(told) < 2:
+                    decision = d.observe(Observation(0.0, "depart", rid, step.action, step.phase))
+    assert set(told) == {"robot", "robot2"}, d.decision.to_json()
+    for rid, v in (("robot", 0.6), ("robot2", 0.4)):
+        assert told[rid]["speed"] == v
+        assert told[rid]["separation"] == pytest.approx(s_p(v, c=0.2, z=0.1), abs=1e-6)
+        assert told[rid]["standing"] == pytest.approx(s_p(0.0, c=0.2, z=0.1), abs=1e-6)
+        assert told[rid]["reduced_separation"] == pytest.approx(s_p(0.3, c=0.2, z=0.1), abs=1e-6)
