@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, dispatched_team_run
 from dispatch_client import broken_links
 
 from hrc.cli import main
@@ -36,8 +36,7 @@ from hrc.compile.compiler import compile_task
 from hrc.io.task_file import load_task
 from hrc.model import Agent, AgentKind, Task
 from hrc.sim.run import RunResult, SimContext, SimSettings
-from hrc.sim.team_policies import TeamDispatched, make_team_controller
-from hrc.sim.team_run import simulate_team_run
+from hrc.sim.team_policies import TeamDispatched
 from hrc.temporal.graphml import read_graphml
 
 CORRIDOR = ROOT / "tests" / "data" / "separation" / "crossing_iso.yaml"
@@ -205,15 +204,7 @@ def kitting3() -> SimContext:
 
 
 def _run(ctx: SimContext, index: int) -> tuple[RunResult, TeamDispatched]:
-    kept: list[TeamDispatched] = []
-
-    def make(c: SimContext, p: Any) -> Any:
-        ctl = make_team_controller(c, p)
-        assert isinstance(ctl, TeamDispatched)
-        kept.append(ctl)
-        return ctl
-
-    return simulate_team_run(ctx, "hrc", index, record=True, controller=make), kept[0]
+    return dispatched_team_run(ctx, index)
 
 
 def _check(ctx: SimContext, result: RunResult, ctl: TeamDispatched) -> None:
@@ -327,7 +318,7 @@ def test_the_compile_keeps_s_p_between_every_robot_and_the_person_in_dispatched_
     the plain margin (``r_a + r_b + safety_margin``) from each other; no task constraint broken."""
     import random
 
-    from referee import broken_constraints, dispatch, trajectory
+    from referee import broken_constraints, sampled_run, trajectory
 
     from hrc.compile.classify import PlanClass
 
@@ -342,8 +333,7 @@ def test_the_compile_keeps_s_p_between_every_robot_and_the_person_in_dispatched_
     for cp in both[:3]:
         stnu = read_graphml(cp.graphml.encode())
         for run in range(2):
-            durations = {c.target: rng.choice([c.lb, c.ub, rng.randint(c.lb, c.ub)]) for c in stnu.contingents}
-            times = {k: v / 1000 for k, v in dispatch(stnu, durations, picks[run]).items()}
+            times = sampled_run(stnu, rng, picks[run])
             assert broken_constraints(task, cp.plan, times) == [], cp.plan.id
             steps = int(max(times.values()) / dt) + 2
             robots = {r: trajectory(task, cp.plan, cp.motions, times, r) for r in ("robot", "robot2")}
