@@ -260,6 +260,7 @@ def test_simulate_reports_ssm_per_robot_and_as_one(tmp_path: Path, capsys: pytes
                  "--out", str(out)]) == 0
     printed, _ = capsys.readouterr()
     assert "speed and separation monitoring (ISO/TS 15066)" in printed
+    assert "team (hrc) under SSM, per robot: robot stops " in printed and ", robot2 stops " in printed
     doc = json.loads((out / "simulation.json").read_text("utf-8"))
     agg = doc["policies"]["hrc"]["aggregate"]
     assert agg["ssm"]["runs_closer_than_separation"] == 0
