@@ -307,6 +307,9 @@ def test_each_robot_is_told_the_separation_at_its_own_speed() -> None:
         assert told[rid]["separation"] == pytest.approx(s_p(v, c=0.2, z=0.1), abs=1e-6)
         assert told[rid]["standing"] == pytest.approx(s_p(0.0, c=0.2, z=0.1), abs=1e-6)
         assert told[rid]["reduced_separation"] == pytest.approx(s_p(0.3, c=0.2, z=0.1), abs=1e-6)
+    from hrc.motion.separation import describe  # the reports and `hrc show` name the second robot's S_p too
+
+    assert describe(task).endswith(f"; robot2 at its 0.4 m/s: S_p {s_p(0.4, c=0.2, z=0.1):.3f} m")
 
 
 def test_the_compile_keeps_s_p_between_every_robot_and_the_person_in_dispatched_plans(kitting3: SimContext) -> None:
