@@ -12,7 +12,10 @@ eq. 1, constant speeds: ``S_p(v) = v_h (T_r + T_s) + v T_r + S_s + C + Z_d + Z_r
   for the first (the most demanding) and stops at the second;
 - **the runs**, from the recorded positions of every step: no robot ends a step in which it drove towards a
   person closer than S_p of the speed it drove, no robot-person pair closer than S_p(0) at any step, and
-  every link of the executed DC plan's STNU kept (GraphML read back, `dispatch_client.broken_links`).
+  every link of the executed DC plan's STNU kept (GraphML read back, `dispatch_client.broken_links`);
+- **the compile** (motion acquisition keeps S_p between every robot and every person, at that robot's speed):
+  an independent referee (tests/referee.py) moving every agent along its routes in dispatched DC plans;
+- **what each robot is told**: its own limits, S_p at its own speed.
 
 Default: 10 runs of kitting_2robots_iso cut to three picks (60 plans, as tests/test_sim_team.py); the whole
 task's 200 runs are `slow`. 1+1 tasks are untouched by the team floor (their simulation.json bytes are
