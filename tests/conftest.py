@@ -105,3 +105,20 @@ def mini_task(mini, write_mini):
 
     task, map_ = mini
     return load_task(write_mini(task, map_))
+
+
+def dispatched_team_run(ctx: Any, index: int) -> tuple[Any, Any]:
+    """Run `index` of policy ``hrc`` of a team (`hrc.sim.team_run.simulate_team_run`, recorded), with the
+    dispatching controller it ran under (`TeamDispatched`: its dispatcher's history)."""
+    from hrc.sim.team_policies import TeamDispatched, make_team_controller
+    from hrc.sim.team_run import simulate_team_run
+
+    kept: list[TeamDispatched] = []
+
+    def make(c: Any, p: Any) -> Any:
+        ctl = make_team_controller(c, p)
+        assert isinstance(ctl, TeamDispatched)
+        kept.append(ctl)
+        return ctl
+
+    return simulate_team_run(ctx, "hrc", index, record=True, controller=make), kept[0]

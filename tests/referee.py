@@ -18,6 +18,7 @@ from the task, the plan and the planned paths alone, on a time grid:
 from __future__ import annotations
 
 import math
+import random
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -189,6 +190,13 @@ def dispatch(stnu: STNU, durations: dict[str, int], pick: Callable[[int, int | N
         executed[x] = now
         planned.pop(x)
     raise AssertionError("dispatch did not finish")
+
+
+def sampled_run(stnu: STNU, rng: random.Random, pick: Callable[[int, int | None], int]) -> dict[str, float]:
+    """One run of `stnu` by `dispatch`: nature's durations each at a bound or random (from `rng`), every
+    other timepoint where `pick` puts it in its window; every timepoint's time in seconds."""
+    durations = {c.target: rng.choice([c.lb, c.ub, rng.randint(c.lb, c.ub)]) for c in stnu.contingents}
+    return {k: v / 1000 for k, v in dispatch(stnu, durations, pick).items()}
 
 
 def _position(points: np.ndarray, cum: np.ndarray, s: float) -> tuple[float, float]:

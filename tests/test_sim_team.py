@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, dispatched_team_run
 from dispatch_client import broken_links
 
 from hrc.cli import main
@@ -39,7 +39,7 @@ from hrc.model import SENSING_PATHS, Sensing, Task
 from hrc.sim.floor import CONTACT
 from hrc.sim.montecarlo import simulate, simulation_json
 from hrc.sim.run import RunResult, SimContext, SimSettings
-from hrc.sim.team_policies import TeamDispatched, make_team_controller
+from hrc.sim.team_policies import TeamDispatched
 from hrc.sim.team_run import simulate_team_run
 from hrc.temporal.graphml import read_graphml
 
@@ -60,15 +60,7 @@ def kitting3() -> SimContext:
 
 
 def _run(ctx: SimContext, index: int) -> tuple[RunResult, TeamDispatched]:
-    kept: list[TeamDispatched] = []
-
-    def make(c: SimContext, p: Any) -> Any:
-        ctl = make_team_controller(c, p)
-        assert isinstance(ctl, TeamDispatched)
-        kept.append(ctl)
-        return ctl
-
-    return simulate_team_run(ctx, "hrc", index, record=True, controller=make), kept[0]
+    return dispatched_team_run(ctx, index)
 
 
 def _check(ctx: SimContext, result: RunResult, ctl: TeamDispatched) -> None:

@@ -252,6 +252,11 @@ def format_team(sim: Any) -> list[str]:
         lines.append(f"team ({name}): robot-robot contacts {team['robot_contacts']} (in "
                      f"{team['runs_with_robot_contacts']} runs), person-person {team['people_contacts']}; "
                      f"closest per pair: {pairs}")
+        if "ssm" in team:  # speed and separation monitoring, each robot's (the line above: all as one)
+            lines.append(f"team ({name}) under SSM, per robot: " + ", ".join(
+                f"{r} stops {m['protective_stops_median']:g} (median; {m['runs_with_stops']} runs), closer than "
+                f"S_p in {m['runs_closer_than_separation']} runs, closest {m['min_free_robot_approaching']} / "
+                f"{m['min_free_person_approaching']} m" for r, m in team["ssm"].items()))
     return lines
 
 

@@ -159,8 +159,10 @@ class Dispatcher:
         self._routed: dict[tuple, np.ndarray] = {}  # (candidates, legs told or parked) -> those on them (`_on_routes`)
         # (state, message) -> the state it led to, for a run's first messages (`observe`): shared by forks
         self._answered: dict[tuple[int, Observation], tuple[_State, PlanSet, _State]] = {}
-        found = limits(plan_set.task)  # told with each robot step (a task with safety: only)
-        self._limits = None if found is None else MappingProxyType(found)
+        # told with each robot step (a task with safety: only), each robot its own (S_p at its speed)
+        found = {a.id: limits(plan_set.task, a) for a in plan_set.task.agents if not a.is_human}
+        self._limits = None if plan_set.task.safety is None else \
+            {r: MappingProxyType(x) for r, x in found.items() if x is not None}
         history = History.start(plan_set.task)
         everything = np.arange(len(plan_set), dtype=np.int64)
         self._state = self._settle(history, (), (), everything, {}, None)
@@ -667,7 +669,7 @@ class Dispatcher:
                 for r in self._robots:
                     step = steps[r]
                     if isinstance(step, RobotStep):
-                        steps[r] = replace(step, separation=self._limits)
+                        steps[r] = replace(step, separation=self._limits[r])
             robot, human = steps.get(self._robot), steps.get(history.human)
             if not self._team:
                 ahead = self._ahead(entry, best, done, history) if human is None else None

@@ -104,7 +104,8 @@ def reach(task: Task, speed: float, human: Agent | None = None, robot: Agent | N
 
 
 def describe(task: Task) -> str:
-    """Which co-worker model `task` gives motion acquisition, in one line (the reports, `hrc show`)."""
+    """Which co-worker model `task` gives motion acquisition, in one line (the reports, `hrc show`); a team's
+    robots of another speed than the first's are named with their own S_p."""
     robot = next(a for a in task.agents if not a.is_human)
     if task.safety is None:
         return (f"the fixed safety margin, {task.safety_margin:g} m between the two discs (the task has no "
@@ -117,18 +118,21 @@ def describe(task: Task) -> str:
     if slow:
         zone = (f"; a reduced-speed zone at {slow:g} m/s allowed: "
                 f"S_p {protective_separation(task.safety, slow).total:.3f} m")
+    others = "".join(f"; {r.id} at its {r.speed:g} m/s: S_p {protective_separation(task.safety, r.speed).total:.3f} m"
+                     for r in task.agents if not r.is_human and r.speed != robot.speed)  # a team's other speeds
     return (f"the protective separation of ISO/TS 15066 (speed and separation monitoring): at the robot's "
-            f"{robot.speed:g} m/s S_p = {terms} = {moving.total:.3f} m, standing {standing.total:.3f} m{zone}")
+            f"{robot.speed:g} m/s S_p = {terms} = {moving.total:.3f} m, standing {standing.total:.3f} m{zone}{others}")
 
 
-def limits(task: Task) -> dict[str, float] | None:
-    """What a plan of `task` assumed of the robot's safety controller, for the robot to be told with each
-    step (`hrc.dispatch`): its top ``speed`` (m/s) and the protective ``separation`` at it, the separation
-    ``standing`` (m), and the ``reduced_speed`` and its ``reduced_separation`` when the task allows a
-    reduced-speed zone; None for a task without `safety` (its answers stay as they were)."""
+def limits(task: Task, robot: Agent | None = None) -> dict[str, float] | None:
+    """What a plan of `task` assumed of `robot`'s safety controller (default: the task's first robot), for
+    the robot to be told with each step (`hrc.dispatch`): its top ``speed`` (m/s) and the protective
+    ``separation`` at it, the separation ``standing`` (m), and the ``reduced_speed`` and its
+    ``reduced_separation`` when the task allows a reduced-speed zone; None for a task without `safety` (its
+    answers stay as they were). A team's robots are told each their own (issue 37: S_p at its own speed)."""
     if task.safety is None:
         return None
-    robot = next(a for a in task.agents if not a.is_human)
+    robot = robot or next(a for a in task.agents if not a.is_human)
     out = {"speed": robot.speed, "separation": round(protective_separation(task.safety, robot.speed).total, 6),
            "standing": round(protective_separation(task.safety, 0.0).total, 6)}
     slow = task.safety.reduced_speed

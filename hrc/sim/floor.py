@@ -51,7 +51,7 @@ import pymunk
 from hrc.model import Agent, Task
 from hrc.motion.separation import protective_separation
 from hrc.motion.world import World
-from hrc.sim.ssm import SsmTally, ssm_speed
+from hrc.sim.ssm import SsmTally, ssm_limit
 
 __all__ = ["CONTACT", "MAX_STEP", "MIN_STEP", "Floor", "Mover", "add_mover", "place_mover", "tally", "time_to_stop"]
 
@@ -212,12 +212,9 @@ class Floor:
                 before, closing = math.inf, False
             allowed = rm.speed
             limit = min(self.margin, before)
-            if ssm is not None:
-                if closing:  # at the speed the rule allows, up to exactly S_p of that speed
-                    allowed = ssm_speed(ssm.safety, before, rm.speed)
-                    want = min(want, allowed * h)
-                    if allowed > 0:
-                        limit = protective_separation(ssm.safety, allowed).total
+            if ssm is not None:  # towards the person at the speed the rule allows, up to exactly S_p of it
+                allowed, limit = ssm_limit(ssm.safety, before, rm.speed, closing, self.margin)
+                want = min(want, allowed * h)
             elif closing and before < self.margin + self.slowdown and self.slowdown > 0:
                 want *= max(0.0, min(1.0, (before - self.margin) / self.slowdown))
             got = self._walk(rm, want, hm.xy if present else None, radii + limit - 1e-12)

@@ -97,10 +97,27 @@ def _team(runs: Sequence[RunResult]) -> dict:
         for pair, d in t["min_distance"].items():
             if d is not None:
                 pairs.setdefault(pair, []).append(d)
-    return {"team": {"robot_contacts": sum(t["robot_contacts"] for t in found),
-                     "runs_with_robot_contacts": sum(1 for t in found if t["robot_contacts"]),
-                     "people_contacts": sum(t["people_contacts"] for t in found),
-                     "min_distance": {pair: _r(min(ds)) for pair, ds in pairs.items()}}}
+    out = {"robot_contacts": sum(t["robot_contacts"] for t in found),
+           "runs_with_robot_contacts": sum(1 for t in found if t["robot_contacts"]),
+           "people_contacts": sum(t["people_contacts"] for t in found),
+           "min_distance": {pair: _r(min(ds)) for pair, ds in pairs.items()}}
+    if "ssm" in found[0]:  # under speed and separation monitoring: each robot's (`_ssm`: all of them as one)
+        out["ssm"] = {robot: _robot_ssm([t["ssm"][robot] for t in found]) for robot in found[0]["ssm"]}
+    return {"team": out}
+
+
+def _robot_ssm(runs: list[dict]) -> dict:
+    """One robot of a team under speed and separation monitoring, over the runs (its `SsmMeasures.to_json`
+    in each): protective stops (median, runs with one), runs closer than S_p, its closest approaches."""
+    def least(key: str) -> float | None:
+        found = [m[key] for m in runs if m[key] is not None]
+        return min(found) if found else None
+
+    stops = [m["protective_stops"] for m in runs]
+    return {"protective_stops_median": _pct(stops, 50), "runs_with_stops": sum(1 for n in stops if n),
+            "runs_closer_than_separation": sum(1 for m in runs if m["breaches"]),
+            "min_free_robot_approaching": least("min_free_robot_approaching"),
+            "min_free_person_approaching": least("min_free_person_approaching")}
 
 
 def _joint(runs: Sequence[RunResult]) -> dict:

@@ -24,7 +24,8 @@ the dispatcher).
      ["comparison": {"buttons_delay": s, "policies": {NAME: {"motion": {...}, "buttons": {...}}}}]}
 
 A team's (issue 37: other than one person and one robot; `run_one` runs it in `hrc.sim.team_run`) runs have
-``team`` (per agent, per pair) and its aggregate ``team``; a task of one person and one robot has neither.
+``team`` (per agent, per pair; with `safety:`, ``team.ssm`` per robot) and its aggregate ``team``; a task of
+one person and one robot has neither.
 With ``--detector motion`` each dispatched policy's aggregate has ``detection``
 (`hrc.sim.detection.aggregate_detection`) and each run ``detection``; ``comparison`` holds the same
 policies with buttons as late as the detector's median delay, on the same seeds (`comparison`).
@@ -191,8 +192,6 @@ def _check_team(task: Task, settings: SimSettings) -> None:
     if not is_team(task):
         return
     what = ["--detector motion"] if settings.motion else []
-    if task.safety is not None:
-        what.append("a task with safety: (speed and separation monitoring)")
     from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
 
     if estimate(task).plans.value > DEFAULT_MAX_PLANS:

@@ -25,12 +25,13 @@ closer than the protective separation at the speed it drove (0 by construction; 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from hrc.model import Safety
 from hrc.motion.separation import protective_separation
 
-__all__ = ["ROOM", "SsmMeasures", "SsmTally", "ssm_speed"]
+__all__ = ["ROOM", "SsmMeasures", "SsmTally", "combined", "ssm_limit", "ssm_speed"]
 
 
 ROOM = 1e-9
@@ -47,6 +48,21 @@ def ssm_speed(safety: Safety, free: float, top: float) -> float:
     if slow is not None and slow < top and protective_separation(safety, slow).total < free - ROOM:
         return slow
     return 0.0
+
+
+def ssm_limit(safety: Safety, before: float, top: float, closing: bool, margin: float) -> tuple[float, float]:
+    """One robot step against one person at free distance `before` (m): ``(allowed, keep)``, the speed the
+    rule allows (`ssm_speed` when the robot drives towards the person, `closing`; else its `top`) and the
+    free distance the step must keep from them (``S_p(allowed)`` driving towards them, else `margin`, the
+    standing separation ``S_p(0)``, or `before` when they already came closer). The one pair's floor and
+    the team's (`hrc.sim.team_floor`, each robot against each person) take the same rule from here."""
+    keep = min(margin, before)
+    if not closing:
+        return top, keep
+    allowed = ssm_speed(safety, before, top)
+    if allowed > 0:
+        keep = protective_separation(safety, allowed).total
+    return allowed, keep
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,3 +125,15 @@ class SsmTally:
         return SsmMeasures(self.stops, self.stop_time, self.slow_time,
                            None if math.isinf(self.min_robot) else self.min_robot,
                            None if math.isinf(self.min_person) else self.min_person, self.breaches)
+
+
+def combined(measures: Sequence[SsmMeasures]) -> SsmMeasures:
+    """A team's robots' measures as one (issue 37: `hrc.sim.team_floor` keeps one tally per robot): stops,
+    their time, the slowing and breaches added up, the closest approaches the smallest of any robot."""
+    def least(xs: list[float | None]) -> float | None:
+        found = [x for x in xs if x is not None]
+        return min(found) if found else None
+
+    return SsmMeasures(sum(m.protective_stops for m in measures), sum(m.stop_time for m in measures),
+                       sum(m.slow_time for m in measures), least([m.min_free_robot_approaching for m in measures]),
+                       least([m.min_free_person_approaching for m in measures]), sum(m.breaches for m in measures))

@@ -21,9 +21,19 @@ contacts per pair (`contacts`: each step in which two discs touched, asked of py
 are closer than `QUERY_GAP`): a robot-person contact is an `overlaps` of the one-pair floor, a robot-robot
 contact a violation (0 expected; `robot_contacts`).
 
+**Under speed and separation monitoring** (a task with `safety:`), each robot obeys `hrc.sim.ssm` against
+every person present (`hrc.sim.ssm.ssm_limit`, the one pair's rule, taken person by person): towards each
+person it drives towards, no faster than the protective separation from that person allows, so the most
+demanding one (the closest, for robots of one speed) decides its speed (top, the reduced speed, or a
+protective stop), and the step ends exactly where the free distance to any of them reaches ``S_p`` of the
+speed it drove; it keeps ``S_p(0)`` from every person when it drives at all, and backs off as above when a
+person keeps coming closer than that. Two robots keep `CONTACT` apart, as without `safety:` (ISO/TS 15066
+keeps a robot from a person; two robots are kept apart by their plan's passing order). One `SsmTally` per
+robot (`ssm`, by id) counts its protective stops, their time, its slowing, its closest approach to a person
+while driving towards them, the closest a person walked up to it standing, and breaches.
+
 Persons move first, then robots, in task order; each is walked against where the others stand at that
-moment, so steps are short while two of them move near each other (`safe_step`). A task with `safety:`
-(speed and separation monitoring) is not run on a team floor yet (`hrc.sim.montecarlo` refuses it).
+moment, so steps are short while two of them move near each other (`safe_step`).
 Cost: O(agents^2) per step for the distances, one pymunk step only when two discs nearly touch.
 """
 
@@ -33,6 +43,7 @@ import math
 from itertools import combinations
 
 from hrc.model import Task
+from hrc.motion.separation import protective_separation
 from hrc.motion.world import World
 from hrc.sim.floor import (
     CONTACT,
@@ -47,6 +58,7 @@ from hrc.sim.floor import (
     tally,
     time_to_stop,
 )
+from hrc.sim.ssm import SsmTally, ssm_limit
 
 __all__ = ["TeamFloor", "is_team"]
 
@@ -76,6 +88,15 @@ class TeamFloor:
         self.contacts: dict[tuple[str, str], int] = {p: 0 for p in self.pairs}
         self.cowork: frozenset[tuple[str, str]] = frozenset()  # (person, robot) pairs co-working now
         self.cowork_time = 0.0  # s in which some pair co-worked
+        # speed and separation monitoring (a task with safety:): one tally per robot; every robot keeps S_p(0)
+        # from every person, and driving the band up to S_p at its own speed (`safe_step`)
+        self.ssm: dict[str, SsmTally] | None = None
+        self._band: dict[str, float] = {}
+        if task.safety is not None:
+            self.ssm = {r.agent.id: SsmTally(task.safety) for r in self.robots}
+            self.margin = protective_separation(task.safety, 0.0).total
+            self._band = {r.agent.id: protective_separation(task.safety, r.agent.speed).total - self.margin
+                          for r in self.robots}
 
     # -- distances ---------------------------------------------------------------------------------------
 
@@ -121,13 +142,16 @@ class TeamFloor:
     def safe_step(self) -> float:
         """A step (s) short enough that no two agents come near each other in it unseen: for every pair of
         which both move (or a robot moves near a person with a `slowdown` band), half the time their joint
-        pace takes to close the gap down to what the rules keep between them (at least `MIN_STEP`); else
+        pace takes to close the gap down to what the rules keep between them (at least `MIN_STEP`; under
+        speed and separation monitoring, as with a `slowdown` band, for a robot and a person of whom one moves:
+        down to ``S_p`` at the robot's speed, the rule being one of the gap at each step's start); else
         `MAX_STEP` (a walk against a standing disc stops exactly where it must, `_walk`)."""
         step = MAX_STEP
         for m, n in combinations(self.movers.values(), 2):
             if not (m.present and n.present) or not (m.moving or n.moving):
                 continue
-            if not (m.moving and n.moving) and not (self.slowdown > 0 and m.agent.is_human != n.agent.is_human):
+            banded = (self.slowdown > 0 or self.ssm is not None) and m.agent.is_human != n.agent.is_human
+            if not (m.moving and n.moving) and not banded:
                 continue
             if m.agent.is_human and n.agent.is_human:
                 keep = 0.0
@@ -135,7 +159,7 @@ class TeamFloor:
                 person, robot = (m, n) if m.agent.is_human else (n, m)
                 if self.shared(person, robot):
                     continue
-                keep = self.margin + self.slowdown
+                keep = self.margin + (self.slowdown if self.ssm is None else self._band[robot.agent.id])
             else:
                 keep = CONTACT
             g = self.gap(m, n) - keep
@@ -163,7 +187,12 @@ class TeamFloor:
             floor = min(CONTACT, self.gap(m, r)) - 1e-12
             got = min(got, self._reach(m, want, r.xy, m.agent.radius + r.agent.radius + floor))
         self._measure(m, got, stops + [p for p in self.people if p is not m])
+        before = [self.gap(m, r) for r in stops] if self.ssm is not None else []
         self._move(m, got)
+        if self.ssm is not None:  # the person walked up to a standing robot (stopped, or at a place)?
+            for r, free_before in zip(stops, before, strict=True):
+                ssm = self.ssm[r.agent.id]
+                ssm.person_step(not r.moving or ssm.stopped, free_before, self.gap(m, r))
         tally(m, h, want, got, got)
 
     def _robot_step(self, m: Mover, h: float) -> None:
@@ -171,23 +200,41 @@ class TeamFloor:
         ahead = m.at(m.s + min(want, 1e-3) if want > 0 else m.s)
         people = [p for p in self.people if p.present and not self.shared(p, m)]
         others = [r for r in self.robots if r is not m]
-        scale, closing_in = 1.0, False
+        ssm = None if self.ssm is None else self.ssm[m.agent.id]
+        scale, closing_in, allowed = 1.0, False, m.speed
+        keeps: list[float] = []  # per person, the free distance the step keeps from them
+        closing: list[Mover] = []  # the people it drives towards
         for p in people:
             before = self.gap(m, p)
-            if self.gap(m, p, ahead) < before:
+            towards = self.gap(m, p, ahead) < before
+            if towards:
+                closing.append(p)
                 closing_in = closing_in or before < self.margin - 1e-6  # the person came closer than it stopped
-                if self.slowdown > 0 and before < self.margin + self.slowdown:
-                    scale = min(scale, max(0.0, min(1.0, (before - self.margin) / self.slowdown)))
+            if ssm is not None:  # the most demanding person decides the speed (`hrc.sim.ssm.ssm_limit`)
+                speed, keep = ssm_limit(ssm.safety, before, m.speed, towards, self.margin)
+                allowed = min(allowed, speed)
+                keeps.append(keep)
+                continue
+            keeps.append(min(self.margin, before))
+            if towards and self.slowdown > 0 and before < self.margin + self.slowdown:
+                scale = min(scale, max(0.0, min(1.0, (before - self.margin) / self.slowdown)))
+        if ssm is not None:  # a step at `allowed` ends at S_p(allowed) from every person it drives towards
+            want = min(want, allowed * h)
+            if allowed > 0:  # (S_p(allowed) is below each one's distance: `ssm_speed` allowed at most that)
+                sp = protective_separation(ssm.safety, allowed).total
+                keeps = [sp if p in closing else k for p, k in zip(people, keeps, strict=True)]
         want *= scale
         got = want
-        for p in people:
-            limit = min(self.margin, self.gap(m, p))
+        for p, limit in zip(people, keeps, strict=True):
             got = min(got, self._reach(m, want, p.xy, m.agent.radius + p.agent.radius + limit - 1e-12))
         for r in others:
             limit = min(CONTACT, self.gap(m, r))
             got = min(got, self._reach(m, want, r.xy, m.agent.radius + r.agent.radius + limit - 1e-12))
         self._measure(m, got, people + others)
         self._move(m, got)
+        if ssm is not None:
+            free = min((self.gap(m, p) for p in closing), default=math.inf)
+            ssm.robot_step(h, m.speed, allowed, bool(closing), max(0.0, got), free)
         if got <= 1e-12 and closing_in and m.s > 0:  # a person keeps coming: make room, back along the route
             self._back_off(m, m.speed * h / 2, people)
         tally(m, h, min(m.speed * h, m.remaining + max(0.0, got)), got, max(0.0, got))

@@ -22,13 +22,15 @@ one robot here):
   or walks away;
 - **the floor** is `hrc.sim.team_floor.TeamFloor`: a person stops short of every robot, a robot keeps the
   margin from every person and stops short of every other robot; the separation is measured for every
-  robot-person pair and a robot-robot contact is counted (a violation).
+  robot-person pair and a robot-robot contact is counted (a violation). Under speed and separation
+  monitoring (`safety:`) every robot obeys `hrc.sim.ssm` against every person, its counts per robot in the
+  run's ``team.ssm`` and all of them as one in ``ssm`` (as the one pair reports it).
 
 A person's absence (``--absence-rate``) is the one pair's, per person: between two actions they leave
 the floor and the dispatcher is told that person's ``away`` (the others and the robots go on), and
 ``back`` when they return (`_TeamRun._leave`, `_come_back`). Left out for a team (refused by
-`hrc.sim.montecarlo.simulate` in one line): the motion detector, speed and separation monitoring
-(`safety:`), compile on demand (a searched compile); and the stand-off rules of `hrc.sim.standoff` (making
+`hrc.sim.montecarlo.simulate` in one line): the motion detector,
+compile on demand (a searched compile); and the stand-off rules of `hrc.sim.standoff` (making
 room, going round): an agent held up waits, and a run in which nobody has moved for `stall` seconds while
 someone wanted to ends as a deadlock (counted, as in the one-pair loop).
 """
@@ -47,6 +49,7 @@ from hrc.sim.giveway import Ways
 from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
 from hrc.sim.run import AgentFrame, RunResult, SimContext
+from hrc.sim.ssm import combined
 from hrc.sim.team_floor import TeamFloor
 from hrc.sim.team_policies import TeamController, TeamDispatched, make_team_controller
 
@@ -560,6 +563,11 @@ class _TeamRun(AgentLoop[_Agent]):
                 "robot_contacts": floor.robot_contacts(),
                 "people_contacts": sum(n for (a, b), n in floor.contacts.items()
                                        if self.agents[a].human and self.agents[b].human)}
+        ssm = None
+        if floor.ssm is not None:  # speed and separation monitoring: each robot's, and all of them as one
+            per = {r: t.measures() for r, t in floor.ssm.items()}
+            team["ssm"] = {r: m.to_json() for r, m in per.items()}
+            ssm = combined(list(per.values()))
         joint = None
         if self.joint:
             joint = {"told_to_start": len(self.told), "told_before_arrival": len(self.told_early),
@@ -578,7 +586,7 @@ class _TeamRun(AgentLoop[_Agent]):
             robot_sequence=seqs[robots[0]] if robots else (), overruns=sum(
                 1 for p in self.people if p.draws is not None for x, ph in p.draws.overrun
                 if x in seqs[p.id] and f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
-            absent=sum(p.absent for p in self.people), latencies=tuple(ctl.latencies), joint=joint, team=team,
+            absent=sum(p.absent for p in self.people), latencies=tuple(ctl.latencies), joint=joint, team=team, ssm=ssm,
             late_observations=getattr(ctl, "late_observations", None),
             first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
             happenings=tuple(self.happenings) if self.record else (),
