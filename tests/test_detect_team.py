@@ -223,3 +223,74 @@ def test_the_protocol_takes_each_persons_positions_by_name(two: CompiledPlanSet,
     again = subprocess.run([*cmd, "dispatch", str(out), "--detect", "motion", "--replay", str(log)],
                            capture_output=True, text=True, check=False, cwd=ROOT)
     assert again.returncode == 0 and again.stdout == run.stdout
+
+
+# ------------------------------------------------------------------------------------------ simulated
+@pytest.fixture(scope="module")
+def workers_motion() -> Any:
+    from hrc.sim.run import SimContext, SimSettings
+
+    task = load_task(ROOT / "tasks" / "two_workers.yaml")
+    return SimContext(task, {"motion": compile_task(task, seed=0, jobs=1)}, SimSettings(detector="motion"), 0)
+
+
+@pytest.mark.parametrize("index", range(4))
+def test_simulated_people_each_get_only_their_own_events(workers_motion: Any, index: int) -> None:
+    """`hrc simulate two_workers --detector motion`'s runs (a tracker per person, 5 cm, 10 Hz): every event a
+    person's detector gave is one that person truly did (the simulator's truth: their own happenings; either
+    of them may do every pick and the inspection, so a wrong attribution would be a real event of the
+    other's), each person's true events were nearly all given within 1 s, and the run kept every constraint
+    of its DC first plan by the true times (the STNU's links, `RunResult.first_broken`)."""
+    from hrc.sim.team_policies import TeamDispatched, make_team_controller
+    from hrc.sim.team_run import simulate_team_run
+
+    kept: list[TeamDispatched] = []
+
+    def make(c: Any, p: Any) -> Any:
+        ctl = make_team_controller(c, p)
+        assert isinstance(ctl, TeamDispatched)
+        kept.append(ctl)
+        return ctl
+
+    result = simulate_team_run(workers_motion, "hrc", index, record=True, controller=make)
+    ctl = kept[0]
+    assert result.finished and result.first_class == "DC" and result.first_kept and result.first_broken == ()
+    people = ("alice", "bob")
+    truth = {p: {(h.event, h.action, h.phase) for h in result.happenings if h.agent == p and h.action is not None}
+             for p in people}
+    for p in people:
+        other = next(q for q in people if q != p)
+        given = [(e, a, ph) for _, _, e, a, ph in ctl.detected[p]]
+        assert given and set(given) <= truth[p], (p, set(given) - truth[p])
+        assert not set(given) & (truth[other] - truth[p])
+        det = result.team["detection"][p]
+        assert det["matched"] >= 0.8 * det["truth"] and det["refused"] == [], (p, det)
+    assert result.detection is not None and result.detection.refused == ()
+
+
+def test_a_teams_simulated_log_with_the_motion_detector_replays_answer_for_answer(workers_motion: Any,
+                                                                                   tmp_path: Path) -> None:
+    """``hrc simulate two_workers --detector motion --keep-logs``: each run's log holds every person's positions
+    (naming them) and replays on a fresh detecting dispatcher over the same compile answer for answer, the
+    people's events coming from the positions alone (the log holds no person's event message)."""
+    from hrc.dispatch.logfile import read_log
+    from hrc.dispatch.protocol import replay
+    from hrc.sim.montecarlo import simulate
+
+    ctx = workers_motion
+    sim = simulate(ctx.task, 2, 0, ["hrc"], ctx.settings, jobs=1, compiles=ctx.compiles, keep_logs=True)
+    assert sim.logs is not None
+    pristine = DetectingDispatcher.from_compiled(ctx.compiles["motion"], params=DetectParams())
+    for i in range(2):
+        path = tmp_path / f"hrc-{i}.jsonl"
+        path.write_bytes(sim.logs["hrc"][i])
+        contents = read_log(path)
+        assert contents.header["detect"]["detector"] == "motion"
+        sent = [json.loads(m.data) for m in contents.messages]
+        assert {m["agent"] for m in sent if m.get("event") == "position"} == {"alice", "bob"}
+        assert not [m for m in sent if m.get("agent") in ("alice", "bob") and m.get("event") != "position"]
+        pairs = list(replay(pristine.fork(), contents, str(path)))
+        assert pairs and all(a == b for a, b in pairs)
+        given = [(json.loads(b)["detect"]["agent"], ev["agent"]) for _, b in pairs if "detect" in json.loads(b)
+                 for ev in json.loads(b)["detect"]["events"]]
+        assert given and all(a == b for a, b in given)
