@@ -26,8 +26,11 @@ one robot here):
 
 A person's absence (``--absence-rate``) is the one pair's, per person: between two actions they leave
 the floor and the dispatcher is told that person's ``away`` (the others and the robots go on), and
-``back`` when they return (`_TeamRun._leave`, `_come_back`). Left out for a team (refused by
-`hrc.sim.montecarlo.simulate` in one line): the motion detector, speed and separation monitoring
+``back`` when they return (`_TeamRun._leave`, `_come_back`). With ``--detector motion`` each person has a
+tracker of their own (`hrc.detect.sensor.Sensor`, their own random numbers) whose positions go, naming them,
+to their own detector in front of the dispatcher (`hrc.detect.online`; the one pair's drain after the last
+phase, `_drained`, and its floor measures taken at the last phase). Left out for a team (refused by
+`hrc.sim.montecarlo.simulate` in one line): speed and separation monitoring
 (`safety:`), compile on demand (a searched compile); and the stand-off rules of `hrc.sim.standoff` (making
 room, going round): an agent held up waits, and a run in which nobody has moved for `stall` seconds while
 someone wanted to ends as a deadlock (counted, as in the one-pair loop).
