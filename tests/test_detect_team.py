@@ -63,6 +63,17 @@ def two(tmp_path_factory: pytest.TempPathFactory) -> CompiledPlanSet:
     return compile_task(load_task(path), seed=0, jobs=1)
 
 
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The same task compiled by ``hrc compile`` into a folder (what ``hrc dispatch`` and ``hrc detect`` read)."""
+    from hrc.cli import main
+
+    tmp = tmp_path_factory.mktemp("folder")
+    (tmp / "task.yaml").write_text(yaml.safe_dump(TASK, sort_keys=False), "utf-8")
+    assert main(["compile", str(tmp / "task.yaml"), "--out", str(tmp / "out"), "--no-report", "-q"]) == 0
+    return tmp / "out"
+
+
 class Walker:
     """One person's positions, 10 a second with 5 cm of noise, and the truth of what they did."""
 
@@ -180,18 +191,13 @@ def test_each_persons_positions_reach_only_their_detector(two: CompiledPlanSet) 
         d.position(20.0, 1.0, 1.0, "robot")
 
 
-def test_the_protocol_takes_each_persons_positions_by_name(two: CompiledPlanSet, tmp_path: Path) -> None:
+def test_the_protocol_takes_each_persons_positions_by_name(two: CompiledPlanSet, folder: Path, tmp_path: Path) -> None:
     """`hrc dispatch OUT --detect motion` over a team's compile folder: one stream of both people's positions
     (plain JSON lines, each naming its person), answered one line each, the events each answer gives being
     that person's (``detect.agent``) and, put together, exactly each trace's truth in order; a position that
     names nobody or the robot is refused in one line. The run replays from its log byte for byte."""
-    task = tmp_path / "task.yaml"
-    task.write_text(yaml.safe_dump(TASK, sort_keys=False), "utf-8")
-    out = tmp_path / "out"
+    out = folder
     cmd = [sys.executable, "-m", "hrc"]
-    done = subprocess.run([*cmd, "compile", str(task), "--out", str(out), "--no-report", "-q"],
-                          capture_output=True, text=True, check=False, cwd=ROOT)
-    assert done.returncode == 0, done.stderr
     walkers = traces(two)
     lines = [json.dumps({"t": t, "agent": p, "event": "position", "x": x, "y": y})
              for t, _, p, x, y in interleaved(walkers)]
@@ -294,3 +300,24 @@ def test_a_teams_simulated_log_with_the_motion_detector_replays_answer_for_answe
         given = [(json.loads(b)["detect"]["agent"], ev["agent"]) for _, b in pairs if "detect" in json.loads(b)
                  for ev in json.loads(b)["detect"]["events"]]
         assert given and all(a == b for a, b in given)
+
+
+def test_hrc_detect_reads_a_teams_trace_by_name(two: CompiledPlanSet, folder: Path, tmp_path: Path, capsys) -> None:
+    """``hrc detect OUT TRACE`` on both people's positions in one file: the observations out are each person's
+    true events, in order, named for them; a line naming nobody is refused on stderr and skipped."""
+    from hrc.cli import main
+
+    walkers = traces(two)
+    lines = [json.dumps({"t": t, "agent": p, "x": x, "y": y}) for t, _, p, x, y in interleaved(walkers)]
+    lines.insert(5, json.dumps({"t": 0.5, "x": 1.0, "y": 1.0}))
+    trace = tmp_path / "trace.jsonl"
+    trace.write_text("".join(x + "\n" for x in lines), "utf-8")
+    capsys.readouterr()
+    assert main(["detect", str(folder), str(trace)]) == 0
+    got, err = capsys.readouterr()
+    assert err.count("\n") == 1 and "line 6: key 'agent'" in err, err
+    out = [json.loads(x) for x in got.splitlines()]
+    for person, w in walkers.items():
+        assert [(o["event"], o["action"], o["phase"]) for o in out if o["agent"] == person] == \
+            [(e, a, p) for _, e, a, p in w.truth], person
+    assert {o["agent"] for o in out} == {"alice", "bob"}
