@@ -205,19 +205,6 @@ def test_hrc_dispatch_serves_a_team_logs_it_and_replays_it(tmp_path: Path) -> No
     assert again.returncode == 0 and again.stdout == done.stdout
 
 
-@pytest.mark.parametrize("option", [["--detect", "motion"]])  # --record serves a team: test_record_team.py
-def test_hrc_dispatch_refuses_what_is_not_built_for_a_team_in_one_line(option: list[str], tmp_path: Path,
-                                                                        capsys) -> None:
-    out = tmp_path / "cross"
-    assert main(["compile", str(write_task(tmp_path, CROSS, CROSS_MAP)), "--out", str(out), "--no-report", "-q",
-                 "--stnu", "none"]) == 0
-    capsys.readouterr()
-    assert main(["dispatch", str(out), *option]) == 2
-    got, err = capsys.readouterr()
-    assert got == "" and err.startswith("error: ") and err.count("\n") == 1
-    assert "1 person and 2 robots" in err
-
-
 def test_each_person_has_their_own_buttons_and_may_leave(workers: Team) -> None:
     """`human_options(agent)`: at the start, each person's departures are exactly for the first actions some
     compiled plan gives them (read from the plans, not the dispatcher), and their starts those of them the

@@ -211,20 +211,6 @@ def test_hrc_simulate_runs_a_team_and_draws_every_agent(tmp_path: Path, capsys) 
         "gantt_hrc_run0.png", "makespans.png", "run_hrc_run0.gif", "trajectories_hrc_run0.png"]
 
 
-@pytest.mark.parametrize("option", [["--detector", "motion"]])
-def test_what_a_team_is_not_simulated_with_is_refused_in_one_line(option: list[str], tmp_path: Path,
-                                                                   capsys) -> None:
-    import re
-
-    out = tmp_path / "sim"
-    option = [str(tmp_path / "rec") if o == "REC" else o for o in option]
-    assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--out", str(out), *option]) == 2
-    got, err = capsys.readouterr()
-    assert got == "" and re.match(ERROR_LINE, err), err
-    assert "team (2 people and 1 robot)" in err or "one person and one robot" in err
-    assert not out.exists()
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["two_workers", "kitting_2robots"])
 def test_200_runs_of_each_team_keep_every_constraint_of_their_dc_plans(name: str) -> None:

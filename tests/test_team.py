@@ -9,6 +9,7 @@ tasks; the online commands' one-line refusal.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import re
 from dataclasses import replace
@@ -405,8 +406,8 @@ def test_a_joint_action_of_people_alone_is_refused_in_one_line(tmp_path: Path, c
 
 
 # ------------------------------------------------------------------------------ the online side refuses
-@pytest.mark.parametrize("command", ["console --detect motion", "ros2 --detect motion", "dispatch --detect motion",
-                                     "detect"])  # the console, ros2 and dispatch (--record too) serve teams
+@pytest.mark.parametrize("command", ["console --detect motion", "ros2 --detect motion"])  # the console, ros2 and
+# dispatch (--record too) serve teams; dispatch --detect motion and detect too (tests/test_detect_team.py)
 def test_the_motion_detector_refuses_a_team_folder_in_one_line(command: str, tmp_path: Path, capsys) -> None:
     out = tmp_path / "cross"
     task = write_task(tmp_path, CROSS, CROSS_MAP)
@@ -420,14 +421,13 @@ def test_the_motion_detector_refuses_a_team_folder_in_one_line(command: str, tmp
     assert f"hrc {command} runs one person and one robot; this task has 1 person and 2 robots" in err
 
 
-def test_simulate_runs_a_team_and_the_online_commands_still_refuse_it(tmp_path: Path, capsys) -> None:
-    """`hrc simulate` takes a team (tests/test_sim_team.py); what is still one person and one robot says so."""
-    assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--runs", "1", "--policy", "hrc",
-                 "--no-figures", "--out", str(tmp_path / "sim"), "-q"]) == 0
-    assert (tmp_path / "sim" / "simulation.json").exists()
+def test_simulate_runs_a_team_with_buttons_and_with_the_motion_detector(tmp_path: Path, capsys) -> None:
+    """`hrc simulate` takes a team (tests/test_sim_team.py), with the motion detector too (a detector per
+    person: tests/test_detect_team.py, tests/test_sim_team.py)."""
+    for n, option in enumerate(([], ["--detector", "motion"])):
+        assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--runs", "1", "--policy", "hrc",
+                     "--no-figures", "--out", str(tmp_path / f"sim{n}"), "-q", *option]) == 0
+        doc = json.loads((tmp_path / f"sim{n}" / "simulation.json").read_text("utf-8"))
+        run = doc["policies"]["hrc"]["runs"][0]
+        assert run["finished"] and ("detection" in run) == bool(option)
     capsys.readouterr()
-    assert main(["simulate", str(ROOT / "tasks" / "two_workers.yaml"), "--detector", "motion",
-                 "--out", str(tmp_path / "sim2")]) == 2
-    got, err = capsys.readouterr()
-    assert got == "" and ERROR_LINE.match(err), err
-    assert "2 people and 1 robot" in err and not (tmp_path / "sim2").exists()

@@ -4,7 +4,8 @@ Reads JSON lines ``{"t": 12.3, "x": 4.1, "y": 2.0}`` (the person's position in t
 TRACE or standard input; other keys ignored) and writes the observations ``hrc dispatch OUT_DIR`` takes
 as the person's (depart, arrive, start, end, at the times the detector estimates they happened), in
 time order, to standard output as they are found, or to FILE (written atomically at the end). A bad line
-is refused with one line on standard error and skipped. See docs/detect.md.
+is refused with one line on standard error and skipped. A team's positions (more than one person, issue
+37) name their person, ``"agent": "alice"``: one detector per person. See docs/detect.md.
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from pathlib import Path
 from typing import Any
 
 from hrc.cli.argtypes import real
-from hrc.cli.team import refuse_team
 
 __all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "run"]
 
@@ -74,8 +74,6 @@ def run(args: argparse.Namespace) -> int:
     from hrc.errors import InputError
     from hrc.io.atomic import write_text_atomic
 
-    if refuse_team("detect", args.out_dir):
-        return 2
     params = detect_params(args)
     d = DetectingDispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial, params=params)
     assert isinstance(d, DetectingDispatcher)

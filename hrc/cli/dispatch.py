@@ -8,7 +8,8 @@ input exits 0. ``--log FILE`` writes every message to a new log before it counts
 re-runs a log and prints the same answers, exit 1 if one differs from the logged one. ``--record
 FILE`` writes the run (the resumed or replayed one too) as an MCAP file for Foxglove (docs/record.md).
 Any team is served (issue 37): a task of other than one person and one robot is answered per agent
-(``"robots": {ID: step}``, ``"people": {ID: hint}``), without ``--record`` or ``--detect motion`` yet.
+(``"robots": {ID: step}``, ``"people": {ID: hint}``); with ``--detect motion`` each position names its
+person (``"agent": "alice"``), who has a detector of their own (docs/detect.md, "A team").
 See docs/dispatch.md.
 """
 
@@ -21,7 +22,6 @@ from typing import Any
 from hrc.cli.argtypes import real, whole
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
-from hrc.cli.team import refuse_team
 from hrc.errors import HrcError, InputError
 
 __all__ = ["add_parser", "run"]
@@ -71,8 +71,6 @@ def run(args: argparse.Namespace) -> int:
     if len(given) > 1:
         print(f"error: hrc dispatch: {' and '.join(given)} cannot be used together", file=sys.stderr)
         return 2
-    if getattr(args, "detect", None) == "motion" and refuse_team("dispatch --detect motion", args.out_dir):
-        return 2  # a team is dispatched and recorded (issue 37); the motion detector tracks one person
     dispatcher = open_dispatcher(args, "dispatch")
     if dispatcher is None:
         return 2

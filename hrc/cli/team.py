@@ -1,10 +1,11 @@
 """The online commands' one-line refusal of a task with more than one person or robot (issue 37).
 
 The compile plans for any number of people and robots; `hrc dispatch` (and its ``--record``), `hrc
-simulate`, the console and the ROS 2 node serve them; the motion detector (``hrc detect``, ``--detect
-motion``) still runs one person and one robot (what it needs is listed in docs/dispatch.md, "What the
-N-agent step needs"). Each of them asks `refuse_team` first and ends with exit status 2 after one
-``error:`` line, before it opens a log or a port.
+simulate`, the console and the ROS 2 node serve them, and the motion detector in ``hrc detect``, ``hrc
+dispatch --detect motion`` and ``hrc simulate --detector motion`` (one detector per person); the console's
+and the ROS 2 node's ``--detect motion`` still run one person and one robot (their tracker input names no
+person yet). Each of them asks `refuse_team` first and ends with exit status 2 after one ``error:`` line,
+before it opens a log or a port.
 """
 
 from __future__ import annotations

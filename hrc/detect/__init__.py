@@ -8,12 +8,13 @@ reached a place), `hrc.detect.model` (what the detector knows of a task, its set
 futures the remaining plans allow), `hrc.detect.filter` (the filter: positions and a
 situation in, events out), `hrc.detect.online` (a dispatcher that takes positions: ``hrc dispatch
 --detect motion``, the console, the simulator), `hrc.detect.trace` (``hrc detect``: a trace file in,
-observations out), `hrc.detect.sensor` (a simulated tracker). See docs/detect.md.
+observations out), `hrc.detect.sensor` (a simulated tracker). A team (issue 37) has one detector per
+person, each person's positions naming them. See docs/detect.md.
 """
 
 from hrc.detect.filter import Belief, Detected, Track
 from hrc.detect.model import DetectorModel, DetectParams, detector_model
-from hrc.detect.online import DetectingDispatcher, position_from_json
+from hrc.detect.online import DetectingDispatcher, position_from_json, position_message
 
 __all__ = ["Belief", "DetectParams", "Detected", "DetectingDispatcher", "DetectorModel", "Track",
-           "detector_model", "position_from_json"]
+           "detector_model", "position_from_json", "position_message"]

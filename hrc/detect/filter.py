@@ -258,8 +258,9 @@ def _idle(model: DetectorModel, track: Track, sit: Situation, t: float, x: float
                 start = _start_time(model, sit, first, sit.since)
                 if start is not None and start <= t:
                     at = _at(start, track, sit)
-                    return track, [Detected(at, "depart", *first), Detected(at, "arrive", *first),
-                                   Detected(at, "start", *first)]
+                    return track, [Detected(at, "depart", *first), Detected(at, "arrive", *first)] + \
+                        ([] if first[0] in model.joint else [Detected(at, "start", *first)])  # (a joint
+                    # action's start is its lead robot's: issue 37)
             return replace(track, belief=Belief("idle")), []
         left = left_at(model, track.samples, place, sit.since)
         track = replace(track, left=(place, left), prior=track.prior or _next_place(sit),

@@ -65,7 +65,7 @@ class DetectParams:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class DetectorModel:
-    """A task as the detector reads it: the person (`human`, their `speed` in m/s and `slack`: their
+    """A task as the detector reads it, for one person: the person (`human`, their `speed` in m/s and `slack`: their
     walks take between 1 and `slack` times the time at full speed), every location's point (`xy`) and
     walking distance field (`geo`), and each (action, phase) the person may do with its duration bounds
     (`durations`, s) and location (`place`); `phases`: each action's phases in order."""
@@ -80,6 +80,7 @@ class DetectorModel:
     place: Mapping[tuple[str, str], str]
     params: DetectParams
     phases: Mapping[str, tuple[str, ...]]
+    joint: frozenset[str] = frozenset()  # the joint actions (issue 37): their start and end are the lead robot's
 
     def distance(self, location: str, x: float, y: float) -> float:
         """Walking distance (m) from (x, y) to `location`."""
@@ -91,12 +92,17 @@ class DetectorModel:
         return (lb + ub) / 2
 
 
-def detector_model(task: Task, params: DetectParams | None = None) -> DetectorModel:
-    """The `DetectorModel` of `task` (one human); `DetectError` when the task has no human."""
-    human = next((a for a in task.agents if a.is_human), None)
+def detector_model(task: Task, params: DetectParams | None = None, person: str | None = None,
+                   geo: GeodesicMap | None = None) -> DetectorModel:
+    """The `DetectorModel` of `person` in `task` (default: its first person; a team has one per person,
+    issue 37); `DetectError` when the task has no such person. `geo`: share another person's distance
+    fields (built for the same radius)."""
+    human = next((a for a in task.agents if a.is_human and person in (None, a.id)), None)
     if human is None:
-        raise DetectError(f"task {task.name!r} has no human: there is nobody to detect")
-    geo = geodesic_map(task.workspace, human.radius)
+        raise DetectError(f"task {task.name!r} has no human: there is nobody to detect" if person is None else
+                          f"task {task.name!r} has no person {person!r}")
+    if geo is None:
+        geo = geodesic_map(task.workspace, human.radius)
     durations: dict[tuple[str, str], tuple[float, float]] = {}
     place: dict[tuple[str, str], str] = {}
     for action in task.actions:
@@ -109,4 +115,5 @@ def detector_model(task: Task, params: DetectParams | None = None) -> DetectorMo
     phases = {a.id: tuple(p.id for p in a.phases) for a in task.actions}
     return DetectorModel(task, human.id, float(human.speed), float(human.travel_slack), geo,
                          MappingProxyType(xy), MappingProxyType(durations), MappingProxyType(place),
-                         params or DetectParams(), MappingProxyType(phases))
+                         params or DetectParams(), MappingProxyType(phases),
+                         frozenset(a.id for a in task.actions if a.joint))

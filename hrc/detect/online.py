@@ -20,13 +20,21 @@ position, and part of this object's state: `fork` copies it with the dispatcher'
 log (`hrc.dispatch.durable`) and ``--replay`` treat a position like any other message, and a run
 replays byte for byte.
 
+**A team** (issue 37: more than one person): one detector per person, each with that person's own
+distance fields, duration bounds, track and belief, reading the dispatcher's history and that person's
+own hint (`Decision.people`); a position names its person (``"agent": "alice"``) and goes to their
+detector only, so an event is only ever given as the person's whose positions showed it. The dispatcher
+reads each person's estimated events within the detector's stated span of them (`_span`, per person).
+
 An event the dispatcher refuses (it should not happen: the detector offers only what the dispatcher's
 options allow) is left out and named in the answer (``detect.refused``), and the detector goes on.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
+from types import MappingProxyType
 from typing import Any
 
 from hrc.dispatch import Dispatcher, Observation
@@ -38,7 +46,7 @@ from .filter import Detected, Track, decide, ingest
 from .model import DetectorModel, DetectParams, detector_model
 from .situation import Situation, situation
 
-__all__ = ["MAX_METRES", "POSITION_KEYS", "DetectingDispatcher", "position_from_json"]
+__all__ = ["MAX_METRES", "POSITION_KEYS", "DetectingDispatcher", "position_from_json", "position_message"]
 
 POSITION_KEYS = ("t", "agent", "event", "x", "y")
 MAX_METRES = 1e6
@@ -47,15 +55,28 @@ _MAX_ROUNDS = 12  # events one position may give (a walk's end, the legs on the 
 
 
 def position_from_json(obj: Any, human: str = "human") -> tuple[float, float, float]:
-    """``(t, x, y)`` of a position message; `DispatchError` saying in one line what is wrong."""
+    """``(t, x, y)`` of a position message of the one person `human`; `DispatchError` saying in one line what
+    is wrong."""
+    return position_message(obj, (human,))[1:]  # type: ignore[return-value]
+
+
+def position_message(obj: Any, people: tuple[str, ...]) -> tuple[str, float, float, float]:
+    """``(person, t, x, y)`` of a position message; `DispatchError` saying in one line what is wrong. With
+    one person (`people`) ``agent`` may be left out; a team's (issue 37) must name one of them."""
     if not isinstance(obj, dict):
         raise DispatchError(f"a message must be a JSON object, found {type(obj).__name__}")
     unknown = sorted(set(obj) - set(POSITION_KEYS))
     if unknown:
         raise DispatchError(f"unknown key {unknown[0][:40]!r} in a position (keys: {', '.join(POSITION_KEYS)})")
-    agent = obj.get("agent", human)
-    if agent != human:
-        raise DispatchError(f"a position is the human's ({human!r}), not {str(agent)[:40]!r}'s")
+    if len(people) == 1:
+        agent = obj.get("agent", people[0])
+        if agent != people[0]:
+            raise DispatchError(f"a position is the human's ({people[0]!r}), not {str(agent)[:40]!r}'s")
+    else:
+        agent = obj.get("agent")
+        if agent not in people:
+            raise DispatchError(f"a position must name its person, 'agent': one of {', '.join(people)} "
+                                f"(found {'nothing' if agent is None else repr(str(agent)[:40])})")
     out = []
     for key in ("t", "x", "y"):
         value = obj.get(key)
@@ -66,12 +87,15 @@ def position_from_json(obj: Any, human: str = "human") -> tuple[float, float, fl
         out.append(float(value))
     if not 0 <= out[0] <= 1e9:
         raise DispatchError("'t' must be a number of seconds from the task's start (0 to 1e9)")
-    return out[0], out[1], out[2]
+    return str(agent), out[0], out[1], out[2]
 
 
 class DetectingDispatcher(Dispatcher):
     """A `Dispatcher` that also takes positions (see the module docstring). `params`: the detector's
-    settings (`DetectParams`); `model`: share an already built `DetectorModel` of the same task."""
+    settings (`DetectParams`); `model`: share an already built `DetectorModel` of the same task (its
+    person's; a team's others are built). A team (issue 37) has one detector per person: each person's
+    own `DetectorModel` (`models`) and `Track` (`tracks`), their positions naming them; `model` and
+    `track` are the first person's."""
 
     def __init__(self, plan_set: PlanSet, *, params: DetectParams | None = None,
                  model: DetectorModel | None = None, **options: Any) -> None:
@@ -80,50 +104,80 @@ class DetectingDispatcher(Dispatcher):
         # and the robot's windows hold for every time within it (`Dispatcher._windows`). Measured (issue 32,
         # workshop, 40 runs each): departures estimated -0.13..+0.12 s off at sigma 0.05 m, -0.41..+0.32 s
         # at 0.15 m (p1..p99: -0.11..+0.10, -0.31..+0.28), speed 1.2 m/s; two sigma (0.083, 0.25 s) left 4
-        # and 2 of 40 runs breaking a passing order, three sigma none
-        human = next((a for a in plan_set.task.agents if a.is_human), None)
+        # and 2 of 40 runs breaking a passing order, three sigma none. A team's: the slowest person's (the
+        # dispatcher has one tolerance; a slower walker's time errs more for the same position noise)
+        people = [a for a in plan_set.task.agents if a.is_human]
         sigma = (params or (model.params if model is not None else DetectParams())).sigma
-        if human is not None:
-            options.setdefault("bound_tolerance", round(3 * sigma / human.speed, 3))
+        if people:
+            options.setdefault("bound_tolerance", round(3 * sigma / min(a.speed for a in people), 3))
         super().__init__(plan_set, **options)
-        self.model = model if model is not None and model.task is plan_set.task else \
+        first = model if model is not None and model.task is plan_set.task else \
             detector_model(plan_set.task, params)
-        self.track = Track()
-        self._situation: tuple[object, Situation] | None = None
-        self._pending: tuple[float, float] | None = None  # the span of the event being given (`_span`)
+        models = {first.human: first}
+        for a in people:
+            if a.id not in models:
+                same = next((m for m in models.values() if plan_set.task.agent(m.human).radius == a.radius), None)
+                models[a.id] = detector_model(plan_set.task, first.params, a.id,
+                                              None if same is None else same.geo)
+        self.models: Mapping[str, DetectorModel] = MappingProxyType(models)
+        self.model = first
+        # each replaced whole, never changed in place: a fork (`take_position`) shares them until it does
+        self.tracks: Mapping[str, Track] = MappingProxyType(dict.fromkeys(models, Track()))
+        self._situations: Mapping[str, tuple[object, Situation]] = MappingProxyType({})
+        self._pending: tuple[str, tuple[float, float] | None] | None = None  # (person, span) being given (`_span`)
+
+    @property
+    def people(self) -> tuple[str, ...]:
+        """The people tracked, in task order."""
+        return tuple(self.models)
+
+    @property
+    def track(self) -> Track:
+        """The first person's track (the one person's)."""
+        return self.tracks[self.model.human]
 
     def _span(self, obs: Observation) -> tuple[float, float] | None:
         """Where the event being given may truly have happened, as the detector states it
         (`hrc.detect.filter.Detected.span`), or None (the dispatcher's `bound_tolerance` alone)."""
-        return self._pending if obs.agent == self.model.human else None
+        pending = self._pending
+        return pending[1] if pending is not None and obs.agent == pending[0] else None
 
     def detect_settings(self) -> dict[str, Any]:
         """What a log records of the detector (`hrc.dispatch.protocol.log_header`): a replay needs the same."""
         return {"detector": "motion", "params": self.model.params.to_json()}
 
-    def situation(self) -> Situation:
-        """What the dispatcher knows of the person now (cached per decision)."""
-        cached = self._situation
+    def situation(self, person: str | None = None) -> Situation:
+        """What the dispatcher knows of `person` (default: the first) now (cached per decision)."""
+        person = self.model.human if person is None else person
+        cached = self._situations.get(person)
         if cached is None or cached[0] is not self.decision:
-            cached = self._situation = (self.decision, situation(self.model, self))
+            cached = (self.decision, situation(self.models[person], self))
+            self._situations = MappingProxyType({**self._situations, person: cached})
         return cached[1]
 
-    def position(self, t: float, x: float, y: float) -> tuple[list[tuple[Detected, float]], list[str]]:
-        """Take the person's position (x, y) measured at `t`: the events given to the dispatcher, each with
-        the time it went in (``(event, t_in)``), and those it refused (one line each). Raises
-        `DispatchError` (nothing changed) when `t` is before the last position or a clock error."""
-        last = self.track.t
+    def position(self, t: float, x: float, y: float, person: str | None = None
+                 ) -> tuple[list[tuple[Detected, float]], list[str]]:
+        """Take `person`'s (default: the first's) position (x, y) measured at `t`: the events given to the
+        dispatcher, each with the time it went in (``(event, t_in)``), and those it refused (one line each).
+        Raises `DispatchError` (nothing changed) when `t` is before that person's last position or a clock
+        error."""
+        person = self.model.human if person is None else person
+        model = self.models.get(person)
+        if model is None:
+            raise DispatchError(f"{person!r} is not a person of this task (people: {', '.join(self.models)})")
+        track = self.tracks[person]
+        last = track.t
         if last is not None and t < last:
-            raise DispatchError(f"position time goes backwards: t = {t:g} s is before the last position ({last:g} s)")
+            raise DispatchError(f"position time goes backwards: t = {t:g} s is before the last position ({last:g} s)"
+                                + ("" if len(self.models) == 1 else f" of {person}"))
         if t > max(last or 0.0, self.now) + MAX_JUMP:
             raise DispatchError(f"position t = {t:g} s is more than {MAX_JUMP:g} s after the last message: "
                                 "a clock error?")
-        track = ingest(self.model, self.track, t, x, y)
+        track = ingest(model, track, t, x, y)
         given: list[tuple[Detected, float]] = []
         refused: list[str] = []
-        human = self.model.human
         for _ in range(_MAX_ROUNDS):
-            track, events = decide(self.model, track, self.situation())
+            track, events = decide(model, track, self.situation(person))
             if not events:
                 break
             stop = False
@@ -134,9 +188,9 @@ class DetectingDispatcher(Dispatcher):
                         self.observe(Observation(at, "undo"))
                     else:
                         # learnt now, from the position measured at t: how late it is said (`delay`)
-                        self._pending = ev.span
+                        self._pending = (person, ev.span)
                         try:
-                            self.observe(Observation(at, ev.event, human, ev.action, ev.phase,
+                            self.observe(Observation(at, ev.event, person, ev.action, ev.phase,
                                                      delay=round(max(0.0, t - ev.t), 3)))
                         finally:
                             self._pending = None
@@ -150,28 +204,37 @@ class DetectingDispatcher(Dispatcher):
                     track = replace(track, last=max(track.last, ev.t), given_at=t)
             if stop:
                 break
-        self.track = track
+        self.tracks = MappingProxyType({**self.tracks, person: track})
         return given, refused
 
-    def take_position(self, t: float, x: float, y: float) -> tuple[list[tuple[Detected, float]], list[str]]:
+    def take_position(self, t: float, x: float, y: float, person: str | None = None
+                      ) -> tuple[list[tuple[Detected, float]], list[str]]:
         """`position`, on a copy that becomes the state only when it returns: whatever goes wrong (a
         refusal, or a defect), the state is as it was."""
         work = self.fork()
         assert isinstance(work, DetectingDispatcher)
-        given, refused = work.position(t, x, y)
-        self._state, self.track, self._situation = work._state, work.track, work._situation
+        given, refused = work.position(t, x, y, person)
+        self._state, self.tracks, self._situations = work._state, work.tracks, work._situations
         return given, refused
 
     def answer_position(self, obj: Any) -> dict[str, Any]:
         """The protocol's answer to a position message (`hrc.dispatch.protocol`): the decision, with
         ``t`` the position's and ``detect``: the events given (``t``: estimated, ``at``: as given to the
-        dispatcher), any refused, and the belief. `DispatchError` when the message is refused."""
-        t, x, y = position_from_json(obj, self.model.human)
-        given, refused = self.take_position(t, x, y)
+        dispatcher), any refused, and the belief (of the person the position is of: a team's answer names
+        them, ``detect.agent``). `DispatchError` when the message is refused."""
+        person, t, x, y = position_message(obj, self.people)
+        given, refused = self.take_position(t, x, y, person)
+        return self.position_answer(person, t, given, refused)
+
+    def position_answer(self, person: str, t: float, given: list[tuple[Detected, float]], refused: list[str]
+                        ) -> dict[str, Any]:
+        """The answer to `person`'s position at `t` once taken (`answer_position`; the simulator's log)."""
         out = self.decision.to_json()
         out["t"] = t
-        detect: dict[str, Any] = {"events": [{**ev.to_json(self.model.human), "at": at} for ev, at in given],
-                                  "belief": self.track.belief.to_json()}
+        detect: dict[str, Any] = {"events": [{**ev.to_json(person), "at": at} for ev, at in given],
+                                  "belief": self.tracks[person].belief.to_json()}
+        if len(self.models) > 1:
+            detect = {"agent": person, **detect}
         if refused:
             detect["refused"] = refused
         out["detect"] = detect

@@ -1,5 +1,5 @@
-"""What the dispatcher knows of the person, as the detector reads it: the leg under way, where the person
-is, what they may do next (`Situation`, from `situation`).
+"""What the dispatcher knows of a person (a team's: one `Situation` per person, issue 37), as the detector
+reads it: the leg under way, where the person is, what they may do next (`Situation`, from `situation`).
 
 The detector never gives out an event no remaining plan allows: it asks the dispatcher's history whether
 the task allows an event now (`Situation.allows`, what `Dispatcher.human_options` asks for the console's
@@ -73,13 +73,15 @@ class Situation:
         else:
             done = [leg for leg in legs if leg != current]
             self.place = model.place[done[-1]] if done else model.task.agent(human).start
-        step = d.decision.human
+        decision = d.decision
+        # a team's person reads their own entry of the answer (issue 37); one person, `Decision.human`
+        step = decision.human if decision.people is None else decision.people.get(human)
         self.hint: tuple[str, str, str, float] | str | None = None
         if isinstance(step, RobotStep):
             self.hint = (step.action, step.phase, step.event, float(step.earliest))
         elif isinstance(step, WaitFor):
             self.hint = str(step)
-        self.away: bool = history.away
+        self.away: bool = human in history.absent  # this person (a team's others may be away meanwhile)
         self.now: float = d.now
         self._allowed: dict[tuple[str, str, str], bool] = {}
 
@@ -95,7 +97,7 @@ class Situation:
         if key not in self._allowed:
             try:
                 self._history.add(Observation(self.now, event, self._model.human, action, phase))
-                self._allowed[key] = not self._history.away
+                self._allowed[key] = self._model.human not in self._history.absent
             except DispatchError:
                 self._allowed[key] = False
         return self._allowed[key]

@@ -13,7 +13,9 @@ and skipped: nothing changes (`Refusal`). The detector runs in front of a dispat
 plan set that hears the detector's events and the stream's other messages
 (`hrc.detect.online.DetectingDispatcher`), so every event given is one the remaining plans allow, with
 the time the detector estimates it happened. Output lines
-are ``{"t", "agent": "human", "action", "phase", "event"}``, the shape ``hrc dispatch`` takes.
+are ``{"t", "agent": "human", "action", "phase", "event"}``, the shape ``hrc dispatch`` takes. A team's
+(issue 37: more than one person) position lines name their person, ``"agent": "alice"``; each person has
+their own detector, and the events given are that person's.
 """
 
 from __future__ import annotations
@@ -43,9 +45,11 @@ class Refusal:
         return f"line {self.line}: {self.why}; skipped"
 
 
-def read_line(data: bytes) -> tuple[float, float, float] | dict[str, Any]:
-    """``(t, x, y)`` of a position line (other keys ignored), or the message of another line (one with an
-    ``event`` other than ``position``); `DispatchError` saying what is wrong."""
+def read_line(data: bytes, people: tuple[str, ...] = ()) -> tuple[float, float, float, str | None] | dict[str, Any]:
+    """``(t, x, y, person)`` of a position line (other keys ignored), or the message of another line (one with
+    an ``event`` other than ``position``); `DispatchError` saying what is wrong. `people`: a team's (issue 37,
+    more than one): the line must name its person (``"agent"``); else the person is None (the one person's,
+    ``agent`` ignored as before)."""
     if len(data) > MAX_LINE:
         raise DispatchError(f"longer than {MAX_LINE} bytes")
     try:
@@ -65,7 +69,14 @@ def read_line(data: bytes) -> tuple[float, float, float] | dict[str, Any]:
         out.append(float(value))
     if not 0 <= out[0] <= 1e9:
         raise DispatchError(f"key 't': seconds from the task's start (0 to 1e9) were expected, found {out[0]:g}")
-    return out[0], out[1], out[2]
+    person = None
+    if len(people) > 1:
+        person = obj.get("agent")
+        if person not in people:
+            found = "nothing" if "agent" not in obj else json.dumps(person)[:40]
+            raise DispatchError(f"key 'agent': the person the position is of ({', '.join(people)}) was expected, "
+                                f"found {found}")
+    return out[0], out[1], out[2], person
 
 
 def detect_lines(d: DetectingDispatcher, lines: Iterable[bytes]) -> Iterator[dict[str, Any] | Refusal]:
@@ -75,11 +86,12 @@ def detect_lines(d: DetectingDispatcher, lines: Iterable[bytes]) -> Iterator[dic
         if not data.strip():
             continue
         try:
-            got = read_line(data)
+            got = read_line(data, d.people)
             if isinstance(got, dict):
                 d.observe(observation_from_json(got))
                 continue
-            given, refused = d.take_position(*got)
+            t, x, y, person = got
+            given, refused = d.take_position(t, x, y, person)
         except DispatchError as err:
             yield Refusal(number, " ".join(str(err).split())[:300])
             continue
@@ -88,6 +100,6 @@ def detect_lines(d: DetectingDispatcher, lines: Iterable[bytes]) -> Iterator[dic
                                            .split())[:300])
             continue
         for ev, at in given:
-            yield {**ev.to_json(d.model.human), "t": at}
+            yield {**ev.to_json(person or d.model.human), "t": at}
         for why in refused:
             yield Refusal(number, f"the dispatcher refused the detector's {why}")

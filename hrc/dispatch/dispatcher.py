@@ -512,9 +512,12 @@ class Dispatcher:
         span = self._span(obs)
         if span is not None:  # the detector's own statement for this estimate, where wider
             above, below = max(tol, span[1] - obs.t), max(tol, obs.t - span[0])
-        if hint.earliest - above <= obs.t < hint.earliest:
+        # compared in the core's ticks (ms): in floats 14.736 - 0.136 > 14.6, and an estimate exactly the
+        # tolerance early was read off its bound (issue 37: a team's DC plan of zero slack turned inconsistent)
+        if ticks(hint.earliest) - ticks(above) <= ticks(obs.t) < ticks(hint.earliest):
             return replace(obs, t=hint.earliest)
-        if hint.latest is not None and hint.latest < obs.t <= hint.latest + below and hint.latest >= state.history.now:
+        if hint.latest is not None and ticks(hint.latest) < ticks(obs.t) <= ticks(hint.latest) + ticks(below) and \
+                hint.latest >= state.history.now:
             return replace(obs, t=hint.latest)
         return obs
 

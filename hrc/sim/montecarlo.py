@@ -161,7 +161,8 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     settings = settings or SimSettings()
     _check_team(task, settings)
     joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
-    if joint is not None and settings.motion:  # issue 37: the detector finds a person's start and end of each step
+    if joint is not None and settings.motion and not is_team(task):  # the one-pair loop: the detector would
+        # find the person's start and end of each step (a team's loop gives a joint action's to its lead)
         raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
                               f"--detector motion does not take joint actions yet (the robot starts and ends them)")
     settings.human.check(task)
@@ -191,7 +192,7 @@ def _check_team(task: Task, settings: SimSettings) -> None:
     which leaves some things out: each is refused here in one line, before anything is compiled."""
     if not is_team(task):
         return
-    what = ["--detector motion"] if settings.motion else []
+    what: list[str] = []
     from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
 
     if estimate(task).plans.value > DEFAULT_MAX_PLANS:

@@ -26,7 +26,7 @@ from typing import Any
 from hrc.sim.detector import Happening
 from hrc.sim.policies import DispatchedController, Policy
 from hrc.sim.run import SimContext, make_controller
-from hrc.sim.team_policies import TeamFixed
+from hrc.sim.team_policies import TeamDispatched, TeamFixed
 
 __all__ = ["Exchange", "catching", "log_bytes", "log_name"]
 
@@ -80,7 +80,7 @@ def catching(exchanges: list[Exchange], make: Callable[[SimContext, Policy], Any
             exchanges.append((t, line.encode("utf-8"), json.dumps(_answer(ctl, before, t))))
 
         ctl.observe = observe  # type: ignore[method-assign]  # this instance only: what the run loop calls
-        if isinstance(ctl, DispatchedController) and hasattr(ctl.d, "answer_position"):
+        if isinstance(ctl, DispatchedController | TeamDispatched) and hasattr(ctl.d, "answer_position"):
             _catch_positions(ctl.d, exchanges)
         return ctl
 
@@ -94,22 +94,19 @@ def _catch_positions(d: Any, exchanges: list[Exchange]) -> None:
     from hrc.errors import DispatchError
 
     inner = d.position
+    team = len(d.people) > 1  # a team's positions name their person (issue 37); the one person's never did
 
-    def position(t: float, x: float, y: float) -> Any:
-        line = json.dumps({"t": t, "event": "position", "x": x, "y": y}).encode("utf-8")
+    def position(t: float, x: float, y: float, person: str | None = None) -> Any:
+        person = d.model.human if person is None else person
+        message = {"t": t, "agent": person, "event": "position", "x": x, "y": y} if team else \
+            {"t": t, "event": "position", "x": x, "y": y}
+        line = json.dumps(message).encode("utf-8")
         try:
-            given, refused = inner(t, x, y)
+            given, refused = inner(t, x, y, person)
         except DispatchError as err:
             exchanges.append((t, line, json.dumps({"t": t, "ok": False, "error": " ".join(str(err).split())[:500]})))
             raise
-        out = d.decision.to_json()
-        out["t"] = t
-        detect: dict[str, Any] = {"events": [{**ev.to_json(d.model.human), "at": at} for ev, at in given],
-                                  "belief": d.track.belief.to_json()}
-        if refused:
-            detect["refused"] = refused
-        out["detect"] = detect
-        exchanges.append((t, line, json.dumps(out)))
+        exchanges.append((t, line, json.dumps(d.position_answer(person, t, given, refused))))
         return given, refused
 
     d.position = position
@@ -141,7 +138,9 @@ def log_bytes(ctx: SimContext, policy: Policy, exchanges: Sequence[Exchange]) ->
     kinds = {a.id: a.kind.value for a in ctx.task.agents}
     if sorted(kinds.values()) != ["human", "robot"]:  # a team (issue 37): as `hrc.dispatch.protocol.log_header`
         header["team"] = kinds
-    detect = ctx.cache.get(("dispatcher", policy.name, True)) if ctx.settings.motion and policy.dispatched else None
+    made: tuple[Any, ...] = ("team-dispatcher", policy.name, "motion") if "team" in header else \
+        ("dispatcher", policy.name, True)  # (`make_team_controller`'s and `make_controller`'s cache keys)
+    detect = ctx.cache.get(made) if ctx.settings.motion and policy.dispatched else None
     if detect is not None:  # as `hrc.dispatch.protocol.log_header`: a replay needs the same detector
         header["detect"] = dict(detect.detect_settings())
     if policy.dispatched and ctx.task.sensing is not None and ctx.task.sensing.delay[1] is not None:

@@ -15,11 +15,13 @@ The one-pair controllers are `hrc.sim.policies`'; the policies (`POLICIES`) are 
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping
 from typing import Any
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 from hrc.compile.temporal_net_creator import leg_timepoint
+from hrc.errors import HrcError
 from hrc.plans import agent_legs
 from hrc.sim.detector import Happening
 from hrc.sim.policies import Answering, Order, Policy, SimRoute, hinted, leg_route, order_of
@@ -37,6 +39,39 @@ class TeamDispatched(Answering):
         # answers that said a person's observation came later than the stated maximum delay (as the one
         # pair's `DispatchedController.late_observations`); None without a stated delay
         self.late_observations: int | None = None if dispatcher.max_observation_delay is None else 0
+        # with the motion detector (issue 37): per person, the events it gave ``(given at, estimated t,
+        # event, action, phase)``, those the dispatcher refused, and the departures it withdrew (undo)
+        people = [a.id for a in cps.task.agents if a.is_human]
+        self.detected: dict[str, list[tuple[float, float, str, str, str]]] = {p: [] for p in people}
+        self.detect_refused: dict[str, list[str]] = {p: [] for p in people}
+        self.withdrawn = dict.fromkeys(people, 0)
+
+    def position(self, now: float, person: str, t: float, x: float, y: float) -> bool:
+        """`person`'s position measured at `t` reaches their motion detector at run time `now`
+        (`hrc.detect.online.DetectingDispatcher.position`, as the one pair's `DispatchedController.position`);
+        whether it gave an event."""
+        t0 = time.perf_counter()
+        try:
+            given, refused = self.d.position(t, x, y, person)
+        except HrcError as err:  # refused (time going backwards): nothing changed
+            self.latencies.append(time.perf_counter() - t0)
+            self.refused.append(f"{t:.3f} {person} position: {str(err).splitlines()[0]}")
+            return False
+        self.latencies.append(time.perf_counter() - t0)
+        self.detect_refused[person] += refused
+        detected = self.detected[person]
+        for ev, _ in given:
+            if ev.event == "undo":  # their last event given (a departure for the wrong place) withdrawn
+                self.withdrawn[person] += 1
+                if detected:
+                    detected.pop()
+                continue
+            detected.append((round(now, 3), ev.t, ev.event, ev.action, ev.phase))
+            if self.late_observations is not None and round(max(0.0, t - ev.t), 3) > self.d.max_observation_delay:
+                self.late_observations += 1
+        if given:
+            self._after(self.d.decision)
+        return bool(given)
 
     def observe(self, h: Happening) -> None:
         dec = self._answer(self._observation(h), h)
@@ -142,10 +177,18 @@ def make_team_controller(ctx: SimContext, policy: Policy) -> TeamController:
     cps = ctx.compiles[policy.compile]
     if not policy.dispatched:
         return TeamFixed(cps)
-    key = ("team-dispatcher", policy.name)
+    motion = ctx.settings.motion
+    key = ("team-dispatcher", policy.name) + (("motion",) if motion else ())
     pristine = ctx.cache.get(key)
     if pristine is None:
         from hrc.dispatch import Dispatcher
 
-        pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
+        if motion:  # one motion detector per person in front of it (issue 37), as for one pair
+            from hrc.detect import DetectingDispatcher, DetectParams
+
+            pristine = ctx.cache[key] = DetectingDispatcher.from_compiled(
+                cps, feasible_only=policy.feasible_only, threads=1,
+                params=DetectParams(sigma=max(ctx.settings.sensor.sigma, 0.01)))
+        else:
+            pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
     return TeamDispatched(pristine.fork(), cps, ctx, policy.compile == "blind")

@@ -28,9 +28,12 @@ one robot here):
 
 A person's absence (``--absence-rate``) is the one pair's, per person: between two actions they leave
 the floor and the dispatcher is told that person's ``away`` (the others and the robots go on), and
-``back`` when they return (`_TeamRun._leave`, `_come_back`). Left out for a team (refused by
-`hrc.sim.montecarlo.simulate` in one line): the motion detector,
-compile on demand (a searched compile); and the stand-off rules of `hrc.sim.standoff` (making
+``back`` when they return (`_TeamRun._leave`, `_come_back`). With ``--detector motion`` each person has a
+tracker of their own (`hrc.detect.sensor.Sensor`, their own random numbers) whose positions go, naming them,
+to their own detector in front of the dispatcher (`hrc.detect.online`; the one pair's drain after the last
+phase, `_drained`, and its floor measures taken at the last phase). Left out for a team (refused by
+`hrc.sim.montecarlo.simulate` in one line): compile on demand (a searched compile); and the stand-off
+rules of `hrc.sim.standoff` (making
 room, going round): an agent held up waits, and a run in which nobody has moved for `stall` seconds while
 someone wanted to ends as a deadlock (counted, as in the one-pair loop).
 """
@@ -42,7 +45,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from hrc.detect.sensor import Sensor
 from hrc.sim.agents import AgentLoop, acknowledged, add_busy
+from hrc.sim.detection import Detection, detection_of
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import CONTACT, MIN_STEP, Mover
 from hrc.sim.giveway import Ways
@@ -57,6 +62,9 @@ __all__ = ["simulate_team_run"]
 
 _EPS = 1e-9
 _HELD = 2.0  # s: an agent held up this long makes the loop look at the floor again at least this often
+_DETECTED = ("depart", "arrive", "start", "end")  # the events a motion detector gives
+_DRAIN = 12.0  # s after the last phase in which the motion detectors may still give the people's last events
+_QUIET = 30.0  # s with nothing due but the trackers' positions: nobody can go on (stuck)
 
 
 def simulate_team_run(ctx: SimContext, policy: str, index: int, record: bool = False,
@@ -65,7 +73,13 @@ def simulate_team_run(ctx: SimContext, policy: str, index: int, record: bool = F
     `record` keeps the happenings and every agent's position at every step (for figures)."""
     rng = np.random.default_rng([ctx.seed, index])
     draws = draw_people(ctx.task, ctx.settings.human, rng)
-    return _TeamRun(ctx, POLICIES[policy], draws, controller(ctx, POLICIES[policy]), record).run(index)
+    ctl = controller(ctx, POLICIES[policy])
+    sensors = None
+    if ctx.settings.motion and isinstance(ctl, TeamDispatched):  # a tracker per person, its own numbers
+        people = [a.id for a in ctx.task.agents if a.is_human]
+        sensors = {p: Sensor(ctx.settings.sensor, np.random.default_rng([ctx.seed, index, 28, k]))
+                   for k, p in enumerate(people)}
+    return _TeamRun(ctx, POLICIES[policy], draws, ctl, record, sensors).run(index)
 
 
 # -- the run ---------------------------------------------------------------------------------------------------
@@ -102,8 +116,10 @@ class _TeamRun(AgentLoop[_Agent]):
     joint: dict[str, tuple[str, ...]]
 
     def __init__(self, ctx: SimContext, policy: Policy, draws: dict[str, HumanDraws], ctl: TeamController,
-                 record: bool) -> None:
+                 record: bool, sensors: dict[str, Sensor] | None = None) -> None:
         self.ctx, self.policy, self.ctl, self.record = ctx, policy, ctl, record
+        self.sensors = sensors  # ``--detector motion``: each person's tracker (issue 37), by person
+        self.quiet_since: float | None = None
         task = self.task = ctx.task
         s = ctx.settings
         self.model = s.human
@@ -144,7 +160,8 @@ class _TeamRun(AgentLoop[_Agent]):
         if event == "end" and action is not None and phase is not None:
             self.ended.add((action, phase))
         if a.human:
-            self.detector.see(h)
+            if self.sensors is None or action is None:  # a tracker sees positions, not away and back
+                self.detector.see(h)
             return
         t, late = acknowledged(self.t, self.ctl.order(a.id), event, action, phase)
         self.late += late
@@ -420,7 +437,52 @@ class _TeamRun(AgentLoop[_Agent]):
     # -- the loop --------------------------------------------------------------------------------------
 
     def deliver(self) -> bool:
-        return self._deliver_detected()
+        changed = self._deliver_detected()
+        if self.sensors is not None:  # every person's positions due, in time order (then task order)
+            assert isinstance(self.ctl, TeamDispatched)
+            due = sorted((t, k, p, x, y) for k, (p, sensor) in enumerate(self.sensors.items())
+                         for t, x, y in sensor.due(self.t))
+            for t, _, p, x, y in due:
+                changed = self.ctl.position(self.t, p, t, x, y) or changed
+        return changed
+
+    def _sample(self) -> None:
+        """Each tracker measures its person (nobody while they are away) at its times up to now."""
+        for p, sensor in (self.sensors or {}).items():
+            mover = self.agents[p].mover
+            while sensor.next_time <= self.t + _EPS:
+                sensor.measure(sensor.next_time, mover.xy if mover.present else None)
+
+    def _drained(self) -> bool:
+        """After the last phase: every person's motion detector has given each of their leg events, or had
+        `_DRAIN` seconds to (they walk home meanwhile, and it sees them leave)."""
+        if self.sensors is None:
+            return True
+        assert self.finished_at is not None and isinstance(self.ctl, TeamDispatched)
+        for p in self.sensors:
+            given = {d[2:] for d in self.ctl.detected[p]}
+            wanted = {(h.event, h.action, h.phase) for h in self.happenings if h.agent == p
+                      and h.action is not None and h.event in _DETECTED}
+            if not wanted <= given:
+                return self.t >= self.finished_at + _DRAIN
+        return True
+
+    def _detection(self) -> tuple[Detection | None, dict[str, Detection]]:
+        """How the motion detectors did against what happened: all people's together, and each person's (their
+        true events against the events given as theirs: an event given for the wrong person is unmatched)."""
+        if self.sensors is None:
+            return None, {}
+        assert isinstance(self.ctl, TeamDispatched)
+        ctl = self.ctl
+        each = {}
+        for p in self.sensors:
+            truth = [(h.t, h.event, h.action or "", h.phase or "") for h in self.happenings
+                     if h.agent == p and h.action is not None and h.event in _DETECTED]
+            each[p] = detection_of(truth, ctl.detected[p], tuple(ctl.detect_refused[p]), ctl.withdrawn[p])
+        dets = list(each.values())
+        return Detection(sum(d.truth for d in dets), sum(d.given for d in dets), sum(d.matched for d in dets),
+                         tuple(x for d in dets for x in d.delays), tuple(x for d in dets for x in d.leads),
+                         tuple(x for d in dets for x in d.refused), sum(d.withdrawn for d in dets)), each
 
     # `next_time`, `run` and `_result` stay apart from `_Run`'s: the one pair has absences, stand-offs,
     # compile on demand and a motion detector's drain, and a stall rule of its own (an agent making room
@@ -455,6 +517,12 @@ class _TeamRun(AgentLoop[_Agent]):
         if isinstance(self.ctl, TeamDispatched) and self.ctx.settings.tick > 0 and not self.done():
             cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
         future = [c for c in cands if c > t + _EPS and math.isfinite(c)]
+        if self.sensors is not None:  # the trackers go on measuring; a detector may yet give an event
+            quiet = not future and self.finished_at is None
+            self.quiet_since = (self.quiet_since if self.quiet_since is not None else t) if quiet else None
+            if self.quiet_since is None or t - self.quiet_since < _QUIET:
+                future += [c for sensor in self.sensors.values()
+                           for c in (sensor.next_time, sensor.next_arrival()) if c > t + _EPS]
         return min(min(future), self.cap) if future else math.inf
 
     def _guide_times(self, a: _Agent) -> list[float]:
@@ -472,7 +540,10 @@ class _TeamRun(AgentLoop[_Agent]):
     def run(self, index: int) -> RunResult:
         reason = ""
         stall_since: float | None = None
+        kept: tuple | None = None  # with trackers: the floor's measures at the last phase (the drain left out)
         while True:
+            if self.sensors is not None:
+                self._sample()
             for _ in range(100):
                 changed = self.deliver()
                 for p in self.people:
@@ -486,8 +557,13 @@ class _TeamRun(AgentLoop[_Agent]):
             if self.joint:
                 self.floor.cowork = self._cowork()
             if self.done():
-                self.finished_at = self.t
-                break
+                if self.finished_at is None:
+                    self.finished_at = self.t
+                    kept = self._measures()
+                if self._drained():
+                    break
+                if self.t >= self.finished_at + _DRAIN:
+                    break
             if self.t >= self.cap - _EPS:
                 reason = "time cap"
                 break
@@ -515,7 +591,22 @@ class _TeamRun(AgentLoop[_Agent]):
                     break
             else:
                 stall_since = None
+        if kept is not None and self.sensors is not None:
+            self._measures(kept)
         return self._result(index, reason)
+
+    def _measures(self, back: tuple | None = None) -> tuple:
+        """The floor's measures now (closest approaches, contacts, co-work, held time), or, given them, put
+        back: a run with trackers goes on a while after its last phase (`_drained`), not measured, as one
+        pair's."""
+        floor = self.floor
+        if back is None:
+            return (dict(floor.min_free), dict(floor.contacts), floor.cowork_time,
+                    {a: ag.mover.held for a, ag in self.agents.items()})
+        floor.min_free, floor.contacts, floor.cowork_time = dict(back[0]), dict(back[1]), back[2]
+        for a, held in back[3].items():
+            self.agents[a].mover.held = held
+        return back
 
     def advance(self, h: float) -> None:
         if h <= 0:
@@ -568,6 +659,9 @@ class _TeamRun(AgentLoop[_Agent]):
             per = {r: t.measures() for r, t in floor.ssm.items()}
             team["ssm"] = {r: m.to_json() for r, m in per.items()}
             ssm = combined(list(per.values()))
+        detection, each = self._detection()
+        if each:  # with trackers: each person's detector against their own events (issue 37)
+            team["detection"] = {p: d.to_json() for p, d in each.items()}
         joint = None
         if self.joint:
             joint = {"told_to_start": len(self.told), "told_before_arrival": len(self.told_early),
@@ -587,6 +681,7 @@ class _TeamRun(AgentLoop[_Agent]):
                 1 for p in self.people if p.draws is not None for x, ph in p.draws.overrun
                 if x in seqs[p.id] and f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
             absent=sum(p.absent for p in self.people), latencies=tuple(ctl.latencies), joint=joint, team=team, ssm=ssm,
+            detection=detection,
             late_observations=getattr(ctl, "late_observations", None),
             first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
             happenings=tuple(self.happenings) if self.record else (),
