@@ -12,9 +12,33 @@ observations out), `hrc.detect.sensor` (a simulated tracker). A team (issue 37) 
 person, each person's positions naming them. See docs/detect.md.
 """
 
-from hrc.detect.filter import Belief, Detected, Track
-from hrc.detect.model import DetectorModel, DetectParams, detector_model
-from hrc.detect.online import DetectingDispatcher, position_from_json, position_message
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from hrc.detect.filter import Belief, Detected, Track
+    from hrc.detect.model import DetectorModel, DetectParams, detector_model
+    from hrc.detect.online import DetectingDispatcher, position_from_json, position_message
+
+# Each name from its module when first asked for (PEP 562), not at ``import hrc.detect``: a submodule such
+# as `hrc.detect.sensor` (``hrc simulate`` reads its `SensorModel` at every start, buttons or not) would
+# otherwise import the filter, the walking-distance field and scipy.ndimage with it (issue 38: about
+# 0.4 s of every ``hrc simulate``'s start).
+_WHERE = {"Belief": "filter", "Detected": "filter", "Track": "filter", "DetectorModel": "model",
+          "DetectParams": "model", "detector_model": "model", "DetectingDispatcher": "online",
+          "position_from_json": "online", "position_message": "online"}
+
+
+def __getattr__(name: str) -> Any:
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{where}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = ["Belief", "DetectParams", "Detected", "DetectingDispatcher", "DetectorModel", "Track",
            "detector_model", "position_from_json", "position_message"]
