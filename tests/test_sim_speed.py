@@ -10,6 +10,7 @@ against a fresh one on the same messages.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import networkx as nx
 import numpy as np
@@ -249,3 +250,31 @@ def test_the_step_loops_shortcuts_agree_with_the_long_way(workshop, compiled, mo
         for i in range(3):
             simulate_run(ctx, policy, i)
     assert counts["steps"] > 500 and counts["at_once"] > 500
+
+
+def test_the_simulators_compiles_kept_on_disk_give_the_same_runs(mini_task, tmp_path, monkeypatch):
+    """`hrc.sim.compile_cache`: a second simulation of the same task takes both compiles from the disk
+    cache (not compiled again: `make` fails the test), equal plan by plan to the first's, and writes the
+    same ``simulation.json``; another seed or another map is a miss; no cache folder, no file."""
+    from hrc.sim.blind import blind_compile
+    from hrc.sim.compile_cache import kept_compile
+    from hrc.sim.montecarlo import simulate, simulation_json
+
+    monkeypatch.setenv("HRC_CACHE_DIR", str(tmp_path / "cache"))
+    first = simulate(mini_task, 3, 4, jobs=1)
+    assert len(list((tmp_path / "cache" / "results").glob("*.pickle"))) == 2  # motion and blind
+    again = simulate(mini_task, 3, 4, jobs=1)
+    assert simulation_json(again) == simulation_json(first)
+    for kind in ("motion", "blind"):
+        kept = kept_compile(kind, mini_task, 0, None, lambda: pytest.fail("compiled again"))
+        assert kept == first.context.compiles[kind]  # every field: task, digest, paths, plans, options
+    made: list[int] = []
+    other = kept_compile("blind", mini_task, 1, None,
+                         lambda: made.append(1) or blind_compile(mini_task, seed=1, jobs=1))
+    assert made == [1] and other.seed == 1
+    moved = replace(mini_task, deadline=mini_task.deadline + 1)
+    kept_compile("blind", moved, 0, None, lambda: made.append(2) or blind_compile(moved, seed=0, jobs=1))
+    assert made == [1, 2]
+    monkeypatch.setenv("HRC_CACHE_DIR", "")
+    kept_compile("blind", mini_task, 0, None, lambda: made.append(3) or blind_compile(mini_task, seed=0, jobs=1))
+    assert made == [1, 2, 3]

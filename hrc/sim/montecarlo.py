@@ -45,6 +45,7 @@ from hrc.compile.compiler import CompiledPlanSet, compile_task
 from hrc.compile.executors import make_executor
 from hrc.errors import SimulationError
 from hrc.model import Task
+from hrc.sim.compile_cache import kept_compile
 from hrc.sim.metrics import aggregate
 from hrc.sim.policies import POLICIES
 from hrc.sim.run import RunResult, SimContext, SimSettings, simulate_run
@@ -172,7 +173,8 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     if "blind" not in compiles and any(POLICIES[p].compile == "blind" for p in chosen):
         from hrc.sim.blind import blind_compile
 
-        compiles["blind"] = blind_compile(task, seed=compile_seed, jobs=jobs, executor=executor, progress=progress)
+        compiles["blind"] = kept_compile("blind", task, compile_seed, executor, lambda: blind_compile(
+            task, seed=compile_seed, jobs=jobs, executor=executor, progress=progress), progress)
     ctx = SimContext(task, compiles, settings, seed)
     logs: dict[str, dict[int, bytes]] | None = {} if keep_logs else None
     ordered = _run_all(ctx, chosen, runs, executor, jobs, progress, "runs", logs)
@@ -212,8 +214,9 @@ def _compile(task: Task, seed: int, jobs: int | None, executor: str | None, prog
     dispatcher compiling on demand what a run needs beyond them (`hrc.dispatch.on_demand`)."""
     from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
 
-    if estimate(task).plans.value <= DEFAULT_MAX_PLANS:
-        return compile_task(task, seed=seed, jobs=jobs, executor=executor, progress=progress)
+    if estimate(task).plans.value <= DEFAULT_MAX_PLANS:  # a small one kept on disk (`hrc.sim.compile_cache`)
+        return kept_compile("motion", task, seed, executor, lambda: compile_task(
+            task, seed=seed, jobs=jobs, executor=executor, progress=progress), progress)
     from hrc.compile.search import search_in_memory
 
     return search_in_memory(task, seed=seed)
