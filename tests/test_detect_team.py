@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT
+from conftest import ROOT, dispatched_team_run
 
 from hrc.compile.compiler import CompiledPlanSet, compile_task
 from hrc.detect import DetectingDispatcher, DetectParams
@@ -249,19 +249,7 @@ def test_simulated_people_each_get_only_their_own_events(workers_motion: Any, in
     of its DC first plan by the true times (the STNU's links, `RunResult.first_broken`). Run 120: Bob's
     departure estimated exactly the tolerance before his hinted earliest, read off the bound in floats
     (`Dispatcher._on_bound`), broke a passing order of zero slack before the comparison went to ticks."""
-    from hrc.sim.team_policies import TeamDispatched, make_team_controller
-    from hrc.sim.team_run import simulate_team_run
-
-    kept: list[TeamDispatched] = []
-
-    def make(c: Any, p: Any) -> Any:
-        ctl = make_team_controller(c, p)
-        assert isinstance(ctl, TeamDispatched)
-        kept.append(ctl)
-        return ctl
-
-    result = simulate_team_run(workers_motion, "hrc", index, record=True, controller=make)
-    ctl = kept[0]
+    result, ctl = dispatched_team_run(workers_motion, index)
     assert result.finished and result.first_class == "DC" and result.first_kept and result.first_broken == ()
     people = ("alice", "bob")
     truth = {p: {(h.event, h.action, h.phase) for h in result.happenings if h.agent == p and h.action is not None}
