@@ -139,14 +139,20 @@ static int64_t floor_half(int64_t x) { return x >= 0 ? x / 2 : -((-x + 1) / 2); 
 
 static int64_t weight(const int32_t *w32, const int64_t *w64, int64_t i) { return w32 ? (int64_t)w32[i] : w64[i]; }
 
+/* The nl edges as lists by their source (w->first, w->next_src), each list in index order. */
+static void by_source(HrcWork *w, int n, int nl) {
+    int *first = w->first, *nxt = w->next_src;
+    for (int x = 0; x <= n; x++) first[x] = -1;
+    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
+}
+
 /* Longest paths from the initial times in w->t over the nl edges in w->lu/lv/len, swept by source in
  * index order (the plan's topological numbering) until a sweep moves nothing along an edge that goes back
  * in that order. 0 done; 1 no schedule (an executed timepoint or the origin would have to move, or a
  * positive cycle: no end after n + 1 sweeps). */
 static int longest(HrcWork *w, int n, int nl) {
+    by_source(w, n, nl);
     int *first = w->first, *nxt = w->next_src;
-    for (int x = 0; x <= n; x++) first[x] = -1;
-    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
     int64_t *t = w->t, *ex = w->ex;
     for (int sweep = 0; sweep <= n; sweep++) {
         int again = 0;
@@ -172,9 +178,8 @@ static int longest(HrcWork *w, int n, int nl) {
  * (a pinned timepoint would have to move); 1 when the first has no schedule (or the two need more than
  * n + 1 sweeps together). */
 static int longest2(HrcWork *w, int n, int nl, int *second) {
+    by_source(w, n, nl);
     int *first = w->first, *nxt = w->next_src;
-    for (int x = 0; x <= n; x++) first[x] = -1;
-    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
     int64_t *t = w->t, *t2 = w->t2, *ex = w->ex;
     int ok2 = 1;
     for (int sweep = 0; sweep <= n; sweep++) {
@@ -203,9 +208,8 @@ static int longest2(HrcWork *w, int n, int nl, int *second) {
 /* longest, on two sets of lengths over the same edges, each on its own (w->len into w->t, w->len2 into
  * w->t2): *ok1, *ok2 set to 1 for each that is done, 0 for each with no schedule. */
 static void longest_both(HrcWork *w, int n, int nl, int *ok1, int *ok2) {
+    by_source(w, n, nl);
     int *first = w->first, *nxt = w->next_src;
-    for (int x = 0; x <= n; x++) first[x] = -1;
-    for (int i = nl - 1; i >= 0; i--) { nxt[i] = first[w->lu[i]]; first[w->lu[i]] = i; }
     int64_t *t = w->t, *t2 = w->t2, *ex = w->ex;
     int live1 = 1, live2 = 1;
     *ok1 = 0; *ok2 = 0;
