@@ -536,7 +536,6 @@ static int run(Net *g, const int64_t *p0) {
 
 int hrc_rul_run(HrcRul *g, const int64_t *p0) { return run(g, p0); }
 
-int hrc_rul_run_not_dc(HrcRul *g) { return add_links(g) ? -1 : not_dc(g); }
 
 int hrc_rul_verdict(int n, int m, const int *src, const int *dst, const int64_t *w_lo, const int64_t *w_hi,
                     int k, const int *act, const int *ctg, const int64_t *x_lo, const int64_t *x_hi,

@@ -14,9 +14,6 @@
  * p0: a starting potential, one value per timepoint, or NULL (all 0). The verdict does not depend on it;
  * a feasible one (p0[t] - p0[s] <= w on every edge, p0[c] - p0[a] = x on every link: a schedule with each
  * contingent duration at its lower bound) spares the check its first Bellman-Ford.
- * hrc_rul_run_not_dc(g), in place of hrc_rul_run, when the caller knows step 1 fails (no schedule with
- * each contingent duration at its lower bound: the LO-graph and the pairs have a negative cycle): the same
- * verdict, 1 or 2, without looking for that cycle first (Goldberg-Radzik from 0 may take up to n passes).
  * Weights are 64-bit here (the core computes in 128 bits, so no sum overflows). A workspace is not
  * shared between threads; several workspaces may run at once.
  */
@@ -33,6 +30,5 @@ int hrc_rul_begin(HrcRul *g, int n, int k);
 int hrc_rul_edge(HrcRul *g, int s, int t, int64_t w);
 void hrc_rul_link(HrcRul *g, int l, int a, int c, int64_t x, int64_t y);
 int hrc_rul_run(HrcRul *g, const int64_t *p0);
-int hrc_rul_run_not_dc(HrcRul *g);
 
 #endif
