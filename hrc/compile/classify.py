@@ -30,7 +30,7 @@ import functools
 import operator
 from array import array
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -43,7 +43,8 @@ from hrc.temporal.network import lineage
 from hrc.temporal.rul import bound_edges, edge_arrays, spliced
 
 __all__ = ["CLASSES", "Classification", "EarliestStart", "PlanClass", "classify", "distance_graph", "earliest_start",
-           "explain", "measure", "packed_graph", "packed_lower_bounds", "renamed"]
+           "explain", "measure", "packed_graph", "packed_lower_bounds", "renamed",
+           "slowest_makespan"]
 
 
 class PlanClass(enum.Enum):
@@ -149,6 +150,53 @@ def _earliest_values(stnu: STNU, fix: Fix = "") -> list[int] | None:
         return None if times is None else [times[t] for t in stnu.timepoints]
     ok, dist = found
     return [-d for d in dist] if ok else None
+
+
+def slowest_makespan(stnu: STNU, agents: Sequence[str], robots: frozenset[str] | set[str]) -> float | None:
+    """The makespan (s) of `stnu`'s earliest schedule with *every* duration at its maximum: the human's
+    (contingent links) as in ``makespan[1]``, and also each robot's travel and manipulation (its requirement
+    links ``R.PHASE.ACTION.depart -> .arrive`` and ``.start -> .end`` of robot ``R``, bounded both ways),
+    which ``makespan[1]`` takes at their minimum ("the robot as early as it can"). A robot that works and
+    drives anywhere within its bounds, dispatched as early as its windows allow, ends by then: the longest
+    paths from the origin only grow with any link's lower bound. The task's deadline (links from the origin
+    with no lower bound) is left out, as ``without_limits`` does; None when the rest conflicts.
+
+    Timepoints are named as `create_stnu` names them or as the GraphML writes them (``_`` for ``.``):
+    `agents` (every agent id) tell whose a timepoint is, the longest id first. Read by the simulator's
+    summary (`hrc.sim.montecarlo.separation_summary`): a run whose robots drew their durations within their
+    bounds may end after ``makespan[1]`` with every link kept (run 33 of kitting_2robots_iso: robot2's
+    fetch 0.48 s over its minimum, the person's passing order after it)."""
+    ids = sorted(agents, key=len, reverse=True)
+
+    def split(name: str) -> tuple[str | None, str, str]:
+        owner = next((a for a in ids if name[len(a):len(a) + 1] in (".", "_") and name.startswith(a)), None)
+        cut = max(name.rfind("."), name.rfind("_"))
+        return owner, name[:cut], name[cut + 1:]
+
+    def duration(a: str, b: str) -> bool:  # a robot's depart -> arrive or start -> end
+        (agent, base_a, what_a), (_, base_b, what_b) = split(a), split(b)
+        return agent in robots and base_a == base_b and (what_a, what_b) in (("depart", "arrive"), ("start", "end"))
+
+    # the bounds may come as one link or as two one-sided ones (``T(end) - T(start) <= u`` and
+    # ``T(start) - T(end) <= -l``, as the GraphML has them): the maximum first, then every lower bound on it
+    most: dict[tuple[str, str], int] = {}
+    for r in stnu.requirements:
+        if r.ub is not None and duration(r.source, r.target):
+            most[r.source, r.target] = min(r.ub, most.get((r.source, r.target), r.ub))
+    reqs = []
+    for r in stnu.requirements:
+        if r.source == ORIGIN and (r.lb is None or r.lb <= 0) and r.ub is not None:
+            continue  # a deadline
+        if (r.source, r.target) in most:
+            r = RequirementLink(r.source, r.target, most[r.source, r.target], r.ub)
+        elif (r.target, r.source) in most and r.ub is not None:
+            r = RequirementLink(r.source, r.target, r.lb, -most[r.target, r.source])
+        reqs.append(r)
+    times = _earliest_values(STNU(stnu.timepoints, tuple(reqs), stnu.contingents, stnu.name), "ub")
+    if times is None:
+        return None
+    ends = [t for name, t in zip(stnu.timepoints, times, strict=True) if split(name)[2] == "end"]
+    return max(ends, default=0) / TICKS_PER_SECOND
 
 
 def distance_graph(stnu: STNU, fix: Fix = "", after_origin: bool = False) -> tuple[list[int], list[int], list[int]]:
