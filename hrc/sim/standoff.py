@@ -42,10 +42,11 @@ never overlap whatever the routes.
 `Standoffs` holds the rules as methods of a run loop, for a pair of agents at a time: the one pair's
 (`hrc.sim.run._Run`) and a team's (`hrc.sim.team_run._TeamRun`, every pair that meets on its floor) both
 derive from it and say what is theirs through a few hooks (`_reach` of a pair, `_yields`, `_halted`,
-`_guided`, `_coworks_at`, `_room_made` / `_room_made_for`, `_blocker`); `yields` is the give-way order of a
-pair, one function for both. `AgentState` is one agent's state in the one pair's loop (a team's `_Agent` has
-the same fields, `Yielder`); `hrc.sim.giveway` finds the spots and the ways round. Cost: nothing while
-nobody is held up; one roadmap search per resolution.
+`_guided`, `_coworks_at`, `_room_made` / `_room_made_for`, `_blocker`, `_also`: the other agents a spot
+and a way round keep clear of); `yields` is the give-way order of two of a kind (two robots, two people).
+`AgentState` is one agent's state in the one pair's loop (a team's `_Agent` has the same fields, `Yielder`);
+`hrc.sim.giveway` finds the spots and the ways round. Cost: nothing while nobody is held up; one roadmap
+search per resolution.
 """
 
 from __future__ import annotations
@@ -146,8 +147,9 @@ S = TypeVar("S", bound=Yielder)
 
 
 def yields(a_startable: bool, b_startable: bool, a_first_in_task: bool) -> bool:
-    """Whether `a` makes room for `b`, of two agents of one kind both on the move (two robots, two people):
-    the one whose next phase may not start makes room for the one whose may; else the later in task order."""
+    """Whether `a` makes room for `b`, of two agents of one kind both on the move (two robots, two people;
+    issue 37): the one whose next phase may not start makes room for the one whose may (it has the task's
+    business there now); else the later in task order (deterministic)."""
     if a_startable != b_startable:
         return b_startable
     return not a_first_in_task
@@ -197,6 +199,10 @@ class Standoffs(AgentLoop[S]):
         """Whether `other` stands at `target` to co-work with `a` there (a joint action, issue 37: each loop
         says when), so that it is not in `a`'s way back or on; never without joint actions."""
         return False
+
+    def _also(self, a: S, o: S) -> tuple[Disc, ...]:
+        """The discs, besides `o`'s, that `a`'s spot and way round keep clear of (a team's other agents)."""
+        return ()
 
     def _blocker(self, a: S, others: Sequence[S]) -> S | None:
         """Which of `others` holds `a` up (None: none does)."""
@@ -255,9 +261,9 @@ class Standoffs(AgentLoop[S]):
         if g.mode in ("work", "away", "gone"):
             return False
         reach = self._reach(g, o)
-        way, disc = self._way(o), Disc(o.mover.xy, reach)
-        spot = self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + CLEAR) \
-            or self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + AWAY)  # a tight place
+        way, disc, also = self._way(o), Disc(o.mover.xy, reach), self._also(g, o)
+        spot = self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + CLEAR, also) \
+            or self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + AWAY, also)  # a tight place
         if spot is None or len(spot) < 2:
             return False
         if g.aside is None:
@@ -280,7 +286,7 @@ class Standoffs(AgentLoop[S]):
             ahead = m.length - m.s
         else:
             return False
-        way = self.ways.route(self._clearance(x), start, goal, Disc(y.mover.xy, reach))
+        way = self.ways.route(self._clearance(x), start, goal, Disc(y.mover.xy, reach), self._also(x, y))
         if way is None or len(way) < 2 or polyline_length(way) > ahead + extra:
             return False
         if x.mode == "aside_wait":

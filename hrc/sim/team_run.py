@@ -32,10 +32,18 @@ the floor and the dispatcher is told that person's ``away`` (the others and the 
 tracker of their own (`hrc.detect.sensor.Sensor`, their own random numbers) whose positions go, naming them,
 to their own detector in front of the dispatcher (`hrc.detect.online`; the one pair's drain after the last
 phase, `_drained`, and its floor measures taken at the last phase). Left out for a team (refused by
-`hrc.sim.montecarlo.simulate` in one line): compile on demand (a searched compile); and the stand-off
-rules of `hrc.sim.standoff` (making
-room, going round): an agent held up waits, and a run in which nobody has moved for `stall` seconds while
-someone wanted to ends as a deadlock (counted, as in the one-pair loop).
+`hrc.sim.montecarlo.simulate` in one line): compile on demand (a searched compile).
+
+**Stand-offs** are resolved per pair of agents by the one pair's rules (`hrc.sim.standoff.Standoffs`, from
+which this loop derives; `_TeamRun._home_or_aside`): an agent held up `ASIDE_AFTER` seconds by another
+(`_blocker`: the one nearest the next 2 m of its way) goes round it or has it make room as one pair does;
+both on the move, a robot makes room for a person first, and of two robots the one whose next phase may not
+start makes room for the one whose may, else the later in task order (`_yields`); a robot that stopped
+(no plan left, or in a protective stop under `safety:`) never asks to be let through (`_halted`). People
+are not kept apart by the floor, so a person is held up only by a robot (`_holders`). A spot to make room at
+and a way round keep clear of every other agent on the floor too (`_also`: three at one place). A run in
+which everyone under way (and everyone waiting to go back after making room) is held up, or nobody has
+moved, for `stall` seconds ends as a deadlock (counted, as in the one-pair loop).
 """
 
 from __future__ import annotations
@@ -51,7 +59,7 @@ from hrc.sim.agents import acknowledged, add_busy
 from hrc.sim.detection import Detection, detection_of
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import CONTACT, MIN_STEP, Mover
-from hrc.sim.giveway import Ways
+from hrc.sim.giveway import Disc, Ways
 from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
 from hrc.sim.run import AgentFrame, RunResult, SimContext
@@ -239,6 +247,11 @@ class _TeamRun(Standoffs[_Agent]):
             if d < gap - 1e-12:
                 best, gap = o, d
         return best
+
+    def _also(self, a: _Agent, o: _Agent) -> tuple[Disc, ...]:
+        """Every other agent on the floor that can hold `a` up, besides `o`: its spot and way round keep their
+        reach from them too (three at one place: a spot off one agent's way must not be in another's)."""
+        return tuple(Disc(x.mover.xy, self._reach(a, x)) for x in self._holders(a) if x is not o and x.mover.present)
 
     def _reach(self, a: _Agent, b: _Agent) -> float:
         """A robot and a person: the one pair's (`hrc.motion.separation.reach` at that robot's speed); two robots or two
