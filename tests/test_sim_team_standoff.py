@@ -166,3 +166,19 @@ def test_motion_blind_team_runs_finish_instead_of_deadlocking() -> None:
         total += r.standoffs
         assert r.standoffs == 0 or r.robot_aside + r.human_aside > 0
     assert total >= 1
+
+
+@pytest.mark.slow
+def test_motion_blind_runs_under_ssm_finish_without_coming_closer_than_the_standard() -> None:
+    """`kitting_2robots_iso` (speed and separation monitoring): runs 0 and 6 of seed 0 ran to the time cap with
+    the first rules (a robot in a protective stop facing the person, both held up, robot2 waiting aside: the
+    stall rule did not see it, and the person's only spot lay within robot2's separation at full speed). Now
+    they finish: stand-offs resolved, no contact, never closer than `S_p` (no breach)."""
+    task = load_task(ROOT / "tasks" / "kitting_2robots_iso.yaml")
+    ctx = SimContext(task, {"motion": compile_task(task, seed=0, jobs=1), "blind": blind_compile(task, jobs=1)},
+                     SimSettings(), 0)
+    for i in (0, 6):
+        r = simulate_team_run(ctx, "motion-blind", i)
+        assert r.finished and r.reason == "", r.reason
+        assert r.standoffs >= 1 and r.overlaps == 0 and r.team is not None and r.team["robot_contacts"] == 0
+        assert r.ssm is not None and r.ssm.breaches == 0

@@ -264,6 +264,9 @@ class Standoffs(AgentLoop[S]):
         way, disc, also = self._way(o), Disc(o.mover.xy, reach), self._also(g, o)
         spot = self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + CLEAR, also) \
             or self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + AWAY, also)  # a tight place
+        if spot is None and also:  # none clear of the others too: one clear of `o` (the floor still keeps
+            spot = self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + CLEAR) \
+                or self.ways.spot(self._clearance(g), g.mover.xy, disc, way, reach + AWAY)  # them apart)
         if spot is None or len(spot) < 2:
             return False
         if g.aside is None:
@@ -286,7 +289,10 @@ class Standoffs(AgentLoop[S]):
             ahead = m.length - m.s
         else:
             return False
-        way = self.ways.route(self._clearance(x), start, goal, Disc(y.mover.xy, reach), self._also(x, y))
+        also = self._also(x, y)
+        way = self.ways.route(self._clearance(x), start, goal, Disc(y.mover.xy, reach), also)
+        if way is None and also:  # none clear of the others too: one round `y` only
+            way = self.ways.route(self._clearance(x), start, goal, Disc(y.mover.xy, reach))
         if way is None or len(way) < 2 or polyline_length(way) > ahead + extra:
             return False
         if x.mode == "aside_wait":

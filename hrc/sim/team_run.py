@@ -42,8 +42,9 @@ start makes room for the one whose may, else the later in task order (`_yields`)
 (no plan left, or in a protective stop under `safety:`) never asks to be let through (`_halted`). People
 are not kept apart by the floor, so a person is held up only by a robot (`_holders`). A spot to make room at
 and a way round keep clear of every other agent on the floor too (`_also`: three at one place). A run in
-which everyone under way (and everyone waiting to go back after making room) is held up, or nobody has
-moved, for `stall` seconds ends as a deadlock (counted, as in the one-pair loop).
+which everyone under way is held up (or, nobody under way, everyone waiting to go back after making room
+is held up there), or nobody has moved, for `stall` seconds ends as a deadlock (counted, as in the one-pair
+loop).
 """
 
 from __future__ import annotations
@@ -250,16 +251,19 @@ class _TeamRun(Standoffs[_Agent]):
 
     def _also(self, a: _Agent, o: _Agent) -> tuple[Disc, ...]:
         """Every other agent on the floor that can hold `a` up, besides `o`: its spot and way round keep their
-        reach from them too (three at one place: a spot off one agent's way must not be in another's)."""
-        return tuple(Disc(x.mover.xy, self._reach(a, x)) for x in self._holders(a) if x is not o and x.mover.present)
+        reach from them too (three at one place: a spot off one agent's way must not be in another's), a
+        standing robot's from a person at its standing separation (`S_p(0)` under `safety:`); when there is
+        none such, `Standoffs` takes one clear of `o` only."""
+        return tuple(Disc(x.mover.xy, self._reach(a, x, x.mover.moving)) for x in self._holders(a)
+                     if x is not o and x.mover.present)
 
-    def _reach(self, a: _Agent, b: _Agent) -> float:
-        """A robot and a person: the one pair's (`hrc.motion.separation.reach` at that robot's speed); two robots or two
-        people: the radii and the margin."""
+    def _reach(self, a: _Agent, b: _Agent, moving: bool = True) -> float:
+        """A robot and a person: the one pair's (`hrc.motion.separation.reach` at that robot's speed, or
+        standing when not `moving`); two robots or two people: the radii and the margin."""
         x, y = a.mover.agent, b.mover.agent
         if x.is_human != y.is_human:
             person, robot = (x, y) if x.is_human else (y, x)
-            return pair_reach(self.task, robot.speed, person, robot)
+            return pair_reach(self.task, robot.speed if moving else 0.0, person, robot)
         return pair_reach(self.task, 0.0, x, y)
 
     def _yields(self, x: _Agent, y: _Agent) -> tuple[tuple[_Agent, _Agent], tuple[_Agent, _Agent]]:
@@ -695,9 +699,10 @@ class _TeamRun(Standoffs[_Agent]):
                 self.last_obs = max(nt, self.last_obs)
             moving = [a.mover for a in self.agents.values() if a.mover.moving]
             waiting = [a for a in self.agents.values() if a.mode == "aside_wait"]  # made room, to go back or on
-            # everyone under way is held up, and everyone waiting to go back is held up there
-            held = bool(moving or waiting) and all(m.blocked_for > 0 for m in moving) \
-                and all(a.held_up for a in waiting)
+            # everyone under way is held up (an agent waiting to go back waits for them), or nobody is under
+            # way and everyone waiting to go back is held up there
+            held = all(m.blocked_for > 0 for m in moving) and (bool(moving) or (bool(waiting)
+                                                                              and all(a.held_up for a in waiting)))
             if held or ((moving or waiting)
                         and before == (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings))):
                 stall_since = self.t if stall_since is None else stall_since
