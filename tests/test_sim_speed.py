@@ -236,7 +236,7 @@ def test_the_step_loops_shortcuts_agree_with_the_long_way(workshop, compiled, mo
         if got is None:
             counts["at_once"] += 1
             mode, xy = a.mode, a.mover.xy
-            assert not self._home_reached(a) and not self._give_way(a, other)
+            assert not self._home_reached(a) and not self._give_way(a, (other,))
             assert (a.mode, a.mover.xy) == (mode, xy)
         return got
 

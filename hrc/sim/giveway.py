@@ -13,6 +13,9 @@ clearance, `hrc.motion.planner.Roadmap`), with the co-worker as a standing disc 
   point of the co-worker's way (its position, the rest of its route, its goal): where a person or a
   robot steps to let the other pass, as co-workers do.
 
+A team's loop passes the other agents on the floor as more discs to keep clear of (`also`: no roadmap edge
+within their reach, no spot within it); the one pair passes none.
+
 A start closer to the co-worker than ``reach`` (the discs stand nearer than that when one has been
 stopped by the other) may be left along any segment that does not bring the two closer still.
 Deterministic (ties go to the lower milestone index). Cost: one Dijkstra over the roadmap (a few hundred
@@ -103,26 +106,31 @@ class Ways:
             got = self.cache[key] = (pts, ij, w)
         return got
 
-    def _clear(self, a: Point, b: Point, clearance: float, avoid: Disc | None, start_free: float) -> bool:
+    def _clear(self, a: Point, b: Point, clearance: float, avoid: Disc | None, start_free: float,
+               also: tuple[Disc, ...] = (), start: bool = False) -> bool:
         if not self.world.segment_clear(a, b, clearance):
             return False
+        for d in also:  # (a segment from the start may leave a disc it stands within, as from `avoid`)
+            free = math.dist(a, d.xy) if start else math.inf
+            if _point_seg_dist(a, b, d.xy) < min(d.reach, free) - 1e-6:
+                return False
         if avoid is None:
             return True
         return _point_seg_dist(a, b, avoid.xy) >= min(avoid.reach, start_free) - 1e-6
 
-    def _search(self, clearance: float, start: Point, avoid: Disc | None,
-                goal: Point | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
-        """Dijkstra from `start` (node n) over the roadmap without the edges `avoid` blocks; `goal`, if
-        given, is node n + 1. Returns milestones (goal appended), distances, predecessors, n."""
-        key = (clearance, start, avoid, goal)
+    def _search(self, clearance: float, start: Point, avoid: Disc | None, goal: Point | None = None,
+                also: tuple[Disc, ...] = ()) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
+        """Dijkstra from `start` (node n) over the roadmap without the edges `avoid` (and `also`) blocks;
+        `goal`, if given, is node n + 1. Returns milestones (goal appended), distances, predecessors, n."""
+        key = (clearance, start, avoid, goal, also)
         if self._last is not None and self._last[0] == key:
             return self._last[1]  # type: ignore[return-value]
-        found = self._dijkstra(clearance, start, avoid, goal)
+        found = self._dijkstra(clearance, start, avoid, goal, also)
         self._last = (key, found)
         return found
 
-    def _dijkstra(self, clearance: float, start: Point, avoid: Disc | None,
-                  goal: Point | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
+    def _dijkstra(self, clearance: float, start: Point, avoid: Disc | None, goal: Point | None,
+                  also: tuple[Disc, ...] = ()) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
         rm = self._roadmap(clearance)
         if rm is None:
             return None
@@ -132,6 +140,8 @@ class Ways:
         free = math.inf if avoid is None else math.dist(start, avoid.xy)
         if avoid is not None:
             keep = _seg_dist(pts[ij[:, 0]], pts[ij[:, 1]], avoid.xy) >= avoid.reach
+        for d in also:
+            keep &= _seg_dist(pts[ij[:, 0]], pts[ij[:, 1]], d.xy) >= d.reach
         rows: list[int] = []  # the links from the start (and goal) to their nearest clear milestones
         cols: list[int] = []
         weights: list[float] = []
@@ -140,7 +150,7 @@ class Ways:
             order = np.lexsort((np.arange(n), np.hypot(pts[:, 0] - p[0], pts[:, 1] - p[1])))[:LINKS]
             for i in order.tolist():
                 q = (float(pts[i, 0]), float(pts[i, 1]))
-                if self._clear(p, q, clearance, avoid, free if e == 0 else math.inf):
+                if self._clear(p, q, clearance, avoid, free if e == 0 else math.inf, also, e == 0):
                     rows.append(n + e)
                     cols.append(i)
                     weights.append(max(math.dist(p, q), 1e-12))
@@ -155,7 +165,7 @@ class Ways:
         return nodes, dist, pred, n
 
     def _trace(self, nodes: np.ndarray, pred: np.ndarray, n: int, target: int, clearance: float,
-               avoid: Disc | None, start: Point) -> tuple[Point, ...]:
+               avoid: Disc | None, start: Point, also: tuple[Disc, ...] = ()) -> tuple[Point, ...]:
         """The route from the start to node `target`, shortened: from each point, straight on to the
         farthest later point that is clear."""
         chain = []
@@ -169,44 +179,49 @@ class Ways:
         i = 0
         while i < len(raw) - 1:
             j = len(raw) - 1
-            while j > i + 1 and not self._clear(raw[i], raw[j], clearance, avoid, free if i == 0 else math.inf):
+            while j > i + 1 and not self._clear(raw[i], raw[j], clearance, avoid, free if i == 0 else math.inf,
+                                                also, i == 0):
                 j -= 1
             out.append(raw[j])
             i = j
         return tuple(out)
 
-    def route(self, clearance: float, start: Point, goal: Point,
-              avoid: Disc | None = None) -> tuple[Point, ...] | None:
+    def route(self, clearance: float, start: Point, goal: Point, avoid: Disc | None = None,
+              also: tuple[Disc, ...] = ()) -> tuple[Point, ...] | None:
         """A route from `start` to `goal` (see the module docstring), or None: no way on the roadmap, or
-        the goal within `avoid`'s reach."""
+        the goal within `avoid`'s reach. `also`: more discs to keep clear of (a team's other agents)."""
         if avoid is not None and math.dist(goal, avoid.xy) < avoid.reach:
             return None
         free = math.inf if avoid is None else math.dist(start, avoid.xy)
         if math.dist(start, goal) < 1e-9:
             return (start,)
-        if self._clear(start, goal, clearance, avoid, free):
+        if self._clear(start, goal, clearance, avoid, free, also, True):
             return (start, goal)
-        found = self._search(clearance, start, avoid, goal)
+        found = self._search(clearance, start, avoid, goal, also)
         if found is None:
             return None
         nodes, dist, pred, n = found
         if not np.isfinite(dist[n + 1]):
             return None
-        return self._trace(nodes, pred, n, n + 1, clearance, avoid, start)
+        return self._trace(nodes, pred, n, n + 1, clearance, avoid, start, also)
 
     def spot(self, clearance: float, start: Point, avoid: Disc, way: np.ndarray,
-             away: float) -> tuple[Point, ...] | None:
+             away: float, also: tuple[Disc, ...] = ()) -> tuple[Point, ...] | None:
         """The way from `start` to the nearest milestone at least `away` from every point of `way` (an
-        (m, 2) array: the co-worker's position and the rest of its way), keeping clear of `avoid`; None if
-        no such milestone is reachable."""
-        found = self._search(clearance, start, avoid)
+        (m, 2) array: the co-worker's position and the rest of its way), keeping clear of `avoid` (and of
+        `also`: a team's other agents, which the milestone keeps their reach from); None if no such
+        milestone is reachable."""
+        found = self._search(clearance, start, avoid, None, also)
         if found is None:
             return None
         nodes, dist, pred, n = found
         pts = nodes[:n]
         gap = np.min(np.hypot(pts[:, None, 0] - way[None, :, 0], pts[:, None, 1] - way[None, :, 1]), axis=1)
-        ok = np.flatnonzero(np.isfinite(dist[:n]) & (gap >= away))
+        fine = np.isfinite(dist[:n]) & (gap >= away)
+        for d in also:
+            fine &= np.hypot(pts[:, 0] - d.xy[0], pts[:, 1] - d.xy[1]) >= d.reach
+        ok = np.flatnonzero(fine)
         if not len(ok):
             return None
         best = int(ok[np.lexsort((ok, dist[ok]))[0]])
-        return self._trace(nodes, pred, n, best, clearance, avoid, start)
+        return self._trace(nodes, pred, n, best, clearance, avoid, start, also)

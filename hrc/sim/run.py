@@ -43,7 +43,7 @@ from hrc.compile.compiler import CompiledPlanSet
 from hrc.detect.sensor import Sensor, SensorModel
 from hrc.errors import SimulationError
 from hrc.model import Task
-from hrc.motion import PathLibrary
+from hrc.motion import PathLibrary, separation
 from hrc.sim.agents import acknowledged, add_busy
 from hrc.sim.detection import Detection, detection_of
 from hrc.sim.detector import Detector, Happening
@@ -259,8 +259,12 @@ def simulate_run(ctx: SimContext, policy: str, index: int, record: bool = False,
     return _Run(ctx, POLICIES[policy], draws, ctl, record, sensor).run(index)
 
 
-class _Run(Standoffs):
+_Pair = tuple[AgentState, AgentState]
+
+
+class _Run(Standoffs[AgentState]):
     ctx: SimContext
+    ctl: Controller
 
     def __init__(self, ctx: SimContext, policy: Policy, draws: HumanDraws, ctl: Controller, record: bool,
                  sensor: Sensor | None = None) -> None:
@@ -321,6 +325,30 @@ class _Run(Standoffs):
     def _robot(self, agent: AgentState) -> bool:
         return agent is self.r
 
+    # -- the standoff rules' hooks (`hrc.sim.standoff.Standoffs`): the one pair ----------------------------
+
+    def _reach(self, a: AgentState, b: AgentState) -> float:
+        robot = next(x for x in self.task.agents if not x.is_human)
+        return separation.reach(self.task, robot.speed)
+
+    def _yields(self, x: AgentState, y: AgentState) -> tuple[_Pair, _Pair]:
+        return (self.r, self.h), (self.h, self.r)
+
+    def _before(self, a: AgentState, b: AgentState) -> bool:
+        return a is self.h
+
+    def _halted(self, a: AgentState) -> bool:
+        return a is self.r and self.ctl.stopped
+
+    def _guided(self, a: AgentState, action: str, phase: str) -> bool:
+        return a is not self.h or math.isfinite(self.guide(action, phase, "start"))
+
+    def _room_made(self, g: AgentState, o: AgentState) -> None:
+        self.room_for = o
+
+    def _room_made_for(self, a: AgentState, b: AgentState) -> AgentState | None:
+        return self.room_for
+
     # -- the person ------------------------------------------------------------------------------------
 
     def allowed(self) -> list[str]:
@@ -366,7 +394,7 @@ class _Run(Standoffs):
                 return None
         if self._home_reached(a):
             return True
-        if self._give_way(a, other):
+        if self._give_way(a, (other,)):
             return True
         if a.mode in ("home", "aside", "aside_wait", "returning"):
             return False
@@ -544,7 +572,7 @@ class _Run(Standoffs):
         return h.mode in ("travel", "parked", "home") and math.dist(h.mover.points[0], xy) < 1e-6 \
             and self.joint_stay.get(h.id) == spot  # walking away after it
 
-    def _coworks_at(self, a: AgentState, target: tuple[float, float]) -> bool:
+    def _coworks_at(self, a: AgentState, other: AgentState, target: tuple[float, float]) -> bool:
         """`Standoffs`: the person, after making room, goes back or on to where the robot co-works with them
         (it stands there for the joint action: not in their way)."""
         spot = self._cowork_spot() if self.joint and a is self.h else None

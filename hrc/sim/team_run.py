@@ -32,29 +32,40 @@ the floor and the dispatcher is told that person's ``away`` (the others and the 
 tracker of their own (`hrc.detect.sensor.Sensor`, their own random numbers) whose positions go, naming them,
 to their own detector in front of the dispatcher (`hrc.detect.online`; the one pair's drain after the last
 phase, `_drained`, and its floor measures taken at the last phase). Left out for a team (refused by
-`hrc.sim.montecarlo.simulate` in one line): compile on demand (a searched compile); and the stand-off
-rules of `hrc.sim.standoff` (making
-room, going round): an agent held up waits, and a run in which nobody has moved for `stall` seconds while
-someone wanted to ends as a deadlock (counted, as in the one-pair loop).
+`hrc.sim.montecarlo.simulate` in one line): compile on demand (a searched compile).
+
+**Stand-offs** are resolved per pair of agents by the one pair's rules (`hrc.sim.standoff.Standoffs`, from
+which this loop derives; `_TeamRun._home_or_aside`): an agent held up `ASIDE_AFTER` seconds by another
+(`_blocker`: the one nearest the next 2 m of its way) goes round it or has it make room as one pair does;
+both on the move, a robot makes room for a person first, and of two robots the one whose next phase may not
+start makes room for the one whose may, else the later in task order (`_yields`); a robot that stopped
+(no plan left, or in a protective stop under `safety:`) never asks to be let through (`_halted`). People
+are not kept apart by the floor, so a person is held up only by a robot (`_holders`). A spot to make room at
+and a way round keep clear of every other agent on the floor too (`_also`: three at one place). A run in
+which everyone under way is held up (or, nobody under way, everyone waiting to go back after making room
+is held up there), or nobody has moved, for `stall` seconds ends as a deadlock (counted, as in the one-pair
+loop).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from hrc.detect.sensor import Sensor
-from hrc.sim.agents import AgentLoop, acknowledged, add_busy
+from hrc.motion.separation import reach as pair_reach
+from hrc.sim.agents import acknowledged, add_busy
 from hrc.sim.detection import Detection, detection_of
 from hrc.sim.detector import Detector, Happening
 from hrc.sim.floor import CONTACT, MIN_STEP, Mover
-from hrc.sim.giveway import Ways
+from hrc.sim.giveway import Disc, Ways
 from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
 from hrc.sim.run import AgentFrame, RunResult, SimContext
 from hrc.sim.ssm import combined
+from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, Aside, Standoffs, yields
 from hrc.sim.team_floor import TeamFloor
 from hrc.sim.team_policies import TeamController, TeamDispatched, make_team_controller
 
@@ -65,6 +76,7 @@ _HELD = 2.0  # s: an agent held up this long makes the loop look at the floor ag
 _DETECTED = ("depart", "arrive", "start", "end")  # the events a motion detector gives
 _DRAIN = 12.0  # s after the last phase in which the motion detectors may still give the people's last events
 _QUIET = 30.0  # s with nothing due but the trackers' positions: nobody can go on (stuck)
+_AHEAD = 8  # samples (every 0.25 m) of a held-up agent's way in which its blocker stands (`_blocker`)
 
 
 def simulate_team_run(ctx: SimContext, policy: str, index: int, record: bool = False,
@@ -89,7 +101,7 @@ class _Agent:
 
     __slots__ = ("id", "mover", "human", "home", "loc", "mode", "action", "pi", "route", "parked", "work_start",
                  "work_end", "duration", "order", "predicted", "moved", "draws", "back_at", "away_since",
-                 "absence_done", "absent")
+                 "absence_done", "absent", "aside", "next_way", "wait_for", "held_up", "aside_time", "blocker")
 
     def __init__(self, agent_id: str, mover: Mover, human: bool, home: str, draws: HumanDraws | None) -> None:
         self.id, self.mover, self.human, self.home = agent_id, mover, human, home
@@ -108,9 +120,16 @@ class _Agent:
         self.away_since: float | None = None
         self.absence_done = False
         self.absent = 0.0  # s away so far
+        # making room (`hrc.sim.standoff`, `AgentState`'s fields of the same names)
+        self.aside: Aside | None = None
+        self.next_way: tuple[tuple[float, float], ...] | None = None
+        self.wait_for = 0.0
+        self.held_up = False
+        self.aside_time = 0.0
+        self.blocker: str | None = None
 
 
-class _TeamRun(AgentLoop[_Agent]):
+class _TeamRun(Standoffs[_Agent]):
     ctx: SimContext
     ctl: TeamController
     joint: dict[str, tuple[str, ...]]
@@ -145,6 +164,9 @@ class _TeamRun(AgentLoop[_Agent]):
         self.excess = 0.0
         self.finished_at: float | None = None
         self.frames: list[AgentFrame] = []
+        self.standoffs = 0
+        self.room_for: dict[frozenset[str], str] = {}  # a pair -> the one of it room was last made for
+        self.rank = {a: k for k, a in enumerate(self.agents)}  # task order
 
     # -- bookkeeping ---------------------------------------------------------------------------------
 
@@ -188,10 +210,96 @@ class _TeamRun(AgentLoop[_Agent]):
         return {x: ag for x, ag in self.started.items()
                 if x not in self.joint or a.id not in self.joint[x] or x in self.joined[a.id]}
 
-    def _home(self, a: _Agent) -> bool | None:
+    # -- stand-offs (`hrc.sim.standoff`), per pair of agents ------------------------------------------------
+
+    def _holders(self, a: _Agent) -> list[_Agent]:
+        """The agents that can hold `a` up on the floor: every other but, for a person, the other people (the
+        floor does not keep people apart: they walk past each other)."""
+        return [o for o in self.agents.values() if o is not a and not (a.human and o.human)]
+
+    def _home_or_aside(self, a: _Agent) -> bool | None:
+        """The one pair's `_Run._home_or_aside` against every agent that can hold `a` up: going home, and
+        giving way. True or False when one of them decided this step, None when the agent's own rules decide."""
+        mode = a.mode
+        if mode not in ("home", "aside", "aside_wait", "returning"):
+            m = a.mover
+            if mode == "work" or not m.moving or m.blocked_for < ASIDE_AFTER:
+                return None
         if self._home_reached(a):
             return True
-        return False if a.mode == "home" else None
+        if self._give_way(a, self._holders(a)):
+            return True
+        if a.mode in ("home", "aside", "aside_wait", "returning"):
+            return False
+        return None
+
+    def _blocker(self, a: _Agent, others: Sequence[_Agent]) -> _Agent | None:
+        """Who holds `a` up: at the spot it made room at, the one that stands in its way back or on; on its
+        way, the one nearest the next `_AHEAD` metres of its route (beyond what the two keep; ties: task order)."""
+        if a.mode == "aside_wait":
+            return next((o for o in others if o.id == a.blocker), None)
+        ahead = self._way(a)[:_AHEAD]
+        best, gap = None, math.inf
+        for o in others:
+            if not o.mover.present:
+                continue
+            x, y = o.mover.xy
+            d = float(np.min(np.hypot(ahead[:, 0] - x, ahead[:, 1] - y))) - self._reach(a, o)
+            if d < gap - 1e-12:
+                best, gap = o, d
+        return best
+
+    def _also(self, a: _Agent, o: _Agent) -> tuple[Disc, ...]:
+        """Every other agent on the floor that can hold `a` up, besides `o`: its spot and way round keep their
+        reach from them too (three at one place: a spot off one agent's way must not be in another's), a
+        standing robot's from a person at its standing separation (`S_p(0)` under `safety:`); when there is
+        none such, `Standoffs` takes one clear of `o` only."""
+        return tuple(Disc(x.mover.xy, self._reach(a, x, x.mover.moving)) for x in self._holders(a)
+                     if x is not o and x.mover.present)
+
+    def _reach(self, a: _Agent, b: _Agent, moving: bool = True) -> float:
+        """A robot and a person: the one pair's (`hrc.motion.separation.reach` at that robot's speed, or
+        standing when not `moving`); two robots or two people: the radii and the margin."""
+        x, y = a.mover.agent, b.mover.agent
+        if x.is_human != y.is_human:
+            person, robot = (x, y) if x.is_human else (y, x)
+            return pair_reach(self.task, robot.speed if moving else 0.0, person, robot)
+        return pair_reach(self.task, 0.0, x, y)
+
+    def _yields(self, x: _Agent, y: _Agent) -> tuple[tuple[_Agent, _Agent], tuple[_Agent, _Agent]]:
+        """A robot and a person: the robot makes room first, as for one pair; two robots (or two people): the
+        one whose next phase may not start, else the later in task order (`hrc.sim.standoff.yields`)."""
+        if x.human != y.human:
+            person, robot = (x, y) if x.human else (y, x)
+            return (robot, person), (person, robot)
+        g, o = (x, y) if yields(self._startable(x), self._startable(y), self.rank[x.id] < self.rank[y.id]) else (y, x)
+        return (g, o), (o, g)
+
+    def _before(self, a: _Agent, b: _Agent) -> bool:
+        return a.human if a.human != b.human else self.rank[a.id] < self.rank[b.id]
+
+    def _halted(self, a: _Agent) -> bool:
+        """A robot whose controller stopped, or (under speed and separation monitoring) in a protective stop."""
+        if a.human:
+            return False
+        return self.ctl.stopped or (self.floor.ssm is not None and self.floor.ssm[a.id].stopped)
+
+    def _guided(self, a: _Agent, action: str, phase: str) -> bool:
+        return not a.human or math.isfinite(self.guide(a, action, phase, "start"))
+
+    def _room_made(self, g: _Agent, o: _Agent) -> None:
+        self.room_for[frozenset((g.id, o.id))] = o.id
+
+    def _room_made_for(self, a: _Agent, b: _Agent) -> _Agent | None:
+        last = self.room_for.get(frozenset((a.id, b.id)))
+        return None if last is None else self.agents[last]
+
+    def _coworks_at(self, a: _Agent, other: _Agent, target: tuple[float, float]) -> bool:
+        """`other` stands at `target` for a joint phase of theirs with `a` (it is not in `a`'s way back)."""
+        if not self.joint or other.action not in self.joint or a.id not in self.joint[other.action]:
+            return False
+        where = self.task.action(other.action).phase(self.phases[other.action][other.pi]).location
+        return other.mode in ("arrived", "work") and math.dist(self.ctx.paths.locations[where], target) < 1e-6
 
     # -- the people ------------------------------------------------------------------------------------
 
@@ -264,7 +372,7 @@ class _TeamRun(AgentLoop[_Agent]):
             return False
         if a.mode == "away":
             return self._come_back(a)
-        moved = self._home(a)
+        moved = self._home_or_aside(a)
         if moved is not None:
             return moved
         if a.mode == "free":
@@ -383,7 +491,7 @@ class _TeamRun(AgentLoop[_Agent]):
                     shared = self.joint_stay.get(p.id) == spot or self._covers(p, self._now(p), spot, pair)
                 elif p.loc is not None:
                     shared = False
-                elif p.mode in ("travel", "parked") and math.dist(p.mover.points[-1], xy) < 1e-6 \
+                elif p.mode in ("travel", "parked", "returning") and math.dist(p.mover.points[-1], xy) < 1e-6 \
                         and self._covers(p, self._now(p), spot, pair):
                     shared = True
                 else:
@@ -400,7 +508,7 @@ class _TeamRun(AgentLoop[_Agent]):
         o = self.ctl.order(a.id)
         if self.joint and o is not self._told.get(a.id, False):
             self._told_now(a, o)
-        moved = self._home(a)
+        moved = self._home_or_aside(a)
         if moved is not None:
             return moved
         if a.mode == "free":
@@ -498,6 +606,8 @@ class _TeamRun(AgentLoop[_Agent]):
                     cands.append(t + max(_HELD - m.blocked_for % _HELD, MIN_STEP))
             if a.mode == "work":
                 cands.append(a.work_end)
+            if a.mode == "aside_wait" and a.held_up:  # made room: it looks again whether it may go back or on
+                cands.append(t + WAIT_STEP)
         if any(a.mover.moving for a in self.agents.values()):
             cands.append(t + self.floor.safe_step())
         for p in self.people:
@@ -575,16 +685,26 @@ class _TeamRun(AgentLoop[_Agent]):
             before = (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings))
             self.advance(nt - self.t)
             for a in self.agents.values():
-                if a.mode == "travel" and a.mover.moving:
-                    a.moved += nt - self.t
+                if a.mode == "travel":
+                    if a.mover.moving:
+                        a.moved += nt - self.t
+                elif a.mode in ("aside", "aside_wait", "returning"):
+                    a.aside_time += nt - self.t
+                    if a.mode == "aside_wait" and a.held_up:
+                        a.wait_for += nt - self.t
             self.t = nt
             if self.ctx.settings.tick > 0 and abs(nt - tick_due) < _EPS:
                 self.last_tick = nt
                 self.ctl.tick(max(nt, self.last_obs))
                 self.last_obs = max(nt, self.last_obs)
             moving = [a.mover for a in self.agents.values() if a.mover.moving]
-            held = bool(moving) and all(m.blocked_for > 0 for m in moving)  # everyone under way is held up
-            if held or (moving and before == (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings))):
+            waiting = [a for a in self.agents.values() if a.mode == "aside_wait"]  # made room, to go back or on
+            # everyone under way is held up (an agent waiting to go back waits for them), or nobody is under
+            # way and everyone waiting to go back is held up there
+            held = all(m.blocked_for > 0 for m in moving) and (bool(moving) or (bool(waiting)
+                                                                              and all(a.held_up for a in waiting)))
+            if held or ((moving or waiting)
+                        and before == (tuple(a.mover.xy for a in self.agents.values()), len(self.happenings))):
                 stall_since = self.t if stall_since is None else stall_since
                 if self.t - stall_since > self.ctx.settings.stall:
                     reason = "deadlock: agents block each other"
@@ -671,8 +791,10 @@ class _TeamRun(AgentLoop[_Agent]):
             makespan=makespan, deadline_met=bool(deadline_met), limits_met=bool(limits_met),
             human_idle=sum(idle[p] for p in people), robot_idle=sum(idle[r] for r in robots),
             robot_yield=sum(self.agents[r].mover.held for r in robots),
-            human_held=sum(self.agents[p].mover.held for p in people), standoffs=0, robot_aside=0.0,
-            human_aside=0.0, min_distance=None if not math.isfinite(separation) else separation,
+            human_held=sum(self.agents[p].mover.held for p in people), standoffs=self.standoffs,
+            robot_aside=sum(self.agents[r].aside_time for r in robots),
+            human_aside=sum(self.agents[p].aside_time for p in people),
+            min_distance=None if not math.isfinite(separation) else separation,
             overlaps=floor.overlaps(), plan_switches=ctl.switches, first_plan=ctl.first_plan,
             first_class=ctl.first_class, first_blocked=first_cp is not None and first_cp.blocked,
             final_plan=ctl.plan_id, first_kept=bool(kept), first_broken=broken, refused=tuple(ctl.refused),
