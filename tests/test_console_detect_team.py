@@ -1,0 +1,193 @@
+"""``hrc console --detect motion`` for a team (issue 37): one motion detector per person, the tracker's
+positions on a robot controller's link naming their person (``"agent": "alice"``, as ``hrc dispatch
+--detect motion``'s protocol).
+
+The hand-made traces of tests/test_detect_team.py (two people walking at once on the kitting cell, 5 cm of
+noise, 10 Hz; Alice H -> A -> K, Bob O -> E -> Q; either may do either pick, so which pick a walk is for is
+each detector's to tell), whose truth is known by construction:
+
+- in process (`ConsoleSession` over a `DetectingDispatcher`): every event each person's detector gave is
+  exactly that person's truth, in order, in the dispatcher's history as theirs and on their own page
+  (``persons[P].detected``); a position naming no one, the robot, or an id not of the team is refused in
+  one line and changes nothing (decision, history, counters, log); the log replays answer for answer;
+- through the real server (uvicorn, the robot's websocket ``/robot?robot=robot`` with its token): the same
+  per person from the replies alone, ``/state`` shows each person's own events, and ``hrc dispatch
+  --detect motion --replay`` of the console's log gives the same answers byte for byte.
+
+And a simulated ``two_workers`` run (``hrc simulate --detector motion --keep-logs``: a tracker per person,
+the robot acknowledging its steps, the joint load): its positions and acknowledgements through the
+console's session give the simulator's own dispatcher answers, and each person's events given are ones
+that person truly did (the simulator's truth).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+import yaml
+from conftest import ROOT, compiled_folder
+from test_detect_team import TASK, interleaved, traces
+
+from hrc.compile.output import read_header
+from hrc.console.clock import RunClock
+from hrc.console.session import ConsoleSession
+from hrc.detect import DetectingDispatcher, DetectParams
+from hrc.dispatch.durable import LoggedDispatcher
+from hrc.dispatch.logfile import read_log
+from hrc.dispatch.plan_set import load_plan_set
+from hrc.dispatch.protocol import replay
+from hrc.dispatch.routes import PlanRoutes, plan_motions
+from hrc.motion import plan_paths
+
+pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning")
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    tmp = tmp_path_factory.mktemp("two")
+    (tmp / "task.yaml").write_text(yaml.safe_dump(TASK, sort_keys=False), "utf-8")
+    return compiled_folder(tmp / "out", tmp / "task.yaml", "--jobs", "1")
+
+
+@pytest.fixture(scope="module")
+def walkers(folder: Path) -> Any:
+    """The traces, walked on the compile's own paths (the seed it was compiled with)."""
+    task = load_plan_set(folder).task
+    return traces(SimpleNamespace(paths=plan_paths(task, seed=int(read_header(folder).get("seed", 0)))))
+
+
+def _session(folder: Path, log: Path) -> ConsoleSession:
+    d = DetectingDispatcher.from_folder(folder, params=DetectParams())
+    header = read_header(folder)
+    routes = PlanRoutes(plan_motions(folder, d.plan_set), plan_paths(d.task, seed=int(header.get("seed", 0))))
+    s = ConsoleSession(LoggedDispatcher.create(d, log), header, routes, RunClock(1.0))
+    s.clock.now = lambda: 1e6  # type: ignore[method-assign]  # every measured time is in the past
+    return s
+
+
+def _view(s: ConsoleSession) -> Any:
+    d = s.dispatcher
+    assert isinstance(d, DetectingDispatcher)
+    return (json.dumps(d.decision.to_json(), sort_keys=True), d.history, dict(d.tracks), s.seq, s.hseq, s.total,
+            {p: list(v) for p, v in s.detected.items()}, s.log_path.read_bytes() if s.log_path else b"")
+
+
+def _truth(w: Any) -> list[tuple[str, str, str]]:
+    return [(e, a, p) for _, e, a, p in w.truth]
+
+
+def _events(ev: list[dict[str, Any]]) -> list[tuple[str, str, str]]:
+    return [(e["event"], e["action"], e["phase"]) for e in ev if e["event"] != "undo"]
+
+
+def test_the_session_gives_each_persons_events_to_them_alone(folder: Path, walkers: Any, tmp_path: Path) -> None:
+    s = _session(folder, tmp_path / "run.jsonl")
+    assert s.team and s.people == ("alice", "bob") and s.robots == ("robot",)
+    stream = interleaved(walkers)
+    bad = [{"type": "position", "t": 30.0, "x": 1.0, "y": 1.0},                    # names no one
+           {"type": "position", "agent": "robot", "t": 30.0, "x": 1.0, "y": 1.0},   # a robot
+           {"type": "position", "agent": "zed", "t": 30.0, "x": 1.0, "y": 1.0},     # not of the team
+           {"t": 30.0, "event": "position", "x": 1.0, "y": 1.0}]                    # the protocol's shape, no one
+    given: dict[str, list[tuple[str, str, str]]] = {"alice": [], "bob": []}
+    for n, (t, _, person, x, y) in enumerate(stream):
+        if n == len(stream) // 2:
+            for msg in bad:
+                before = _view(s)
+                reply = s.robot_message(json.dumps(msg), robot="robot")
+                assert not reply["ok"] and "names its person" in reply["error"] and "\n" not in reply["error"], reply
+                assert _view(s) == before
+        reply = s.robot_message(json.dumps({"type": "position", "agent": person, "t": t, "x": x, "y": y}),
+                                robot="robot")
+        assert reply["ok"], reply
+        detect = reply["decision"]["detect"]
+        assert detect["agent"] == person and all(e.get("agent", person) == person for e in detect["events"])
+        assert "refused" not in detect
+        given[person] += _events(detect["events"])
+    state = s.state()
+    for person, w in walkers.items():
+        assert given[person] == _truth(w), person
+        mine = state["persons"][person]
+        assert _events(mine["detected"])[-len(given[person]):] == given[person][-len(mine["detected"]):]
+        assert mine["tracked"]["t"] == w.samples[-1][0] and mine["belief"]["doing"]
+        # the dispatcher's history: each person's events as theirs
+        assert {(o.event, o.action, o.phase) for o in s.dispatcher.history if o.agent == person} == set(_truth(w))
+    assert s.finished and s.total == len(stream)
+    s.logged.close()
+    # the console's log is hrc dispatch's: it replays on a fresh detecting dispatcher answer for answer
+    contents = read_log(tmp_path / "run.jsonl")
+    pairs = list(replay(DetectingDispatcher.from_folder(folder, params=DetectParams()), contents))
+    assert len(pairs) == len(stream) and all(a == b for a, b in pairs)
+    positions = [json.loads(m.data) for m in contents.messages]
+    assert all(list(m) == ["t", "agent", "event", "x", "y"] for m in positions)  # the protocol's line
+
+
+def test_one_person_and_one_robot_keep_the_positions_that_name_no_one(tmp_path: Path) -> None:
+    """The workshop (one of each): a position without ``agent`` stays valid and is logged as the human's,
+    one naming another agent is refused, as before."""
+    folder = compiled_folder(tmp_path / "ws", ROOT / "tasks" / "cube_stacking.yaml", "--jobs", "1")
+    s = _session(folder, tmp_path / "run.jsonl")
+    assert not s.team
+    assert s.robot_message({"type": "position", "t": 0.5, "x": 1.0, "y": 1.0})["ok"]
+    reply = s.robot_message({"type": "position", "agent": "alice", "t": 0.6, "x": 1.0, "y": 1.0})
+    assert not reply["ok"] and "the human's" in reply["error"]
+    s.logged.close()
+    lines = [json.loads(m.data) for m in read_log(tmp_path / "run.jsonl").messages]
+    assert lines == [{"t": 0.5, "agent": "human", "event": "position", "x": 1.0, "y": 1.0}]
+    assert "persons" not in s.state() and "detected" not in s.state()
+
+
+def test_the_server_takes_each_persons_positions_on_a_robots_link(folder: Path, walkers: Any, tmp_path: Path) -> None:
+    from console_harness import ConsoleProcess
+    from websockets.sync.client import connect
+
+    log = tmp_path / "run.jsonl"
+    console = ConsoleProcess(folder, log, "--detect", "motion", "--speed", "1000", "--tick", "0")
+    # 5 a second per person, as a slower tracker (and under the robot's rate limit)
+    stream = [m for m in interleaved(walkers) if round(m[0] * 10) % 2 == 0]
+    given: dict[str, list[tuple[str, str, str]]] = {"alice": [], "bob": []}
+    try:
+        with connect(console.ws + "robot?robot=robot", open_timeout=10, close_timeout=5,
+                     additional_headers=console.robot_headers()) as ws:
+            assert json.loads(ws.recv(timeout=10))["type"] == "hello"
+            time.sleep(0.2)  # 200 run seconds at --speed 1000: every trace time is past
+            sent = 0
+            for n, (t, _, person, x, y) in enumerate(stream):
+                msgs = [{"type": "position", "id": n, "agent": person, "t": t, "x": x, "y": y}]
+                if n == 10:
+                    msgs.insert(0, {"type": "position", "id": "bad", "agent": "robot", "t": t, "x": x, "y": y})
+                for msg in msgs:
+                    ws.send(json.dumps(msg))
+                    sent += 1
+                    if sent % 40 == 0:
+                        time.sleep(0.8)  # under the robot's 50 a second
+                    while True:
+                        reply = json.loads(ws.recv(timeout=20))
+                        if reply["type"] == "reply" and reply.get("id") == msg["id"]:
+                            break
+                    if msg["id"] == "bad":
+                        assert not reply["ok"] and "names its person" in reply["error"], reply
+                        continue
+                    assert reply["ok"], reply
+                    detect = reply["decision"]["detect"]
+                    assert detect["agent"] == person
+                    given[person] += _events(detect["events"])
+        state = console.state()
+    finally:
+        console.stop()
+    for person, w in walkers.items():
+        assert given[person] == _truth(w), person
+        shown = _events(state["persons"][person]["detected"])
+        assert shown and shown == given[person][-len(shown):]
+    assert state["finished"]
+    again = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(folder), "--detect", "motion", "--replay",
+                            str(log)], capture_output=True, text=True, check=False, cwd=ROOT)
+    assert again.returncode == 0, again.stderr
+    logged = [m.answer for m in read_log(log).messages]
+    assert again.stdout.splitlines() == logged and len(logged) == len(stream)
