@@ -143,41 +143,54 @@ def test_one_person_and_one_robot_keep_the_positions_that_name_no_one(tmp_path: 
     assert "persons" not in s.state() and "detected" not in s.state()
 
 
+def _feed(console: Any, stream: list[tuple[float, int, str, float, float]], bad_at: int | None = None
+          ) -> dict[str, list[tuple[str, str, str]]]:
+    """`stream`'s positions sent as a tracker on the robot's link (its token), each naming its person; the
+    events each reply gave, per person. At `bad_at`, first a position naming the robot (refused)."""
+    from websockets.sync.client import connect
+
+    given: dict[str, list[tuple[str, str, str]]] = {"alice": [], "bob": []}
+    with connect(console.ws + "robot?robot=robot", open_timeout=10, close_timeout=5,
+                 additional_headers=console.robot_headers()) as ws:
+        assert json.loads(ws.recv(timeout=10))["type"] == "hello"
+        time.sleep(0.2)  # 200 run seconds at --speed 1000: every trace time is past
+        sent = 0
+        for n, (t, _, person, x, y) in enumerate(stream):
+            msgs = [{"type": "position", "id": n, "agent": person, "t": t, "x": x, "y": y}]
+            if n == bad_at:
+                msgs.insert(0, {"type": "position", "id": "bad", "agent": "robot", "t": t, "x": x, "y": y})
+            for msg in msgs:
+                ws.send(json.dumps(msg))
+                sent += 1
+                if sent % 40 == 0:
+                    time.sleep(0.8)  # under the robot's 50 a second
+                while True:
+                    reply = json.loads(ws.recv(timeout=20))
+                    if reply["type"] == "reply" and reply.get("id") == msg["id"]:
+                        break
+                if msg["id"] == "bad":
+                    assert not reply["ok"] and "names its person" in reply["error"], reply
+                    continue
+                assert reply["ok"], reply
+                detect = reply["decision"]["detect"]
+                assert detect["agent"] == person
+                given[person] += _events(detect["events"])
+    return given
+
+
+def _slower(walkers: Any) -> list[tuple[float, int, str, float, float]]:
+    """5 positions a second per person, as a slower tracker (and under the robot's rate limit)."""
+    return [m for m in interleaved(walkers) if round(m[0] * 10) % 2 == 0]
+
+
 def test_the_server_takes_each_persons_positions_on_a_robots_link(folder: Path, walkers: Any, tmp_path: Path) -> None:
     from console_harness import ConsoleProcess
-    from websockets.sync.client import connect
 
     log = tmp_path / "run.jsonl"
     console = ConsoleProcess(folder, log, "--detect", "motion", "--speed", "1000", "--tick", "0")
-    # 5 a second per person, as a slower tracker (and under the robot's rate limit)
-    stream = [m for m in interleaved(walkers) if round(m[0] * 10) % 2 == 0]
-    given: dict[str, list[tuple[str, str, str]]] = {"alice": [], "bob": []}
+    stream = _slower(walkers)
     try:
-        with connect(console.ws + "robot?robot=robot", open_timeout=10, close_timeout=5,
-                     additional_headers=console.robot_headers()) as ws:
-            assert json.loads(ws.recv(timeout=10))["type"] == "hello"
-            time.sleep(0.2)  # 200 run seconds at --speed 1000: every trace time is past
-            sent = 0
-            for n, (t, _, person, x, y) in enumerate(stream):
-                msgs = [{"type": "position", "id": n, "agent": person, "t": t, "x": x, "y": y}]
-                if n == 10:
-                    msgs.insert(0, {"type": "position", "id": "bad", "agent": "robot", "t": t, "x": x, "y": y})
-                for msg in msgs:
-                    ws.send(json.dumps(msg))
-                    sent += 1
-                    if sent % 40 == 0:
-                        time.sleep(0.8)  # under the robot's 50 a second
-                    while True:
-                        reply = json.loads(ws.recv(timeout=20))
-                        if reply["type"] == "reply" and reply.get("id") == msg["id"]:
-                            break
-                    if msg["id"] == "bad":
-                        assert not reply["ok"] and "names its person" in reply["error"], reply
-                        continue
-                    assert reply["ok"], reply
-                    detect = reply["decision"]["detect"]
-                    assert detect["agent"] == person
-                    given[person] += _events(detect["events"])
+        given = _feed(console, stream, bad_at=10)
         state = console.state()
     finally:
         console.stop()
@@ -191,3 +204,109 @@ def test_the_server_takes_each_persons_positions_on_a_robots_link(folder: Path, 
     assert again.returncode == 0, again.stderr
     logged = [m.answer for m in read_log(log).messages]
     assert again.stdout.splitlines() == logged and len(logged) == len(stream)
+
+
+@pytest.mark.slow
+def test_each_persons_page_shows_their_own_tracked_position_and_events(folder: Path, walkers: Any,
+                                                                      tmp_path: Path) -> None:
+    """In headless Chromium, part way through the traces (both people at work at their first rack): Alice's
+    page lists the events her detector gave and none of Bob's, and the map draws each person's tracked
+    position where the tracker last put them, with their belief."""
+    from console_harness import ConsoleProcess, chromium
+    from test_console_team import person_urls
+
+    console = ConsoleProcess(folder, tmp_path / "run.jsonl", "--detect", "motion", "--speed", "1000", "--tick", "0")
+    stream = _slower(walkers)
+    cut = next(k for k, m in enumerate(stream) if m[0] > walkers["bob"].truth[2][0] + 1.0)  # Bob started at E
+    try:
+        urls = person_urls(console, ("alice", "bob"))
+        given = _feed(console, stream[:cut])
+        state = console.state()
+        with chromium() as ctx:
+            page = ctx.new_page()
+            page.goto(urls["alice"])
+            page.wait_for_function("() => window.hrcConsole && window.hrcConsole.state !== null "
+                                   "&& window.hrcConsole.connected && document.querySelector('#map .tracked')",
+                                   timeout=15_000)
+            drawn = page.evaluate("""() => ({
+                detected: [...document.querySelectorAll('#doing .detected')].map(e => e.textContent),
+                tracked: Object.fromEntries([...document.querySelectorAll('#map circle.tracked')].map(e =>
+                    [e.dataset.agent, [+e.getAttribute('cx'), -e.getAttribute('cy')]])),
+                belief: document.getElementById('belief-bob').textContent})""")
+    finally:
+        console.stop()
+    assert given["alice"] and given["bob"]
+    assert len(drawn["detected"]) == 1, drawn
+    line = drawn["detected"][0]
+    newest = given["alice"][-1]
+    assert line.startswith("Seen by the tracker: ") and f"{newest[0]} {newest[1]}.{newest[2]}" in line
+    assert "pick_e" not in line  # Bob's pick: never on Alice's page
+    for person in ("alice", "bob"):
+        at = state["persons"][person]["tracked"]
+        assert drawn["tracked"][person] == pytest.approx([at["x"], at["y"]])
+    assert drawn["belief"].startswith("bob: ")
+
+
+# ------------------------------------------------------------------------------------------ simulated
+@pytest.fixture(scope="module")
+def workers_motion() -> Any:
+    from hrc.compile.compiler import compile_task
+    from hrc.io.task_file import load_task
+    from hrc.sim.run import SimContext, SimSettings
+
+    task = load_task(ROOT / "tasks" / "two_workers.yaml")
+    return SimContext(task, {"motion": compile_task(task, seed=0, jobs=1)}, SimSettings(detector="motion"), 0)
+
+
+@pytest.mark.parametrize("index", [0])
+def test_a_simulated_teams_poses_and_acks_through_the_console_get_the_simulators_answers(
+        workers_motion: Any, index: int, tmp_path: Path) -> None:
+    """Run `index` of ``hrc simulate two_workers --detector motion`` (a tracker per person, 5 cm, 10 Hz; the
+    robot acknowledging its steps, the joint load among them), its log's messages sent to the console's
+    session as a tracker and the robot's controller send them (``{"type": "position", "agent": P, ...}``,
+    ``{"type": "ack", ...}`` on the robot's link): the console logs the same messages and every answer is
+    the simulator's own dispatcher's, byte for byte; each person's page shows only events that person truly
+    did (the simulator's truth), nearly all of them."""
+    from hrc.sim.policies import POLICIES
+    from hrc.sim.runlog import catching, log_bytes
+    from hrc.sim.team_policies import make_team_controller
+    from hrc.sim.team_run import simulate_team_run
+
+    ctx = workers_motion
+    exchanges: list[Any] = []
+    result = simulate_team_run(ctx, "hrc", index, record=True, controller=catching(exchanges, make_team_controller))
+    assert result.finished and result.first_class == "DC"
+    (tmp_path / "sim.jsonl").write_bytes(log_bytes(ctx, POLICIES["hrc"], exchanges))
+    sim = read_log(tmp_path / "sim.jsonl")
+    d = DetectingDispatcher.from_compiled(ctx.compiles["motion"], params=DetectParams())
+    s = ConsoleSession(LoggedDispatcher.create(d, tmp_path / "console.jsonl"), {},
+                       PlanRoutes(lambda _plan: None, ctx.compiles["motion"].paths), RunClock(1.0))
+    clock = [0.0]
+    s.clock.now = lambda: clock[0]  # type: ignore[method-assign]  # the run's time: the simulator's
+    given: dict[str, list[tuple[str, str, str]]] = {"alice": [], "bob": []}
+    for m in sim.messages:
+        msg = json.loads(m.data)
+        clock[0] = max(clock[0], msg["t"])
+        if msg.get("event") == "position":
+            reply = s.robot_message({"type": "position", "agent": msg["agent"], "t": msg["t"], "x": msg["x"],
+                                     "y": msg["y"]}, robot="robot")
+            assert reply["ok"], reply
+            given[msg["agent"]] += _events(reply["decision"]["detect"]["events"])
+        elif msg.get("event") == "tick":
+            assert s.tick()["ok"]
+        else:
+            assert msg["agent"] == "robot", msg  # the people's events come from their positions alone
+            assert s.robot_message({"type": "ack", **{k: msg[k] for k in ("t", "action", "phase", "event")}},
+                                   robot="robot")["ok"]
+    s.logged.close()
+    mine = read_log(tmp_path / "console.jsonl")
+    assert [json.loads(m.data) for m in mine.messages] == [json.loads(m.data) for m in sim.messages]
+    assert [m.answer for m in mine.messages] == [m.answer for m in sim.messages]  # byte for byte
+    truth = {p: {(h.event, h.action, h.phase) for h in result.happenings if h.agent == p and h.action is not None}
+             for p in given}
+    state = s.state()
+    for p in given:
+        other = next(q for q in given if q != p)
+        assert given[p] and set(given[p]) <= truth[p] and not set(given[p]) & (truth[other] - truth[p]), p
+        assert len(set(given[p])) >= 0.8 * len(truth[p]), (p, truth[p] - set(given[p]))
+        assert _events(state["persons"][p]["detected"]) == given[p][-len(state["persons"][p]["detected"]):]
