@@ -9,7 +9,8 @@ each detector's to tell), whose truth is known by construction:
 - in process (`ConsoleSession` over a `DetectingDispatcher`): every event each person's detector gave is
   exactly that person's truth, in order, in the dispatcher's history as theirs and on their own page
   (``persons[P].detected``); a position naming no one, the robot, or an id not of the team is refused in
-  one line and changes nothing (decision, history, counters, log); the log replays answer for answer;
+  one line and changes nothing (decision, history, counters, log); the log replays answer for answer,
+  and a run resumed from it (``--resume``) has each person's track and shown events as they were;
 - through the real server (uvicorn, the robot's websocket ``/robot?robot=robot`` with its token): the same
   per person from the replies alone, ``/state`` shows each person's own events, and ``hrc dispatch
   --detect motion --replay`` of the console's log gives the same answers byte for byte.
@@ -126,6 +127,19 @@ def test_the_session_gives_each_persons_events_to_them_alone(folder: Path, walke
     assert len(pairs) == len(stream) and all(a == b for a, b in pairs)
     positions = [json.loads(m.data) for m in contents.messages]
     assert all(list(m) == ["t", "agent", "event", "x", "y"] for m in positions)  # the protocol's line
+    # resumed (after a crash): each person's detector, track and shown events as they were
+    from hrc.console.run import open_console
+
+    again = open_console(folder, resume=tmp_path / "run.jsonl", detect=DetectParams()).session
+    try:
+        assert again.dispatcher.tracks == s.dispatcher.tracks  # type: ignore[attr-defined]
+        assert {p: list(v) for p, v in again.detected.items()} == {p: list(v) for p, v in s.detected.items()}
+        for p in s.people:  # (the undo offered depends on the run's clock, which the test's is not)
+            shown = again.state()["persons"][p]
+            assert {k: shown[k] for k in ("tracked", "belief", "detected")} == \
+                {k: state["persons"][p][k] for k in ("tracked", "belief", "detected")}
+    finally:
+        again.logged.close()
 
 
 def test_one_person_and_one_robot_keep_the_positions_that_name_no_one(tmp_path: Path) -> None:
