@@ -34,7 +34,7 @@ from typing import Any
 import pytest
 import yaml
 from conftest import ROOT, compiled_folder
-from test_detect_team import TASK, interleaved, traces
+from test_detect_team import MATCH, TASK, interleaved, traces
 
 from hrc.compile.output import read_header
 from hrc.console.clock import RunClock
@@ -298,6 +298,7 @@ def test_a_simulated_teams_poses_and_acks_through_the_console_get_the_simulators
     clock = [0.0]
     s.clock.now = lambda: clock[0]  # type: ignore[method-assign]  # the run's time: the simulator's
     given: dict[str, list[tuple[str, str, str]]] = {"alice": [], "bob": []}
+    when: list[tuple[str, str, str, str, float]] = []  # (person, event, action, phase, estimated t)
     for m in sim.messages:
         msg = json.loads(m.data)
         clock[0] = max(clock[0], msg["t"])
@@ -306,6 +307,8 @@ def test_a_simulated_teams_poses_and_acks_through_the_console_get_the_simulators
                                      "y": msg["y"]}, robot="robot")
             assert reply["ok"], reply
             given[msg["agent"]] += _events(reply["decision"]["detect"]["events"])
+            when += [(msg["agent"], e["event"], e["action"], e["phase"], e["t"])
+                     for e in reply["decision"]["detect"]["events"] if e["event"] != "undo"]
         elif msg.get("event") == "tick":
             assert s.tick()["ok"]
         else:
@@ -324,3 +327,9 @@ def test_a_simulated_teams_poses_and_acks_through_the_console_get_the_simulators
         assert given[p] and set(given[p]) <= truth[p] and not set(given[p]) & (truth[other] - truth[p]), p
         assert len(set(given[p])) >= 0.8 * len(truth[p]), (p, truth[p] - set(given[p]))
         assert _events(state["persons"][p]["detected"]) == given[p][-len(state["persons"][p]["detected"]):]
+    # and when: every event within 1 s of the true time (the detector's measure, docs/detect.md; this run's
+    # worst is 0.6 s, a start), each departure and arrival within 0.3 s
+    true_t = {(h.agent, h.event, h.action, h.phase): h.t for h in result.happenings if h.action is not None}
+    for person, event, action, phase, t in when:
+        err = abs(t - true_t[(person, event, action, phase)])
+        assert err <= (0.3 if event in ("depart", "arrive") else MATCH), (person, event, action, phase, t, err)
