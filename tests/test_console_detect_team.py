@@ -15,6 +15,9 @@ each detector's to tell), whose truth is known by construction:
   per person from the replies alone, ``/state`` shows each person's own events, and ``hrc dispatch
   --detect motion --replay`` of the console's log gives the same answers byte for byte.
 
+Positions from anyone, in any shape (hypothesis): a refused one changes nothing, an accepted one moves only
+its own person's detector.
+
 And a simulated ``two_workers`` run (``hrc simulate --detector motion --keep-logs``: a tracker per person,
 the robot acknowledging its steps, the joint load): its positions and acknowledgements through the
 console's session give the simulator's own dispatcher answers, and each person's events given are ones
@@ -26,6 +29,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -34,6 +38,8 @@ from typing import Any
 import pytest
 import yaml
 from conftest import ROOT, compiled_folder
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
 from test_detect_team import MATCH, TASK, interleaved, traces
 
 from hrc.compile.output import read_header
@@ -330,6 +336,64 @@ def test_a_simulated_teams_poses_and_acks_through_the_console_get_the_simulators
     # and when: every event within 1 s of the true time (the detector's measure, docs/detect.md; this run's
     # worst is 0.6 s, a start), each departure and arrival within 0.3 s
     true_t = {(h.agent, h.event, h.action, h.phase): h.t for h in result.happenings if h.action is not None}
-    for person, event, action, phase, t in when:
-        err = abs(t - true_t[(person, event, action, phase)])
-        assert err <= (0.3 if event in ("depart", "arrive") else MATCH), (person, event, action, phase, t, err)
+    for person, what, action, phase, t in when:
+        err = abs(t - true_t[(person, what, action, phase)])
+        assert err <= (0.3 if what in ("depart", "arrive") else MATCH), (person, what, action, phase, t, err)
+
+
+# ------------------------------------------------------------------------------------------ any message
+_POSITION = st.tuples(st.sampled_from(["alice", "bob", "robot", "zed", None]),
+                      st.floats(-1.0, 3.0), st.floats(-1.0, 11.0), st.floats(-1.0, 9.0),
+                      st.sampled_from(["console", "protocol", "bad_x", "extra_key", "future"]))
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(_POSITION, min_size=1, max_size=25))
+def test_a_refused_position_changes_nothing_and_an_accepted_one_moves_only_its_persons_detector(
+        folder: Path, positions: list[Any]) -> None:
+    """Positions on the robot's link naming anyone (alice, bob, the robot, a stranger, no one), in the
+    console's shape or the protocol's, some malformed or in the future, their times drawn around the
+    person's last: a refused one leaves the decision, the history, every person's track and the counters as
+    they were, and the log too (one the dispatcher refused, a time going back, is logged with its refusal
+    and nothing else); an accepted one is logged naming its person and changes no other person's track, and
+    whatever it gave the dispatcher is that person's."""
+    with tempfile.TemporaryDirectory() as tmp:
+        s = _session(folder, Path(tmp) / "run.jsonl")
+        s.clock.now = lambda: s.dispatcher.now + 1.0  # type: ignore[method-assign]
+        d = s.dispatcher
+        assert isinstance(d, DetectingDispatcher)
+        for who, dt, x, y, shape in positions:
+            last = d.tracks[who].t if who in d.tracks else None  # around that person's last position
+            t = round(max(0.0, (last if last is not None else d.now) + dt), 3) if shape != "future" else \
+                s.now() + 50.0
+            msg: dict[str, Any] = {"type": "position", "t": t, "x": x, "y": y}
+            if shape == "protocol":
+                msg = {"t": t, "event": "position", "x": x, "y": y}
+            elif shape == "bad_x":
+                msg["x"] = "4.1"
+            elif shape == "extra_key":
+                msg["z"] = 0.0
+            if who is not None:
+                msg["agent"] = who
+            before, tracks, history = _view(s), dict(d.tracks), d.history
+            reply = s.robot_message(json.dumps(msg), robot="robot")
+            if not reply["ok"]:
+                assert "\n" not in reply["error"]
+                now = _view(s)
+                if now[-3] == before[-3]:  # refused by the session: not even logged
+                    event("refused by the session")
+                    assert now == before, reply
+                else:  # refused by the dispatcher (a time going back): logged with its refusal, nothing else
+                    event("refused by the dispatcher")
+                    assert now[:-3] == before[:-3] and now[-2] == before[-2], reply
+                    assert now[-3] == before[-3] + 1 and json.loads(read_log(s.log_path).messages[-1].answer) == \
+                        {"t": t, "ok": False, "error": reply["error"]}  # type: ignore[arg-type]
+                continue
+            event("accepted")
+            assert who in ("alice", "bob") and shape in ("console", "protocol"), (who, shape)
+            logged = json.loads(read_log(s.log_path).messages[-1].data)  # type: ignore[arg-type]
+            assert logged["agent"] == who and logged["event"] == "position"
+            assert all(d.tracks[p] is tracks[p] for p in tracks if p != who)
+            new = d.history[len(history):]
+            assert all(o.agent == who or o.event == "undo" for o in new), new
+        s.logged.close()
