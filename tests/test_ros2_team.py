@@ -96,6 +96,10 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
             out = json.loads(client.send(text, topic))
             assert not out["ok"] and f"must be {topic}'s" in out["error"], out
             refused.append(text)
+        # a person's own pose topic without --detect motion: refused in one line, never logged
+        out = json.loads(client.send_pose("human", 0.5, 1.0, 1.0))
+        assert not out["ok"] and out["error"].startswith("human/pose: the person's pose needs the motion detector")
+        refused.append("pose")
         run = _OverRos(None, stnus, robots, people, random.Random(5))
         run.client = client
         run.play()
