@@ -398,3 +398,21 @@ def test_a_refused_position_changes_nothing_and_an_accepted_one_moves_only_its_p
             new = d.history[len(history):]
             assert all(o.agent == who or o.event == "undo" for o in new), new
         s.logged.close()
+
+
+def test_a_team_of_one_person_may_leave_the_person_out_as_the_protocol_does(tmp_path: Path) -> None:
+    """One person and two robots: as ``hrc dispatch --detect motion``'s `position_message`, a position
+    without ``agent`` is the one person's (logged naming them); one naming a robot is refused."""
+    task = {**TASK, "agents": [TASK["agents"][0], TASK["agents"][2],
+                               {"id": "robot2", "kind": "robot", "radius": 0.35, "speed": 0.6, "start": "O"}],
+            "actions": [{**a, "agents": ["alice"], "phases": [{**ph, "duration": {"alice": ph["duration"]["alice"]}}
+                                                              for ph in a["phases"]]} for a in TASK["actions"]]}
+    (tmp_path / "task.yaml").write_text(yaml.safe_dump(task, sort_keys=False), "utf-8")
+    s = _session(compiled_folder(tmp_path / "out", tmp_path / "task.yaml", "--jobs", "1"), tmp_path / "run.jsonl")
+    assert s.team and s.people == ("alice",) and s.robots == ("robot", "robot2")
+    assert s.robot_message({"type": "position", "t": 0.5, "x": 1.0, "y": 1.0}, robot="robot2")["ok"]
+    reply = s.robot_message({"type": "position", "agent": "robot2", "t": 0.6, "x": 1.0, "y": 1.0}, robot="robot2")
+    assert not reply["ok"] and "found 'robot2'" in reply["error"]
+    s.logged.close()
+    assert [json.loads(m.data) for m in read_log(tmp_path / "run.jsonl").messages] == \
+        [{"t": 0.5, "agent": "alice", "event": "position", "x": 1.0, "y": 1.0}]

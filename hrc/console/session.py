@@ -20,9 +20,10 @@ of their own last observation only), each robot controller acknowledges for its 
 changes nothing. One person and one robot are served exactly as before (the same lines into the log).
 With the motion detector (``--detect motion``) a team's tracker sends its positions on a robot
 controller's link, each naming its person (``"agent": "alice"``, as ``hrc dispatch --detect motion``'s
-protocol), to that person's own detector; one naming no one, a robot or an id not of the team is refused
-in one line and changes nothing. Each person's state has their tracked position, belief and the last
-events their detector gave (``persons[P].detected``: their page shows them).
+protocol), to that person's own detector; one naming no one (but in a team of one person, as there), a
+robot or an id not of the team is refused in one line and changes nothing. Each person's state has
+their tracked position, belief and the last events their detector gave (``persons[P].detected``: their
+page shows them).
 
 The session is not thread-safe: the server calls it from its one event loop, which serializes the
 messages of every tab and of the robot.
@@ -290,13 +291,14 @@ class ConsoleSession:
             return Reply.error("refused: a position needs the motion detector (hrc console --detect motion)")
         unknown = sorted(set(msg) - {"type", "id", "t", "x", "y", "agent", "event"})
         if unknown:
-            return Reply.error(f"malformed position: unknown key {unknown[0][:40]!r} (keys: type, id, t, x, y)")
+            return Reply.error(f"malformed position: unknown key {unknown[0][:40]!r} (keys: type, id, agent, t, x, y)")
         if not self.team:
             person = "human"
             if msg.get("agent", "human") != "human":
                 return Reply.error("malformed position: a position is the human's")
-        else:  # a team's names its person, as `hrc dispatch --detect motion`'s protocol (issue 37)
-            named = msg.get("agent")
+        else:  # a team's names its person, as `hrc dispatch --detect motion`'s protocol (issue 37; as there,
+            # a team of one person and several robots may leave it out)
+            named = msg.get("agent", self.people[0] if len(self.people) == 1 else None)
             if named not in self.people:
                 found = "nothing" if named is None else repr(str(named)[:40])
                 return Reply.error(f"refused: a team's position names its person, \"agent\": one of "
