@@ -180,7 +180,8 @@ class Client:
 
 class TeamClient:
     """A real rclpy node for a team's ``hrc ros2`` (issue 37): each person's lines on ``PERSON/observations``,
-    each robot's on ``ROBOT/acks``, anything else (ticks) on the shared ``observations``; it reads the
+    each robot's on ``ROBOT/acks``, anything else (ticks) on the shared ``observations``, each person's tracked
+pose on ``PERSON/pose``; it reads the
     answers and each robot's goals and routes from ``ROBOT/goal`` and ``ROBOT/route`` (kept whole: a deep
     queue, so that no goal is missed between spins)."""
 
@@ -196,6 +197,7 @@ class TeamClient:
         String = self.base.String
         self.own = {r: node.create_publisher(String, f"{r}/acks", inq) for r in robots}
         self.own.update({h: node.create_publisher(String, f"{h}/observations", inq) for h in people})
+        self.poses = {h: node.create_publisher(PoseStamped, f"{h}/pose", inq) for h in people}  # each tracker's
         self.goals: dict[str, list[Any]] = {r: [] for r in robots}
         self.routes: dict[str, list[Any]] = {r: [] for r in robots}
         for r in robots:
@@ -208,7 +210,8 @@ class TeamClient:
 
     def wait_matched(self, timeout: float = 30.0) -> None:
         ns = self.base.node.get_namespace()
-        self.base.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in self.own.values())
+        self.base.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in (*self.own.values(),
+                                                                                  *self.poses.values()))
                              and self.base.observations.get_subscription_count() >= 1
                              and self.base.node.count_publishers(f"{ns}/answers") >= 1,
                              timeout, "discovery of the hrc ros2 node")
@@ -221,6 +224,20 @@ class TeamClient:
         before = len(self.answers)
         publisher.publish(self.base.String(data=line))
         self.base.spin_until(lambda: len(self.answers) > before, ANSWER_TIMEOUT, f"answer to {line[:80]}")
+        assert len(self.answers) == before + 1, "more answers than messages"
+        return self.answers[-1]
+
+    def send_pose(self, person: str, t: float, x: float, y: float, frame_id: str = "map") -> str:
+        """Publish `person`'s tracked pose (x, y in `frame_id`, stamped `t` run seconds) on their own
+        ``PERSON/pose``; wait for its answer."""
+        pose = self.base.PoseStamped()
+        pose.header.frame_id = frame_id
+        pose.header.stamp.sec = int(t)
+        pose.header.stamp.nanosec = round((t - int(t)) * 1e9)
+        pose.pose.position.x, pose.pose.position.y = x, y
+        before = len(self.answers)
+        self.poses[person].publish(pose)
+        self.base.spin_until(lambda: len(self.answers) > before, ANSWER_TIMEOUT, f"answer to {person}'s pose at {t}")
         assert len(self.answers) == before + 1, "more answers than messages"
         return self.answers[-1]
 

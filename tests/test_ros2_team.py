@@ -9,6 +9,10 @@ the same lines through ``hrc dispatch``, byte for byte, the log replays, and eac
 for; its ``--record`` is the same bytes as ``hrc dispatch --record``'s. A line on an agent's own topic that
 names another agent is refused in one line and never logged.
 
+With ``--detect motion`` (two people, one robot): each person's tracked poses on their own
+``/hrc/PERSON/pose`` feed their own detector, the answers those of ``hrc dispatch --detect motion`` and each
+person's events exactly their truth (tests/test_detect_team.py's hand-made traces).
+
 Skipped with the reason where rclpy cannot be imported (as tests/test_ros2.py).
 """
 
@@ -22,6 +26,7 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from conftest import ROOT, compiled_folder
@@ -91,6 +96,10 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
             out = json.loads(client.send(text, topic))
             assert not out["ok"] and f"must be {topic}'s" in out["error"], out
             refused.append(text)
+        # a person's own pose topic without --detect motion: refused in one line, never logged
+        out = json.loads(client.send_pose("human", 0.5, 1.0, 1.0))
+        assert not out["ok"] and out["error"].startswith("human/pose: the person's pose needs the motion detector")
+        refused.append("pose")
         run = _OverRos(None, stnus, robots, people, random.Random(5))
         run.client = client
         run.play()
@@ -127,3 +136,63 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
             assert math.dist((goal.pose.position.x, goal.pose.position.y), want) < 1e-9
     # both robots drove: the run gave each some pick
     assert all(client.goals[r] for r in robots)
+
+
+# ------------------------------------------------------------------------------ the motion detector per person
+@pytest.fixture(scope="module")
+def two(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """tests/test_detect_team.py's two people (Alice, Bob) and one robot on the kitting cell, compiled."""
+    import yaml
+    from ros2_client import rclpy_or_skip
+    from test_detect_team import TASK
+
+    rclpy_or_skip()
+    where = tmp_path_factory.mktemp("two")
+    (where / "task.yaml").write_text(yaml.safe_dump(TASK, sort_keys=False), "utf-8")
+    return compiled_folder(where / "out", where / "task.yaml", "--jobs", "1")
+
+
+def test_each_persons_pose_topic_feeds_their_own_detector(two: Path, tmp_path: Path) -> None:
+    """tests/test_detect_team.py's hand-made traces (Alice and Bob walking at once, 5 cm of noise; here 5 a
+    second each), each person's as poses on their own ``/hrc/PERSON/pose`` in a rotated, shifted frame,
+    published by a real rclpy node: every answer is that of ``hrc dispatch --detect motion`` on the same
+    positions (each naming its person) byte for byte, each answer's events are the person's whose pose it
+    was and, put together, exactly their true events in order; the node's log replays to the same
+    answers. A pose in another frame is refused in one line and never logged."""
+    from ros2_client import NodeProcess, TeamClient, ros_env
+    from test_detect_team import interleaved, traces
+
+    task = load_plan_set(two).task
+    walkers = traces(SimpleNamespace(paths=plan_paths(task, seed=int(read_header(two).get("seed", 0)))))
+    frame = MapFrame("map", *ORIGIN)
+    stream = [(t, p, round(x, 3), round(y, 3)) for t, _, p, x, y in interleaved(walkers) if round(t * 10) % 2 == 0]
+    lines = [json.dumps({"t": t, "agent": p, "event": "position", "x": x, "y": y}) for t, p, x, y in stream]
+    detect = ("--detect", "motion")
+    expected = _dispatch(two, *detect, stdin="".join(x + "\n" for x in lines).encode())
+    assert expected.returncode == 0, expected.stderr
+    env = ros_env(tmp_path)
+    log = tmp_path / "run.log"
+    node = NodeProcess(two, env, "--log", str(log), "--map-origin", *(str(v) for v in ORIGIN), *detect)
+    client = None
+    got: list[str] = []
+    try:
+        client = TeamClient(env, ("robot",), ("alice", "bob"))
+        client.wait_matched()
+        refusal = json.loads(client.send_pose("bob", 0.0, 1.0, 1.0, frame_id="odom"))
+        assert not refusal["ok"] and refusal["error"].startswith("bob/pose: a pose in frame 'odom'"), refusal
+        for t, p, x, y in stream:
+            got.append(client.send_pose(p, t, *frame.to_frame(x, y)))
+        assert node.stop(signal.SIGTERM) == 0
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()
+    assert got == expected.stdout.decode().splitlines()
+    events: dict[str, list[tuple[str, str, str]]] = {"alice": [], "bob": []}
+    for (_, p, _, _), answer in zip(stream, map(json.loads, got), strict=True):
+        assert answer["ok"] and answer["detect"]["agent"] == p
+        events[p] += [(e["event"], e["action"], e["phase"]) for e in answer["detect"]["events"] if e["event"] != "undo"]
+    for p, w in walkers.items():
+        assert events[p] == [(e, a, ph) for _, e, a, ph in w.truth], p
+    replayed = _dispatch(two, *detect, "--replay", str(log))
+    assert replayed.returncode == 0 and replayed.stdout == expected.stdout, replayed.stderr

@@ -405,22 +405,9 @@ def test_a_joint_action_of_people_alone_is_refused_in_one_line(tmp_path: Path, c
     assert "actions[4].roles: a joint action needs a robot among its agents" in err
 
 
-# ------------------------------------------------------------------------------ the online side refuses
-@pytest.mark.parametrize("command", ["console --detect motion", "ros2 --detect motion"])  # the console, ros2 and
-# dispatch (--record too) serve teams; dispatch --detect motion and detect too (tests/test_detect_team.py)
-def test_the_motion_detector_refuses_a_team_folder_in_one_line(command: str, tmp_path: Path, capsys) -> None:
-    out = tmp_path / "cross"
-    task = write_task(tmp_path, CROSS, CROSS_MAP)
-    assert main(["compile", str(task), "--out", str(out), "--no-report", "-q", "--stnu", "none"]) == 0
-    capsys.readouterr()
-    name, *options = command.split()
-    argv = [name, str(out), *options] + (["-"] if name == "detect" else [])
-    assert main(argv) == 2
-    got, err = capsys.readouterr()
-    assert got == "" and ERROR_LINE.match(err), err
-    assert f"hrc {command} runs one person and one robot; this task has 1 person and 2 robots" in err
-
-
+# ------------------------------------------------------------------------------ the online side
+# every online command serves a team: the console's and hrc ros2's motion detector too, one per person
+# (tests/test_console_detect_team.py, tests/test_ros2_team.py)
 def test_simulate_runs_a_team_with_buttons_and_with_the_motion_detector(tmp_path: Path, capsys) -> None:
     """`hrc simulate` takes a team (tests/test_sim_team.py), with the motion detector too (a detector per
     person: tests/test_detect_team.py, tests/test_sim_team.py)."""

@@ -7,7 +7,8 @@ notebook server does), and where a robot controller connects with its own secret
 controller can be given its token before the console starts. Listening on another address than this
 machine's loopback needs ``--allow-remote``. A team (issue 37) gets one address per person (their page:
 their buttons, with a secret of their own, new each start) after the shared view's, and one controller
-address per robot (``/robot?robot=ID``).
+address per robot (``/robot?robot=ID``); with ``--detect motion`` a controller's link also takes the
+tracker's positions, each naming its person (``"agent": "alice"``), one detector per person.
 SIGINT or SIGTERM stop it cleanly, as ``hrc ros2``: the message being handled finishes, then exit 0 with the
 log whole ("stopped by SIGTERM after N messages").
 """
@@ -21,7 +22,6 @@ from typing import Any
 from hrc.cli.argtypes import real, whole
 from hrc.cli.detect import add_detect_options, detect_params
 from hrc.cli.record import add_record_format
-from hrc.cli.team import refuse_team
 from hrc.errors import HrcError
 
 __all__ = ["add_parser", "run"]
@@ -49,7 +49,8 @@ def add_parser(sub: Any) -> None:
     add_record_format(p)
     p.add_argument("--allow-partial", action="store_true",
                    help="serve a partial compile output (an interrupted compile: not every plan is in it)")
-    add_detect_options(p, "the robot endpoint also takes the person's tracked position")
+    add_detect_options(p, "the robot endpoint also takes the person's tracked position (a team's: "
+                          "each naming its person)")
     p.add_argument("--token-file", metavar="FILE",
                    help="the page's secret: read from FILE, or a new one written there (mode 0600)")
     p.add_argument("--robot-token-file", metavar="FILE",
@@ -61,8 +62,6 @@ def run(args: argparse.Namespace) -> int:
     from hrc.console.access import Credentials, is_loopback, load_or_create_token, new_token
     from hrc.console.run import open_console, serve
 
-    if args.detect == "motion" and refuse_team("console --detect motion", args.out_dir):
-        return 2  # the motion detector tracks one person (a team's: docs/dispatch.md)
     if not is_loopback(args.host) and not args.allow_remote:
         print(f"error: hrc console: --host {args.host} is not this machine's loopback: other machines could "
               "reach the console (over plain HTTP); add --allow-remote if that is meant", file=sys.stderr)

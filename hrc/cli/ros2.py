@@ -7,8 +7,8 @@ Messages of ``hrc dispatch``'s protocol come in as ``std_msgs/String`` on ``NAME
 goes to the motion detector. The log (default ``OUT_DIR/runs/ros2-N.jsonl``, never overwritten) replays with
 ``hrc dispatch OUT_DIR --replay LOG``; ``--resume LOG`` goes on after a crash; ``--record FILE`` writes
 an MCAP recording. A team (issue 37) has ``NAMESPACE/ROBOT/goal``, ``/route`` and ``/acks`` per robot
-and ``NAMESPACE/PERSON/observations`` per person. SIGINT or SIGTERM stop it cleanly (exit 0, the log
-whole). Needs the ``ros2`` extra: ``pip install 'hrc[ros2]'``.
+and ``NAMESPACE/PERSON/observations`` and ``NAMESPACE/PERSON/pose`` (the motion detector's) per person.
+SIGINT or SIGTERM stop it cleanly (exit 0, the log whole). Needs the ``ros2`` extra: ``pip install 'hrc[ros2]'``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from typing import Any
 from hrc.cli.argtypes import real
 from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
-from hrc.cli.team import refuse_team
 from hrc.errors import HrcError
 
 __all__ = ["INSTALL", "add_parser", "run"]
@@ -53,7 +52,8 @@ def add_parser(sub: Any) -> None:
                    help="drop plans that are neither DC nor consistent; stop when none is left")
     p.add_argument("--no-preferences", dest="preferences", action="store_false",
                    help="do not narrow the robot's windows to APA's optimal (DO) windows")
-    add_detect_options(p, "the person's tracked pose on human/pose is read (buttons: each pose is refused)")
+    add_detect_options(p, "the person's tracked pose on human/pose (a team's: PERSON/pose) is read "
+                          "(buttons: each pose is refused)")
     p.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None,
                    help="everything after it goes to ROS 2 (remappings, parameters), as for any ROS 2 node")
     p.set_defaults(run=run)
@@ -72,10 +72,6 @@ def _next_log(out_dir: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    # a team (issue 37) gets a goal topic per robot and an observation topic per person (docs/ros2.md);
-    # the motion detector still tracks one person
-    if args.detect == "motion" and refuse_team("ros2 --detect motion", args.out_dir):
-        return 2
     try:
         from hrc.ros2 import node as ros_node
     except ImportError as err:  # no extra, or its libraries not found

@@ -28,7 +28,8 @@ A team (issue 37): a person's page connects as ``/ws?person=ID`` and presses as 
 alone is the shared view, which may not press); each robot's controller connects as ``/robot?robot=ID``
 (the robot's secret, one controller per robot) and acknowledges for that robot only; each person has a
 secret of their own that opens their page only (`hrc.console.access`); ``--simulate-robot``
-plays every robot. An id not of the team is refused before anything is served.
+plays every robot. An id not of the team is refused before anything is served. With ``--detect motion``
+a controller's link also carries the tracker's positions, each naming its person (`ConsoleSession`).
 """
 
 from __future__ import annotations

@@ -18,6 +18,12 @@ of their own last observation only), each robot controller acknowledges for its 
 (`robot_message` with the robot's id), and the state carries each person's buttons and counter
 (``"persons"``) beside the shared view of every agent. An id not of the team is refused in one line and
 changes nothing. One person and one robot are served exactly as before (the same lines into the log).
+With the motion detector (``--detect motion``) a team's tracker sends its positions on a robot
+controller's link, each naming its person (``"agent": "alice"``, as ``hrc dispatch --detect motion``'s
+protocol), to that person's own detector; one naming no one (but in a team of one person, as there), a
+robot or an id not of the team is refused in one line and changes nothing. Each person's state has
+their tracked position, belief and the last events their detector gave (``persons[P].detected``: their
+page shows them).
 
 The session is not thread-safe: the server calls it from its one event loop, which serializes the
 messages of every tab and of the robot.
@@ -41,7 +47,8 @@ from hrc.dispatch.logfile import Message
 from hrc.dispatch.routes import PlanRoutes
 from hrc.errors import LogWriteError, MessageError
 
-__all__ = ["LOG_SHOWN", "MAX_RUN_SECONDS", "PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply", "parse"]
+__all__ = ["DETECTED_SHOWN", "LOG_SHOWN", "MAX_RUN_SECONDS", "PAGE_MESSAGES", "UNDO_WINDOW", "ConsoleSession", "Reply",
+           "parse"]
 
 # How long after a press of the person the page offers to undo it, in run seconds (the dispatcher
 # itself accepts an undo within 10 s of the observation it withdraws).
@@ -53,6 +60,8 @@ MAX_RUN_SECONDS = 1e9
 """A message's ``t`` (run seconds) beyond this is refused, as the dispatcher refuses it."""
 LOG_SHOWN = 300
 """Log entries kept for the page (the file keeps all)."""
+DETECTED_SHOWN = 12
+"""A team's person's last events given by their motion detector, shown on their page."""
 
 
 class Reply(dict[str, Any]):
@@ -107,6 +116,8 @@ class ConsoleSession:
         self.team = (len(self.people), len(self.robots)) != (1, 1)  # served per agent (issue 37)
         self.hseqs = dict.fromkeys(self.people, 0)  # a team's: each person's accepted messages
         self.robot_links = dict.fromkeys(self.robots, "none")  # a team's: each robot's link
+        # with the motion detector, a team's: the events each person's detector gave (their page shows them)
+        self.detected: dict[str, deque[dict[str, Any]]] = {p: deque(maxlen=DETECTED_SHOWN) for p in self.people}
 
     @property
     def dispatcher(self) -> Dispatcher:
@@ -164,6 +175,11 @@ class ConsoleSession:
     def _record(self, message: dict[str, Any], out: dict[str, Any], source: str, person: Any = None) -> None:
         self.total += 1
         self.entries.append({"n": self.total, "source": source, "in": message, "out": out})
+        detect = out.get("detect") if out.get("ok") and self.team else None
+        if isinstance(detect, dict):  # a person's detector gave these (one person's answer names no one)
+            who = str(detect.get("agent", self.people[0] if len(self.people) == 1 else ""))
+            for ev in detect.get("events", ()) if who in self.detected else ():
+                self.detected[who].append(ev)
         if out.get("ok") and not out.get("unchanged"):  # a redundant message is answered, changes nothing
             self.seq += 1
             if source == "person":
@@ -238,18 +254,18 @@ class ConsoleSession:
         if isinstance(msg, str):
             return Reply.error(msg)
         agent = "robot"
+        position = msg.get("type") == "position" or ("type" not in msg and msg.get("event") == "position")
         if self.team:
             if robot not in self.robot_links:
                 return Reply.error(f"refused: unknown robot {str(robot)[:40]!r} (robots: {', '.join(self.robots)})")
+            if position:  # the tracker's, on a controller's link: its "agent" names the person (issue 37)
+                return self.position_message(msg)
             named = [msg[k] for k in ("robot", "agent") if k in msg]
             if any(n != robot for n in named):
                 return Reply.error(f"refused: this controller is {robot}'s; it cannot acknowledge for "
                                    f"{str(next(n for n in named if n != robot))[:40]!r}")
-            if msg.get("type") == "position":
-                return Reply.error("refused: a position needs the motion detector, which takes one person "
-                                   "(not a team yet)")
             agent = robot
-        if msg.get("type") == "position" or ("type" not in msg and msg.get("event") == "position"):
+        if position:
             return self.position_message(msg)  # the console's shape, or the dispatcher protocol's
         if msg.get("type") != "ack":
             return Reply.error(f"unknown message type {msg.get('type')!r} (the robot sends only ack)")
@@ -275,9 +291,19 @@ class ConsoleSession:
             return Reply.error("refused: a position needs the motion detector (hrc console --detect motion)")
         unknown = sorted(set(msg) - {"type", "id", "t", "x", "y", "agent", "event"})
         if unknown:
-            return Reply.error(f"malformed position: unknown key {unknown[0][:40]!r} (keys: type, id, t, x, y)")
-        if msg.get("agent", "human") != "human":
-            return Reply.error("malformed position: a position is the human's")
+            return Reply.error(f"malformed position: unknown key {unknown[0][:40]!r} (keys: type, id, agent, t, x, y)")
+        if not self.team:
+            person = "human"
+            if msg.get("agent", "human") != "human":
+                return Reply.error("malformed position: a position is the human's")
+        else:  # a team's names its person, as `hrc dispatch --detect motion`'s protocol (issue 37; as there,
+            # a team of one person and several robots may leave it out)
+            named = msg.get("agent", self.people[0] if len(self.people) == 1 else None)
+            if named not in self.people:
+                found = "nothing" if named is None else repr(str(named)[:40])
+                return Reply.error(f"refused: a team's position names its person, \"agent\": one of "
+                                   f"{', '.join(self.people)} (found {found}); nothing changed")
+            person = str(named)
         now = self.now()
         t = msg.get("t", now)
         values = {"t": t, "x": msg.get("x"), "y": msg.get("y")}
@@ -287,7 +313,7 @@ class ConsoleSession:
                 return Reply.error(f"malformed position: {key} must be a finite number (within ±{bound:g})")
         if t > now:
             return Reply.error(f"refused: t = {t} lies in the future (the run's time is {now})")
-        return self._submit({"t": round(float(t), 3), "agent": "human", "event": "position",
+        return self._submit({"t": round(float(t), 3), "agent": person, "event": "position",
                              "x": float(values["x"]), "y": float(values["y"])}, "tracker")
 
     def tick(self) -> Reply:
@@ -360,7 +386,7 @@ class ConsoleSession:
                        "options": [{"action": o.action, "phase": o.phase, "event": o.event}
                                    for o in d.human_options(p)],
                        "under_way": [list(x) for x in under_way(d.history, p, self._joint)],
-                       "undo": self._undo(now, p)} for p in self.people}
+                       "undo": self._undo(now, p), **self._tracked(p)} for p in self.people}
         return {
             "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,
             "decision": decision, "persons": persons,
@@ -372,14 +398,18 @@ class ConsoleSession:
             "robot_link": self.robot_link, "robot_links": dict(self.robot_links), "where": self._where(),
         }
 
-    def _tracked(self) -> dict[str, Any]:
-        """With the motion detector: the person's last tracked position and the detector's belief."""
-        track = getattr(self.dispatcher, "track", None)
-        if track is None:
+    def _tracked(self, person: str | None = None) -> dict[str, Any]:
+        """With the motion detector: the person's (a team's `person`'s) last tracked position and the
+        detector's belief; a team's person also the events their detector gave (``detected``, the last
+        `DETECTED_SHOWN`, oldest first)."""
+        tracks = getattr(self.dispatcher, "tracks", None)
+        if tracks is None:
             return {}
+        track = tracks[person] if person is not None else self.dispatcher.track  # type: ignore[attr-defined]
         last = track.samples[-1] if track.samples else None
-        return {"tracked": None if last is None else {"t": last[0], "x": round(last[1], 3), "y": round(last[2], 3)},
-                "belief": track.belief.to_json()}
+        shown = {"tracked": None if last is None else {"t": last[0], "x": round(last[1], 3), "y": round(last[2], 3)},
+                 "belief": track.belief.to_json()}
+        return shown if person is None else {**shown, "detected": list(self.detected[person])}
 
     def _where(self) -> dict[str, str]:
         """Each agent's last known location: its start, or where it last arrived or worked."""

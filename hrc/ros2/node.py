@@ -19,7 +19,9 @@ late subscriber gets the latest.
 **A team** (issue 37: other than one person and one robot): each robot has its own ``ROBOT/acks`` in and
 ``ROBOT/goal``, ``ROBOT/route`` (and ``ROBOT/separation``) out, under its id (`hrc.ros2.topics.robot_topics`),
 each goal from that robot's entry of the answer's ``robots``; each person has ``PERSON/observations``
-(`person_topics`). A line on an agent's own topic must name that agent (``"agent": ID``): any other is
+and ``PERSON/pose`` (`person_topics`): a pose there becomes that person's position message (``"agent":
+PERSON``) for their own motion detector, as ``human/pose`` is the one person's (a team has no
+``human/pose``). A line on an agent's own topic must name that agent (``"agent": ID``): any other is
 refused in one line on ``answers`` and never reaches the log, so that one agent's detector or controller
 cannot speak for another. The shared ``observations`` topic takes any line, as for one of each.
 
@@ -130,7 +132,9 @@ class DispatcherNode:
             node.create_publisher(String, SEPARATION.name, qos_profile(SEPARATION.qos))
         for topic in (OBSERVATIONS, ROBOT_ACKS) if one else (OBSERVATIONS,):
             node.create_subscription(String, topic.name, self._supervised(self._on_line), qos_profile(topic.qos))
-        node.create_subscription(PoseStamped, POSE.name, self._supervised(self._on_pose), qos_profile(POSE.qos))
+        if one:  # a team's people have a pose topic each (below)
+            node.create_subscription(PoseStamped, POSE.name, self._supervised(self._on_pose(self.human, POSE.name)),
+                                     qos_profile(POSE.qos))
         self._pose_refused = False
         self.faults = 0
         self._fault_said = -math.inf
@@ -148,6 +152,8 @@ class DispatcherNode:
                 t = person_topics(h)
                 node.create_subscription(String, t["observations"].name, self._supervised(self._own_line(h)),
                                          qos_profile(t["observations"].qos))
+                node.create_subscription(PoseStamped, t["pose"].name,
+                                         self._supervised(self._on_pose(h, t["pose"].name)), qos_profile(t["pose"].qos))
         except (ValueError, TypeError, RuntimeError) as err:  # an id that is no ROS 2 name
             node.destroy_node()
             raise HrcError(f"hrc ros2: an agent's id cannot name its topics ({' '.join(str(err).split())[:200]}); "
@@ -216,24 +222,29 @@ class DispatcherNode:
             self._answer(self._submit(data))
         return take
 
-    def _on_pose(self, msg: PoseStamped) -> None:
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9
-        if msg.header.frame_id != self.frame.frame_id:
-            self._say(_refusal(t, f"{POSE.name}: a pose in frame {msg.header.frame_id!r}, expected "
-                                  f"{self.frame.frame_id!r}; ignored"))
-            return
-        if not isinstance(self.logged.dispatcher, DetectingDispatcher):
-            if not self._pose_refused:
-                self._pose_refused = True
-                self.report(f"{POSE.name}: the person's pose needs the motion detector (hrc ros2 --detect "
-                            "motion): each pose is refused")
-            self._say(_refusal(t, f"{POSE.name}: the person's pose needs the motion detector, which this "
-                                  "node was not started with (--detect motion); ignored"))
-            return
-        x, y = self.frame.from_frame(msg.pose.position.x, msg.pose.position.y)
-        line = json.dumps({"t": round(t, 3), "agent": self.human, "event": POSITION, "x": round(x, 3),
-                           "y": round(y, 3)})
-        self._answer(self._submit(line.encode("ascii")))
+    def _on_pose(self, person: str, topic: str) -> Callable[[PoseStamped], None]:
+        """The callback of `person`'s pose `topic` (the one person's ``human/pose``; a team's person's
+        ``PERSON/pose``, issue 37): each pose becomes `person`'s position message, which goes to their own
+        detector (`DetectingDispatcher.answer_position`)."""
+        def take(msg: PoseStamped) -> None:
+            t = msg.header.stamp.sec + msg.header.stamp.nanosec / 1e9
+            if msg.header.frame_id != self.frame.frame_id:
+                self._say(_refusal(t, f"{topic}: a pose in frame {msg.header.frame_id!r}, expected "
+                                      f"{self.frame.frame_id!r}; ignored"))
+                return
+            if not isinstance(self.logged.dispatcher, DetectingDispatcher):
+                if not self._pose_refused:
+                    self._pose_refused = True
+                    self.report(f"{topic}: the person's pose needs the motion detector (hrc ros2 --detect "
+                                "motion): each pose is refused")
+                self._say(_refusal(t, f"{topic}: the person's pose needs the motion detector, which this "
+                                      "node was not started with (--detect motion); ignored"))
+                return
+            x, y = self.frame.from_frame(msg.pose.position.x, msg.pose.position.y)
+            line = json.dumps({"t": round(t, 3), "agent": person, "event": POSITION, "x": round(x, 3),
+                               "y": round(y, 3)})
+            self._answer(self._submit(line.encode("ascii")))
+        return take
 
     def _on_tick(self) -> None:
         now = self.node.get_clock().now().nanoseconds / 1e9

@@ -3,9 +3,9 @@
 (`hrc.ros2.node`) builds its publishers and subscriptions from it.
 
 A team (issue 37: other than one person and one robot) has a goal, a route and an acknowledgement topic
-per robot and an observation topic per person, each under the agent's id (`robot_topics`,
-`person_topics`): ``/hrc/robot2/goal``, ``/hrc/alice/observations``. The shared ``observations`` and
-``answers`` stay.
+per robot and an observation and a pose topic per person, each under the agent's id (`robot_topics`,
+`person_topics`): ``/hrc/robot2/goal``, ``/hrc/alice/observations``, ``/hrc/alice/pose``. The shared
+``observations`` and ``answers`` stay.
 """
 
 from __future__ import annotations
@@ -85,7 +85,10 @@ def robot_topics(robot: str) -> dict[str, Topic]:
 
 
 def person_topics(person: str) -> dict[str, Topic]:
-    """A team's person's own topic under their id (issue 37): ``observations`` in, the lines of that
-    person's detector or buttons (each naming this person)."""
+    """A team's person's own topics under their id (issue 37): ``observations`` in, the lines of that
+    person's detector or buttons (each naming this person), and ``pose`` in, their tracked pose for their
+    own motion detector (``--detect motion``), as `POSE` is the one person's."""
     return {"observations": Topic(f"{person}/observations", OBSERVATIONS.type, "in", INPUT,
-                                  f"{person}'s observations, away and back (each line's agent must be {person})")}
+                                  f"{person}'s observations, away and back (each line's agent must be {person})"),
+            "pose": Topic(f"{person}/pose", POSE.type, "in", INPUT,
+                          f"{person}'s tracked position, for their motion detector (--detect motion)")}

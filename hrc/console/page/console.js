@@ -82,7 +82,8 @@
     const p = C.person ? s.persons[C.person] : null;
     if (!p) return { options: [], under_way: [], undo: null, hseq: -1, hint: null, ahead: null, away: false, presses: false };
     return { options: p.options, under_way: p.under_way, undo: p.undo, hseq: p.hseq, hint: (d.people || {})[C.person] || null,
-             ahead: (d.ahead || {})[C.person] || null, away: (d.away || []).includes(C.person), presses: true };
+             ahead: (d.ahead || {})[C.person] || null, away: (d.away || []).includes(C.person), presses: true,
+             detected: p.detected };
   }
   // one colour per agent, kept across the Gantt chart and the map
   const PALETTE = ["#d9731a", "#1f6fb2", "#2e9e4f", "#8e44ad", "#c0392b", "#138d90", "#7f6a00"];
@@ -183,7 +184,7 @@
     else for (const p of Object.keys(s.persons || {})) {
       const q = s.persons[p];
       drawDoing(doing, { under_way: q.under_way, hint: (d.people || {})[p] || null, ahead: (d.ahead || {})[p] || null,
-                         away: (d.away || []).includes(p) }, p, "the others take what " + p + " has not started.", p);
+                         away: (d.away || []).includes(p), detected: q.detected }, p, "the others take what " + p + " has not started.", p);
     }
     drawButtons();
     if (team()) drawRobots(s, d);
@@ -216,6 +217,9 @@
           (ahead.gap > 0 ? " and " + fmt(ahead.gap) + " s more" : "") + " before " + (tag ? "they " : "you ") + words(ahead.next)
           : words(ahead.next)));
     }
+    // with the motion detector (a team's person): the last events their own detector gave, newest first
+    const seen = (me.detected || []).filter((e) => e.event !== "undo").slice(-4).reverse();
+    if (seen.length) line("detected", "Seen by the tracker: " + seen.map((e) => `${e.event} ${e.action}.${e.phase} @${fmt(e.t)}`).join(", "));
   }
 
   // A team's robots (issue 37): one row per robot, its next step, window and link.
@@ -320,20 +324,25 @@
       svg.append(el("svg:circle", { cx: p[0], cy: -p[1], r: 0.09, fill: "#333" }));
       svg.append(el("svg:text", { x: p[0] + 0.14, y: -p[1] - 0.1, "font-size": 0.32, fill: "#222" }, id));
     }
+    const tracked = (agent) => s.persons ? (s.persons[agent] || {}).tracked : s.tracked;
     for (const [agent, a] of Object.entries(m.agents)) {
-      if (s.tracked && a.kind === "human") continue;  // the tracker says where the person is
+      if (a.kind === "human" && tracked(agent)) continue;  // the tracker says where the person is
       const at = s.where && s.where[agent] ? s.where[agent] : a.start, p = m.locations[at];
       if (!p) continue;
       svg.append(el("svg:circle", { cx: p[0], cy: -p[1], r: a.radius, fill: color(agent), "fill-opacity": 0.35, stroke: color(agent), "stroke-width": 0.05, class: "agent", "data-agent": agent }));
     }
     // The motion detector (hrc console --detect motion): the person's tracked position and its belief.
-    if (s.tracked) {
-      const human = Object.entries(m.agents).find(([, a]) => a.kind === "human"), b = s.belief || {};
-      const r = human ? human[1].radius : 0.3, col = color(human ? human[0] : "human");
-      const dot = el("svg:circle", { id: "tracked", cx: s.tracked.x, cy: -s.tracked.y, r, fill: col, "fill-opacity": 0.5, stroke: col, "stroke-width": 0.06, "stroke-dasharray": "0.12 0.08" });
-      dot.append(el("svg:title", {}, `tracked at ${fmt(s.tracked.t)} s: (${s.tracked.x}, ${s.tracked.y})`));
+    // A team's (issue 37): each person's own, from their own detector.
+    const people = s.persons ? Object.keys(s.persons).map((p) => [p, s.persons[p]])
+      : s.tracked ? [[(Object.entries(m.agents).find(([, a]) => a.kind === "human") || ["human"])[0], s]] : [];
+    for (const [agent, q] of people) {
+      const at = q.tracked, b = q.belief || {};
+      if (!at) continue;
+      const r = m.agents[agent] ? m.agents[agent].radius : 0.3, col = color(s.persons ? agent : "human"), one = !s.persons;
+      const dot = el("svg:circle", { id: one ? "tracked" : "tracked-" + agent, class: "tracked", "data-agent": agent, cx: at.x, cy: -at.y, r, fill: col, "fill-opacity": 0.5, stroke: col, "stroke-width": 0.06, "stroke-dasharray": "0.12 0.08" });
+      dot.append(el("svg:title", {}, `${one ? "" : agent + " "}tracked at ${fmt(at.t)} s: (${at.x}, ${at.y})`));
       svg.append(dot);
-      svg.append(el("svg:text", { id: "belief", x: s.tracked.x + r + 0.1, y: -s.tracked.y + 0.12, "font-size": 0.34, fill: "#222", stroke: "#fff", "stroke-width": 0.06, "paint-order": "stroke" }, beliefText(b)));
+      svg.append(el("svg:text", { id: one ? "belief" : "belief-" + agent, x: at.x + r + 0.1, y: -at.y + 0.12, "font-size": 0.34, fill: "#222", stroke: "#fff", "stroke-width": 0.06, "paint-order": "stroke" }, (one ? "" : agent + ": ") + beliefText(b)));
     }
   }
 
@@ -346,17 +355,20 @@
 
   function describeIn(m) {
     if (m.event === "tick") return "tick";
-    if (m.event === "position") return `position (${m.x.toFixed(2)}, ${m.y.toFixed(2)})`;
+    if (m.event === "position") return `${team() && m.agent ? m.agent + " " : ""}position (${m.x.toFixed(2)}, ${m.y.toFixed(2)})`;
     return [m.agent, m.event, m.action, m.phase].filter(Boolean).join(" ");
+  }
+  function detectedText(o) {  // the events a position's detector gave (a team's: whose detector)
+    if (!o.detect || !o.detect.events.length) return "";
+    return "detected " + (o.detect.agent ? o.detect.agent + " " : "") + o.detect.events.map((e) => e.event === "undo" ? "undo" : `${e.event} ${e.action}.${e.phase} @${fmt(e.t)}`).join(", ") + " · ";
   }
   function describeOut(o) {
     if (!o.ok) return "refused: " + o.error;
-    if (o.robots) return Object.entries(o.robots).map(([id, r]) => !r ? id + ": nothing" : r.wait_for ? id + " waits for " + r.wait_for
+    if (o.robots) return detectedText(o) + Object.entries(o.robots).map(([id, r]) => !r ? id + ": nothing" : r.wait_for ? id + " waits for " + r.wait_for
       : `${id} ${r.event} ${r.action}.${r.phase} in [${fmt(r.earliest)}, ${fmt(r.latest)}]`).join(" · ") + ` · plan ${o.plan} (${o.class})`;
     const r = o.robot;
     const step = !r ? "robot: nothing" : r.wait_for ? "robot waits for " + r.wait_for : `robot ${r.event} ${r.action}.${r.phase} in [${fmt(r.earliest)}, ${fmt(r.latest)}]`;
-    const seen = o.detect && o.detect.events.length ? "detected " + o.detect.events.map((e) => `${e.event} ${e.action}.${e.phase} @${fmt(e.t)}`).join(", ") + " · " : "";
-    return `${seen}${step} · plan ${o.plan} (${o.class})`;
+    return `${detectedText(o)}${step} · plan ${o.plan} (${o.class})`;
   }
   function drawLog() {
     const s = C.state, body = $("log").querySelector("tbody");
