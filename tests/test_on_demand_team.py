@@ -292,6 +292,15 @@ def test_a_joint_action_starts_in_the_fallback_only_once_every_agent_is_there() 
     assert fallback_steps(h, ("robot",), {})["robot"] == WaitFor("robot", "load", "lift", "end")
 
 
+def test_one_pair_joint_fallback_waits_for_the_persons_arrival() -> None:
+    """The workshop with "support the pile" (one person, one robot): arrived at the table T before the
+    person, the robot is not told to start the joint action in the fallback (before this rule it was
+    told to start on its own arrival)."""
+    task = load_task(ROOT / "tasks" / "cube_stacking_joint.yaml")
+    h = _history(task, (1, "robot", "support", "hold", "depart"), (9, "robot", "support", "hold", "arrive"))
+    assert fallback_steps(h, ("robot",), {})["robot"] == WaitFor("human", "support", "hold", "arrive")
+
+
 @pytest.fixture(scope="module")
 def kit(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """kitting_2robots (2,520 plans) searched for its best 2 plans, the person's first choice covered: a
