@@ -503,3 +503,40 @@ def test_hrc_simulate_runs_a_team_beyond_max_plans_compiling_on_demand(tmp_path:
     assert sum(r["on_demand"]["misses"] for r in runs) >= 1
     assert all(not r["on_demand"]["unrecovered"] for r in runs)
     assert sum(sim["policies"]["hrc"]["compile"].values()) < 1000  # the search's plans, not every plan
+
+
+@pytest.mark.slow
+def test_hrc_simulate_runs_a_team_beyond_the_default_limit(tmp_path: Path) -> None:
+    """A tests-only kitting_2robots with 7 picks (a second part at A: 181,440 plans, beyond the default
+    50,000) is simulated without a limit given (it used to be refused in one line): people who follow
+    finish every run; free people leave the plans, every miss is recovered (some runs of free people end in
+    the team floor's known deadlock: docs/simulate.md, "Teams")."""
+    import copy
+
+    import yaml
+
+    from hrc.cli import main
+    from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
+
+    src = ROOT / "tasks" / "kitting_2robots_6picks.yaml"
+    d = yaml.safe_load(src.read_text())
+    second = copy.deepcopy(d["actions"][0])
+    second.update(id="pick_g", name="pick a second part A into the kit")
+    d["actions"].append(second)
+    d["map"] = str((src.parent / d["map"]).resolve())
+    path = tmp_path / "kitting_2robots_7picks.yaml"
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    assert estimate(load_task(path)).plans.value > DEFAULT_MAX_PLANS
+    for human in ("follow", "free"):
+        out = tmp_path / human
+        assert main(["simulate", str(path), "--human", human, "--runs", "4", "--policy", "hrc", "--no-figures",
+                     "--jobs", "1", "--quiet", "--out", str(out)]) == 0
+        sim = json.loads((out / "simulation.json").read_text())
+        runs = sim["policies"]["hrc"]["runs"]
+        assert sum(sim["policies"]["hrc"]["compile"].values()) < 5000  # searched, not enumerated
+        assert all(not r["on_demand"]["unrecovered"] for r in runs)
+        if human == "follow":
+            assert all(r["finished"] for r in runs)
+        else:
+            assert sum(r["on_demand"]["misses"] for r in runs) >= 1
+            assert all(r["finished"] or r["reason"] == "deadlock: agents block each other" for r in runs)
