@@ -138,7 +138,7 @@ def test_coverage_takes_the_persons_joint_action_as_a_first_choice(lift) -> None
     nb = NodeBounds(task, paths)
     human = task.agent_ids.index("human")
     for i, action in enumerate(task.actions):
-        leaf = _dive(task, nb, (i,), DIVE_NODES)
+        leaf = _dive(task, nb, human, (i,), DIVE_NODES)
         assert leaf is not False, action.id
         assert (leaf is not None) == (action.id != "c"), action.id
         if leaf is not None:

@@ -222,7 +222,7 @@ def test_coverage_dives_find_every_possible_first_choice_of_the_gearbox():
         if "human" not in action.agents:
             continue
         possible = not any(task.action(j).agents == ("human",) for j, x in nb.before if x == action.id)
-        leaf = _dive(task, nb, (i,), DIVE_NODES)
+        leaf = _dive(task, nb, human, (i,), DIVE_NODES)
         assert leaf is not False, action.id
         assert (leaf is not None) == possible, action.id
         if leaf is not None:

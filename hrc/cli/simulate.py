@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hrc.cli.argtypes import delay_range
+from hrc.cli.argtypes import delay_range, whole
 from hrc.cli.compile import _Progress, _stated_sensing
 from hrc.errors import InputError, SimulationError
 from hrc.io.atomic import atomic_dir
@@ -41,6 +41,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--executor", default=None, metavar="URL",
                    help="run on a Dask scheduler instead, e.g. dask://127.0.0.1:8786")
     p.add_argument("--compile-seed", type=int, default=0, help="seed for motion planning (default 0)")
+    p.add_argument("--max-plans", type=whole(1), default=None, metavar="N",
+                   help="beyond N plans compile the best plans by search and compile on demand in the runs, as "
+                        "hrc compile --plans auto (default 50,000)")
     g = p.add_argument_group("the simulated person")
     g.add_argument("--human", choices=("follow", "preferred", "free"), default="follow",
                    help="how the person chooses the next action (default: follow the robot's current plan)")
@@ -329,7 +332,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         sim = simulate(task, args.runs, args.seed, policies, settings, jobs=args.jobs, executor=args.executor,
                        progress=bar, compile_seed=args.compile_seed, baseline=args.baseline_delay,
-                       keep_logs=args.keep_logs)
+                       keep_logs=args.keep_logs, max_plans=args.max_plans)
     finally:
         bar.close()
     elapsed = time.perf_counter() - t0

@@ -34,7 +34,10 @@ closed.
 at the start and after each of their first ``cover - 1`` choices, one plan in which they do it (the best
 the bound finds first, by a depth-first dive with the bound's order; not claimed optimal), so that the
 dispatcher has a plan for what the person actually does. A choice no valid plan allows is not one
-(the dive's tree is exhausted: reported as such).
+(the dive's tree is exhausted: reported as such). A team's people (issue 37) are covered each in turn,
+in task order, each one's own choices (the other agents' parts free); the counts are summed over them.
+A person's choices that depend on another person's (two people after the same part) are left to compile
+on demand (`hrc.dispatch.on_demand`), which extends every agent's observed prefix at once.
 
 Why branch and bound and not CP-SAT: the rank key is the *compiled* plan's (class by the DC check of
 the STNU with its passing orders, makespans from its motion pattern), which no solver model holds; a
@@ -162,7 +165,8 @@ class _State:
 
     keys: list[tuple] = field(default_factory=list)  # best first, at most k (first four parts of rank_key)
     ids: set[str] = field(default_factory=set)
-    prefixes: set[tuple[str, ...]] = field(default_factory=set)  # the person's sequence prefixes compiled
+    # each person's sequence prefixes compiled, ``(person, (action, ...))``
+    prefixes: set[tuple[str, tuple[str, ...]]] = field(default_factory=set)
     families: int = 0
     best_at: float = 0.0  # time.perf_counter() when the best key so far was found
 
@@ -281,15 +285,15 @@ def _compile_leaf(task: Task, paths: PathLibrary, work: tuple) -> tuple[int, lis
 
 def _take(state: _State, task: Task, family: tuple[Plan, ...], keys: list[tuple], k: int) -> None:
     state.families += 1
-    human = _person(task)
+    people = _people(task)
     for plan, key in zip(family, keys, strict=True):
         if plan.id in state.ids:
             continue
         state.ids.add(plan.id)
         state.keys.append(key[:4])
-        if human is not None:
+        for human in people:
             seq = plan.sequence(human)
-            state.prefixes.update(seq[:n] for n in range(1, len(seq) + 1))
+            state.prefixes.update((human, seq[:n]) for n in range(1, len(seq) + 1))
     first = state.keys[0] if state.keys else None
     state.keys.sort()
     del state.keys[k:]
@@ -297,15 +301,15 @@ def _take(state: _State, task: Task, family: tuple[Plan, ...], keys: list[tuple]
         state.best_at = time.perf_counter()
 
 
-def _person(task: Task) -> str | None:
-    return next((a.id for a in task.agents if a.is_human), None)
+def _people(task: Task) -> tuple[str, ...]:
+    """The task's people, in task order (each one's choices are covered: a team's too, issue 37)."""
+    return tuple(a.id for a in task.agents if a.is_human)
 
 
-def _dive(task: Task, bounds: NodeBounds, cover: tuple[int, ...], budget: int) -> Node | None | bool:
-    """Depth-first, children best bound first, to the first leaf whose person's sequence starts with
-    `cover`: the leaf; None when no valid plan does (the tree is exhausted); False when `budget` nodes
-    were expanded first."""
-    agent = task.agent_ids.index(_person(task) or task.agent_ids[0])
+def _dive(task: Task, bounds: NodeBounds, agent: int, cover: tuple[int, ...], budget: int) -> Node | None | bool:
+    """Depth-first, children best bound first, to the first leaf whose sequence of the person `agent`
+    (index in task order) starts with `cover`: the leaf; None when no valid plan does (the tree is
+    exhausted); False when `budget` nodes were expanded first."""
     root = bounds.root()
     rb = bounds.bound(root)
     stack = [] if rb is None else [(root, rb)]
@@ -330,11 +334,20 @@ def _dive(task: Task, bounds: NodeBounds, cover: tuple[int, ...], budget: int) -
 def _cover(task: Task, bounds: NodeBounds, state: _State, depth: int, deadline: float,
            compile_family: Callable[[tuple[Plan, ...]], list[tuple]],
            stop: Callable[[], None] | None) -> tuple[int, int, int, int]:
-    """Coverage (module docstring): (choices, covered, impossible, given up)."""
-    human = _person(task)
-    if human is None or depth < 1:
-        return 0, 0, 0, 0
-    h = task.agent_ids.index(human)
+    """Coverage (module docstring), of every person in turn (task order): (choices, covered, impossible,
+    given up), summed over them."""
+    found = (0, 0, 0, 0)
+    for human in _people(task) if depth >= 1 else ():
+        mine = _cover_person(task, bounds, state, task.agent_ids.index(human), depth, deadline, compile_family, stop)
+        found = tuple(a + b for a, b in zip(found, mine, strict=True))  # type: ignore[assignment]
+    return found
+
+
+def _cover_person(task: Task, bounds: NodeBounds, state: _State, h: int, depth: int, deadline: float,
+                  compile_family: Callable[[tuple[Plan, ...]], list[tuple]],
+                  stop: Callable[[], None] | None) -> tuple[int, int, int, int]:
+    """`_cover` for the person `h` (index in task order)."""
+    human = task.agent_ids[h]
     mine = [i for i in range(bounds.n) if h in bounds.does[i]]  # (a joint action of theirs too)
     choices = covered = impossible = given_up = 0
     level: list[tuple[int, ...]] = [()]
@@ -349,14 +362,14 @@ def _cover(task: Task, bounds: NodeBounds, state: _State, depth: int, deadline: 
                 target = (*prefix, x)
                 choices += 1
                 names = tuple(task.action_ids[i] for i in target)
-                if names in state.prefixes:
+                if (human, names) in state.prefixes:
                     covered += 1
                     nxt.append(target)
                     continue
                 if time.perf_counter() > deadline:
                     given_up += 1
                     continue
-                leaf = _dive(task, bounds, target, DIVE_NODES)
+                leaf = _dive(task, bounds, h, target, DIVE_NODES)
                 if leaf is None:
                     impossible += 1
                 elif leaf is False:

@@ -56,7 +56,7 @@ from hrc.motion.separation import limits
 from hrc.temporal import ExecutionMode, ExecutionWindow, real_time_state
 from hrc.temporal.execution import residual_origin
 
-from .fallback import fallback_decision
+from .fallback import fallback_decision, fallback_steps
 from .messages import LEG_EVENTS, Ahead, Candidate, Decision, HumanOption, Observation, RobotStep, WaitFor, ack_note
 from .native import NO_BOUND
 from .plan_set import EventKey, PlanEntry, PlanSet, load_plan_set, plan_set_from_compiled
@@ -651,10 +651,15 @@ class Dispatcher:
         lead = None if deviation is not None else self._lead(kept, cls, previous)
         at = self.ranker.best(kept, cls, finish, idle, lead)
         if at < 0 and self.fallback and not self.feasible_only:  # no plan agrees: compile on demand
-            decision = fallback_decision(history, self._robot, None if previous is None else previous.decision.robot,
-                                         counts, ack, deviation)
-            if self._team:  # the first robot's fallback; the others wait
-                decision = replace(decision, **self._per_agent({self._robot: decision.robot}, {}, history))
+            if not self._team:
+                decision = fallback_decision(history, self._robot,
+                                             None if previous is None else previous.decision.robot, counts, ack,
+                                             deviation)
+            else:  # every robot its own fallback step (issue 37), the people told nothing
+                told = {} if previous is None else (previous.decision.robots or {})
+                steps = fallback_steps(history, self._robots, told)
+                decision = fallback_decision(history, self._robot, None, counts, ack, deviation,
+                                             self._per_agent(steps, {}, history))
             best = -1
         elif at < 0:
             decision = Decision(history.now, None, None, MappingProxyType(counts), None, history.away, True, ack=ack,

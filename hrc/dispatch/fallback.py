@@ -15,27 +15,38 @@ answer meanwhile is the robot's next step that *every* plan extending the histor
 - between legs the plans that extend the history may differ in the robot's next leg, so there is no
   step they all allow: wait (robot None, ``"fallback": "wait"``).
 
+**Teams** (issue 37): every robot gets its own step by the same rule (`fallback_steps`), each from its
+own legs, so a robot is only ever told the next event of a leg it is on itself: never the start of an
+action another robot or a person is doing or has done (History refuses a second doer), never a new leg.
+A joint action (`hrc.model.Action.roles`; its start and end are its lead's, `hrc.model.Task.lead`) is
+started only when every agent of it has been seen arriving at the place: until then its lead waits for
+the first missing arrival (``wait_for``, as `Dispatcher._joint_hold` with a plan); its end is nature's
+when a person takes part (the lead is told to wait for it), else within the longest of its agents'
+duration bounds; an agent of it that is not its lead has no start or end of its own and waits. The
+people are told nothing (their hints come from a plan).
+
 No step here rests on the plans' temporal guarantee (there is no plan): the answer says so with its
-``fallback`` key, and the class is None.
+``fallback`` key (``"continue"`` when some robot has a step, else ``"wait"``), and the class is None.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
 
 from .messages import Decision, RobotStep, WaitFor
 from .validation import History
 
-__all__ = ["fallback_decision", "fallback_step"]
+__all__ = ["fallback_decision", "fallback_step", "fallback_steps"]
 
 _NEXT = {"depart": "arrive", "unpark": "arrive", "arrive": "start", "start": "end"}
 
 
-def fallback_step(history: History, robot: str, told: RobotStep | WaitFor | None) -> RobotStep | None:
+def fallback_step(history: History, robot: str, told: RobotStep | WaitFor | None) -> RobotStep | WaitFor | None:
     """The robot's next step that every plan extending `history` allows (module docstring), or None
-    (wait). `told`: the robot's step in the last answer (a drive under way keeps its window)."""
+    (wait). `told`: the robot's step in the last answer (a drive under way keeps its window). A `WaitFor`
+    only on a joint action (its start waits for every agent's arrival; its end with a person is nature's)."""
     task = history.task
     current = history.current(robot)
     if current is None:
@@ -46,6 +57,11 @@ def fallback_step(history: History, robot: str, told: RobotStep | WaitFor | None
     if event is None:
         return None
     now = history.now
+    act = task.action(action)
+    if act.joint and event in ("start", "end"):
+        held, instead = _joint(history, robot, act.agents, action, phase, event)
+        if held:
+            return instead
     if isinstance(told, RobotStep) and (told.action, told.phase, told.event) == (action, phase, event):
         return RobotStep(action, phase, event, max(now, told.earliest), told.latest)
     if event == "start":
@@ -54,16 +70,47 @@ def fallback_step(history: History, robot: str, told: RobotStep | WaitFor | None
                 return None
         return RobotStep(action, phase, event, now, None)
     if event == "end":
-        bounds = task.action(action).phase(phase).duration(robot)
+        ph, doers = act.phase(phase), act.agents if act.joint else (robot,)  # a joint one: its slowest role
+        lb, ub = max(ph.duration(a).lb for a in doers), max(ph.duration(a).ub for a in doers)
         began = history.times[(robot, action, phase, "start")]
-        latest = None if bounds.ub == float("inf") else round(max(now, began + bounds.ub), 3)
-        return RobotStep(action, phase, event, round(max(now, began + bounds.lb), 3), latest)
+        latest = None if ub == float("inf") else round(max(now, began + ub), 3)
+        return RobotStep(action, phase, event, round(max(now, began + lb), 3), latest)
     return RobotStep(action, phase, event, now, None)
 
 
+def _joint(history: History, robot: str, agents: tuple[str, ...], action: str, phase: str,
+           event: str) -> tuple[bool, WaitFor | None]:
+    """The start or end of a joint action for `robot`: whether it is held, and what it is told instead
+    (module docstring); not held, it is told as any leg's."""
+    task = history.task
+    lead = task.lead(action)
+    if robot != lead:
+        return True, None  # its lead starts and ends it
+    if event == "start":
+        for other in agents:
+            if other != robot and (other, action, phase, "arrive") not in history.times:
+                return True, WaitFor(other, action, phase, "arrive")
+        return False, None
+    if any(task.agent(a).is_human for a in agents):  # nature's: the last role done
+        return True, WaitFor(robot, action, phase, "end")
+    return False, None
+
+
+def fallback_steps(history: History, robots: Sequence[str],
+                   told: Mapping[str, RobotStep | WaitFor | None]) -> dict[str, RobotStep | WaitFor | None]:
+    """Every robot's fallback step (`fallback_step`, each from its own legs), by id in `robots`' order;
+    `told`: each robot's step in the last answer."""
+    return {r: fallback_step(history, r, told.get(r)) for r in robots}
+
+
 def fallback_decision(history: History, robot: str, told: RobotStep | WaitFor | None,
-                      counts: Mapping[str, int], ack: Any, deviation: Mapping[str, Any] | None) -> Decision:
-    """The answer while no plan agrees with `history` (module docstring)."""
-    step = fallback_step(history, robot, told)
+                      counts: Mapping[str, int], ack: Any, deviation: Mapping[str, Any] | None,
+                      team: Mapping[str, Any] | None = None) -> Decision:
+    """The answer while no plan agrees with `history` (module docstring): `robot`'s step. For a team
+    (`team`: `Dispatcher._per_agent`'s ``robots``, ``people``, ``aheads``, ``away``, with every robot's
+    step from `fallback_steps`), `robot` is the first robot and the key ``fallback`` says ``"continue"``
+    when any robot has a step."""
+    step = fallback_step(history, robot, told) if team is None else team["robots"].get(robot)
+    steps = [step] if team is None else list(team["robots"].values())
     return Decision(history.now, None, None, MappingProxyType(dict(counts)), step, history.away, False, None, ack,
-                    deviation, None, "wait" if step is None else "continue")
+                    deviation, None, "wait" if all(s is None for s in steps) else "continue", **(team or {}))

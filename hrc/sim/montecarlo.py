@@ -151,16 +151,18 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
              settings: SimSettings | None = None, jobs: int | None = None, executor: str | None = None,
              progress: Progress | None = None, compile_seed: int = 0,
              compiles: dict[str, CompiledPlanSet] | None = None, baseline: float | None = None,
-             keep_logs: bool = False) -> Simulation:
+             keep_logs: bool = False, max_plans: int | None = None) -> Simulation:
     """Compile (unless `compiles` are given) and run everything (see the module docstring). With the motion
     detector, the dispatched policies again with buttons `baseline` seconds late (default: the detector's
     median delay, `baseline_delay`) on the same seeds. `keep_logs`: each run's observations and answers as
-    a dispatcher log too (`Simulation.logs`, for ``hrc learn``; the runs themselves are the same)."""
+    a dispatcher log too (`Simulation.logs`, for ``hrc learn``; the runs themselves are the same).
+    `max_plans`: beyond this many plans the motion-aware compile is the search's (default
+    `hrc.compile.estimate.DEFAULT_MAX_PLANS`, as ``hrc compile --plans auto``), compiling on demand in the
+    runs, a team's too."""
     if runs < 1:
         raise SimulationError(f"--runs must be at least 1, found {runs}")
     chosen = check_policies(policies)
     settings = settings or SimSettings()
-    _check_team(task, settings)
     joint = next((i for i, a in enumerate(task.actions) if a.joint), None)
     if joint is not None and settings.motion and not is_team(task):  # the one-pair loop: the detector would
         # find the person's start and end of each step (a team's loop gives a joint action's to its lead)
@@ -169,7 +171,7 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     settings.human.check(task)
     compiles = dict(compiles or {})
     if "motion" not in compiles:
-        compiles["motion"] = _compile(task, compile_seed, jobs, executor, progress)
+        compiles["motion"] = _compile(task, compile_seed, jobs, executor, progress, max_plans)
     if "blind" not in compiles and any(POLICIES[p].compile == "blind" for p in chosen):
         from hrc.sim.blind import blind_compile
 
@@ -189,32 +191,15 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
     return Simulation(ctx, runs, chosen, ordered, compile_seed, base, delay, logs)
 
 
-def _check_team(task: Task, settings: SimSettings) -> None:
-    """A team (issue 37: other than one person and one robot) runs on the team floor (`hrc.sim.team_run`),
-    which leaves some things out: each is refused here in one line, before anything is compiled."""
-    if not is_team(task):
-        return
-    what: list[str] = []
-    from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
-
-    if estimate(task).plans.value > DEFAULT_MAX_PLANS:
-        what.append(f"more than {DEFAULT_MAX_PLANS:,} plans (compile on demand)")
-    if what:
-        people = sum(1 for a in task.agents if a.is_human)
-        robots = len(task.agents) - people
-        team = f"{people} {'person' if people == 1 else 'people'} and {robots} robot{'' if robots == 1 else 's'}"
-        raise SimulationError(f"{task.source}: agents: hrc simulate runs a team ({team}) "
-                              f"without {', '.join(what)} (docs/simulate.md, \"Teams\")")
-
-
-def _compile(task: Task, seed: int, jobs: int | None, executor: str | None, progress: Progress | None
-             ) -> CompiledPlanSet:
+def _compile(task: Task, seed: int, jobs: int | None, executor: str | None, progress: Progress | None,
+             max_plans: int | None = None) -> CompiledPlanSet:
     """The motion-aware compile: every plan, or beyond `hrc.compile.estimate.DEFAULT_MAX_PLANS` (as ``hrc
     compile --plans auto``) the search's best plans and coverage of the person's first choices, the
     dispatcher compiling on demand what a run needs beyond them (`hrc.dispatch.on_demand`)."""
     from hrc.compile.estimate import DEFAULT_MAX_PLANS, estimate
 
-    if estimate(task).plans.value <= DEFAULT_MAX_PLANS:  # a small one kept on disk (`hrc.sim.compile_cache`)
+    limit = DEFAULT_MAX_PLANS if max_plans is None else max_plans
+    if estimate(task).plans.value <= limit:  # a small one kept on disk (`hrc.sim.compile_cache`)
         return kept_compile("motion", task, seed, executor, lambda: compile_task(
             task, seed=seed, jobs=jobs, executor=executor, progress=progress), progress)
     from hrc.compile.search import search_in_memory

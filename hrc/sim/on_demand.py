@@ -13,17 +13,22 @@ the answer latencies: it runs beside the dispatcher).
 Per run: `misses` (answers that fell back: a plan was followed before), `recovery` (run seconds from each
 miss to the first answer from a plan again) and the compiles. The compiles of one prefix are kept per
 process (`Compiles`): a prefix met again in another run costs nothing the second time.
+
+A team's run (issue 37, `hrc.sim.team_run`) compiles on demand the same way (`attach`): the prefix is
+every agent's actions seen, every robot answers from its own fallback step meanwhile
+(`hrc.dispatch.fallback`).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 from hrc.compile.compiler import CompiledPlan, CompiledPlanSet
 from hrc.compile.extend import EXTEND_FAMILIES, EXTEND_K, Prefix, extend_plans
 
-__all__ = ["COMPILE_DELAY", "Compiles", "OnDemandRun"]
+__all__ = ["COMPILE_DELAY", "Compiles", "OnDemandRun", "attach"]
 
 COMPILE_DELAY = 2.0
 """Run seconds from a miss to the plans compiled for it (a compile on demand of kitting_12picks takes
@@ -72,3 +77,17 @@ class OnDemandRun:
     def to_json(self) -> dict:
         return {"misses": self.misses, "recovery": [round(x, 3) for x in self.recovery],
                 "unrecovered": self.missed_at is not None, "plans_adopted": self.adopted}
+
+
+def attach(cache: dict, kind: str, cps: CompiledPlanSet, dispatcher: Any) -> OnDemandRun:
+    """Make `dispatcher` (a run's, over the searched compile `cps` of kind `kind`) compile on demand as
+    ``hrc dispatch`` does (`hrc.dispatch.on_demand.enable`); the run's `OnDemandRun`, its compiles kept in
+    `cache` (the process's, per kind) for every run."""
+    from hrc.dispatch.on_demand import OnDemandSettings, enable
+
+    compiles = cache.get(("compiles", kind))
+    if compiles is None:
+        compiles = cache[("compiles", kind)] = Compiles(cps)
+    enable(dispatcher, OnDemandSettings(seed=cps.seed, human_waits=cps.options.human_waits,
+                                        rank_by=cps.options.rank_by))
+    return OnDemandRun(compiles)

@@ -141,8 +141,9 @@ class Controller:
 
 def order_of(step: Any, fallback: str | None) -> Order | None:
     """A robot's step of a dispatcher's answer as an order: a timed event, a wait (a `WaitFor`, or no step
-    and the fallback says wait: no plan yet, stay, do not go home), or None (nothing: it goes home)."""
-    if step is None and fallback == "wait":
+    in a fallback answer: no plan yet, stay, do not go home; in a team's, another robot may continue its
+    leg meanwhile), or None (nothing: it goes home)."""
+    if step is None and fallback is not None:
         return Order("", "", "wait")
     if step is None:
         return None
@@ -181,9 +182,52 @@ class Answering:
         self.plan_id: str | None = dec.plan
         self.first_class = self.plan_class = dec.plan_class
         self.stopped = bool(dec.stopped)
+        self.on_demand: OnDemandRun | None = None  # compile on demand (`hrc.sim.on_demand`): a searched compile
 
     def observe(self, h: Happening) -> None:
         raise NotImplementedError
+
+    def _ask(self, t: float, dec: Any) -> None:
+        """After an answer: a miss (the fallback after a plan) counted; plans asked for (`hrc.sim.on_demand`;
+        a team's as one pair's: the prefix is every agent's)."""
+        from hrc.dispatch.on_demand import wanted
+        from hrc.sim.on_demand import COMPILE_DELAY
+
+        od = self.on_demand
+        assert od is not None
+        if dec.fallback is None:
+            if od.missed_at is not None:
+                od.recovery.append(t - od.missed_at)
+                od.missed_at = None
+            return
+        if od.missed_at is None:
+            od.misses += 1
+            od.missed_at = t
+        prefix = wanted(self.d)
+        if prefix is not None and od.pending is None:
+            od.pending = (prefix, t + COMPILE_DELAY)
+
+    def _adopt(self, t: float) -> None:
+        """The plans asked for, compiled (`hrc.sim.on_demand.Compiles`), adopted once their time has come."""
+        from hrc.dispatch.on_demand import adopt, plan_rows
+
+        od = self.on_demand
+        assert od is not None
+        if od.pending is None or t < od.pending[1] - 1e-9:
+            return
+        prefix = od.pending[0]
+        od.pending = None
+        plans, seconds = od.compiles.plans(prefix)
+        if seconds is not None:
+            od.compile_seconds.append(seconds)
+        for cp in plans:
+            self.by_id.setdefault(cp.plan.id, cp)
+        self.d, n = adopt(self.d, plan_rows(plans))
+        od.adopted += n
+
+    def due(self) -> float | None:
+        """When the run must wake this controller (plans compiled on demand come), or None."""
+        return None if self.on_demand is None else self.on_demand.due()
 
     @staticmethod
     def _observation(h: Happening) -> Any:
@@ -253,7 +297,6 @@ class DispatchedController(Answering, Controller):
 
     def __init__(self, dispatcher: Any, cps: CompiledPlanSet, real: PathLibrary, blind: bool) -> None:
         super().__init__(dispatcher, cps, real, blind)
-        self.on_demand: OnDemandRun | None = None  # compile on demand (`hrc.sim.on_demand`): a searched compile
         self.detected: list[tuple[float, float, str, str, str]] = []  # (given at, estimated t, event, action, phase)
         self.detect_refused: list[str] = []
         self.withdrawn = 0  # departures the detector gave and withdrew (undo)
@@ -275,47 +318,6 @@ class DispatchedController(Answering, Controller):
         self._after(dec)
         if self.on_demand is not None:
             self._ask(obs.t, dec)
-
-    def _ask(self, t: float, dec: Any) -> None:
-        """After an answer: a miss (the fallback after a plan) counted; plans asked for (`hrc.sim.on_demand`)."""
-        from hrc.dispatch.on_demand import wanted
-        from hrc.sim.on_demand import COMPILE_DELAY
-
-        od = self.on_demand
-        assert od is not None
-        if dec.fallback is None:
-            if od.missed_at is not None:
-                od.recovery.append(t - od.missed_at)
-                od.missed_at = None
-            return
-        if od.missed_at is None:
-            od.misses += 1
-            od.missed_at = t
-        prefix = wanted(self.d)
-        if prefix is not None and od.pending is None:
-            od.pending = (prefix, t + COMPILE_DELAY)
-
-    def _adopt(self, t: float) -> None:
-        """The plans asked for, compiled (`hrc.sim.on_demand.Compiles`), adopted once their time has come."""
-        from hrc.dispatch.on_demand import adopt, plan_rows
-
-        od = self.on_demand
-        assert od is not None
-        if od.pending is None or t < od.pending[1] - 1e-9:
-            return
-        prefix = od.pending[0]
-        od.pending = None
-        plans, seconds = od.compiles.plans(prefix)
-        if seconds is not None:
-            od.compile_seconds.append(seconds)
-        for cp in plans:
-            self.by_id.setdefault(cp.plan.id, cp)
-        self.d, n = adopt(self.d, plan_rows(plans))
-        od.adopted += n
-
-    def due(self) -> float | None:
-        """When the run must wake this controller (plans compiled on demand come), or None."""
-        return None if self.on_demand is None else self.on_demand.due()
 
     def position(self, now: float, t: float, x: float, y: float) -> bool:
         """The person's position measured at `t` reaches the motion detector at run time `now`

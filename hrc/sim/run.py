@@ -229,15 +229,9 @@ def make_controller(ctx: SimContext, policy: Policy) -> Controller:
     # is a fresh one: 30 us instead of 0.3 s (workshop) for `from_compiled` (the API has no reset or copy).
     ctl = DispatchedController(pristine.fork(), cps, ctx.paths, policy.compile == "blind")
     if cps.search and not motion and not policy.feasible_only:  # a searched compile: compile on demand
-        from hrc.dispatch.on_demand import OnDemandSettings, enable
-        from hrc.sim.on_demand import Compiles, OnDemandRun
+        from hrc.sim.on_demand import attach
 
-        compiles = ctx.cache.get(("compiles", policy.compile))
-        if compiles is None:
-            compiles = ctx.cache[("compiles", policy.compile)] = Compiles(cps)
-        enable(ctl.d, OnDemandSettings(seed=cps.seed, human_waits=cps.options.human_waits,
-                                       rank_by=cps.options.rank_by))
-        ctl.on_demand = OnDemandRun(compiles)
+        ctl.on_demand = attach(ctx.cache, policy.compile, cps, ctl.d)
     return ctl
 
 

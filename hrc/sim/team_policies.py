@@ -6,6 +6,9 @@ fixed plan, and each person's reading of their own part of it.
   times of their events come from their own hint (`Decision.people`), their instruction ahead
   (`Decision.aheads`), else the best plan's planned times of their own events (what their console page
   would show): never another agent's part, never the true events;
+  Over a searched compile (a task beyond ``--max-plans``) it compiles on demand as the one pair's does
+  (`hrc.sim.on_demand`): every robot goes on from its own fallback step until plans extending every
+  agent's observed prefix come;
 - `TeamFixed`: the compile's best plan, no adaptation: each robot does its legs in order at the plan's
   earliest schedule, skipping an action another agent has started;
 - `make_team_controller`: a fresh one per run (a dispatcher forked from a per-process pristine one).
@@ -74,11 +77,16 @@ class TeamDispatched(Answering):
         return bool(given)
 
     def observe(self, h: Happening) -> None:
-        dec = self._answer(self._observation(h), h)
+        obs = self._observation(h)
+        if self.on_demand is not None:  # compile on demand (`hrc.sim.on_demand`), as the one pair's
+            self._adopt(obs.t)
+        dec = self._answer(obs, h)
         if dec is not None:
             if dec.deviation is not None and "late" in dec.deviation and self.late_observations is not None:
                 self.late_observations += 1
             self._after(dec)
+            if self.on_demand is not None:
+                self._ask(obs.t, dec)
 
     def order(self, robot: str) -> Order | None:
         """`robot`'s entry of the answer as an order (made once per answer)."""
@@ -191,4 +199,9 @@ def make_team_controller(ctx: SimContext, policy: Policy) -> TeamController:
                 params=DetectParams(sigma=max(ctx.settings.sensor.sigma, 0.01)))
         else:
             pristine = ctx.cache[key] = Dispatcher.from_compiled(cps, feasible_only=policy.feasible_only, threads=1)
-    return TeamDispatched(pristine.fork(), cps, ctx, policy.compile == "blind")
+    ctl = TeamDispatched(pristine.fork(), cps, ctx, policy.compile == "blind")
+    if cps.search and not motion and not policy.feasible_only:  # a searched compile: compile on demand
+        from hrc.sim.on_demand import attach
+
+        ctl.on_demand = attach(ctx.cache, policy.compile, cps, ctl.d)
+    return ctl

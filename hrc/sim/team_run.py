@@ -31,8 +31,10 @@ the floor and the dispatcher is told that person's ``away`` (the others and the 
 ``back`` when they return (`_TeamRun._leave`, `_come_back`). With ``--detector motion`` each person has a
 tracker of their own (`hrc.detect.sensor.Sensor`, their own random numbers) whose positions go, naming them,
 to their own detector in front of the dispatcher (`hrc.detect.online`; the one pair's drain after the last
-phase, `_drained`, and its floor measures taken at the last phase). Left out for a team (refused by
-`hrc.sim.montecarlo.simulate` in one line): compile on demand (a searched compile).
+phase, `_drained`, and its floor measures taken at the last phase). Over a searched compile (a task beyond
+``--max-plans``) the dispatcher compiles on demand as the one pair's does (`hrc.sim.on_demand`): every
+robot goes on from its own fallback step, the run is woken when the plans come (`next_time`) and a tick
+takes them in; the run reports its misses and recovery (``on_demand``).
 
 **Stand-offs** are resolved per pair of agents by the one pair's rules (`hrc.sim.standoff.Standoffs`, from
 which this loop derives; `_TeamRun._home_or_aside`): an agent held up `ASIDE_AFTER` seconds by another
@@ -626,6 +628,8 @@ class _TeamRun(Standoffs[_Agent]):
                 cands.append(o.earliest)
         if isinstance(self.ctl, TeamDispatched) and self.ctx.settings.tick > 0 and not self.done():
             cands.append(max(self.last_obs, self.last_tick) + self.ctx.settings.tick)
+        if isinstance(self.ctl, TeamDispatched) and (due := self.ctl.due()) is not None:
+            cands.append(due)  # plans compiled on demand come then (`hrc.sim.on_demand`)
         future = [c for c in cands if c > t + _EPS and math.isfinite(c)]
         if self.sensors is not None:  # the trackers go on measuring; a detector may yet give an event
             quiet = not future and self.finished_at is None
@@ -697,6 +701,9 @@ class _TeamRun(Standoffs[_Agent]):
                 self.last_tick = nt
                 self.ctl.tick(max(nt, self.last_obs))
                 self.last_obs = max(nt, self.last_obs)
+            elif isinstance(self.ctl, TeamDispatched) and (due := self.ctl.due()) is not None and nt >= due - _EPS:
+                self.ctl.tick(max(nt, self.last_obs))  # the plans compiled on demand have come: a tick takes them in
+                self.last_obs = max(nt, self.last_obs)
             moving = [a.mover for a in self.agents.values() if a.mover.moving]
             waiting = [a for a in self.agents.values() if a.mode == "aside_wait"]  # made room, to go back or on
             # everyone under way is held up (an agent waiting to go back waits for them), or nobody is under
@@ -754,6 +761,7 @@ class _TeamRun(Standoffs[_Agent]):
                                        if h.agent == a and h.event == "depart" and h.action)) for a in self.agents}
         ctl = self.ctl
         first_cp, kept, broken = self._first_kept(self.ctx.compiles[self.policy.compile], finished, times, seqs)
+        od = getattr(ctl, "on_demand", None)  # compile on demand (`hrc.sim.on_demand`), with a searched compile
         floor = self.floor
         separation = floor.separation()
         for p in self.people:  # still away when the run ended
@@ -806,6 +814,8 @@ class _TeamRun(Standoffs[_Agent]):
             detection=detection,
             late_observations=getattr(ctl, "late_observations", None),
             first_sensing_class=None if first_cp is None else first_cp.plan_class.value,
+            on_demand=None if od is None else od.to_json(),
+            compile_seconds=() if od is None else tuple(od.compile_seconds),
             happenings=tuple(self.happenings) if self.record else (),
             agent_frames=tuple(self.frames))
 
