@@ -27,6 +27,10 @@ __all__ = ["clearance", "dump_workspace", "load_workspace", "workspace_to_dict"]
 
 _DXF_ID = re.compile(r"dxf[0-9]+")
 
+MAX_COORDINATE = 1e5  # m: a coordinate of a shop floor's map at most this far from its origin (100 km). The
+# geometry (shapely, FCL, OMPL) works in doubles; a coordinate near 1e154 overflows in a buffer (found by
+# tests/test_io_errors.py's fuzz) and one of 1e15 leaves no room for millimetres.
+
 
 def load_workspace(path: str | os.PathLike[str]) -> Workspace:
     """Read and validate a map file; raises `MapFileError` naming file, line and key on bad input."""
@@ -62,7 +66,8 @@ def _bounds(doc: Doc, raw: Any) -> tuple[float, float, float, float]:
     seq = doc.sequence(raw, ("bounds",))
     if len(seq) != 4:
         doc.fail(("bounds",), f"expected [xmin, ymin, xmax, ymax], found a list of {len(seq)}")
-    xmin, ymin, xmax, ymax = (doc.number(v, ("bounds", i)) for i, v in enumerate(seq))
+    xmin, ymin, xmax, ymax = (doc.number(v, ("bounds", i), maximum=MAX_COORDINATE, unit=" m")
+                              for i, v in enumerate(seq))
     if xmin >= xmax or ymin >= ymax:
         doc.fail(("bounds",), f"empty area: need xmin < xmax and ymin < ymax, found {seq}")
     return (xmin, ymin, xmax, ymax)
@@ -72,7 +77,8 @@ def _point(doc: Doc, raw: Any, path: tuple) -> tuple[float, float]:
     seq = doc.sequence(raw, path)
     if len(seq) != 2:
         doc.fail(path, f"expected [x, y], found a list of {len(seq)}")
-    return (doc.number(seq[0], path + (0,)), doc.number(seq[1], path + (1,)))
+    return (doc.number(seq[0], path + (0,), maximum=MAX_COORDINATE, unit=" m"),
+            doc.number(seq[1], path + (1,), maximum=MAX_COORDINATE, unit=" m"))
 
 
 def _obstacle(doc: Doc, raw: Any, path: tuple) -> Obstacle:
@@ -84,7 +90,8 @@ def _obstacle(doc: Doc, raw: Any, path: tuple) -> Obstacle:
         seq = doc.sequence(m["rect"], path + ("rect",))
         if len(seq) != 4:
             doc.fail(path + ("rect",), f"expected [xmin, ymin, xmax, ymax], found a list of {len(seq)}")
-        x0, y0, x1, y1 = (doc.number(v, path + ("rect", i)) for i, v in enumerate(seq))
+        x0, y0, x1, y1 = (doc.number(v, path + ("rect", i), maximum=MAX_COORDINATE, unit=" m")
+                          for i, v in enumerate(seq))
         if x0 >= x1 or y0 >= y1:
             doc.fail(path + ("rect",), "empty rectangle: need xmin < xmax and ymin < ymax")
         pts: tuple[tuple[float, float], ...] = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
