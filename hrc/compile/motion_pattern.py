@@ -102,6 +102,9 @@ class PassingOrder:
     first: str
     how: str
 
+    def __getstate__(self) -> list:
+        return [self.conflict, self.first, self.how]  # see `hrc.motion.conflicts.TimeRef.__getstate__`
+
     @property
     def separation(self) -> Separation:
         return self.conflict.robot_first if self.first == "robot" else self.conflict.human_first

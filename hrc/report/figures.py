@@ -44,12 +44,14 @@ def agent_color(task: Task, agent_id: str) -> str:
 
 
 def new_figure(width: float, height: float) -> Figure:
-    """A figure of `width` x `height` inches attached to its own Agg canvas."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    """A figure of `width` x `height` inches attached to its own Agg canvas (one that renders a string
+    drawn in the same place again from the process's cache: `hrc.report.text_cache`; the same pixels)."""
     from matplotlib.figure import Figure
 
+    from hrc.report.text_cache import TextCachingCanvas
+
     fig = Figure(figsize=(width, height), dpi=DPI)
-    FigureCanvasAgg(fig)
+    TextCachingCanvas(fig)
     return fig
 
 
