@@ -485,8 +485,9 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
                        (f"plans ({result.compiled:,}, "
                         + ("from the cache of whole compiles" if result.cached else
                            f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)}")
-                        + ") and compiled.json, STNUs", time.perf_counter() - t0 - path_wall,
-                        time.process_time() - c0 - path_cpu)]
+                        + ")", time.perf_counter() - t0 - path_wall - result.finish_seconds[0],
+                        time.process_time() - c0 - path_cpu - result.finish_seconds[1]),
+                       ("compiled.json, STNUs, the dispatch form in rank order", *result.finish_seconds)]
             # from here on a signal only is noted: the report and the swap are finished first (the output
             # is complete; throwing it away would lose every plan)
             if not args.no_report and not result.partial:

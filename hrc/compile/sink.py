@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import bisect
 import contextlib
+import functools
 import json
 import math
 import os
@@ -40,6 +41,7 @@ from hrc.compile.compiler import (
 )
 from hrc.compile.defaults import REPORT_TOP  # here too, as before
 from hrc.compile.dispatch_form import FormWriter, plan_record, read_form
+from hrc.compile.executors import run_apart
 from hrc.compile.output import (
     FORM_PLACEHOLDER,
     INLINE_MAX_BYTES,
@@ -284,9 +286,12 @@ class PlanSink:
                                None if self.best is None else (self.best, compiled), form, self.extra,
                                None if split is None else (split[0], len(rows or ())), summary)
 
-        # the archive (deflating, which frees the GIL) or the kept files in a thread while the dispatch form
-        # is written and compiled.json copied: files from other spools, so a second core shortens the end of
-        # a large compile (kitting_7picks: about 6 s of deflating, beside the rest of the end)
+        # the archive (copied in the kernel: it frees the GIL) or the kept files in a thread, and the lines
+        # of a split layout in a second process, while the dispatch form and compiled.json are written here:
+        # files from other spools, so the second core shortens the end of a large compile
+        # the lines in a forked process (before any thread starts): a thread copying them, 40,000 system
+        # calls, waits for the GIL after each while this one writes the form (3.7 s where it takes 0.7 alone)
+        plan_lines = None if rows is None else run_apart(functools.partial(self._write_plan_lines, ranked))
         with ThreadPoolExecutor(max_workers=1) as pool:
             writer = self._write_archive if self.stnu == "archive" else self._write_files
             archive = pool.submit(writer, order) if self._graphml is not None else None
@@ -302,9 +307,8 @@ class PlanSink:
                 else:
                     out.write(",\n".join(rows).encode("utf-8"))
                 out.write(JSON_TAIL.encode("utf-8"))
-            if rows is not None:
-                with open(self.out_dir / PLAN_LINES, "wb") as out:
-                    self._copy_lines(out, ranked, b"", b"\n")
+            if plan_lines is not None and not plan_lines():  # it failed: written here (or the error said)
+                self._write_plan_lines(ranked)
             if archive is not None:
                 archive.result()
         self._close()
@@ -348,20 +352,30 @@ class PlanSink:
                 out.write(head)
             out.write(os.pread(fd, size, start) + after)
 
+    def _write_plan_lines(self, ranked: list[int]) -> bool:
+        """`PLAN_LINES`: every plan's line, rank order, one a line (True: written)."""
+        with open(self.out_dir / PLAN_LINES, "wb") as out:
+            self._copy_lines(out, ranked, b"", b"\n")
+        return True
+
     def _rows(self, ranked: list[int]) -> list[str]:
         """The rows of a split ``compiled.json`` for the plans `ranked` (indices, rank order), from the
         compact records: class, makespans and preference from the rank key's columns (makespans are whole
-        ticks, so the columns' six decimals round to the line's three alike), sequences from the code."""
-        width = self._width
-        cols = {name: np.frombuffer(self._cols[name], dtype=np.float64) for name in ("cls", "pref", "early", "worst")}
-        out = []
-        for k, i in enumerate(ranked):
-            plan = plan_from_code(self.task, bytes(self._codes[width * i:width * (i + 1)]))
-            early, worst, pref = float(cols["early"][i]), float(cols["worst"][i]), float(cols["pref"][i])
-            out.append(plan_row(self._id(i), k + 1, _CLASS_NAMES[int(cols["cls"][i])], plan.sequences,
-                                (early, worst) if math.isfinite(worst) else None,
-                                None if math.isinf(pref) else -pref))
-        return out
+        ticks, so the columns' six decimals round to the line's three alike), sequences from the codes read
+        as arrays (`code_sequences`: what `plan_from_code` gives, without a `Plan` per row)."""
+        if not ranked:
+            return []
+        agents, actions = self.task.agent_ids, self.task.action_ids
+        codes = np.frombuffer(bytes(self._codes), dtype=np.uint16).reshape(len(self), self._width // 2)
+        sequences = code_sequences(self.task, codes[ranked]).tolist()
+        cls, early, worst, pref = (np.frombuffer(self._cols[name], dtype=np.float64)[ranked].tolist()
+                                   for name in ("cls", "early", "worst", "pref"))
+        return [plan_row(self._id(i), k + 1, _CLASS_NAMES[int(cls[k])],
+                         [(agent, [actions[x] for x in seq if x >= 0])
+                          for agent, seq in zip(agents, sequences[k], strict=True)],
+                         (early[k], worst[k]) if math.isfinite(worst[k]) else None,
+                         None if math.isinf(pref[k]) else -pref[k])
+                for k, i in enumerate(ranked)]
 
     def _resume_rows(self) -> np.ndarray:
         """Every plan taken so far as one row of `resume_dtype`, in the order taken."""

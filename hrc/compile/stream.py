@@ -166,6 +166,9 @@ class StreamResult:
     partial: bool
     seconds_per_plan: float | None  # the estimate's sample plans, the second time (`Sample`), in this process
     cached: bool = False  # every plan came from the disk cache of whole compiles (`RESULTS_MAX_PLANS`)
+    finish_seconds: tuple[float, float] = (0.0, 0.0)
+    """Wall and CPU seconds (this process's) of writing the outputs in rank order once every plan was in
+    (`PlanSink.finish`): ``hrc compile -v`` tells them apart from the plans'."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -320,11 +323,13 @@ def compile_stream(task: Task, out_dir: Path, total: int, *, seed: int = 0, jobs
         raise
     compiled = len(sink)
     paths = planned[0]
+    w0, c0 = time.perf_counter(), time.process_time()
     plan_set = sink.finish(seed, paths, options, partial=total if partial else None)
+    finish = (time.perf_counter() - w0, time.process_time() - c0)
     if kept is not None and not partial and not isinstance(found, list):
         disk_store(results, rkey, kept)
     return StreamResult(plan_set=plan_set, compiled=compiled, partial=partial, seconds_per_plan=per_plan,
-                        cached=isinstance(found, list))
+                        cached=isinstance(found, list), finish_seconds=finish)
 
 
 def _compile_into(task: Task, sink: PlanSink, total: int, seed: int, jobs: int | None, executor: str | None,
