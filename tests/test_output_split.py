@@ -241,3 +241,23 @@ def test_the_rows_of_a_task_with_preferences_are_its_lines_values(tmp_path, monk
     full = list(iter_plans(tmp_path))
     assert sum(p["preference"] is not None for p in full) == 32
     assert rows == [{k: p[k] for k in rows[0]} for p in full]
+
+
+def test_the_lines_are_written_here_when_their_process_fails(picks4, tmp_path, monkeypatch):  # noqa: F811
+    """`PLAN_LINES` is written in a forked process at the end of a compile (beside the dispatch form); if
+    that process fails (its handle answers None), this one writes them: the same bytes."""
+    import hrc.compile.sink as sink
+
+    task, _, _ = picks4
+    a, b = tmp_path / "a", tmp_path / "b"
+    monkeypatch.setattr(PlanSink, "inline_max", 0)
+    compile_stream(task, a, count_plans(task), jobs=1, sample_seconds=0.0)
+    started = []
+
+    def failing(fn):
+        started.append(fn)
+        return lambda: None  # as `Apart` answers for a child that raised or died
+
+    monkeypatch.setattr(sink, "run_apart", failing)
+    compile_stream(task, b, count_plans(task), jobs=1, sample_seconds=0.0)
+    assert len(started) == 1 and tree_bytes(a) == tree_bytes(b) and (b / PLAN_LINES).stat().st_size > 0
