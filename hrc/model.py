@@ -328,9 +328,15 @@ class Task:
     safety: Safety | None = None
     has_joint: bool = field(init=False, repr=False, compare=False)
     """Whether some action is joint (`Action.roles`): asked per leg on hot paths, so computed once."""
+    agent_ids: tuple[str, ...] = field(init=False, repr=False, compare=False)
+    """The agents' ids in task order (computed once: asked per action when a plan is read from its code)."""
+    action_ids: tuple[str, ...] = field(init=False, repr=False, compare=False)
+    """The actions' ids in task order (computed once, as `agent_ids`)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "has_joint", any(a.joint for a in self.actions))
+        object.__setattr__(self, "agent_ids", tuple(a.id for a in self.agents))
+        object.__setattr__(self, "action_ids", tuple(a.id for a in self.actions))
 
     def preference_set(self, name: str) -> tuple[Preference, ...]:
         """The named set's preferences (raises `KeyError` for an unknown name)."""
@@ -351,10 +357,6 @@ class Task:
                 return ac
         raise KeyError(action_id)
 
-    @property
-    def agent_ids(self) -> tuple[str, ...]:
-        return tuple(a.id for a in self.agents)
-
     def lead(self, action_id: str) -> str:
         """Who starts a joint action (the first robot among its agents, in task order): the one whose
         controllable timepoint is the action's start, and the agent a plan's allocation names for it. For
@@ -363,10 +365,6 @@ class Task:
         if not action.joint:
             raise KeyError(action_id)
         return next(a.id for a in self.agents if a.id in action.agents and not a.is_human)
-
-    @property
-    def action_ids(self) -> tuple[str, ...]:
-        return tuple(a.id for a in self.actions)
 
     def action_precedence(self) -> tuple[tuple[str, str], ...]:
         """Distinct action pairs ``(a, b)`` such that some phase of `b` must follow some phase of `a`."""
