@@ -34,6 +34,7 @@ from team_client import TeamRun
 from test_console_team import kitting3_task
 
 from hrc.compile.output import read_header
+from hrc.dispatch import Dispatcher
 from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.routes import PlanRoutes, plan_motions
 from hrc.motion import plan_paths
@@ -100,6 +101,11 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
         out = json.loads(client.send_pose("human", 0.5, 1.0, 1.0))
         assert not out["ok"] and out["error"].startswith("human/pose: the person's pose needs the motion detector")
         refused.append("pose")
+        # the goals the node published at its start are here before any message (transient local): the
+        # client's goal subscriptions are matched on the node's side too (tests/ros2_client.py)
+        start = Dispatcher(plan_set).decision.to_json()
+        first = {r for r in robots if next_drive(task, start, None, r) is not None}
+        client.base.spin_until(lambda: all(client.goals[r] for r in first), 20, "the goals at the node's start")
         run = _OverRos(None, stnus, robots, people, random.Random(5))
         run.client = client
         run.play()
