@@ -92,8 +92,9 @@ def run(args: argparse.Namespace) -> int:
     dispatcher = open_dispatcher(args, "ros2")
     if dispatcher is None:
         return 2
-    routes = PlanRoutes(plan_motions(args.out_dir, dispatcher.plan_set),
-                        plan_paths(dispatcher.task, seed=int(read_header(args.out_dir).get("seed", 0)))).routes
+    plan_routes = PlanRoutes(plan_motions(args.out_dir, dispatcher.plan_set),
+                             plan_paths(dispatcher.task, seed=int(read_header(args.out_dir).get("seed", 0))))
+    routes = plan_routes.routes
     recording = None
     if args.record:
         from hrc.record import open_folder_recording
@@ -129,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         stopped = ros_node.serve(open_log, ros_args=["--ros-args", *args.ros_args] if args.ros_args else (),
                                  namespace=args.namespace, frame=frame, routes=routes,
-                                 use_sim_time=args.use_sim_time, tick=args.tick, ready=ready, report=_say)
+                                 use_sim_time=args.use_sim_time, tick=args.tick, ready=ready, report=_say,
+                                 ways=plan_routes.way)
     except (HrcError, OSError):
         if recording is not None and not opened:
             recording.abort()  # refused before the run began: no file
