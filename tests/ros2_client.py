@@ -96,7 +96,7 @@ class Client:
     """A real rclpy node in this process, on the domain of `env`: publishes lines on the node's input
     topics and reads its answers, goals and routes (QoS as docs/ros2.md asks of clients)."""
 
-    def __init__(self, env: dict[str, str], namespace: str = "/hrc") -> None:
+    def __init__(self, env: dict[str, str], namespace: str = "/hrc", robots: tuple[str, ...] = ()) -> None:
         rclpy = rclpy_or_skip()
         from geometry_msgs.msg import PoseArray, PoseStamped
         from rclpy.context import Context
@@ -122,9 +122,25 @@ class Client:
         self.answers: list[str] = []
         self.goals: list[Any] = []
         self.routes: list[Any] = []
+        # a team's robots' goals and routes (kept whole: a deep queue, so that no goal is missed between
+        # spins), made before the answers' subscription: discovery announces a node's endpoints in the
+        # order they were made, in one reliable stream, so once an answer has come the node knows these
+        # too and each goal published from then on reaches them (a goal topic keeps only its latest for a
+        # subscriber it learns of later: the test once missed a robot's first goal that way)
+        kept = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.team_goals: dict[str, list[Any]] = {r: [] for r in robots}
+        self.team_routes: dict[str, list[Any]] = {r: [] for r in robots}
+        self.goal_subs: list[Any] = []
+        for r in robots:
+            self.goal_subs.append(self.node.create_subscription(PoseStamped, f"{r}/goal", self.team_goals[r].append,
+                                                                kept))
+            self.goal_subs.append(self.node.create_subscription(PoseArray, f"{r}/route", self.team_routes[r].append,
+                                                                kept))
+        if not robots:
+            self.goal_subs.append(self.node.create_subscription(PoseStamped, "robot/goal", self.goals.append, latest))
+            self.goal_subs.append(self.node.create_subscription(PoseArray, "robot/route", self.routes.append, latest))
         self.node.create_subscription(String, "answers", lambda m: self.answers.append(m.data), latest)
-        self.node.create_subscription(PoseStamped, "robot/goal", self.goals.append, latest)
-        self.node.create_subscription(PoseArray, "robot/route", self.routes.append, latest)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.sent: list[str] = []
@@ -144,7 +160,8 @@ class Client:
         """Until the node's subscriptions and publishers are matched with ours (discovery); seconds taken."""
         start = time.monotonic()
         self.spin_until(lambda: self.observations.get_subscription_count() >= 1 and self.acks.get_subscription_count()
-                        >= 1 and self.node.count_publishers(f"{self.node.get_namespace()}/answers") >= 1,
+                        >= 1 and self.node.count_publishers(f"{self.node.get_namespace()}/answers") >= 1
+                        and all(s.get_publisher_count() >= 1 for s in self.goal_subs),
                         timeout, "discovery of the hrc ros2 node")
         return time.monotonic() - start
 
@@ -186,23 +203,17 @@ pose on ``PERSON/pose``; it reads the
     queue, so that no goal is missed between spins)."""
 
     def __init__(self, env: dict[str, str], robots: tuple[str, ...], people: tuple[str, ...]) -> None:
-        self.base = Client(env)
-        from geometry_msgs.msg import PoseArray, PoseStamped
+        self.base = Client(env, robots=robots)
+        from geometry_msgs.msg import PoseStamped
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
         node = self.base.node
         inq = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-        kept = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
         String = self.base.String
         self.own = {r: node.create_publisher(String, f"{r}/acks", inq) for r in robots}
         self.own.update({h: node.create_publisher(String, f"{h}/observations", inq) for h in people})
         self.poses = {h: node.create_publisher(PoseStamped, f"{h}/pose", inq) for h in people}  # each tracker's
-        self.goals: dict[str, list[Any]] = {r: [] for r in robots}
-        self.routes: dict[str, list[Any]] = {r: [] for r in robots}
-        for r in robots:
-            node.create_subscription(PoseStamped, f"{r}/goal", self.goals[r].append, kept)
-            node.create_subscription(PoseArray, f"{r}/route", self.routes[r].append, kept)
+        self.goals, self.routes = self.base.team_goals, self.base.team_routes
 
     @property
     def answers(self) -> list[str]:
@@ -213,7 +224,8 @@ pose on ``PERSON/pose``; it reads the
         self.base.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in (*self.own.values(),
                                                                                   *self.poses.values()))
                              and self.base.observations.get_subscription_count() >= 1
-                             and self.base.node.count_publishers(f"{ns}/answers") >= 1,
+                             and self.base.node.count_publishers(f"{ns}/answers") >= 1
+                             and all(s.get_publisher_count() >= 1 for s in self.base.goal_subs),
                              timeout, "discovery of the hrc ros2 node")
 
     def send(self, line: str, topic: str | None = None) -> str:

@@ -31,11 +31,14 @@ from dispatch_client import Run
 from mcap_check import read_mcap
 
 from hrc.cli import main
+from hrc.compile.output import read_header
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.limits import MAX_LINE
+from hrc.dispatch.messages import Observation
 from hrc.dispatch.plan_set import load_plan_set
 from hrc.dispatch.protocol import answer
-from hrc.ros2.drive import MapFrame, next_drive
+from hrc.motion import plan_paths
+from hrc.ros2.drive import HOME, MapFrame, home_drive, next_drive
 
 ORIGIN = (2.0, -1.0, math.pi / 2)  # hrc's map in the ROS frame: a quarter turn, shifted
 
@@ -106,6 +109,41 @@ def test_map_frame_and_next_drive(folder: Path) -> None:
     assert next_drive(task, {"ok": False, "error": "x"}) is None
 
 
+def test_home_drive_after_the_last_phase_only(folder: Path) -> None:
+    """Hand-worked on the workshop (robot starts at R (9, 1)): the robot is sent home when its step is null
+    after the end of a phase, along the way it is given; never when it was stopped, while a fallback holds
+    it, while the person is away, before it ended a phase, or when it still has a step."""
+    task = load_plan_set(folder).task
+    done = (*(Observation(t, e, "robot", "cube2", "fetch") for t, e in ((3.0, "depart"), (9.0, "arrive"),
+                                                                          (9.5, "start"), (12.0, "end"))),
+            Observation(13.0, "end", "human", "cube1", "fetch"))
+    out = {"t": 13.0, "ok": True, "plan": "p", "robot": None, "human": None, "human_away": False, "stopped": False}
+    ways: list[tuple[str, str, str]] = []
+
+    def way(agent: str, origin: str, target: str) -> list[list[float]]:
+        ways.append((agent, origin, target))
+        return [[3.5, 6.7], [8.0, 3.0], [9.0, 1.0]]
+
+    home = home_drive(task, out, done, None, way)
+    assert home is not None and ways == [("robot", "S2", "R")]  # from cube2.fetch's place to its start
+    assert (home.event, home.location, home.target, home.leg) == (HOME, "R", (9.0, 1.0), ("cube2", "fetch", HOME))
+    assert home.points == ((3.5, 6.7), (8.0, 3.0), (9.0, 1.0)) and home.earliest == 13.0 and home.latest is None
+    assert math.isclose(home.heading, math.atan2(-2.0, 1.0))
+    bare = home_drive(task, out, done)  # no ways known: the pose alone
+    assert bare is not None and bare.target == (9.0, 1.0) and bare.points == () and bare.heading == 0.0
+    for held in ({"stopped": True}, {"fallback": "wait"}, {"human_away": True}, {"ok": False},
+                 {"robot": {"wait_for": "human.cube3.fetch.depart"}}):
+        assert home_drive(task, out | held, done, None, way) is None, held
+    assert home_drive(task, out, done[:3], None, way) is None  # its phase under way: not done
+    assert home_drive(task, out, (), None, way) is None  # it never left its start
+    # a team's robot: its own entry of robots; a person away holds it
+    team = {"t": 13.0, "ok": True, "plan": "p", "robots": {"robot": None}, "people": {"human": None}, "away": [],
+            "stopped": False}
+    assert home_drive(task, team, done, "robot", way) is not None
+    assert home_drive(task, team | {"away": ["human"]}, done, "robot", way) is None
+    assert home_drive(task, team | {"robots": {}}, done, "robot", way) is None
+
+
 def _bad_lines() -> list[str]:
     return ["not json", "x" * (MAX_LINE + 10), '{"t": 0.1, "agent": "human", "action": "cube9", "phase": "fetch", '
             '"event": "start"}']
@@ -118,6 +156,9 @@ def test_a_whole_workshop_run_over_ros2_answers_as_hrc_dispatch(folder: Path, tm
     log, path = tmp_path / "ros.log", tmp_path / "ros.mcap"
     node = NodeProcess(folder, env, "--log", str(log), "--record", str(path), "--map-origin",
                        *(str(v) for v in ORIGIN))
+    task = load_plan_set(folder).task
+    frame = MapFrame("map", *ORIGIN)
+    home = frame.to_frame(*task.workspace.location(task.agent("robot").start).xy)
     client = late = None
     try:
         client = Client(env)
@@ -134,7 +175,11 @@ def test_a_whole_workshop_run_over_ros2_answers_as_hrc_dispatch(folder: Path, tm
         Run(load_plan_set(folder), send, 7, human_choice="plan", timing="hinted").play()
         assert len(client.sent) > 40 and len(client.answers) == len(client.sent)
         assert all(b in client.sent for b in _bad_lines())
-        # a subscriber that comes late gets the latest answer and goal
+        # after its last phase the robot is sent home, once (its start R, in the frame asked for)
+        client.spin_until(lambda: client.goals and _at(client.goals[-1], home) and len(client.routes) ==
+                          len(client.goals), 20, "the robot's home goal")
+        client.spin_for(0.5)
+        # a subscriber that comes late gets the latest answer and goal (the way home)
         late = Client(env)
         late.spin_until(lambda: late.answers and late.goals, 20, "the latest answer and goal")
         assert late.answers == client.answers[-1:]
@@ -154,12 +199,20 @@ def test_a_whole_workshop_run_over_ros2_answers_as_hrc_dispatch(folder: Path, tm
     # the node's log replays byte for byte
     replayed = _dispatch(folder, "--replay", str(log))
     assert replayed.returncode == 0 and replayed.stdout == plain.stdout, replayed.stderr
-    # the goals: where the robot departed for, in the frame asked for; each route ends at its goal
-    task = load_plan_set(folder).task
-    frame = MapFrame("map", *ORIGIN)
+    # the goals: where the robot departed for, in the frame asked for; each route ends at its goal; then
+    # home, along the compile's planned way from the robot's last phase (the end it acknowledged last)
     drives = [json.loads(x) for x in client.sent if '"agent": "robot"' in x and '"depart"' in x]
-    assert len(client.goals) == len(drives) == len(client.routes) >= 2
-    for goal, route, d in zip(client.goals, client.routes, drives, strict=True):
+    assert len(client.goals) == len(drives) + 1 == len(client.routes) >= 3
+    last = [json.loads(x) for x in client.sent if '"agent": "robot"' in x][-1]
+    assert last["event"] == "end"
+    there = task.action(last["action"]).phase(last["phase"]).location
+    way = [frame.to_frame(*p) for p in plan_paths(task, seed=int(read_header(folder)["seed"])).get(
+        "robot", there, "R").points]
+    assert len(client.routes[-1].poses) == len(way) >= 2
+    assert all(math.dist((q.position.x, q.position.y), w) < 2e-3 for q, w in zip(client.routes[-1].poses, way,
+                                                                               strict=True))
+    assert _at(client.goals[-1], home) and client.goals[-1].header.stamp.sec >= int(last["t"])
+    for goal, route, d in zip(client.goals, client.routes, drives, strict=False):
         want = frame.to_frame(*task.workspace.location(task.action(d["action"]).phase(d["phase"]).location).xy)
         got = (goal.pose.position.x, goal.pose.position.y)
         assert goal.header.frame_id == "map" and math.dist(got, want) < 1e-9
@@ -168,7 +221,12 @@ def test_a_whole_workshop_run_over_ros2_answers_as_hrc_dispatch(folder: Path, tm
     # stamped with the run time of the answer that named the drive, never the wall clock
     goal_times = [g.header.stamp.sec + g.header.stamp.nanosec / 1e9 for g in client.goals]
     assert all(t < 600 for t in goal_times) and goal_times == sorted(goal_times)
-    assert read_mcap(path).counts["/hrc/robot/goal"] == len(drives)
+    assert read_mcap(path).counts["/hrc/robot/goal"] == len(drives)  # the recording: the answers' drives
+
+
+def _at(goal: object, xy: tuple[float, float]) -> bool:
+    p = goal.pose.position  # type: ignore[attr-defined]
+    return math.dist((p.x, p.y), xy) < 1e-9
 
 
 def test_sigint_then_resume_and_poses_refused(folder: Path, tmp_path: Path) -> None:
@@ -188,6 +246,8 @@ def test_sigint_then_resume_and_poses_refused(folder: Path, tmp_path: Path) -> N
     env = ros_env(tmp_path)
     log = tmp_path / "run.log"
     got: list[str] = []
+    task = load_plan_set(folder).task
+    start = task.workspace.location(task.agent("robot").start).xy
     node = NodeProcess(folder, env, "--log", str(log))
     client = Client(env)
     try:
@@ -205,6 +265,8 @@ def test_sigint_then_resume_and_poses_refused(folder: Path, tmp_path: Path) -> N
             assert refusal == {"t": 30.0, "ok": False, "error": refusal["error"]}
             assert ("frame 'odom'" in refusal["error"]) == (frame_id == "odom")
             assert ("motion detector" in refusal["error"]) == (frame_id == "map")
+        client.spin_for(0.5)
+        assert client.goals and not _at(client.goals[-1], start)  # stopped half way: no way home
         assert node.stop(signal.SIGINT) == 0
     finally:
         client.close()
@@ -215,6 +277,7 @@ def test_sigint_then_resume_and_poses_refused(folder: Path, tmp_path: Path) -> N
     try:
         client.wait_matched()
         got += [client.send(line) for line in lines[half:]]
+        client.spin_until(lambda: client.goals and _at(client.goals[-1], start), 20, "the way home after the run")
         assert resumed.stop(signal.SIGTERM) == 0
     finally:
         client.close()

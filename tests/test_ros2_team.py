@@ -34,7 +34,9 @@ from team_client import TeamRun
 from test_console_team import kitting3_task
 
 from hrc.compile.output import read_header
+from hrc.dispatch import Dispatcher
 from hrc.dispatch.plan_set import load_plan_set
+from hrc.dispatch.protocol import answer as answer_line
 from hrc.dispatch.routes import PlanRoutes, plan_motions
 from hrc.motion import plan_paths
 from hrc.ros2.drive import MapFrame, next_drive
@@ -80,6 +82,7 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
     assert robots == ("robot", "robot2") and people == ("human",)
     stnus = {p.stem: read_graphml(p.read_bytes()) for p in (kitting3 / "stnu").glob("*.graphml")}
     env = ros_env(tmp_path)
+    frame = MapFrame("map", *ORIGIN)
     log, recording = tmp_path / "ros.log", tmp_path / "ros.mcap"
     node = NodeProcess(kitting3, env, "--log", str(log), "--record", str(recording), "--map-origin",
                        *(str(v) for v in ORIGIN))
@@ -100,9 +103,20 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
         out = json.loads(client.send_pose("human", 0.5, 1.0, 1.0))
         assert not out["ok"] and out["error"].startswith("human/pose: the person's pose needs the motion detector")
         refused.append("pose")
+        # the goals the node published at its start are here before any message (transient local): the
+        # client's goal subscriptions are matched on the node's side too (tests/ros2_client.py)
+        start = Dispatcher(plan_set).decision.to_json()
+        first = {r for r in robots if next_drive(task, start, None, r) is not None}
+        client.base.spin_until(lambda: all(client.goals[r] for r in first), 20, "the goals at the node's start")
         run = _OverRos(None, stnus, robots, people, random.Random(5))
         run.client = client
         run.play()
+        # after its last phase each robot is sent home: one goal at its start (then nothing more)
+        homes = {r: frame.to_frame(*task.workspace.location(task.agent(r).start).xy) for r in robots}
+        client.base.spin_until(lambda: all(client.goals[r] and _at(client.goals[r][-1], homes[r]) and client.routes[r]
+                                           and len(client.routes[r]) == len(client.goals[r]) for r in robots),
+                               20, "each robot's home goal")
+        client.base.spin_for(0.5)
         assert node.stop(signal.SIGTERM) == 0
     finally:
         if client is not None:
@@ -118,9 +132,13 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
     assert recording.read_bytes() == (tmp_path / "dispatch.mcap").read_bytes()  # the same recording
     replayed = _dispatch(kitting3, "--replay", str(log))
     assert replayed.returncode == 0 and replayed.stdout == plain.stdout, replayed.stderr
-    # each robot's goals: the drives its entries of the answers name, one per new drive, in the frame asked
-    routes = PlanRoutes(plan_motions(kitting3, plan_set), plan_paths(task, seed=int(read_header(kitting3)["seed"])))
-    frame = MapFrame("map", *ORIGIN)
+    # each robot's goals: the drives its entries of the answers name, one per new drive, in the frame asked,
+    # and last the way home from its last phase's location (the compile's planned path, read here directly)
+    paths = plan_paths(task, seed=int(read_header(kitting3)["seed"]))
+    routes = PlanRoutes(plan_motions(kitting3, plan_set), paths)
+    done = Dispatcher(plan_set)
+    for line in run.sent:
+        assert json.loads(answer_line(done, line.encode()))["ok"]
     for r in robots:
         expected, last = [], None
         for a in map(json.loads, answers):
@@ -128,14 +146,27 @@ def test_a_team_run_over_ros2_has_a_goal_topic_per_robot(kitting3: Path, tmp_pat
             if drive is not None and drive.leg != last:
                 last = drive.leg
                 expected.append(drive)
-        got = client.goals[r]
-        assert len(got) == len(expected) == len(client.routes[r]) >= 1, (r, len(got), len(expected))
+        got, home, way = client.goals[r][:-1], client.goals[r][-1], client.routes[r][-1]
+        assert len(got) == len(expected) == len(client.routes[r]) - 1 >= 1, (r, len(got), len(expected))
+        last = [o for o in done.history if o.agent == r and o.action is not None][-1]
+        assert last.event == "end"  # the run ended every phase of the robot's
+        there = task.action(last.action).phase(last.phase).location
+        want_way = [frame.to_frame(*p) for p in paths.get(r, there, task.agent(r).start).points]
+        assert _at(home, homes[r]) and home.header.frame_id == way.header.frame_id == "map"
+        assert len(way.poses) == len(want_way) >= 1
+        assert all(math.dist((q.position.x, q.position.y), w) < 2e-3 for q, w in zip(way.poses, want_way, strict=True))
+        assert home.header.stamp.sec + home.header.stamp.nanosec / 1e9 >= last.t  # named when it was done
         for goal, drive in zip(got, expected, strict=True):
             want = frame.to_frame(*drive.target)
             assert goal.header.frame_id == "map"
             assert math.dist((goal.pose.position.x, goal.pose.position.y), want) < 1e-9
     # both robots drove: the run gave each some pick
     assert all(client.goals[r] for r in robots)
+
+
+def _at(goal: object, xy: tuple[float, float]) -> bool:
+    p = goal.pose.position  # type: ignore[attr-defined]
+    return math.dist((p.x, p.y), xy) < 1e-9
 
 
 # ------------------------------------------------------------------------------ the motion detector per person

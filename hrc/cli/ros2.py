@@ -3,12 +3,13 @@
 Messages of ``hrc dispatch``'s protocol come in as ``std_msgs/String`` on ``NAMESPACE/observations`` and
 ``NAMESPACE/robot/acks``; every answer goes out on ``NAMESPACE/answers`` and the robot's next drive on
 ``NAMESPACE/robot/goal`` (``geometry_msgs/PoseStamped`` in ``--frame-id``, for Nav2) and
-``NAMESPACE/robot/route``; with ``--detect motion`` the person's tracked pose on ``NAMESPACE/human/pose``
-goes to the motion detector. The log (default ``OUT_DIR/runs/ros2-N.jsonl``, never overwritten) replays with
-``hrc dispatch OUT_DIR --replay LOG``; ``--resume LOG`` goes on after a crash; ``--record FILE`` writes
-an MCAP recording. A team (issue 37) has ``NAMESPACE/ROBOT/goal``, ``/route`` and ``/acks`` per robot
-and ``NAMESPACE/PERSON/observations`` and ``NAMESPACE/PERSON/pose`` (the motion detector's) per person.
-SIGINT or SIGTERM stop it cleanly (exit 0, the log whole). Needs the ``ros2`` extra: ``pip install 'hrc[ros2]'``.
+``NAMESPACE/robot/route`` (after the robot's last phase, its way home to its start); with ``--detect
+motion`` the person's tracked pose on ``NAMESPACE/human/pose`` goes to the motion detector. The log
+(default ``OUT_DIR/runs/ros2-N.jsonl``, never overwritten) replays with ``hrc dispatch OUT_DIR --replay
+LOG``; ``--resume LOG`` goes on after a crash; ``--record FILE`` writes an MCAP recording. A team (issue
+37) has ``NAMESPACE/ROBOT/goal``, ``/route`` and ``/acks`` per robot and ``NAMESPACE/PERSON/observations``
+and ``NAMESPACE/PERSON/pose`` (the motion detector's) per person. SIGINT or SIGTERM stop it cleanly (exit
+0, the log whole). Needs the ``ros2`` extra: ``pip install 'hrc[ros2]'``.
 """
 
 from __future__ import annotations
@@ -92,8 +93,9 @@ def run(args: argparse.Namespace) -> int:
     dispatcher = open_dispatcher(args, "ros2")
     if dispatcher is None:
         return 2
-    routes = PlanRoutes(plan_motions(args.out_dir, dispatcher.plan_set),
-                        plan_paths(dispatcher.task, seed=int(read_header(args.out_dir).get("seed", 0)))).routes
+    plan_routes = PlanRoutes(plan_motions(args.out_dir, dispatcher.plan_set),
+                             plan_paths(dispatcher.task, seed=int(read_header(args.out_dir).get("seed", 0))))
+    routes = plan_routes.routes
     recording = None
     if args.record:
         from hrc.record import open_folder_recording
@@ -129,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         stopped = ros_node.serve(open_log, ros_args=["--ros-args", *args.ros_args] if args.ros_args else (),
                                  namespace=args.namespace, frame=frame, routes=routes,
-                                 use_sim_time=args.use_sim_time, tick=args.tick, ready=ready, report=_say)
+                                 use_sim_time=args.use_sim_time, tick=args.tick, ready=ready, report=_say,
+                                 ways=plan_routes.way)
     except (HrcError, OSError):
         if recording is not None and not opened:
             recording.abort()  # refused before the run began: no file

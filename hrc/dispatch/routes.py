@@ -108,3 +108,9 @@ class PlanRoutes:
                     | ({"speed": m["speed"]} if m.get("speed") else {}))  # a reduced-speed leg only
             self._cache[plan_id] = out
         return self._cache[plan_id]
+
+    def way(self, agent: str, origin: str, target: str) -> list[list[float]]:
+        """The planned free-space way of `agent` between two locations, as a leg's points (mm): a robot's
+        way home after its last phase (`hrc.ros2.drive.home_drive`), the path the simulator drives it.
+        Raises KeyError for a pair the compile never planned."""
+        return [_xy(p) for p in self._paths.get(agent, origin, target).points]

@@ -6,7 +6,8 @@ answer (as JSON, the protocol's shape) and the plan's routes (`hrc.dispatch.rout
 points, its detour, its waiting place) and gives the `Drive`: its destination and the route's points in
 hrc's map coordinates. A leg that stops at a waiting place is two drives: ``depart`` to the waiting place
 (the plan's ``park``), ``unpark`` from there to the phase's location. `MapFrame` places hrc's map in a
-ROS frame (its origin's pose there).
+ROS frame (its origin's pose there). `home_drive` is the one drive no answer names: a robot whose part is
+done goes back to its start, out of the way.
 
 Pure: no ROS import, so that the MCAP recorder (`hrc.record`) draws the same goal the node publishes.
 
@@ -17,18 +18,24 @@ Pure: no ROS import, so that the MCAP recorder (`hrc.record`) draws the same goa
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from hrc.dispatch.messages import Observation
 from hrc.model import Task
 
-__all__ = ["DRIVE_EVENTS", "Drive", "MapFrame", "next_drive"]
+__all__ = ["DRIVE_EVENTS", "HOME", "Drive", "MapFrame", "Ways", "home_drive", "next_drive"]
 
 DRIVE_EVENTS = ("depart", "unpark")
 """The robot's events that start a drive (the others end one, or are work at a location)."""
 
+HOME = "home"
+"""The `Drive.event` of a robot's way back to its start after its last phase (`home_drive`)."""
+
 Point = tuple[float, float]
+Ways = Callable[[str, str, str], Sequence[Sequence[float]]]
+"""``(agent, from, to) -> points``: the planned free-space way between two locations (`PlanRoutes.way`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,9 +130,57 @@ def next_drive(task: Task, answer: Mapping[str, Any], routes: Mapping[str, Seque
         cut = _split(points, ws.location(str(park)).xy)
         if cut is not None:
             points = points[:cut + 1] if event == "depart" else points[cut:]
-    heading = 0.0
-    if len(points) >= 2 and math.dist(points[-2], points[-1]) > 0:
-        heading = math.atan2(points[-1][1] - points[-2][1], points[-1][0] - points[-2][0])
     latest = step.get("latest")
     return Drive(action, phase, event, location, target, float(step["earliest"]),
-                 None if latest is None else float(latest), points, heading)
+                 None if latest is None else float(latest), points, _heading(points))
+
+
+def _heading(points: Sequence[Point]) -> float:
+    if len(points) >= 2 and math.dist(points[-2], points[-1]) > 0:
+        return math.atan2(points[-1][1] - points[-2][1], points[-1][0] - points[-2][0])
+    return 0.0
+
+
+def home_drive(task: Task, answer: Mapping[str, Any], history: Sequence[Observation], robot: str | None = None,
+               ways: Ways | None = None) -> Drive | None:
+    """The robot's way home (`HOME`) once its part is done, or None. Done: the accepted `answer` tells
+    the robot nothing more (its step is null) and the robot's last event in `history` (the dispatcher's
+    observations that stand) is the `end` of a phase. Not for a robot that was stopped or is held: the
+    answer says ``stopped`` (no plan left with ``--feasible-only``), is a fallback of compile on demand
+    (``fallback``: the person left every compiled plan, plans are being compiled), or some person is away
+    (``human_away`` / ``away``: the plans are those without them until they are back); nor for a robot
+    that never ended a phase (it stands at its start).
+
+    The destination is the robot's start location (`Agent.start`); the points are the planned way from
+    the last phase's location there (`ways`: the compile's free-space paths, as the simulator's robot
+    drives home, `hrc.sim.agents`), none when `ways` is None or has no such way. The leg
+    ``(action, phase, "home")`` names the last phase, so one ending is one home drive. `robot`: a team's
+    robot (its entry of ``robots``); None: the one robot."""
+    if not answer.get("ok") or answer.get("stopped") or answer.get("fallback") is not None \
+            or answer.get("human_away") or answer.get("away"):
+        return None
+    if robot is None:
+        robot = next(a.id for a in task.agents if not a.is_human)
+        if answer.get("robot", True) is not None:
+            return None
+    else:
+        steps = answer.get("robots")
+        if not isinstance(steps, Mapping) or robot not in steps or steps[robot] is not None:
+            return None
+    last = next((o for o in reversed(history) if o.agent == robot and o.action is not None), None)
+    if last is None or last.event != "end" or last.action is None or last.phase is None:
+        return None
+    action, phase = last.action, last.phase
+    try:
+        start = task.agent(robot).start
+        there = task.action(action).phase(phase).location
+        target = task.workspace.location(start).xy
+    except KeyError:
+        return None
+    points: tuple[Point, ...] = ()
+    if ways is not None:
+        try:
+            points = tuple((float(p[0]), float(p[1])) for p in ways(robot, there, start))
+        except KeyError:  # no way planned between the two: the pose alone
+            points = ()
+    return Drive(action, phase, HOME, start, target, float(answer["t"]), None, points, _heading(points))

@@ -13,8 +13,10 @@ pose is refused in one line, here, and never logged.
 **Out.** Each answer, exactly as ``hrc dispatch`` prints it, on ``answers``; when an answer names a new
 drive of the robot (`hrc.ros2.drive.next_drive`), its destination on ``robot/goal`` and its planned
 points on ``robot/route``, in the frame `MapFrame.frame_id`; at the start, the drive of the dispatcher's
-decision before any message (after ``--resume``, its last). Both are reliable and transient local: a
-late subscriber gets the latest.
+decision before any message (after ``--resume``, its last). Once a robot's part is done (its step null
+after the end of a phase, no stop, no fallback, nobody away: `hrc.ros2.drive.home_drive`), one more goal:
+its start location, along the planned way there (`PlanRoutes.way`). Both are reliable and transient
+local: a late subscriber gets the latest.
 
 **A team** (issue 37: other than one person and one robot): each robot has its own ``ROBOT/acks`` in and
 ``ROBOT/goal``, ``ROBOT/route`` (and ``ROBOT/separation``) out, under its id (`hrc.ros2.topics.robot_topics`),
@@ -62,7 +64,7 @@ from hrc.dispatch.durable import LoggedDispatcher
 from hrc.dispatch.limits import MAX_LINE, parse_message
 from hrc.errors import HrcError, MessageError
 from hrc.model import Task
-from hrc.ros2.drive import Drive, MapFrame, next_drive
+from hrc.ros2.drive import Drive, MapFrame, Ways, home_drive, next_drive
 from hrc.ros2.topics import (
     ANSWERS,
     GOAL,
@@ -99,14 +101,16 @@ def _refusal(t: Any, reason: str) -> str:
 
 class DispatcherNode:
     """An rclpy node around `logged` (see the module docstring). `routes` gives a plan's legs by id (the
-    goal's points and waiting places; None: goals at the phases' locations, no route). `tick`: run seconds
+    goal's points and waiting places; None: goals at the phases' locations, no route); `ways` the planned
+    way between two locations (a robot's way home; None: its home goal has no route). `tick`: run seconds
     of ``/clock`` without a message after which the node sends a tick (0: never; only with sim time).
     `report` takes one-line notes for the operator (stderr)."""
 
     def __init__(self, logged: LoggedDispatcher, *, context: Context, namespace: str, frame: MapFrame,
                  routes: Routes | None = None, use_sim_time: bool = False, tick: float = 0.0,
-                 report: Callable[[str], None] | None = None) -> None:
+                 report: Callable[[str], None] | None = None, ways: Ways | None = None) -> None:
         self.logged = logged
+        self.ways = ways
         self.task: Task = logged.dispatcher.task
         self.frame = frame
         self.routes = routes
@@ -262,10 +266,12 @@ class DispatcherNode:
             self._drives(out)
 
     def _drives(self, out: dict[str, Any]) -> None:
-        """Each robot's goal and route where the accepted answer `out` names a drive new to it."""
+        """Each robot's goal and route where the accepted answer `out` names a drive new to it; its way
+        home once, when its part is done (`home_drive`)."""
         legs = self.routes(out["plan"]) if self.routes is not None and out.get("plan") else None
+        history = self.logged.dispatcher.history
         for r in self.team:  # a team: each robot's drive on its own topics
-            drive = next_drive(self.task, out, legs, r)
+            drive = next_drive(self.task, out, legs, r) or home_drive(self.task, out, history, r, self.ways)
             if drive is not None and drive.leg != self.last_legs.get(r):
                 self.last_legs[r] = drive.leg
                 goal, route, separation = self.per_robot[r]
@@ -273,7 +279,7 @@ class DispatcherNode:
                 self._limits(out, legs, drive, r, separation)
         if self.team:
             return
-        drive = next_drive(self.task, out, legs)
+        drive = next_drive(self.task, out, legs) or home_drive(self.task, out, history, None, self.ways)
         if drive is not None and drive.leg != self.last_leg:
             self.last_leg = drive.leg
             self._drive(drive, float(out["t"]))
@@ -341,7 +347,7 @@ class Stopped:
 def serve(open_log: Callable[[], LoggedDispatcher], *, ros_args: Sequence[str] = (), namespace: str = "/hrc",
           frame: MapFrame = _IDENTITY, routes: Routes | None = None, use_sim_time: bool = False,
           tick: float = 0.0, ready: Callable[[DispatcherNode], None] | None = None,
-          report: Callable[[str], None] | None = None) -> Stopped:
+          report: Callable[[str], None] | None = None, ways: Ways | None = None) -> Stopped:
     """Serve the dispatcher `open_log()` gives on ROS 2 until SIGINT or SIGTERM (see the module docstring);
     `ros_args` are ``--ros-args ...`` for rclpy (remappings, parameters). `open_log` is called once ROS 2
     has taken the arguments and the namespace, so that a refused one leaves no log behind. `ready(node)`
@@ -363,7 +369,7 @@ def serve(open_log: Callable[[], LoggedDispatcher], *, ros_args: Sequence[str] =
         except (ValueError, TypeError, RuntimeError, InvalidNamespaceException, InvalidNodeNameException) as err:
             raise HrcError(f"hrc ros2: ROS 2 refused to start the node: {' '.join(str(err).split())[:300]}") from err
         node = DispatcherNode(open_log(), context=context, namespace=namespace, frame=frame, routes=routes,
-                              use_sim_time=use_sim_time, tick=tick, report=report)
+                              use_sim_time=use_sim_time, tick=tick, report=report, ways=ways)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node.node)
         if ready is not None:
