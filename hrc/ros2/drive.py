@@ -147,17 +147,17 @@ def home_drive(task: Task, answer: Mapping[str, Any], history: Sequence[Observat
     the robot nothing more (its step is null) and the robot's last event in `history` (the dispatcher's
     observations that stand) is the `end` of a phase. Not for a robot that was stopped or is held: the
     answer says ``stopped`` (no plan left with ``--feasible-only``), is a fallback of compile on demand
-    (``fallback``: the person left every compiled plan, plans are being compiled), or some person is away
-    (``human_away`` / ``away``: the plans are those without them until they are back); nor for a robot
-    that never ended a phase (it stands at its start).
+    (``fallback``: the person left every compiled plan, plans are being compiled); nor for a robot that
+    never ended a phase (it stands at its start). A person away does not hold it: the robot finishes
+    alone and clears the floor, as the simulator's robot does (a plan that gives it work again when they
+    are back is a drive as any other).
 
     The destination is the robot's start location (`Agent.start`); the points are the planned way from
     the last phase's location there (`ways`: the compile's free-space paths, as the simulator's robot
     drives home, `hrc.sim.agents`), none when `ways` is None or has no such way. The leg
     ``(action, phase, "home")`` names the last phase, so one ending is one home drive. `robot`: a team's
     robot (its entry of ``robots``); None: the one robot."""
-    if not answer.get("ok") or answer.get("stopped") or answer.get("fallback") is not None \
-            or answer.get("human_away") or answer.get("away"):
+    if not answer.get("ok") or answer.get("stopped") or answer.get("fallback") is not None:
         return None
     if robot is None:
         robot = next(a.id for a in task.agents if not a.is_human)

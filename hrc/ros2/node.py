@@ -14,8 +14,8 @@ pose is refused in one line, here, and never logged.
 drive of the robot (`hrc.ros2.drive.next_drive`), its destination on ``robot/goal`` and its planned
 points on ``robot/route``, in the frame `MapFrame.frame_id`; at the start, the drive of the dispatcher's
 decision before any message (after ``--resume``, its last). Once a robot's part is done (its step null
-after the end of a phase, no stop, no fallback, nobody away: `hrc.ros2.drive.home_drive`), one more goal:
-its start location, along the planned way there (`PlanRoutes.way`). Both are reliable and transient
+after the end of a phase, no stop, no fallback; a person away does not hold it: `hrc.ros2.drive.home_drive`),
+one more goal: its start location, along the planned way there (`PlanRoutes.way`). Both are reliable and transient
 local: a late subscriber gets the latest.
 
 **A team** (issue 37: other than one person and one robot): each robot has its own ``ROBOT/acks`` in and
