@@ -8,7 +8,8 @@ and GraphML bytes, wall-over-CPU ratio) next to ``hrc compile TASK -q`` run righ
 load). Three readings of the same model:
 
 - the work, on one worker, against the compile's CPU seconds (what the load changes least);
-- on an idle machine, against the wall time of runs at load 1.1-2.2 (other engineers' jobs at nice 19);
+- on an idle machine, against the wall time of runs at load 1.1-2.2 (other engineers' jobs at nice 19)
+  and of runs on a quiet machine (within a quarter);
 - at the load the sample saw (`now`), against a run the load stretched (kitting_7picks, load 2.2-3.0).
 """
 
@@ -26,6 +27,17 @@ RECORDED = {
                 20.92, 39.44, (1.18, 1.35)),
     "kitting_7picks": (Calibration(64, 16, 0.00896, 0.00151, 0.74, 22624, 3470, 1.60, 2), 40320, "graphml",
                        51.09, 82.94, (1.32, 2.16)),
+}
+# the same at 04:48-04:50 on a quiet machine (nothing else running; the load is the compile's own two workers)
+QUIET = {
+    "cube_stacking": (Calibration(16, 16, 0.02158, 0.00412, 0.38, 9366, 2463, 1.66, 2), 32, "graphml",
+                      1.39, 2.45, (2.03, 2.02)),
+    "kitting": (Calibration(16, 16, 0.03241, 0.00606, 0.47, 19107, 3770, 1.64, 2), 2880, "graphml",
+                12.50, 23.87, (2.02, 2.02)),
+    "kitting_7picks": (Calibration(64, 16, 0.00497, 0.000921, 0.39, 22624, 3470, 1.63, 2), 40320, "graphml",
+                       27.16, 50.67, (1.94, 1.94)),
+    "kitting_7picks archive": (Calibration(64, 16, 0.00497, 0.000921, 0.39, 22624, 3470, 1.63, 2), 40320,
+                               "archive", 26.14, 49.89, (1.94, 2.01)),
 }
 # kitting_7picks --stnu archive right after, on the same sample, while the load rose to 3
 LOADED = (RECORDED["kitting_7picks"][0], 40320, "archive", 78.76, 96.24, (2.16, 3.0))
@@ -45,6 +57,14 @@ def test_the_work_is_estimated_within_half(task):
 def test_an_idle_machine_is_estimated_within_half(task):
     cal, plans, stnu, wall, _cpu, _load = RECORDED[task]
     assert _within(cal.wall(plans, 2, stnu), wall), (cal.wall(plans, 2, stnu), wall)
+
+
+@pytest.mark.parametrize("task", sorted(QUIET))
+def test_a_quiet_machine_is_estimated_within_a_quarter(task):
+    """The issue's measure (+-50 %) with room: +4 % to +21 % on the quiet runs."""
+    cal, plans, stnu, wall, cpu, _load = QUIET[task]
+    assert 0.75 * wall <= cal.wall(plans, 2, stnu) <= 1.25 * wall, (cal.wall(plans, 2, stnu), wall)
+    assert _within(cal.wall(plans, 1, stnu), cpu)
 
 
 def test_the_wall_time_at_the_samples_load_is_estimated_within_half():

@@ -29,7 +29,7 @@ spread over the allocations, twice (the second time with this process's caches f
 run's workers), measuring CPU time (not wall: another job on the machine slows the wall clock, not the
 work). The compile's wall time is then modelled as
 
-    start-up + paths + the compile's own sample
+    start-up + the compile's own sample
     + (plans x pace x `PACE_FACTOR` + min(plans, workers x `WARMUP_PLANS`) x (first pace - pace)
        + `FILE_SECONDS` per GraphML file) / (1 + `PARALLEL` x (workers - 1))
     + writing the lines (and the archive) at `WRITE_RATE` + report
@@ -144,9 +144,10 @@ WARMUP_PLANS = 64
 conflict geometry and text layouts made once: the workshop's 32 plans all pay it)."""
 WRITE_RATE = 400e6
 """Bytes a second the parent writes at the end (the lines copied in rank order, the archive deflated)."""
-FILE_SECONDS = 0.5e-3
+FILE_SECONDS = 0.1e-3
 """CPU seconds per GraphML file a worker writes (``--stnu graphml``: the file system's create and write,
-system time; 3.4 s of kitting_6picks' 5,040 files)."""
+system time): 0.06 ms a file on a quiet machine (kitting_7picks, 2026-11-29: 27.2 s with its 40,320
+files, 26.1 s with ``--stnu archive``), up to 0.7 ms on a loaded one (kitting_6picks, 2026-11-27)."""
 REPORT_SECONDS = 0.7
 """The report: 16 figures and the tables (`hrc compile -v`, 2026-11-29: 0.65 s wall on the workshop, 0.76 s
 on kitting, 0.51 s on kitting_7picks, figures drawn in two processes; 2.1 s of CPU before issue 38's passes)."""
@@ -194,7 +195,8 @@ class Calibration:
         else:
             write = lines / WRITE_RATE
         sample = min(SAMPLE_SECONDS, total * self.first_pace) if total >= SAMPLE_MIN_PLANS else 0.0
-        return plans + serial * (START_SECONDS + self.paths_seconds + sample + write
+        # no paths: `calibrate` left the roadmaps in the cache folder, where the compile finds them
+        return plans + serial * (START_SECONDS + sample + write
                                  + (REPORT_SECONDS if report else 0.0))
 
 
