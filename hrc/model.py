@@ -172,7 +172,15 @@ class Action:
     agents: tuple[str, ...]
     phases: tuple[Phase, ...]
     roles: tuple[tuple[str, tuple[str, ...]], ...] = ()  # (role, candidates), in the task file's order
-    needed: int = 1  # the crew's size: len(roles), or fewer for "any k of these agents"
+    needed: int = 0  # the crew's size: len(roles) (0 says so), or fewer for "any k of these agents"; 1 alone
+
+    def __post_init__(self) -> None:
+        # a role given as (role, agent) has that one candidate; `needed` 0: every role, 1 for a lone agent
+        if any(isinstance(c, str) for _, c in self.roles):
+            object.__setattr__(self, "roles", tuple((r, (c,) if isinstance(c, str) else tuple(c))
+                                                    for r, c in self.roles))
+        if self.needed == 0:
+            object.__setattr__(self, "needed", len(self.roles) if self.roles else 1)
 
     @property
     def joint(self) -> bool:

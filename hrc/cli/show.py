@@ -126,7 +126,8 @@ def _text(s: dict[str, Any]) -> str:
     lines.append("actions:")
     for a in s["actions"]:
         if "roles" in a:  # a joint action (issue 37): every agent of it at once
-            who = ", ".join(f"{role} {ag if isinstance(ag, str) else ' or '.join(ag)}" for role, ag in a["roles"].items())
+            who = ", ".join(f"{role} {ag if isinstance(ag, str) else ' or '.join(ag)}"
+                            for role, ag in a["roles"].items())
             if "agents_needed" in a:  # any k of its agents (the plan chooses the crew)
                 lines.append(f"  {a['id']:<10} {a['name']}  (by any {a['agents_needed']} of {', '.join(a['agents'])} "
                              "at once)")
