@@ -28,7 +28,8 @@ if TYPE_CHECKING:  # networkx only for `phase_graph`'s callers: a compile does n
     import networkx as nx
     import numpy as np  # only `code_sequences` uses it (imported there): this module is read without numpy
 
-__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "code_sequences",
+__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocation_key", "allocations",
+           "code_sequences",
            "count_plans",
            "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical",
            "must_precede", "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
@@ -71,6 +72,15 @@ def _allocations(task: Task) -> Iterator[tuple[tuple[tuple[str, str], ...], tupl
     lexicographic order of the choices (agents in task order, crews in `Action.crews` order)."""
     for doers in itertools.product(*_doer_choices(task)):
         yield _named(task, doers), doers
+
+
+def allocation_key(task: Task, plan: Plan) -> tuple:
+    """What tells `plan`'s allocation apart from the others': its `Plan.allocation`, and with a crew to
+    choose (`Task.has_crew_choice`) each such joint action's crew too (two crews with one lead share an
+    allocation's names, not its choice). What ``hrc compile --best-per-allocation`` groups plans by."""
+    if not task.has_crew_choice:
+        return plan.allocation
+    return plan.allocation + tuple((a.id, task.crew(a.id, plan)) for a in task.actions if a.crew_choice)
 
 
 def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:

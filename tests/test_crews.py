@@ -324,3 +324,12 @@ def test_dispatch_follows_the_crew(hand_out: Path) -> None:
     d.observe(Observation(1.0, "depart", "robot", "lift", "hold"))
     dec = d.observe(Observation(4.0, "arrive", "robot", "lift", "hold"))
     assert isinstance(dec.robot, WaitFor) and (dec.robot.agent, dec.robot.event) == ("bob", "arrive")
+
+
+def test_best_per_allocation_tells_crews_apart(tmp_path: Path) -> None:
+    """The hand case's 4 plans are 4 allocations (the crew is part of one), though only 2 differ in
+    `Plan.allocation`'s names (the lift's lead is the robot in all): --best-per-allocation 1 keeps all 4."""
+    out = tmp_path / "out"
+    assert main(["compile", str(_write(tmp_path, HAND)), "--out", str(out), "--no-report", "-q",
+                 "--best-per-allocation", "1"]) == 0
+    assert len(list(iter_plans(out))) == 4
