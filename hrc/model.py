@@ -14,6 +14,7 @@ from __future__ import annotations
 import enum
 import functools
 import hashlib
+import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -156,9 +157,13 @@ class Action:
     """A unit of the task, done by exactly one of `agents`, its phases in the given order.
 
     A *joint* action (`roles` not empty: Strassmair & Taylor 2014, section IV, "support the pile", left
-    there for future work) is done by all its roles at once: `roles` maps each role's name to the agent
-    that plays it, `agents` are those agents (task order), and each phase's `durations` are by agent (the
-    role's agent). Each phase starts when every role's agent is at its location and ends for all at once
+    there for future work) is done by a *crew* at once: `roles` holds each role's name and its candidates
+    (the agents that may play it, task order; the candidates of different roles are disjoint), `needed`
+    how many roles a crew fills (all of them, or any `needed` of them for ``agents: [...]`` with
+    ``agents_needed: k``, whose roles are named after their one agent each), and `agents` every candidate
+    (task order). Each phase's `durations` are by agent (the duration of the agent's role). Which crew
+    does it is a choice of the plan (`Task.crew`: the agents whose sequences hold it); each phase starts
+    when every agent of the crew is at its location and ends for all at once
     (`hrc.compile.temporal_net_creator`, "joint actions").
     """
 
@@ -166,12 +171,47 @@ class Action:
     name: str
     agents: tuple[str, ...]
     phases: tuple[Phase, ...]
-    roles: tuple[tuple[str, str], ...] = ()  # (role, agent), in the task file's order; () for one agent
+    roles: tuple[tuple[str, tuple[str, ...]], ...] = ()  # (role, candidates), in the task file's order
+    needed: int = 0  # the crew's size: len(roles) (0 says so), or fewer for "any k of these agents"; 1 alone
+
+    def __post_init__(self) -> None:
+        # a role given as (role, agent) has that one candidate; `needed` 0: every role, 1 for a lone agent
+        if any(isinstance(c, str) for _, c in self.roles):
+            object.__setattr__(self, "roles", tuple((r, (c,) if isinstance(c, str) else tuple(c))
+                                                    for r, c in self.roles))
+        if self.needed == 0:
+            object.__setattr__(self, "needed", len(self.roles) if self.roles else 1)
 
     @property
     def joint(self) -> bool:
-        """Whether every agent of the action takes part in it (a joint action)."""
+        """Whether the action is done by a crew of agents at once (a joint action)."""
         return bool(self.roles)
+
+    @property
+    def crews(self) -> tuple[tuple[str, ...], ...]:
+        """Every crew that may do a joint action, each as its agents in the order of `agents` (task
+        order): `needed` of its roles (in role order) times one candidate each. Candidates of different
+        roles are disjoint, so no crew comes twice: a crew is counted once. () for a one-agent action."""
+        if not self.roles:
+            return ()
+        order = {ag: i for i, ag in enumerate(self.agents)}
+        out = []
+        for chosen in itertools.combinations(self.roles, self.needed):
+            for pick in itertools.product(*(cands for _, cands in chosen)):
+                out.append(tuple(sorted(pick, key=order.__getitem__)))
+        return tuple(out)
+
+    @property
+    def crew_choice(self) -> bool:
+        """Whether a joint action may be done by more than one crew (a choice of the plan)."""
+        return bool(self.roles) and (self.needed < len(self.roles) or any(len(c) > 1 for _, c in self.roles))
+
+    def role_of(self, agent_id: str) -> str:
+        """The role `agent_id` plays when it takes part in a joint action."""
+        for role, cands in self.roles:
+            if agent_id in cands:
+                return role
+        raise KeyError(agent_id)
 
     def phase(self, phase_id: str) -> Phase:
         for ph in self.phases:
@@ -328,6 +368,8 @@ class Task:
     safety: Safety | None = None
     has_joint: bool = field(init=False, repr=False, compare=False)
     """Whether some action is joint (`Action.roles`): asked per leg on hot paths, so computed once."""
+    has_crew_choice: bool = field(init=False, repr=False, compare=False)
+    """Whether some joint action may be done by more than one crew (`Action.crew_choice`)."""
     agent_ids: tuple[str, ...] = field(init=False, repr=False, compare=False)
     """The agents' ids in task order (computed once: asked per action when a plan is read from its code)."""
     action_ids: tuple[str, ...] = field(init=False, repr=False, compare=False)
@@ -335,6 +377,7 @@ class Task:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "has_joint", any(a.joint for a in self.actions))
+        object.__setattr__(self, "has_crew_choice", any(a.crew_choice for a in self.actions))
         object.__setattr__(self, "agent_ids", tuple(a.id for a in self.agents))
         object.__setattr__(self, "action_ids", tuple(a.id for a in self.actions))
 
@@ -357,14 +400,22 @@ class Task:
                 return ac
         raise KeyError(action_id)
 
-    def lead(self, action_id: str) -> str:
-        """Who starts a joint action (the first robot among its agents, in task order): the one whose
-        controllable timepoint is the action's start, and the agent a plan's allocation names for it. For
-        any other action, its one agent is chosen by the plan, so this raises `KeyError`."""
+    def crew(self, action_id: str, plan: Plan) -> tuple[str, ...]:
+        """The agents (task order) that do `action_id` in `plan`: those whose sequences hold it (for a
+        joint action, the crew the plan chose among `Action.crews`; otherwise its one agent)."""
+        return tuple(ag for ag, seq in plan.sequences if action_id in seq)
+
+    def lead(self, action_id: str, plan: Plan | None = None) -> str:
+        """Who starts a joint action (the first robot of its crew, in task order): the one whose
+        controllable timepoint is the action's start, and the agent a plan's allocation names for it.
+        Without `plan`, the crew is the action's only one (raises `KeyError` when the plan chooses it,
+        `Action.crew_choice`). For any other action, its one agent is chosen by the plan, so this raises
+        `KeyError`."""
         action = self.action(action_id)
-        if not action.joint:
+        if not action.joint or (plan is None and action.crew_choice):
             raise KeyError(action_id)
-        return next(a.id for a in self.agents if a.id in action.agents and not a.is_human)
+        crew = action.agents if plan is None else self.crew(action_id, plan)
+        return next(a.id for a in self.agents if a.id in crew and not a.is_human)
 
     def action_precedence(self) -> tuple[tuple[str, str], ...]:
         """Distinct action pairs ``(a, b)`` such that some phase of `b` must follow some phase of `a`."""

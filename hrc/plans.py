@@ -28,11 +28,12 @@ if TYPE_CHECKING:  # networkx only for `phase_graph`'s callers: a compile does n
     import networkx as nx
     import numpy as np  # only `code_sequences` uses it (imported there): this module is read without numpy
 
-__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocations", "code_sequences",
+__all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count", "allocation_key", "allocations",
+           "code_sequences",
            "count_plans",
            "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical",
            "must_precede", "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
-           "plan_from_code", "relabellings", "spread_families", "symmetry_factor"]
+           "plan_from_code", "refuse_crew_choice", "relabellings", "spread_families", "symmetry_factor"]
 
 R = TypeVar("R")
 
@@ -45,22 +46,60 @@ class _TooManyStates(Exception):
     """The exact count would memoize more run states than allowed."""
 
 
-def _agent_choices(task: Task) -> list[list[str]]:
-    """Per action (task order), the agents that may do it (task order); a joint action's only choice is its
-    lead (`Task.lead`): every agent of it takes part, there is nothing to allocate."""
-    return [[task.lead(action.id)] if action.joint else [ag for ag in task.agent_ids if ag in action.agents]
+def _doer_choices(task: Task) -> list[list[tuple[str, ...]]]:
+    """Per action (task order), who may do it, each choice as the agents doing it (task order): one agent
+    of its `agents`, or for a joint action one of its `Action.crews` (every agent of the crew takes part;
+    with one crew, there is nothing to choose)."""
+    return [list(action.crews) if action.joint else [(ag,) for ag in task.agent_ids if ag in action.agents]
             for action in task.actions]
 
 
+def _named(task: Task, doers: tuple[tuple[str, ...], ...]) -> tuple[tuple[str, str], ...]:
+    """The allocation of a choice of doers per action: each action to its one agent, a joint action to
+    its crew's lead (`Task.lead`: the first robot of the crew in task order)."""
+    robots = {a.id for a in task.agents if not a.is_human}
+    return tuple((action, crew[0] if len(crew) == 1 else next(ag for ag in crew if ag in robots))
+                 for action, crew in zip(task.action_ids, doers, strict=True))
+
+
 def allocation_count(task: Task) -> int:
-    """How many allocations `allocations` yields."""
-    return math.prod(len(c) for c in _agent_choices(task))
+    """How many allocations `allocations` yields (a joint action's crew is part of its allocation)."""
+    return math.prod(len(c) for c in _doer_choices(task))
+
+
+def _allocations(task: Task) -> Iterator[tuple[tuple[tuple[str, str], ...], tuple[tuple[str, ...], ...]]]:
+    """Every allocation and the doers it stands for (per action, its agent or its joint crew), in
+    lexicographic order of the choices (agents in task order, crews in `Action.crews` order)."""
+    for doers in itertools.product(*_doer_choices(task)):
+        yield _named(task, doers), doers
+
+
+def allocation_key(task: Task, plan: Plan) -> tuple:
+    """What tells `plan`'s allocation apart from the others': its `Plan.allocation`, and with a crew to
+    choose (`Task.has_crew_choice`) each such joint action's crew too (two crews with one lead share an
+    allocation's names, not its choice). What ``hrc compile --best-per-allocation`` groups plans by."""
+    if not task.has_crew_choice:
+        return plan.allocation
+    return plan.allocation + tuple((a.id, task.crew(a.id, plan)) for a in task.actions if a.crew_choice)
 
 
 def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
-    """Every allocation ``((action, agent), ...)`` in task order, each action to one agent that may do it."""
-    for combo in itertools.product(*_agent_choices(task)):
-        yield tuple(zip(task.action_ids, combo, strict=True))
+    """Every allocation ``((action, agent), ...)`` in task order, each action to one agent that may do it
+    (a joint action to its crew's lead: two crews with one lead give the same allocation twice)."""
+    for allocation, _ in _allocations(task):
+        yield allocation
+
+
+def refuse_crew_choice(task: Task, what: str) -> None:
+    """Raise `InputError` (one line, exit 2) when some joint action's crew is a choice of the plan
+    (`Action.crew_choice`): the online parts (`what`: the console, ROS 2, the motion detector, the
+    simulation, the search compile and compile on demand) follow one crew per joint action for now; `hrc
+    show`, `hrc compile` and `hrc dispatch` (JSON lines) follow the plan's crew."""
+    for i, action in enumerate(task.actions):
+        if action.crew_choice:
+            raise InputError(task.source, f"actions[{i}].roles", f"{what} cannot follow a crew choice yet: "
+                             f"which agents do joint action '{action.id}' is a choice of the plan (hrc show, "
+                             f"hrc compile and hrc dispatch without --detect motion or compile on demand can)")
 
 
 Graph = dict[str, list[str]]
@@ -144,12 +183,14 @@ def phase_graph(task: Task, plan: Plan) -> nx.DiGraph:
     return g
 
 
-def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
+def _sequences(task: Task, doers: tuple[tuple[str, ...], ...],
                before: frozenset[tuple[str, str]]) -> Iterator[tuple[tuple[str, tuple[str, ...]], ...]]:
+    """Every valid combination of the agents' sequences, each agent doing the actions `doers` (per action
+    in task order: the agents doing it) give it."""
     per_agent = []
-    joint = {a.id: a.agents for a in task.actions if a.joint}
+    joint = task.has_joint
     for agent in task.agent_ids:
-        mine = tuple(a for a, ag in allocation if ag == agent or agent in joint.get(a, ()))
+        mine = tuple(a for a, crew in zip(task.action_ids, doers, strict=True) if agent in crew)
         per_agent.append([(agent, seq) for seq in _linear_extensions(mine, before)])
     base = _task_phase_graph(task)
     last = {a.id: str(PhaseRef(a.id, a.phases[-1].id)) for a in task.actions}
@@ -160,7 +201,7 @@ def _sequences(task: Task, allocation: tuple[tuple[str, str], ...],
     # (a joint action is in two agents' sequences: two of them can close a cycle on their own, and the
     # check is what makes the agents' orders of their joint actions agree)
     linked = (any(pr.before.action != pr.after.action for pr in task.precedence)
-              or not is_acyclic(base) or bool(joint))
+              or not is_acyclic(base) or joint)
     for combo in itertools.product(*per_agent):
         if linked and len(combo) > 1:  # cross-agent cycles need two or more busy agents
             g = {u: list(succ) for u, succ in base.items()}
@@ -178,8 +219,8 @@ def generate_plans(task: Task, symmetry: bool = False) -> Iterator[Plan]:
     (`identical_actions`, `is_canonical`)."""
     before = must_precede(task)
     groups = identical_actions(task) if symmetry else ()
-    for allocation in allocations(task):
-        for sequences in _sequences(task, allocation, before):
+    for allocation, doers in _allocations(task):
+        for sequences in _sequences(task, doers, before):
             plan = Plan(allocation=allocation, sequences=sequences)
             if not groups or is_canonical(task, plan, groups):
                 yield plan
@@ -197,7 +238,7 @@ def identical_actions(task: Task) -> tuple[tuple[str, ...], ...]:
     by_shape: dict[tuple, list[str]] = {}
     for a in task.actions:
         if a.id not in named:
-            shape = (a.agents, a.roles, tuple((p.id, p.location, p.durations) for p in a.phases))
+            shape = (a.agents, a.roles, a.needed, tuple((p.id, p.location, p.durations) for p in a.phases))
             by_shape.setdefault(shape, []).append(a.id)
     return tuple(tuple(ids) for ids in by_shape.values() if len(ids) > 1)
 
@@ -249,7 +290,11 @@ def count_plans(task: Task, max_states: int | None = None) -> int:
     # a joint action (`Action.roles`) is revealed by each of its agents in turn, and its phases are done
     # only when all of them are at that phase: they are done together, and a plan in which the agents'
     # orders of their joint actions disagree gets stuck (a cycle, as in the phase graph)
-    takers = [tuple(n for n, ag in enumerate(task.agents) if ag.id in a.agents) if a.joint else () for a in actions]
+    # with a crew to choose (`Action.crews`), the crew is the agents that revealed it: its first phase is
+    # done when the agents at it are one of its crews (all crews have the same size, so none is done
+    # with part of its crew there; an agent that would join a full crew later finds the phase done)
+    number = {ag: n for n, ag in enumerate(task.agent_ids)}
+    takers = [frozenset(frozenset(number[ag] for ag in crew) for crew in a.crews) for a in actions]
     choosing, finished = -1, -2  # agent states besides (action, phase index)
 
     memo: dict[tuple[int, tuple], int] = {}
@@ -280,8 +325,9 @@ def count_plans(task: Task, max_states: int | None = None) -> int:
                 after = (i, k + 1) if k + 1 < len(actions[i].phases) else choosing
                 if not takers[i]:
                     return count(done | bit[st], states[:n] + (after,) + states[n + 1:])
-                if all(states[m] == st for m in takers[i]):  # every agent of the joint action is there
-                    return count(done | bit[st], tuple(after if m in takers[i] else x for m, x in enumerate(states)))
+                there = frozenset(m for m, x in enumerate(states) if x == st)
+                if there in takers[i]:  # every agent of one of its crews is there
+                    return count(done | bit[st], tuple(after if m in there else x for m, x in enumerate(states)))
         return 0  # stuck: the plan's phase graph has a cycle, or actions are left that nobody will do
 
     return count(0, (choosing,) * len(task.agents))
@@ -297,9 +343,10 @@ def plan_count_bound(task: Task) -> int:
     for action in task.actions:
         nxt: dict[tuple[int, ...], int] = {}
         for counts, n in ways.items():
-            if action.joint:  # in the sequence of every agent of it
-                key = tuple(k + (agent.id in action.agents) for k, agent in zip(counts, task.agents, strict=True))
-                nxt[key] = nxt.get(key, 0) + n
+            if action.joint:  # in the sequence of every agent of its crew, one of its crews
+                for crew in action.crews:
+                    key = tuple(k + (agent.id in crew) for k, agent in zip(counts, task.agents, strict=True))
+                    nxt[key] = nxt.get(key, 0) + n
                 continue
             for i, agent in enumerate(task.agents):
                 if agent.id in action.agents:
@@ -495,8 +542,11 @@ def plan_from_code(task: Task, code: bytes) -> Plan:
             part.append(task.action_ids[x])
     sequences.append((task.agent_ids[len(sequences)], tuple(part)))
     agent_of = {a: agent for agent, seq in sequences for a in seq}
-    if task.has_joint:
-        agent_of.update((a.id, task.lead(a.id)) for a in task.actions if a.joint)
+    if task.has_joint:  # a joint action: its crew's lead (its crew: the agents whose sequences hold it)
+        robots = {ag.id for ag in task.agents if not ag.is_human}
+        for a in task.actions:
+            if a.joint:
+                agent_of[a.id] = next(ag for ag, seq in sequences if ag in robots and a.id in seq)
     return Plan(allocation=tuple((a, agent_of[a]) for a in task.action_ids), sequences=tuple(sequences))
 
 
@@ -505,7 +555,7 @@ def spread_families(task: Task, count: int, symmetry: bool = False) -> list[tupl
     spread evenly over the allocation space: the first family of each. A sample of the plans that is not
     all of one corner of the space, as the stream's first plans are (allocations come in lexicographic
     order: the first ones give the human everything), for `hrc compile`'s up-front estimate."""
-    choices = _agent_choices(task)
+    choices = _doer_choices(task)
     total = allocation_count(task)
     before = must_precede(task)
     groups = identical_actions(task)
@@ -522,8 +572,9 @@ def spread_families(task: Task, count: int, symmetry: bool = False) -> list[tupl
         for c in reversed(choices):  # mixed radix, the last action fastest, as itertools.product
             i, digit = divmod(i, len(c))
             combo.append(c[digit])
-        allocation = tuple(zip(task.action_ids, reversed(combo), strict=True))
-        for sequences in _sequences(task, allocation, before):
+        doers = tuple(reversed(combo))
+        allocation = _named(task, doers)
+        for sequences in _sequences(task, doers, before):
             plan = Plan(allocation=allocation, sequences=sequences)
             if not groups or is_canonical(task, plan, groups):
                 out.append((plan,) if symmetry or not groups else relabellings(task, plan, groups))

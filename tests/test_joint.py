@@ -75,7 +75,8 @@ def lift(tmp_path: Path):
 # ------------------------------------------------------------------------------------------ task format
 def test_roles_load_as_a_joint_action_with_durations_by_agent(lift) -> None:
     action = lift.action("lift")
-    assert action.joint and action.roles == (("holder", "human"), ("lifter", "robot"))
+    assert action.joint and action.roles == (("holder", ("human",)), ("lifter", ("robot",)))
+    assert action.needed == 2 and action.crews == (("human", "robot"),) and not action.crew_choice
     assert action.agents == ("human", "robot")
     phase = action.phase("hold")
     assert (phase.duration("human").lb, phase.duration("human").ub) == (3, 5)
@@ -88,7 +89,7 @@ def test_agents_needed_is_every_agent_in_a_role_named_for_it(tmp_path: Path) -> 
     task["actions"][0] = {"id": "lift", "agents": ["human", "robot"], "agents_needed": 2, "phases": [
         {"id": "hold", "location": "J", "duration": {"human": [3, 5], "robot": [2, 4]}}]}
     loaded = load_task(_write(tmp_path, task))
-    assert loaded.action("lift").roles == (("human", "human"), ("robot", "robot"))
+    assert loaded.action("lift").roles == (("human", ("human",)), ("robot", ("robot",)))
     task["actions"][0]["agents_needed"] = 1  # one agent: as without the key
     assert not load_task(_write(tmp_path, task)).action("lift").joint
 
@@ -103,10 +104,10 @@ def test_a_joint_task_round_trips_and_a_plain_one_is_written_as_before(lift, tmp
     out.parent.mkdir()
     dump_task(lift, out)
     assert load_task(out).actions == lift.actions
-    assert "roles" in out.read_text("utf-8")
+    assert "roles:" in out.read_text("utf-8")
     plain = load_task(ROOT / "tasks" / "cube_stacking.yaml")
     dump_task(plain, out)
-    assert "roles" not in out.read_text("utf-8") and load_task(out).actions == plain.actions
+    assert "roles:" not in out.read_text("utf-8") and load_task(out).actions == plain.actions
 
 
 BAD = [

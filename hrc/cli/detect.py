@@ -37,6 +37,20 @@ def detect_params(args: argparse.Namespace) -> Any:
     return DetectParams() if args.sensor_sigma is None else DetectParams(sigma=max(args.sensor_sigma, 0.01))
 
 
+def refuse_crew_choice_in(out_dir: str, what: str) -> None:
+    """`hrc.plans.refuse_crew_choice` for the task compiled into `out_dir` (a folder that is not a compile's
+    output is left for the command itself to refuse, in its own words)."""
+    from hrc.compile.output import load_compiled_task
+    from hrc.errors import HrcError
+    from hrc.plans import refuse_crew_choice
+
+    try:
+        task = load_compiled_task(out_dir)
+    except (HrcError, OSError, KeyError, TypeError, ValueError):
+        return
+    refuse_crew_choice(task, what)
+
+
 def open_dispatcher(args: argparse.Namespace, command: str) -> Any:
     """The dispatcher `hrc dispatch` and `hrc ros2` serve on ``args.out_dir``: with the motion detector in
     front of it (``--detect motion``) or not. None, after one ``error:`` line, for ``--sensor-sigma``
@@ -49,6 +63,7 @@ def open_dispatcher(args: argparse.Namespace, command: str) -> Any:
     if args.detect == "motion":
         from hrc.detect import DetectingDispatcher
 
+        refuse_crew_choice_in(args.out_dir, f"hrc {command} --detect motion")
         return DetectingDispatcher.from_folder(args.out_dir, params=detect_params(args), **options)
     if args.sensor_sigma is not None:
         print(f"error: hrc {command}: --sensor-sigma needs --detect motion", file=sys.stderr)
@@ -75,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
     from hrc.io.atomic import write_text_atomic
 
     params = detect_params(args)
+    refuse_crew_choice_in(args.out_dir, "hrc detect")
     d = DetectingDispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial, params=params)
     assert isinstance(d, DetectingDispatcher)
     if args.trace == "-":

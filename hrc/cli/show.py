@@ -89,7 +89,9 @@ def task_summary(task: Task, calibrated: bool = False) -> dict[str, Any]:
                     "travel_slack": a.travel_slack} for a in task.agents],
         "actions": [{"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
             {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
-            for p in a.phases]} | ({"roles": dict(a.roles)} if a.joint else {}) for a in task.actions],
+            for p in a.phases]} | ({"roles": {role: (c[0] if len(c) == 1 else list(c)) for role, c in a.roles}}
+                                       | ({"agents_needed": a.needed} if a.needed < len(a.roles) else {})
+                                       if a.joint else {}) for a in task.actions],
         "precedence": [[str(p.before), str(p.after)] for p in task.precedence],
         "constraints": [{"from": str(c.source), "to": str(c.target),
                          "bounds": [c.bounds.lb, _bound(c.bounds.ub)]} for c in task.constraints],
@@ -124,8 +126,13 @@ def _text(s: dict[str, Any]) -> str:
     lines.append("actions:")
     for a in s["actions"]:
         if "roles" in a:  # a joint action (issue 37): every agent of it at once
-            who = ", ".join(f"{role} {ag}" for role, ag in a["roles"].items())
-            lines.append(f"  {a['id']:<10} {a['name']}  (by all at once: {who})")
+            who = ", ".join(f"{role} {ag if isinstance(ag, str) else ' or '.join(ag)}"
+                            for role, ag in a["roles"].items())
+            if "agents_needed" in a:  # any k of its agents (the plan chooses the crew)
+                lines.append(f"  {a['id']:<10} {a['name']}  (by any {a['agents_needed']} of {', '.join(a['agents'])} "
+                             "at once)")
+            else:
+                lines.append(f"  {a['id']:<10} {a['name']}  (by all at once: {who})")
         else:
             lines.append(f"  {a['id']:<10} {a['name']}  (by {', '.join(a['agents'])})")
         for p in a["phases"]:

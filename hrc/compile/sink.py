@@ -79,7 +79,7 @@ from hrc.errors import HrcError, InputError
 from hrc.io.task_file import task_digest
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary
-from hrc.plans import code_sequences, family_of, plan_code, plan_from_code
+from hrc.plans import allocation_key, code_sequences, family_of, plan_code, plan_from_code
 from hrc.temporal.graphml import read_graphml
 
 __all__ = ["HISTOGRAM_BINS", "REPORT_TOP", "Bar", "PlanSink", "Record"]
@@ -178,9 +178,9 @@ class PlanSink:
         among: dict[tuple, tuple] = {}
         if self.best is not None:
             for plan in (plan for family in families for plan in family):
-                keys = self._among.get(plan.allocation)
+                keys = self._among.get(allocation_key(self.task, plan))
                 if keys is not None and len(keys) >= self.best:
-                    among[plan.allocation] = keys[-1]
+                    among[allocation_key(self.task, plan)] = keys[-1]
         return top, {cls: b[0] for cls, b in self._best.items()}, among
 
     def _trim(self) -> None:
@@ -195,7 +195,7 @@ class PlanSink:
             taken: dict[tuple, int] = {}
             held = []
             for h in self._held:
-                allocation = h[2].plan.allocation
+                allocation = allocation_key(self.task, h[2].plan)
                 if taken.get(allocation, 0) < self.best:
                     taken[allocation] = taken.get(allocation, 0) + 1
                     held.append(h)
@@ -224,7 +224,7 @@ class PlanSink:
         self._width = len(code)
         self._codes += code
         if self.best is not None:
-            keys = self._among.setdefault(plan_from_code(self.task, code).allocation, [])
+            keys = self._among.setdefault(allocation_key(self.task, plan_from_code(self.task, code)), [])
             if len(keys) < self.best or key < keys[-1]:
                 bisect.insort(keys, key)
                 del keys[self.best:]
@@ -468,7 +468,10 @@ class PlanSink:
         agent = np.cumsum(parts, axis=1, dtype=np.uint16)
         rows, cols = np.nonzero(~parts)
         allocation = np.zeros((n, len(self.task.actions)), dtype=np.uint16)
-        allocation[rows, codes[rows, cols]] = agent[rows, cols]
+        if self.task.has_crew_choice:  # a joint action's crew: the agents holding it (`allocation_key`)
+            np.bitwise_or.at(allocation, (rows, codes[rows, cols]), (1 << agent[rows, cols]).astype(np.uint16))
+        else:
+            allocation[rows, codes[rows, cols]] = agent[rows, cols]
         group = np.unique(allocation, axis=0, return_inverse=True)[1].ravel()[order]
         by_group = np.argsort(group, kind="stable")  # each allocation's plans together, in rank order
         sorted_group = group[by_group]

@@ -50,7 +50,15 @@ from hrc.compile.spool import WorkerFiles, Written
 from hrc.errors import HrcError
 from hrc.model import Plan, Task
 from hrc.motion import PathLibrary, plan_paths
-from hrc.plans import generate_plans, identical_actions, plan_code, plan_families, spread_families, symmetry_factor
+from hrc.plans import (
+    allocation_key,
+    generate_plans,
+    identical_actions,
+    plan_code,
+    plan_families,
+    spread_families,
+    symmetry_factor,
+)
 
 __all__ = ["FORKED_IMPORTS", "OUTPUT_FILES", "RESULTS_MAX_PLANS", "SAMPLE_MIN_PLANS", "Abandoned", "Sample",
            "StreamResult", "chunk_size", "compact_records", "compile_records", "compile_stream", "sample_twice"]
@@ -125,7 +133,7 @@ def compact_records(options: CompileOptions, stnu: str, task: Task, paths: PathL
     out: list[Record] = []
     compiled = _compiled(options, stnu, task, paths, families)
     keys = [rank_key(cp, options.rank_by) for cp in compiled]
-    kept = [not among or (beat := among.get(cp.plan.allocation)) is None or key < beat
+    kept = [not among or (beat := among.get(allocation_key(task, cp.plan))) is None or key < beat
             for cp, key in zip(compiled, keys, strict=True)]
     texts = [(_line_tail(task, cp, stnu), cp.graphml) if k else ("", "") for cp, k in zip(compiled, kept, strict=True)]
     tails: Sequence[str | Written] = [tail for tail, _ in texts]

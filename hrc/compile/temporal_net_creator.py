@@ -261,12 +261,13 @@ class _Skeleton:
             for leg in agent_legs(task, plan, agent.id):
                 waits_for_robot = any(owner[b] != agent.id for b in waits_on.get((leg.action, leg.phase), ()))
                 lead = owner[leg.action] if task.has_joint and task.action(leg.action).joint else None
+                crew = task.crew(leg.action, plan) if lead is not None else ()  # the plan's crew of it
                 key: tuple = ("after", agent.id, leg.action, leg.phase, leg.location, waits_for_robot, human_waits,
-                              lead)
+                              lead, crew)
                 after = ops.get(key)
                 if after is None:
                     after = ops[key] = (_after(task, agent, leg, waits_for_robot, human_waits) if lead is None
-                                        else _joint_after(task, agent, leg, lead))
+                                        else _joint_after(task, agent, leg, lead, crew))
                 if lead is not None and lead != agent.id:
                     self.joins.add(len(self.legs))
                 self.legs.append((agent, leg, ("travel", agent.id, leg.action, leg.phase, leg.origin, leg.location,
@@ -357,10 +358,11 @@ def _after(task: Task, agent: Agent, leg: Leg, waits_for_robot: bool, human_wait
     return after
 
 
-def _joint_after(task: Task, agent: Agent, leg: Leg, lead: str) -> list[_Op]:
+def _joint_after(task: Task, agent: Agent, leg: Leg, lead: str, crew: tuple[str, ...]) -> list[_Op]:
     """A joint action's leg's links after the arrival (the module docstring, "joint actions"): the one
     start waits for this agent's arrival; the lead's leg also carries the phase's duration, from the one
-    start to the one end, contingent when a person takes part."""
+    start to the one end, contingent when a person takes part. Over the plan's `crew` only (`Task.crew`):
+    the agents of the action the plan did not choose take no part in it."""
     here = _names(agent.id, leg.phase, leg.action)
     shared = _names(lead, leg.phase, leg.action)
     step = f"{leg.action}.{leg.phase}"
@@ -370,11 +372,12 @@ def _joint_after(task: Task, agent: Agent, leg: Leg, lead: str) -> list[_Op]:
         return after
     action = task.action(leg.action)
     phase = action.phase(leg.phase)
-    lb = max(phase.duration(a).lb for a in action.agents)
-    ub = max(phase.duration(a).ub for a in action.agents)
-    roles = ", ".join(f"{role} {ag} {phase.duration(ag).lb:g}-{phase.duration(ag).ub:g} s" for role, ag in action.roles)
+    lb = max(phase.duration(a).lb for a in crew)
+    ub = max(phase.duration(a).ub for a in crew)
+    roles = ", ".join(f"{action.role_of(ag)} {ag} {phase.duration(ag).lb:g}-{phase.duration(ag).ub:g} s"
+                      for role, _ in action.roles for ag in crew if action.role_of(ag) == role)
     what = f"{leg.phase} of {leg.action}, ending for all at once ({roles}: {lb:g}-{ub:g} s)"
-    if any(task.agent(a).is_human for a in action.agents):
+    if any(task.agent(a).is_human for a in crew):
         after.append(_cont(shared["start"], shared["end"], lb, ub, what))
     else:
         after.append(_req(shared["start"], shared["end"], seconds_to_ticks(lb), seconds_to_ticks(ub), "robot", what))

@@ -975,8 +975,8 @@ class Dispatcher:
             return WaitFor(agent, action, phase, "end")
         if event != "start":
             return None
-        for other in self._joint[action]:
-            if other != agent:
+        for other in self._joint[action]:  # the plan's crew of it (`hrc.model.Task.crew`): the agents with a leg
+            if other != agent and (other, action, phase) in entry.leg_points:
                 node = dict(entry.leg_points[(other, action, phase)])["arrive"]
                 if node not in done:
                     return WaitFor(other, action, phase, "arrive")

@@ -162,7 +162,14 @@ class History:
             raise DispatchError(f"duplicate: {what} was seen at {self.times[obs.key]:g} s")
         other = self.doer.get(action)
         if act.joint:  # every agent of it does it; its one start and end are its lead's (`Task.lead`)
-            lead = task.lead(action)
+            # (with a crew to choose, any robot that may be in it: set validation keeps the plans it leads)
+            if act.crew_choice:
+                if event in ("start", "end") and task.agent(agent).is_human:
+                    raise DispatchError(f"{what}: {action} is a joint action, the robot of its crew starts and "
+                                        f"ends it")
+                lead = agent
+            else:
+                lead = task.lead(action)
             if agent != lead and event in ("start", "end"):
                 raise DispatchError(f"{what}: {action} is a joint action, the {lead} starts and ends it")
         elif other is not None and other != agent:

@@ -206,23 +206,35 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
     aid = doc.ident(m["id"], path + ("id",))
     name = doc.text(m.get("name", aid), path + ("name",))
     known = {a.id: a for a in agents}
-    roles: list[tuple[str, str]] = []
+    roles: list[tuple[str, tuple[str, ...]]] = []  # (role, candidates in task order)
+    needed = 1
     if "roles" in m:
         for key in ("agents", "agents_needed"):
             if key in m:
                 doc.fail(path + (key,), "give either roles or agents (with agents_needed), not both")
         rm = m["roles"]
         if not isinstance(rm, dict):
-            doc.fail(path + ("roles",), "expected a mapping role: agent (e.g. {holder: human, stacker: robot})")
+            doc.fail(path + ("roles",), "expected a mapping role: agent (e.g. {holder: human, stacker: robot}) "
+                                        "or role: {agents: [candidates]}")
+        played: dict[str, str] = {}  # agent -> the role it may play
         for role, ag in rm.items():
             doc.ident(role, path + ("roles", str(role)))
-            if doc.ident(ag, path + ("roles", role)) not in known:
-                doc.fail(path + ("roles", role), f"unknown agent '{ag}' (known: {', '.join(known)})")
-            for other, taken in roles:
-                if taken == ag:
-                    doc.fail(path + ("roles", role), f"'{ag}' already plays role '{other}': one agent, one role")
-            roles.append((role, ag))
-        who = [ag for ag in known if ag in {a for _, a in roles}]  # task order
+            rpath = path + ("roles", role)
+            if isinstance(ag, dict):  # role: {agents: [alice, bob]}: any one of them plays it (the plan chooses)
+                cm = doc.mapping(ag, rpath, required=("agents",))
+                raw = doc.sequence(cm["agents"], rpath + ("agents",), min_len=1)
+                named = [(doc.ident(c, rpath + ("agents", j)), rpath + ("agents", j)) for j, c in enumerate(raw)]
+            else:
+                named = [(doc.ident(ag, rpath), rpath)]
+            for cand, cpath in named:
+                if cand not in known:
+                    doc.fail(cpath, f"unknown agent '{cand}' (known: {', '.join(known)})")
+                if cand in played:
+                    doc.fail(cpath, f"'{cand}' already plays role '{played[cand]}': one agent, one role")
+                played[cand] = role
+            roles.append((role, tuple(x for x in known if x in {c for c, _ in named})))
+        needed = len(roles)
+        who = [ag for ag in known if ag in played]  # task order
     else:
         if "agents" not in m:
             doc.fail(path + ("agents",), "missing (required key; or roles, for a joint action)")
@@ -237,20 +249,28 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
             needed = m["agents_needed"]
             if isinstance(needed, bool) or not isinstance(needed, int) or needed < 1:
                 doc.fail(path + ("agents_needed",), f"expected a whole number >= 1, found {needed!r}")
-            if needed > 1 and needed != len(who):
-                doc.fail(path + ("agents_needed",), f"{needed} agents needed out of {len(who)}: a joint action "
-                                                    f"is done by every agent it lists (choosing some is not "
-                                                    f"supported yet)")
-            if needed > 1:
-                roles = [(ag, ag) for ag in who]
+            if needed > len(who):
+                doc.fail(path + ("agents_needed",), f"{needed} agents needed out of {len(who)}: at most "
+                                                    f"{len(who)} (its agents: {', '.join(who)})")
+            if needed > 1:  # any `needed` of them: a role per agent, named after it, `needed` roles filled
+                roles = [(ag, (ag,)) for ag in known if ag in who]
+            else:
+                needed = 1
     if roles:
-        if len(roles) < 2:
+        if len(roles) < 2 or needed < 2:
             doc.fail(path + ("roles",), f"a joint action needs two or more roles, found {len(roles)}")
-        if all(known[ag].is_human for _, ag in roles):
+        if all(known[ag].is_human for _, cands in roles for ag in cands):
             doc.fail(path + ("roles",), "a joint action needs a robot among its agents: the robot starts it")
-    by_key = dict(roles) if roles else {ag: ag for ag in who}  # duration key (role or agent) -> agent
+        people = [(role, next(c for c in cands if known[c].is_human)) for role, cands in roles
+                  if any(known[c].is_human for c in cands)]
+        if len(people) >= needed:  # `needed` roles a person may play: a crew without a robot
+            where = path + (("roles",) if "roles" in m else ("agents_needed",))
+            crew = ", ".join(ag for _, ag in people[:needed])
+            doc.fail(where, f"a crew of people only ({crew}) could do it: a joint action needs a robot in "
+                            f"every crew, the robot starts it")
+    by_key = ({role: cands for role, cands in roles} if "roles" in m else {ag: (ag,) for ag in who})
     keys = list(by_key)
-    what = "role" if roles and "roles" in m else "agent"
+    what = "role" if "roles" in m else "agent"
     phases = []
     for j, raw_phase in enumerate(doc.sequence(m["phases"], path + ("phases",), min_len=1)):
         ppath = path + ("phases", j)
@@ -269,12 +289,14 @@ def _action(doc: Doc, raw: Any, path: tuple, agents: list[Agent], ws: Workspace,
         got = {}
         for key in keys:
             lb, ub = doc.interval(dm[key], ppath + ("duration", key), maximum=MAX_SECONDS, unit=" s")
-            got[by_key[key]] = Interval(lb, ub)
-            _check_location(doc, ppath + ("location",), loc, known[by_key[key]], ws, margin)
+            for ag in by_key[key]:
+                got[ag] = Interval(lb, ub)
+                _check_location(doc, ppath + ("location",), loc, known[ag], ws, margin)
         durations = [(ag, got[ag]) for ag in who]
         phases.append(Phase(id=pid, location=loc, durations=tuple(durations)))
     doc.unique([p.id for p in phases], path + ("phases",), "phase")
-    return Action(id=aid, name=name, agents=tuple(who), phases=tuple(phases), roles=tuple(roles))
+    return Action(id=aid, name=name, agents=tuple(who), phases=tuple(phases), roles=tuple(roles),
+                  needed=needed if roles else 1)
 
 
 def _phase_ref(doc: Doc, raw: Any, path: tuple, actions: dict[str, Action], first: bool) -> PhaseRef:
@@ -413,9 +435,15 @@ def _action_dict(a: Action) -> dict[str, Any]:
         return {"id": a.id, "name": a.name, "agents": list(a.agents), "phases": [
             {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
             for p in a.phases]}
-    return {"id": a.id, "name": a.name, "roles": dict(a.roles), "phases": [
-        {"id": p.id, "location": p.location, "duration": {role: [p.duration(ag).lb, p.duration(ag).ub]
-                                                          for role, ag in a.roles}} for p in a.phases]}
+    if a.needed < len(a.roles):  # any `needed` of its agents: roles named after them, durations by agent
+        return {"id": a.id, "name": a.name, "agents": list(a.agents), "agents_needed": a.needed, "phases": [
+            {"id": p.id, "location": p.location, "duration": {ag: [iv.lb, iv.ub] for ag, iv in p.durations}}
+            for p in a.phases]}
+    return {"id": a.id, "name": a.name,
+            "roles": {role: (cands[0] if len(cands) == 1 else {"agents": list(cands)}) for role, cands in a.roles},
+            "phases": [{"id": p.id, "location": p.location,
+                        "duration": {role: [p.duration(cands[0]).lb, p.duration(cands[0]).ub]
+                                     for role, cands in a.roles}} for p in a.phases]}
 
 
 def task_digest(task: Task) -> str:
