@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -100,3 +101,16 @@ def test_the_calibrated_estimate_is_said_and_kept(capsys):
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("compile estimate: "))
     assert line.startswith(f"compile estimate: about {round(first['wall_seconds'])} s on ")
     assert " sample plans compiled here at " in line
+
+
+def test_compile_says_the_estimate_of_hrc_shows_sample(capsys, tmp_path):
+    """Once ``hrc show TASK`` has sampled the task here, ``hrc compile TASK`` says that estimate up front
+    (one figure, the same as show's for its options) instead of the rough range."""
+    assert main(["show", str(WORKSHOP_TASK), "--json"]) == 0
+    shown = _strict_json(capsys.readouterr().out)["estimate"]
+    assert main(["compile", str(WORKSHOP_TASK), "--out", str(tmp_path / "out"), "--stnu", "archive"]) == 0
+    captured = capsys.readouterr()
+    first = next(x for x in (captured.out + captured.err).splitlines() if x.startswith("cube_stacking: 32 plans"))
+    said = re.search(r"; (\d+) s on \d+ workers? \(hrc show's sample\)$", first)
+    assert said is not None, first
+    assert abs(int(said.group(1)) - shown["wall_seconds_archive"]) <= 0.6, (first, shown)

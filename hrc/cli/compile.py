@@ -405,7 +405,7 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
     start = time.perf_counter()
     from hrc.compile.compiler import CompileOptions
     from hrc.compile.defaults import SAMPLE_MIN_PLANS
-    from hrc.compile.estimate import estimate, fmt_bytes, fmt_span
+    from hrc.compile.estimate import estimate, fmt_bytes, fmt_span, kept_calibration
     from hrc.compile.stream import Sample
     from hrc.plans import allocation_count
 
@@ -437,13 +437,16 @@ def _compile(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, 
     jobs = None if args.executor is not None else max(1, min(workers, total))  # no idle worker processes
     quiet = args.quiet
     lo, hi = est.wall(jobs or workers)
+    kept = kept_calibration(task, args.seed) if args.executor is None else None
+    if kept is not None:  # `hrc show TASK` sampled it on this machine: its estimate, not the rough range
+        lo = hi = kept.wall(total, jobs or workers, args.stnu, report=not args.no_report)
     best = args.best_per_allocation
     keeping = "" if best is None else (f", keeping the best {best} of each of {allocation_count(task):,} allocations "
                                     "(all are compiled)")
     say(f"{task.name}: {est.plans} plans{keeping}; about {fmt_bytes(est.disk(args.stnu))} on disk (--stnu "
         f"{args.stnu}{', less what is not kept' * bool(keeping)}); {fmt_span(lo, hi)} on "
         f"{jobs or workers} worker{'s' * ((jobs or workers) > 1)}"
-        + (" until measured" if total >= SAMPLE_MIN_PLANS else "")
+        + (" (hrc show's sample)" if kept is not None else " until measured" if total >= SAMPLE_MIN_PLANS else "")
         + ("" if resume is None else f"; resuming: {len(resume[1]):,} compiled already"))
 
     def on_estimate(sample: Sample) -> None:

@@ -61,7 +61,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CALIBRATION_FAMILIES", "CALIBRATION_MAX_PLANS", "DEFAULT_MAX_PLANS", "FIXED_SECONDS", "GRAPHML_BYTES",
            "JSON_BYTES", "SECONDS_PER_PLAN", "ZIP_RATIO", "Calibration", "Estimate", "calibrate", "estimate",
-           "fmt_bytes", "fmt_seconds", "fmt_span"]
+           "fmt_bytes", "fmt_seconds", "fmt_span", "kept_calibration"]
 
 DEFAULT_MAX_PLANS = 50_000
 """``hrc compile --max-plans`` default: the 40,320 plans of 7 independent picks pass, 8 picks
@@ -200,22 +200,37 @@ class Calibration:
                                  + (REPORT_SECONDS if report else 0.0))
 
 
+def _calibration_key(task: Task, seed: int) -> str:
+    from hrc.caches import source_digest
+    from hrc.io.task_file import task_digest
+
+    return ":".join(("calibration-5", task_digest(task), str(seed), platform.node(), str(os.cpu_count()),
+                     source_digest("hrc.compile.estimate", "hrc.compile.compiler", "hrc.compile.motion_pattern",
+                                   "hrc.compile.stream", "hrc.compile.output", "hrc.compile.classify")))
+
+
+def kept_calibration(task: Task, seed: int = 0) -> Calibration | None:
+    """The calibration `calibrate` kept for `task` on this machine (``hrc show TASK`` ran with this code),
+    or None: looked up, never measured (``hrc compile`` says its estimate from it, up front)."""
+    from hrc.caches import cache_folder, disk_load
+
+    found = disk_load(cache_folder("calibration"), _calibration_key(task, seed))
+    return found if isinstance(found, Calibration) else None
+
+
 def calibrate(task: Task, seed: int = 0, families: int = CALIBRATION_FAMILIES,
               seconds: float = CALIBRATION_SECONDS, cache: bool = True) -> Calibration:
     """Compile a spread sample of `task`'s plans here, twice, and say what it cost (`Calibration`; the
     module docstring). Kept in the cache folder by task digest, seed, machine and the compiler's source
     (`cache`). Cost: the paths (from the roadmap cache after the first time) and about `seconds` twice."""
-    from hrc.caches import cache_folder, disk_load, disk_store, source_digest
+    from hrc.caches import cache_folder, disk_load, disk_store
     from hrc.compile.compiler import CompileOptions
     from hrc.compile.stream import sample_twice
     from hrc.errors import HrcError
-    from hrc.io.task_file import task_digest
     from hrc.motion import plan_paths
     from hrc.plans import spread_families
 
-    key = ":".join(("calibration-5", task_digest(task), str(seed), platform.node(), str(os.cpu_count()),
-                    source_digest("hrc.compile.estimate", "hrc.compile.compiler", "hrc.compile.motion_pattern",
-                                  "hrc.compile.stream", "hrc.compile.output", "hrc.compile.classify")))
+    key = _calibration_key(task, seed)
     folder = cache_folder("calibration") if cache else None
     found = disk_load(folder, key)
     if isinstance(found, Calibration):
