@@ -18,7 +18,7 @@ from typing import Any
 
 from hrc.cli.argtypes import real
 
-__all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "run"]
+__all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "refuse_crew_choice_in", "run"]
 
 
 def add_detect_options(p: argparse.ArgumentParser, positions: str | None = None) -> None:
