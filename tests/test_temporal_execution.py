@@ -130,6 +130,19 @@ def test_history_links_are_left_out_and_reported() -> None:
     assert violated_links(net, {"S": 0, "X": 1}) == ()
 
 
+def test_a_reading_ahead_of_the_clock_keeps_the_clock() -> None:
+    """`ahead`: a sensed event read as happened after now (a detector's estimate plus its error). Its
+    contingent link has lasted nothing yet (full range), what follows it is held back by it alone, and
+    anything else may still go now (reading the clock at that time would push Y to 10 as well)."""
+    net = STNU(("S", "A", "C", "X", "Y"), (R("A", "X", 1, None), R("S", "Y", 0, 20)), (C("A", "C", 2, 5),))
+    state = real_time_state(net, {"S": 0, "A": 10}, 8, ahead=True)
+    assert state.residual.contingents == (C("A", "C", 2, 5),)
+    assert state.step("X") == ExecutionWindow("X", 11, 20)
+    assert state.step("Y") == ExecutionWindow("Y", 8, 20)
+    with pytest.raises(NetworkError, match="after now"):
+        real_time_state(net, {"S": 0, "A": 10}, 8)
+
+
 @pytest.mark.parametrize(("executed", "now", "message"), [
     ({"Q": 0}, 1, "not in the network"),
     ({"A": 4}, 3, "after now"),

@@ -1162,9 +1162,10 @@ class Dispatcher:
                 used, results = got
                 return _FROM_CORE[used], [[names[v] for v in r] if isinstance(r, list)
                                           else (r[0], None if r[1] == NO_BOUND else r[1]) for r in results]
-        # (a time the person's event may have had can be after the last message's, `_estimates`: the Python
-        # reading wants every executed time at or before now, so reads the clock as at the latest of them)
-        state = real_time_state(entry.stnu, done, max([ticks(history.now), *done.values()]))
+        # a time the person's event may have had can be after the last message's (`_estimates`): the clock
+        # stays at now, as in the C core (reading it at that time instead held every other event of the
+        # plan back to it: a hint 0.5 s late on the detect-team case, tests/test_dispatch_native.py)
+        state = real_time_state(entry.stnu, done, ticks(history.now), ahead=True)
         if _rank(state.default_mode()) > _rank(mode):
             mode = state.default_mode()
         out: list[tuple[int, int | None] | list[str]] = []

@@ -127,7 +127,7 @@ def residual_origin(stnu: STNU) -> str:
     return name
 
 
-def _check_execution(stnu: STNU, executed: Mapping[str, int], now: int) -> None:
+def _check_execution(stnu: STNU, executed: Mapping[str, int], now: int, ahead: bool = False) -> None:
     known = set(stnu.timepoints)
     if isinstance(now, bool) or not isinstance(now, int):
         raise NetworkError(f"now must be an integer number of ticks, got {now!r}")
@@ -136,7 +136,7 @@ def _check_execution(stnu: STNU, executed: Mapping[str, int], now: int) -> None:
             raise NetworkError(f"executed timepoint {x!r} is not in the network")
         if isinstance(t, bool) or not isinstance(t, int):
             raise NetworkError(f"time of {x!r} must be an integer number of ticks, got {t!r}")
-        if t > now:
+        if t > now and not ahead:
             raise NetworkError(f"{x!r} executed at {t}, after now ({now})")
     for c in stnu.contingents:
         if c.target in executed:
@@ -146,14 +146,17 @@ def _check_execution(stnu: STNU, executed: Mapping[str, int], now: int) -> None:
                 raise NetworkError(f"contingent {c.target!r} observed before its activation {c.source!r}")
 
 
-def residual_network(stnu: STNU, executed: Mapping[str, int], now: int) -> STNU:
+def residual_network(stnu: STNU, executed: Mapping[str, int], now: int, *, ahead: bool = False) -> STNU:
     """The rest of an execution as an STNU with origin ``timepoints[0]`` (see the module docstring).
 
-    `executed` maps timepoints to their execution (or observation) ticks, all ``<= now``. Raises
-    `NetworkError` on an unknown timepoint, a time after `now`, or a contingent timepoint observed
-    before its activation. O(links).
+    `executed` maps timepoints to their execution (or observation) ticks, all ``<= now`` unless `ahead`:
+    a reading of when a sensed event may have happened, which can be after the message that told it
+    (`hrc.dispatch.Dispatcher._estimates`; the clock stays at `now`, and a contingent link whose
+    activation is read after `now` has lasted nothing yet). Raises `NetworkError` on an unknown
+    timepoint, a time after `now` (without `ahead`), or a contingent timepoint observed before its
+    activation. O(links).
     """
-    _check_execution(stnu, executed, now)
+    _check_execution(stnu, executed, now, ahead)
     origin = residual_origin(stnu)
     reqs = [r for r in stnu.requirements if not (r.source in executed and r.target in executed)]
     reqs.extend(RequirementLink(origin, x, t, t) for x, t in executed.items())
@@ -385,10 +388,10 @@ class RealTimeState:
         return tuple(labels)
 
 
-def real_time_state(network: STNU, executed: Mapping[str, int], now: int) -> RealTimeState:
+def real_time_state(network: STNU, executed: Mapping[str, int], now: int, *, ahead: bool = False) -> RealTimeState:
     """Build the `RealTimeState` of `network` executed as `executed` (timepoint -> tick) at tick `now`:
     the residual network and its DC check (bypass algorithm). Raises `NetworkError` as
-    `residual_network` does. Cost: one DC check."""
+    `residual_network` does (`ahead`: executed times may be after `now`, as there). Cost: one DC check."""
     frozen = MappingProxyType(dict(executed))
-    residual = residual_network(network, frozen, now)
+    residual = residual_network(network, frozen, now, ahead=ahead)
     return RealTimeState(network, frozen, now, residual, check_dc(residual, "bypass"))
