@@ -333,3 +333,17 @@ def test_best_per_allocation_tells_crews_apart(tmp_path: Path) -> None:
     assert main(["compile", str(_write(tmp_path, HAND)), "--out", str(out), "--no-report", "-q",
                  "--best-per-allocation", "1"]) == 0
     assert len(list(iter_plans(out))) == 4
+
+
+def test_show_plan_names_every_agent_of_the_crew(hand_out: Path, capsys) -> None:
+    """`hrc show OUT --plan ID`: the allocation line lists a joint action under every agent of the plan's
+    crew (marked joint), not under its lead alone; read against the plan's own crew."""
+    task = load_task(hand_out / "input" / "task.yaml")
+    for p in iter_plans(hand_out):
+        plan = next(q for q in generate_plans(task) if q.id == p["id"])
+        assert main(["show", str(hand_out), "--plan", p["id"]]) == 0
+        line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("  allocation: "))
+        parts = dict(part.split(": ", 1) for part in line.removeprefix("  allocation: ").split("; "))
+        crew = task.crew("lift", plan)
+        assert {a for a, acts in parts.items() if "lift (joint)" in acts.split(", ")} == set(crew)
+        assert [a for a, acts in parts.items() if "carry" in acts.split(", ")] == [plan.agent_of("carry")]

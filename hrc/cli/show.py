@@ -304,9 +304,15 @@ def _plan_text(folder: Path, header: dict[str, Any], p: dict[str, Any], stnu: st
                  f"nominal {_secs(p.get('nominal_makespan'))}; idle "
                  + ", ".join(f"{a} {t:g} s" for a, t in p.get("idle", {}).items())
                  + (f"; preference {p['preference']:g}" if p.get("preference") is not None else ""))
+    # each agent's actions from its order: a joint action is every agent's of its crew (the allocation
+    # names only the crew's lead, issue 37), marked so
     by_agent: dict[str, list[str]] = {}
     for action, agent in p.get("allocation", {}).items():
         by_agent.setdefault(agent, []).append(action)
+    seqs = p.get("sequences", {})
+    if seqs:
+        times = {x: sum(x in seq for seq in seqs.values()) for x in p.get("allocation", {})}
+        by_agent = {a: [f"{x} (joint)" if times.get(x, 0) > 1 else x for x in seq] for a, seq in seqs.items() if seq}
     lines.append("  allocation: " + "; ".join(f"{a}: {', '.join(sorted(acts))}" for a, acts in by_agent.items()))
     lines.append("  order:")
     lines.extend(f"    {a}: {' -> '.join(seq) or '(nothing)'}" for a, seq in p.get("sequences", {}).items())
