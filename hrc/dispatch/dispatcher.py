@@ -399,6 +399,7 @@ class Dispatcher:
             lo, hi = at - ticks(self.max_observation_delay), at
         else:
             return hinted
+        lo = max(lo, 0)  # not before the run's start (the origin)
         told = hinted.get(obs.key)  # (`_told`)
         if told is not None:
             lo = max(lo, told[0])
@@ -1079,6 +1080,7 @@ class Dispatcher:
                     t = min(max(t, shift[key][0]), shift[key][1])
                 moved[node] = t
                 times[key] = (t, t)
+            _in_order(entry, history, moved, times, side)
             arr = seen[0].copy()
             for key, bounds in times.items():
                 arr[ids.index(key[0]), history.legs[key[0]].index((key[1], key[2])), LEG_EVENTS.index(key[3])] = \
@@ -1091,6 +1093,7 @@ class Dispatcher:
                 key, node, k = u[0], u[1], u[4]
                 g = ids.index(key[0])
                 moved[node] = at
+                _pending_at(entry, history, key, moved, at)
                 arr[g, k, LEG_EVENTS.index(key[3])] = at
                 if k >= counts[g]:  # the first event of a leg not yet seen begun
                     counts = counts.copy() if counts is seen[1] else counts
@@ -1350,6 +1353,45 @@ def _do_form(entry: PlanEntry, done: dict[str, int], now: int, preferences: Any)
     events = {residual_origin(stnu): 0}
     events.update(index)
     return events, rows_apsp(rows, result.do_lb, result.do_ub)
+
+
+def _in_order(entry: PlanEntry, history: History, moved: dict[str, int],
+              times: dict[tuple[str, str, str, str], tuple[int, int]], side: int) -> None:
+    """One reading of `_estimates` (`side` 0: each seen event as early as it may have been, 1: as late) kept
+    in each person's own order: an event read early is not before the one they reported before it, one read
+    late not after the one they reported after it; and the events of a leg nobody reported (a start pressed
+    without its walk: `hrc.dispatch.validation.executed` puts them at the next reported event's time) read
+    with the reported one after them, as the C core derives them from the same reading. Else a start read
+    0.5 s before its press came before its own unreported arrival, or before a departure told to be on
+    time (found by fuzz/targets.py ``crew_history``; the Python reading and the core's differed)."""
+    agents = {key[0] for key in times}
+    for agent in agents:
+        seq = [((agent, action, phase, ev), node) for action, phase in history.legs.get(agent, ())
+               for ev, node in entry.leg_points[(agent, action, phase)]
+               if (agent, action, phase, ev) in history.times and node in moved]
+        bound: int | None = None
+        for key, node in (seq if side == 0 else reversed(seq)):
+            t = moved[node]
+            if key in times and bound is not None:
+                t = max(t, bound) if side == 0 else min(t, bound)
+                moved[node] = t
+                times[key] = (t, t)
+            bound = t if bound is None else max(bound, t) if side == 0 else min(bound, t)
+        for key, node in seq:
+            if key in times:
+                _pending_at(entry, history, key, moved, moved[node])
+
+
+def _pending_at(entry: PlanEntry, history: History, key: tuple[str, str, str, str], moved: dict[str, int],
+                t: int) -> None:
+    """In `moved`, the events of `key`'s leg before it that nobody reported, at `t` (`_in_order`)."""
+    agent, action, phase, event = key
+    points = entry.leg_points[(agent, action, phase)]
+    at = next(i for i, (ev, _) in enumerate(points) if ev == event)
+    for ev, node in reversed(points[:at]):
+        if (agent, action, phase, ev) in history.times:
+            return
+        moved[node] = t
 
 
 def _past(form: _DOForm, done: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,108 @@
+"""The dispatcher's two readings, side by side: the C core (``_dispatchcore.c``) and the Python one
+(`hrc.dispatch.fastnet`, `hrc.temporal.execution`, what runs where the core is not built) give the same
+answer to every message, under every sensing path, on a team whose joint action's crew is a choice of the
+plan (issue 37, ``tasks/two_workers_joint.yaml``).
+
+The cases were found by the ``crew_history`` fuzz target (fuzz/targets.py); both answers were wrong in
+one of two ways there, and the tests pin the readings both sides now share:
+
+- a start pressed with its walk unreported, the button up to 0.5 s late: the start is read as early as
+  0.5 s before the press; its departure and arrival, which `hrc.dispatch.validation.executed` puts at the
+  start's time, must be read with it (the Python reading left them at the press, after the start);
+- a first press 0.4 s into the run, up to 0.5 s late: not read before the run's start (it was, at -0.1 s).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from typing import Any
+
+import pytest
+from conftest import ROOT, compiled_folder
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hrc.dispatch import Dispatcher
+from hrc.dispatch.plan_set import load_plan_set
+from hrc.dispatch.protocol import answer
+
+SENSING: list[dict[str, Any]] = [{}, {"bound_tolerance": 0.15}, {"bound_tolerance": 0.4},
+                                 {"max_observation_delay": 0.5}]
+
+
+@pytest.fixture(scope="module")
+def plan_set(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    out = compiled_folder(tmp_path_factory.mktemp("crews") / "out", ROOT / "tasks" / "two_workers_joint.yaml")
+    return load_plan_set(out)
+
+
+def pair(plan_set: Any, **options: Any) -> tuple[Dispatcher, Dispatcher]:
+    native = Dispatcher(plan_set, **options)
+    if native.ranker.native is None:
+        pytest.skip("the C core is not built (python setup.py build_ext --inplace)")
+    ranker = copy.copy(native.ranker)
+    ranker.native = None
+    return native, Dispatcher(plan_set, ranker=ranker, **options)
+
+
+def both(d: tuple[Dispatcher, Dispatcher], msg: dict[str, Any]) -> dict[str, Any]:
+    line = json.dumps(msg).encode()
+    a, b = answer(d[0], line), answer(d[1], line)
+    assert a == b, msg
+    return json.loads(a)
+
+
+def test_a_late_start_with_its_walk_unreported_reads_the_walk_with_it(plan_set: Any) -> None:
+    d = pair(plan_set, max_observation_delay=0.5)
+    both(d, {"t": 8.3, "agent": "bob", "action": "pick_a", "phase": "fetch", "event": "start"})
+    both(d, {"t": 19.52, "agent": "bob", "action": "pick_a", "phase": "fetch", "event": "end"})
+    got = both(d, {"t": 27.21, "agent": "alice", "action": "pick_e", "phase": "fetch", "event": "start"})
+    assert got["ok"] and got["class"] == "DC"
+    # read as early as 26.71 s, alice's walk to E cannot have ended after it: the arrival she did not
+    # press is read at the start's time in both readings (the early one is the Python side's `_estimates`)
+    early, _ = d[1]._estimates(plan_set.entry(d[1]._state.best), _done(d[1]), d[1]._state.history,
+                                (d[1]._state.seen, d[1]._state.legs_seen), d[1]._state.hinted)
+    times = early[0]
+    assert times["alice_fetch_pick_e_arrive"] <= times["alice_fetch_pick_e_start"] == 26710
+
+
+def test_a_press_just_after_the_start_is_not_read_before_it(plan_set: Any) -> None:
+    d = pair(plan_set, max_observation_delay=0.5)
+    got = both(d, {"t": 0.4, "agent": "alice", "action": "pick_d", "phase": "fetch", "event": "start"})
+    assert got["ok"]
+    assert d[0]._state.hinted[("alice", "pick_d", "fetch", "start")] == (0, 400)
+
+
+def _done(d: Dispatcher) -> dict[str, int]:
+    from hrc.dispatch.validation import executed
+
+    return executed(d.plan_set.entry(d._state.best), d._state.history)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_random_histories_get_the_same_answers(plan_set: Any, data: st.DataObject) -> None:
+    """Random histories (as the fuzz target builds them): each step an event some person may report now, a
+    robot's step, a tick, an away or a back, at a time that never goes back."""
+    d = pair(plan_set, **data.draw(st.sampled_from(SENSING), label="sensing"))
+    people = [a.id for a in plan_set.task.agents if a.is_human]
+    t = 0.0
+    for _ in range(data.draw(st.integers(1, 24), label="messages")):
+        t = round(t + data.draw(st.integers(0, 4000), label="dt") / 100, 2)
+        person = data.draw(st.sampled_from(people), label="person")
+        choices = d[0].human_options(person)
+        robots = d[0].decision.to_json().get("robots") or {}
+        steps = [(r, s) for r, s in sorted(robots.items()) if isinstance(s, dict) and "action" in s]
+        pick = data.draw(st.integers(0, len(choices) + len(steps) + 1), label="pick")
+        if pick < len(choices):
+            o = choices[pick]
+            msg = {"t": t, "agent": person, "action": o.action, "phase": o.phase, "event": o.event}
+        elif pick < len(choices) + len(steps):
+            robot, step = steps[pick - len(choices)]
+            msg = {"t": t, "agent": robot, **{k: step[k] for k in ("action", "phase", "event")}}
+        elif pick == len(choices) + len(steps):
+            msg = {"t": t, "event": "tick"}
+        else:
+            msg = {"t": t, "agent": person, "event": "away" if data.draw(st.booleans()) else "back"}
+        both(d, msg)
