@@ -30,6 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 COMPILED_VARIABLE = "HRC_FUZZ_COMPILED"
 """The environment variable naming the compiled workshop folder the protocol targets dispatch on."""
 TEAM_VARIABLE = "HRC_FUZZ_TEAM"
+CREW_VARIABLE = "HRC_FUZZ_CREW"
 """The environment variable naming a compiled team folder (two people, one robot: ``tasks/two_workers.yaml``)."""
 
 _STATE: dict[str, Any] = {}
@@ -415,6 +416,57 @@ def dispatch_history(data: bytes) -> None:
         assert a == b, (msg, a, b)
 
 
+def crew_history(data: bytes) -> None:
+    """Random histories of a team whose joint action's crew is a choice of the plan (issue 37,
+    ``tasks/two_workers_joint.yaml``: either worker lifts with the robot), under a sensing path the input
+    picks (on time; a detector's estimates within 0.15 or 0.4 s, `bound_tolerance`; buttons up to 0.5 s
+    late): each step an event some person may report now (`human_options`), a robot's step, a tick, an
+    away, a back or a refused line, at a time that never or sometimes goes back. A dispatcher with the C
+    core and one without (the Python readings) give the same answer to every message: the readings of an
+    estimate after the message's time among them (`Dispatcher._estimates`; they once differed there)."""
+    import atheris
+
+    from hrc.dispatch import Dispatcher
+    from hrc.dispatch.protocol import answer
+    from hrc.dispatch.ranking import Ranker
+
+    plan_set = _plan_set(CREW_VARIABLE)
+    fdp = atheris.FuzzedDataProvider(data)
+    sensing = fdp.ConsumeIntInRange(0, 3)
+    options: dict[str, Any] = ({"bound_tolerance": (0.15, 0.4)[sensing - 1]} if sensing in (1, 2)
+                               else {"max_observation_delay": 0.5} if sensing == 3 else {})
+    fast = Dispatcher(plan_set, **options)
+    ranker = Ranker(plan_set, 1)
+    ranker.native = None
+    slow = Dispatcher(plan_set, ranker=ranker, **options)
+    people = [a.id for a in plan_set.task.agents if a.is_human]
+    t = 0.0
+    for _ in range(fdp.ConsumeIntInRange(1, 30)):
+        t += fdp.ConsumeIntInRange(0, 4000) / 100
+        person = people[fdp.ConsumeIntInRange(0, len(people) - 1)]
+        choices = fast.human_options(person)
+        robots = fast.decision.to_json().get("robots") or {}
+        steps = [(r, s) for r, s in sorted(robots.items()) if isinstance(s, dict) and "action" in s]
+        pick = fdp.ConsumeIntInRange(0, len(choices) + len(steps) + 2)
+        msg: dict[str, Any]
+        if pick < len(choices):
+            o = choices[pick]
+            msg = {"t": t, "agent": person, "action": o.action, "phase": o.phase, "event": o.event}
+        elif pick < len(choices) + len(steps):
+            robot, step = steps[pick - len(choices)]
+            msg = {"t": t, "agent": robot, **{k: step[k] for k in ("action", "phase", "event")}}
+        elif pick == len(choices) + len(steps):
+            msg = {"t": t, "event": "tick"}
+        elif pick == len(choices) + len(steps) + 1:
+            msg = {"t": t, "agent": person, "event": "away" if fdp.ConsumeBool() else "back"}
+        else:
+            msg = {"t": -t, "event": "tick"}
+        line = json.dumps(msg).encode()
+        a, b = answer(fast, line), answer(slow, line)
+        _answer_ok(a)
+        assert a == b, (options, msg, a, b)
+
+
 def pattern_search(data: bytes) -> None:
     """Motion acquisition's search over passing orders (``_patterncore.c``, through
     `hrc.compile.motion_pattern.choose_pattern`) on a random variant of the workshop: the input picks a
@@ -475,11 +527,12 @@ TARGETS: dict[str, Callable[[bytes], None]] = {
     "rul_verdict": rul_verdict,
     "stn_distances": stn_distances,
     "dispatch_history": dispatch_history,
+    "crew_history": crew_history,
     "pattern_search": pattern_search,
 }
 """Every target, by name (the corpus of target NAME is ``fuzz/corpus/NAME/``)."""
 
-NATIVE = ("rul_verdict", "stn_distances", "dispatch_history", "pattern_search")
+NATIVE = ("rul_verdict", "stn_distances", "dispatch_history", "crew_history", "pattern_search")
 """The targets that drive the C cores (run again with the sanitizer build: ``scripts/fuzz.py --sanitize``)."""
 
 COMPILED = ("dispatch_lines", "console_frames", "dispatch_log", "detect_trace", "dispatch_history")
@@ -487,3 +540,6 @@ COMPILED = ("dispatch_lines", "console_frames", "dispatch_log", "detect_trace", 
 
 TEAM = ("team_frames",)
 """The targets that need a compiled team (`TEAM_VARIABLE`)."""
+
+CREW = ("crew_history",)
+"""The targets that need a compiled team with a crew choice (`CREW_VARIABLE`)."""

@@ -19,7 +19,7 @@ has no ``-fsanitize-coverage=inline-8bit-counters``); the native targets' struct
 
 The targets that dispatch need a compiled workshop: made once per run into a temporary folder (about
 a minute), or given with ``--compiled DIR``; the team's target a compiled ``tasks/two_workers.yaml``
-(``--team DIR``).
+(``--team DIR``), the crews' a compiled ``tasks/two_workers_joint.yaml`` (``--crew DIR``).
 
 Examples::
 
@@ -149,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sanitize", action="store_true", help="only the native targets, on the ASan/UBSan build")
     p.add_argument("--compiled", help="a compiled workshop folder to dispatch on (default: compile one)")
     p.add_argument("--team", help="a compiled two_workers folder for the team's target (default: compile one)")
+    p.add_argument("--crew", help="a compiled two_workers_joint folder for the crews' target (default: compile one)")
     p.add_argument("--timeout", type=int, default=10, help="seconds per input before it counts as a hang")
     p.add_argument("--artifacts", default=str(ROOT / "fuzz" / "crashes"), help="where crashing inputs go")
     p.add_argument("--grow", action="store_true", help="add what the run finds to fuzz/corpus/ (a long run)")
@@ -166,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
             env[targets.COMPILED_VARIABLE] = args.compiled or str(compile_task(work))
         if any(n in targets.TEAM for n in names):
             env[targets.TEAM_VARIABLE] = args.team or str(compile_task(work, "two_workers.yaml"))
+        if any(n in targets.CREW for n in names):
+            env[targets.CREW_VARIABLE] = args.crew or str(compile_task(work, "two_workers_joint.yaml"))
         if args.sanitize:
             env["HRC_NATIVE_LIBRARY"] = str(build_sanitized(work))
             env["LD_PRELOAD"] = f"{_runtime('libasan.so')}:{_runtime('libstdc++.so')}"
