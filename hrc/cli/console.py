@@ -72,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
     if args.resume and args.log:
         print("error: hrc console: --resume and --log cannot be used together", file=sys.stderr)
         return 2
-    refuse_crew_choice_in(args.out_dir, "hrc console")
+    if args.detect == "motion":
+        refuse_crew_choice_in(args.out_dir, "hrc console --detect motion")
     page = load_or_create_token(args.token_file) if args.token_file else new_token()
     robot = load_or_create_token(args.robot_token_file) if args.robot_token_file else new_token()
     if page == robot:
