@@ -286,7 +286,7 @@ def test_the_tool_agrees_on_every_two_workers_joint_stnu(cstnu_tool: Path, tmp_p
 # ------------------------------------------------------------------------------- the online parts refuse
 
 @pytest.mark.parametrize("argv", [
-    ["console", "{out}", "--detect", "motion"], ["ros2", "{out}"], ["detect", "{out}", "-"], ["dispatch", "{out}", "--detect", "motion"],
+    ["console", "{out}", "--detect", "motion"], ["ros2", "{out}", "--detect", "motion"], ["detect", "{out}", "-"], ["dispatch", "{out}", "--detect", "motion"],
     ["dispatch", "{out}", "--on-demand", "on"],
 ])
 def test_online_parts_refuse_a_crew_choice_in_one_line(hand_out: Path, capsys, argv: list[str]) -> None:

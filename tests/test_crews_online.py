@@ -11,6 +11,7 @@ is not offered it afterwards; the robot waits for the crew that came.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -185,3 +186,143 @@ def test_two_candidates_press_on_their_own_pages_and_one_holds(joint_workers: Pa
     assert {m["agent"] for m in ins if m.get("action") == "load"} == {holder, "robot"}
     assert outs[-1]["plan"] in {p["id"] for p in iter_plans(joint_workers)}
     _replays(joint_workers, console.log, outs)
+
+
+# ------------------------------------------------------------------------------------------- hrc ros2
+
+def _line(t: float, agent: str, action: str, event: str) -> dict[str, Any]:
+    phase = {"carry": "put", "lift": "hold"}[action]
+    return {"t": t, "agent": agent, "action": action, "phase": phase, "event": event}
+
+
+# alice carries, then departs for the lift though the best plan had bob hold it; bob's departure for it
+# afterwards is refused (no remaining plan's crew has him); the robot, at J, waits for alice's arrival
+ROS_SCRIPT = [_line(0.5, "alice", "carry", "depart"), _line(2.0, "alice", "carry", "arrive"),
+              _line(2.1, "alice", "carry", "start"), _line(3.5, "alice", "carry", "end"),
+              _line(3.6, "alice", "lift", "depart"), _line(3.7, "bob", "lift", "depart"),
+              _line(3.8, "robot", "lift", "depart"), _line(6.9, "robot", "lift", "arrive"),
+              _line(8.0, "alice", "lift", "arrive"), _line(8.1, "robot", "lift", "start"),
+              _line(11.5, "robot", "lift", "end")]
+
+
+def test_ros2_follows_the_crew_that_came(hand_out: Path, tmp_path: Path) -> None:  # noqa: F811
+    """The hand-worked case over a real rclpy node (tests/ros2_client.py's `TeamClient`), each line on
+    its agent's own topic: the node is no longer refused; the best plan first has bob hold the lift, alice
+    departs for it instead: the candidates narrow to her crew's plan, bob's departure for it is refused
+    (by hand: no plan has both carry and the lift's hold by alice and bob holding too), the robot at J is
+    told to wait for alice's arrival (not bob's), then starts; its goals are J, then home (its start S).
+    The answers are those of the same lines through ``hrc dispatch``, byte for byte."""
+    import signal
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+    from ros2_client import NodeProcess, TeamClient, ros_env, rclpy_or_skip
+
+    rclpy_or_skip()
+    env = ros_env(tmp_path)
+    node = NodeProcess(hand_out, env, "--log", str(tmp_path / "ros.log"))
+    client = None
+    try:
+        client = TeamClient(env, ("robot",), ("alice", "bob"))
+        client.wait_matched()
+        # the goal at the node's start (transient local: here before any message): the lift's spot J
+        client.base.spin_until(lambda: len(client.goals["robot"]) == 1, 20, "the goal at the node's start")
+        raw = [client.send(json.dumps(line)) for line in ROS_SCRIPT]
+        client.base.spin_until(lambda: len(client.goals["robot"]) >= 2, 20, "the robot's home goal")
+        client.base.spin_for(0.3)
+        assert node.stop(signal.SIGTERM) == 0
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()
+    answers = [json.loads(a) for a in raw]
+    ok = [a["ok"] for a in answers]
+    assert ok == [True] * 5 + [False] + [True] * 5, answers
+    assert "no remaining plan allows bob lift.hold depart" in answers[5]["error"]
+    assert answers[3]["candidates"] == {"DC": 2, "consistent": 0, "inconsistent": 0}  # either may hold it
+    assert answers[4]["candidates"] == {"DC": 1, "consistent": 0, "inconsistent": 0}  # alice's crew's plan
+    assert answers[7]["robots"]["robot"] == {"wait_for": "alice.lift.hold.arrive"}
+    assert answers[8]["robots"]["robot"]["event"] == "start"
+    goals = [(round(g.pose.position.x, 6), round(g.pose.position.y, 6)) for g in client.goals["robot"]]
+    assert goals == [(5.0, 2.0), (5.0, 0.5)]  # J, then home at S (the map of tests/test_crews.py)
+    stdin = "".join(json.dumps(line) + "\n" for line in ROS_SCRIPT).encode()
+    plain = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(hand_out)], input=stdin,
+                           capture_output=True, timeout=120, cwd=ROOT, env=dict(env, PYTHONPATH=str(ROOT)))
+    assert plain.returncode == 0 and plain.stdout.decode().splitlines() == raw, plain.stderr
+
+
+@pytest.mark.parametrize("seed", [5])
+def test_ros2_runs_two_workers_joint_to_its_end(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path,
+                                                seed: int) -> None:
+    """two_workers_joint over a real rclpy node, tests/team_client.py playing both people and the robot
+    (random valid histories, nature's durations from the named plan's STNU): every answer accepted and
+    byte for byte ``hrc dispatch``'s, the load done by one candidate and the robot (the crew of the plan
+    left, `Task.crew`), the robot's goals the drives its answers name (`next_drive`), then home."""
+    import random
+    import signal
+    import subprocess
+    import sys
+
+    from conftest import ROOT, compiled_folder
+    from ros2_client import NodeProcess, TeamClient, rclpy_or_skip, ros_env
+    from test_ros2_team import _OverRos
+
+    from hrc.io.task_file import load_task
+    from hrc.plans import generate_plans
+    from hrc.ros2.drive import next_drive
+    from hrc.temporal.graphml import read_graphml
+
+    rclpy_or_skip()
+    out = tmp_path_factory.getbasetemp() / "twj-ros" / "out"
+    if not out.exists():
+        out.parent.mkdir(exist_ok=True)
+        compiled_folder(out, ROOT / "tasks" / "two_workers_joint.yaml", "--jobs", "1")
+    task = load_task(out / "input" / "task.yaml")
+    stnus = {p.stem: read_graphml(p.read_bytes()) for p in (out / "stnu").glob("*.graphml")}
+    env = ros_env(tmp_path)
+    node = NodeProcess(out, env, "--log", str(tmp_path / "ros.log"))
+    client = None
+    try:
+        client = TeamClient(env, ("robot",), ("alice", "bob"))
+        client.wait_matched()
+        client.base.spin_until(lambda: len(client.goals["robot"]) == 1, 20, "the goal at the node's start")
+        run = _OverRos(None, stnus, ("robot",), ("alice", "bob"), random.Random(seed))
+        run.client = client
+        run.play()
+        home = task.workspace.location(task.agent("robot").start).xy
+        client.base.spin_until(lambda: math.dist(_xy(client.goals["robot"][-1]), home) < 1e-9, 20, "home goal")
+        client.base.spin_for(0.3)
+        assert node.stop(signal.SIGTERM) == 0
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()
+    answers = client.answers
+    assert len(answers) == len(run.sent) and all(json.loads(a)["ok"] for a in answers)
+    stdin = "".join(line + "\n" for line in run.sent).encode()
+    plain = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(out)], input=stdin, capture_output=True,
+                           timeout=120, cwd=ROOT, env=dict(env, PYTHONPATH=str(ROOT)))
+    assert plain.returncode == 0 and plain.stdout.decode().splitlines() == answers
+    last = json.loads(answers[-1])
+    plan = next(p for p in generate_plans(task) if p.id == last["plan"])
+    crew = task.crew("load", plan)
+    assert len(crew) == 2 and crew[1] == "robot"
+    assert {json.loads(s)["agent"] for s in run.sent if json.loads(s).get("action") == "load"} == set(crew)
+    expected, leg = [], None
+    from hrc.compile.output import read_header as header_of
+    from hrc.dispatch.plan_set import load_plan_set as plan_set_of
+
+    routes = PlanRoutes(plan_motions(out, plan_set_of(out)), plan_paths(task, seed=int(header_of(out)["seed"])))
+    for a in map(json.loads, answers):
+        drive = next_drive(task, a, routes.routes(a["plan"]), "robot")
+        if drive is not None and drive.leg != leg:
+            leg = drive.leg
+            expected.append(drive.target)
+    got = [_xy(g) for g in client.goals["robot"]]
+    assert len(got) == len(expected) + 1 and all(math.dist(g, e) < 1e-9 for g, e in zip(got, expected))
+    assert math.dist(got[-1], home) < 1e-9
+
+
+def _xy(goal: Any) -> tuple[float, float]:
+    return (goal.pose.position.x, goal.pose.position.y)

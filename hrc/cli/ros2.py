@@ -73,7 +73,8 @@ def _next_log(out_dir: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    refuse_crew_choice_in(args.out_dir, "hrc ros2")
+    if args.detect == "motion":  # said before rclpy is looked for (`open_dispatcher` says it too)
+        refuse_crew_choice_in(args.out_dir, "hrc ros2 --detect motion")
     try:
         from hrc.ros2 import node as ros_node
     except ImportError as err:  # no extra, or its libraries not found
