@@ -119,8 +119,8 @@ def test_a_candidate_who_goes_straight_to_the_joint_action_takes_it_from_the_oth
 @pytest.fixture(scope="module")
 def joint_workers(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """tasks/two_workers_joint.yaml compiled (240 plans: the load's holder is alice or bob)."""
-    from console_harness import browser_or_skip
     from conftest import ROOT, compiled_folder
+    from console_harness import browser_or_skip
 
     browser_or_skip()
     return compiled_folder(tmp_path_factory.mktemp("twj") / "out", ROOT / "tasks" / "two_workers_joint.yaml",
@@ -217,7 +217,7 @@ def test_ros2_follows_the_crew_that_came(hand_out: Path, tmp_path: Path) -> None
     import sys
 
     from conftest import ROOT
-    from ros2_client import NodeProcess, TeamClient, ros_env, rclpy_or_skip
+    from ros2_client import NodeProcess, TeamClient, rclpy_or_skip, ros_env
 
     rclpy_or_skip()
     env = ros_env(tmp_path)
@@ -320,9 +320,291 @@ def test_ros2_runs_two_workers_joint_to_its_end(tmp_path_factory: pytest.TempPat
             leg = drive.leg
             expected.append(drive.target)
     got = [_xy(g) for g in client.goals["robot"]]
-    assert len(got) == len(expected) + 1 and all(math.dist(g, e) < 1e-9 for g, e in zip(got, expected))
+    assert len(got) == len(expected) + 1
+    assert all(math.dist(g, e) < 1e-9 for g, e in zip(got[:-1], expected, strict=True))
     assert math.dist(got[-1], home) < 1e-9
 
 
 def _xy(goal: Any) -> tuple[float, float]:
     return (goal.pose.position.x, goal.pose.position.y)
+
+
+# ------------------------------------------------------------------------------- the motion detector
+
+def _hand_folder(where: Path, change: Any = None) -> Path:
+    """The hand-worked task (changed by `change`, if any) compiled by ``hrc compile`` into a folder."""
+    import copy
+
+    import yaml
+    from test_crews import _write
+
+    from hrc.cli import main
+
+    task = copy.deepcopy(HAND)
+    if change is not None:
+        change(task)
+    path = _write(where, task)
+    assert main(["compile", str(path), "--out", str(where / "out"), "--no-report", "-q"]) == 0
+    assert yaml.safe_load(path.read_text())["name"] == "hand"
+    return where / "out"
+
+
+def _walkers(out: Path, plan: dict[str, list[tuple[str, ...]]]) -> dict[str, Any]:
+    """Each person's hand-made trace (tests/test_detect_team.py's `Walker`: the compile's own routes walked
+    at 1 m/s, 5 cm of seeded noise, 10 Hz), from `plan`: per person, steps ``("stand", s)``, ``("walk",
+    place)`` or ``("leg", action, phase, place, s)``; each stands on to the last one's end."""
+    from types import SimpleNamespace
+
+    from test_detect_team import Walker
+
+    from hrc.io.task_file import load_task
+
+    task = load_task(out / "input" / "task.yaml")
+    cps = SimpleNamespace(paths=plan_paths(task, seed=int(read_header(out).get("seed", 0))))
+    walkers = {p: Walker(cps, p, task.agent(p).start, 1.0, seed=k + 1) for k, p in enumerate(plan)}  # type: ignore[arg-type]
+    for p, steps in plan.items():
+        for step in steps:
+            if step[0] == "stand":
+                walkers[p].stand(float(step[1]))
+            elif step[0] == "walk":
+                walkers[p].walk(str(step[1]))
+            else:
+                walkers[p].leg(str(step[1]), str(step[2]), str(step[3]), float(step[4]))
+    end = max(w.t for w in walkers.values()) + 1.0
+    for w in walkers.values():
+        w.stand(end - w.t)
+    return walkers
+
+
+def _tracked_run(out: Path, walkers: dict[str, Any]) -> tuple[Any, list[str], list[str]]:
+    """Both people's positions in one stream by time, as JSON lines of ``hrc dispatch --detect motion``'s
+    protocol, with the robot's controller acknowledging its steps in between (each event at the start of
+    its window; a joint phase's end 3.5 s after its start, inside its bounds); every line through a
+    `DetectingDispatcher` as `hrc.dispatch.protocol.handle_line` reads it. The dispatcher, the lines and
+    their answers."""
+    from hrc.detect import DetectingDispatcher, DetectParams
+    from hrc.dispatch.protocol import handle_line
+
+    d = DetectingDispatcher.from_folder(out, params=DetectParams())
+    lines: list[str] = []
+    answers: list[str] = []
+
+    def send(msg: dict[str, Any]) -> dict[str, Any]:
+        lines.append(json.dumps(msg))
+        answers.append(handle_line(d, lines[-1]))
+        out = json.loads(answers[-1])
+        assert out["ok"] and not out.get("detect", {}).get("refused"), out
+        return out
+
+    def robot(t: float) -> None:
+        while True:
+            step = d.decision.robots["robot"]  # type: ignore[index]
+            if isinstance(step, RobotStep) and step.earliest <= t:
+                at, event = round(max(step.earliest, d.now), 3), step.event
+            elif isinstance(step, WaitFor) and (step.agent, step.event) == ("robot", "end"):
+                at, event = round(max(d.seen.times[("robot", step.action, step.phase, "start")] + 3.5, d.now), 3), "end"
+                if at > t:
+                    return
+            else:
+                return
+            send({"t": at, "agent": "robot", "action": step.action, "phase": step.phase, "event": event})
+
+    stream = sorted((t, k, p, x, y) for k, (p, w) in enumerate(walkers.items()) for t, x, y in w.samples)
+    for t, _, person, x, y in stream:
+        robot(t)
+        send({"t": t, "agent": person, "event": "position", "x": x, "y": y})
+    return d, lines, answers
+
+
+def _given(lines: list[str], answers: list[str]) -> dict[str, list[tuple[float, str, str, str]]]:
+    out: dict[str, list[tuple[float, str, str, str]]] = {"alice": [], "bob": []}
+    for line, answer in zip(lines, answers, strict=True):
+        detect = json.loads(answer).get("detect")
+        if detect:
+            who = json.loads(line)["agent"]
+            out[who] += [(e["t"], e["event"], e["action"], e["phase"]) for e in detect["events"]]
+    return out
+
+
+def _same_through_the_cli(out: Path, lines: list[str], answers: list[str]) -> None:
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    run = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(out), "--detect", "motion"],
+                         input="".join(x + "\n" for x in lines), capture_output=True, text=True, timeout=300,
+                         cwd=ROOT)
+    assert run.returncode == 0 and run.stdout.splitlines() == answers, run.stderr[-2000:]
+
+
+def test_a_candidate_seen_walking_to_the_joint_spot_joins(tmp_path: Path) -> None:
+    """The hand-worked case: alice carries at A, then walks to J and stands there while the lift is done;
+    bob stands at B all along. The best plan has bob hold the lift until alice is seen leaving A for J:
+    alice's departure and arrival are hers (within their stated spans of the truth), the plans narrow to
+    her crew, the robot starts the lift after her arrival (not waiting for bob), and nothing is ever given
+    as bob's. The same lines through ``hrc dispatch --detect motion``: the same answers, byte for byte."""
+    out = _hand_folder(tmp_path)
+    walkers = _walkers(out, {"alice": [("stand", 1.0), ("leg", "carry", "put", "A", 1.5),
+                                       ("leg", "lift", "hold", "J", 5.0), ("walk", "H")],
+                             "bob": []})
+    d, lines, answers = _tracked_run(out, walkers)
+    given = _given(lines, answers)
+    truth = walkers["alice"].truth
+    assert given["bob"] == []
+    assert [g[1:] for g in given["alice"]] == [(e, a, p) for _, e, a, p in truth
+                                               if not (a == "lift" and e in ("start", "end"))]  # the robot's
+    for (t, e, a, p), g in zip(truth, given["alice"], strict=False):
+        assert abs(g[0] - t) <= 1.0, (e, a, p, g[0], t)
+    before = next(k for k, a in enumerate(answers) if any(e["action"] == "lift" for e in
+                                                            json.loads(a).get("detect", {}).get("events", ())))
+    from hrc.io.task_file import load_task
+    from hrc.plans import generate_plans
+
+    task = load_task(out / "input" / "task.yaml")
+    plans = {p.id: p for p in generate_plans(task)}
+    last = json.loads(answers[before - 1])
+    assert sum(last["candidates"].values()) == 2  # both crews still open, and the best plan's is bob's
+    assert task.crew("lift", plans[last["plan"]]) == ("bob", "robot")
+    assert sum(json.loads(answers[before])["candidates"].values()) == 1  # alice's crew's plan alone
+    times = d.seen.times
+    assert times[("robot", "lift", "hold", "start")] >= times[("alice", "lift", "hold", "arrive")]
+    assert not any(who == "bob" for (who, *_) in times)
+    assert d.best is not None and dict(d.best.sequences)["alice"] == ("carry", "lift")
+    _same_through_the_cli(out, lines, answers)
+    # `hrc detect` on alice's positions alone (no robot, bob never seen): her same events, the lift's walk
+    import contextlib
+    import io
+
+    from hrc.cli import main
+
+    trace = tmp_path / "alice.jsonl"
+    trace.write_text("".join(json.dumps({"t": t, "agent": "alice", "x": x, "y": y}) + "\n"
+                             for t, x, y in walkers["alice"].samples))
+    with contextlib.redirect_stdout(io.StringIO()) as printed:
+        assert main(["detect", str(out), str(trace)]) == 0
+    seen = [json.loads(x) for x in printed.getvalue().splitlines()]
+    assert [(e["agent"], e["event"], e["action"], e["phase"]) for e in seen] == \
+        [("alice", *g[1:]) for g in given["alice"]]
+
+
+def test_a_candidate_seen_staying_at_the_joint_spot_joins(tmp_path: Path) -> None:
+    """The hand-worked case with the carry at J (the part is put where it is lifted): bob walks from B to
+    J, carries, and stays there; alice stands at H all along. Once bob's carry has ended, his staying at J
+    is read as joining the lift (his departure and arrival given at once, no earlier than that end), the
+    plans narrow to his crew, the robot starts the lift, and nothing is ever given as alice's."""
+    def carry_at_j(task: dict[str, Any]) -> None:
+        task["actions"][0]["phases"][0]["location"] = "J"
+
+    out = _hand_folder(tmp_path, carry_at_j)
+    walkers = _walkers(out, {"alice": [], "bob": [("stand", 0.5), ("leg", "carry", "put", "J", 1.5), ("stand", 12.0),
+                                                   ("walk", "B")]})
+    d, lines, answers = _tracked_run(out, walkers)
+    given = _given(lines, answers)
+    assert given["alice"] == []
+    assert [g[1:] for g in given["bob"]] == [("depart", "carry", "put"), ("arrive", "carry", "put"),
+                                             ("start", "carry", "put"), ("end", "carry", "put"),
+                                             ("depart", "lift", "hold"), ("arrive", "lift", "hold")]
+    end, depart, arrive = (g[0] for g in given["bob"][3:])
+    assert end <= depart == arrive <= end + 1.0
+    times = d.seen.times
+    assert times[("robot", "lift", "hold", "start")] >= times[("bob", "lift", "hold", "arrive")]
+    assert not any(who == "alice" for (who, *_) in times)
+    assert d.best is not None and dict(d.best.sequences)["bob"] == ("carry", "lift")
+    assert times[("robot", "lift", "hold", "end")] > times[("robot", "lift", "hold", "start")]
+    _same_through_the_cli(out, lines, answers)
+
+
+def test_the_console_with_the_motion_detector_follows_the_crew_seen(tmp_path: Path) -> None:
+    """``hrc console --detect motion``'s session fed the lines of the walking run above as a tracker and
+    the robot's controller send them (positions on the robot's link, each naming its person; acks): the
+    console logs the same messages with the same answers, byte for byte; once alice was seen leaving for
+    J, bob's page is never offered the lift, and the lift is drawn under alice and the robot."""
+    from hrc.detect import DetectingDispatcher, DetectParams
+    from hrc.dispatch.logfile import read_log
+
+    out = _hand_folder(tmp_path)
+    walkers = _walkers(out, {"alice": [("stand", 1.0), ("leg", "carry", "put", "A", 1.5),
+                                       ("leg", "lift", "hold", "J", 5.0), ("walk", "H")],
+                             "bob": []})
+    _, lines, answers = _tracked_run(out, walkers)
+    plan_set = load_plan_set(out)
+    d = DetectingDispatcher(plan_set, params=DetectParams())
+    s = ConsoleSession(LoggedDispatcher.create(d, tmp_path / "console.jsonl"), read_header(out),
+                       PlanRoutes(plan_motions(out, plan_set), plan_paths(plan_set.task, seed=0)), RunClock(1.0))
+    clock = [0.0]
+    s.clock.now = lambda: clock[0]  # type: ignore[method-assign]  # the run's time: the stream's
+    joined = False
+    offered_after: list[str] = []
+    for line in lines:
+        msg = json.loads(line)
+        clock[0] = max(clock[0], msg["t"])
+        if msg["event"] == "position":
+            reply = s.robot_message({"type": "position", **{k: msg[k] for k in ("agent", "t", "x", "y")}},
+                                    robot="robot")
+        else:
+            reply = s.robot_message({"type": "ack", **{k: msg[k] for k in ("t", "action", "phase", "event")}},
+                                    robot="robot")
+        assert reply["ok"], reply
+        state = s.state()
+        joined = joined or ("alice", "lift", "hold", "depart") in s.dispatcher.seen.times
+        if joined:
+            offered_after += [o["action"] for o in state["persons"]["bob"]["options"]]
+    s.logged.close()
+    logged = read_log(tmp_path / "console.jsonl").messages
+    assert [json.loads(m.data) for m in logged] == [json.loads(x) for x in lines]
+    assert [m.answer for m in logged] == answers  # byte for byte
+    assert joined and "lift" not in offered_after
+    assert s.crews()["lift"] == ("alice", "robot")
+    work = {b["agent"] for b in state["gantt"]["actual"] if b["action"] == "lift" and b["kind"] == "work"}
+    assert work == {"alice", "robot"} and state["finished"]
+    assert ("lift", "hold", "arrive") in {(e["action"], e["phase"], e["event"]) for e in
+                                          state["persons"]["alice"]["detected"]}
+
+
+def test_ros2_with_the_motion_detector_follows_the_crew_seen(tmp_path: Path) -> None:
+    """``hrc ros2 --detect motion`` over a real rclpy node: the walking run above, each person's tracked
+    poses on their own ``PERSON/pose`` and the robot's acks on ``robot/acks``: every answer is the
+    protocol's on the same lines, byte for byte (alice joins the lift, bob is never given anything), and
+    the node's log replays through ``hrc dispatch --detect motion`` to the same answers."""
+    import signal
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+    from ros2_client import NodeProcess, TeamClient, rclpy_or_skip, ros_env
+
+    rclpy_or_skip()
+    out = _hand_folder(tmp_path)
+    walkers = _walkers(out, {"alice": [("stand", 1.0), ("leg", "carry", "put", "A", 1.5),
+                                       ("leg", "lift", "hold", "J", 5.0), ("walk", "H")],
+                             "bob": []})
+    for w in walkers.values():  # a pose's position as the node reads it (to the millimetre)
+        w.samples = [(t, round(x, 3), round(y, 3)) for t, x, y in w.samples]
+    _, lines, answers = _tracked_run(out, walkers)
+    env = ros_env(tmp_path)
+    log = tmp_path / "ros.log"
+    node = NodeProcess(out, env, "--log", str(log), "--detect", "motion")
+    client = None
+    try:
+        client = TeamClient(env, ("robot",), ("alice", "bob"))
+        client.wait_matched()
+        got = []
+        for line in lines:
+            msg = json.loads(line)
+            if msg["event"] == "position":
+                got.append(client.send_pose(msg["agent"], msg["t"], msg["x"], msg["y"]))
+            else:
+                got.append(client.send(line))
+        assert node.stop(signal.SIGTERM) == 0
+    finally:
+        if client is not None:
+            client.close()
+        node.kill()
+    assert got == answers
+    assert {e[1:] for e in _given(lines, got)["alice"]} >= {("depart", "lift", "hold"), ("arrive", "lift", "hold")}
+    assert _given(lines, got)["bob"] == []
+    replayed = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(out), "--detect", "motion", "--replay",
+                               str(log)], capture_output=True, text=True, timeout=300, cwd=ROOT,
+                              env=dict(env, PYTHONPATH=str(ROOT)))
+    assert replayed.returncode == 0 and replayed.stdout.splitlines() == answers, replayed.stderr[-2000:]

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from hrc.cli.argtypes import real
-from hrc.cli.detect import add_detect_options, open_dispatcher, refuse_crew_choice_in
+from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
 from hrc.errors import HrcError
 
@@ -73,8 +73,6 @@ def _next_log(out_dir: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.detect == "motion":  # said before rclpy is looked for (`open_dispatcher` says it too)
-        refuse_crew_choice_in(args.out_dir, "hrc ros2 --detect motion")
     try:
         from hrc.ros2 import node as ros_node
     except ImportError as err:  # no extra, or its libraries not found
