@@ -221,7 +221,7 @@ def test_ros2_follows_the_crew_that_came(hand_out: Path, tmp_path: Path) -> None
 
     rclpy_or_skip()
     env = ros_env(tmp_path)
-    node = NodeProcess(hand_out, env, "--log", str(tmp_path / "ros.log"))
+    node = NodeProcess(hand_out, env, "--log", str(tmp_path / "ros.log"), "--record", str(tmp_path / "ros.mcap"))
     client = None
     try:
         client = TeamClient(env, ("robot",), ("alice", "bob"))
@@ -246,6 +246,20 @@ def test_ros2_follows_the_crew_that_came(hand_out: Path, tmp_path: Path) -> None
     assert answers[8]["robots"]["robot"]["event"] == "start"
     goals = [(round(g.pose.position.x, 6), round(g.pose.position.y, 6)) for g in client.goals["robot"]]
     assert goals == [(5.0, 2.0), (5.0, 0.5)]  # J, then home at S (the map of tests/test_crews.py)
+    # the recording holds every goal the node sent, the home goal last, the same pose (the frame is hrc's map)
+    from mcap_check import read_mcap
+
+    pose = ("foxglove.PoseInFrame", "protobuf", "protobuf")
+    rec = read_mcap(tmp_path / "ros.mcap", {f"/hrc/{a}/pose": pose for a in ("alice", "bob", "robot")}
+                    | {"/hrc/robot/goal": pose})
+    recorded = rec.of("/hrc/robot/goal")
+    assert len(recorded) == len(client.goals["robot"]) == 2
+    for r, g in zip(recorded, client.goals["robot"], strict=True):
+        assert math.dist((r.pose.position.x, r.pose.position.y), (g.pose.position.x, g.pose.position.y)) < 1e-9
+        q, w = r.pose.orientation, g.pose.orientation
+        assert max(abs(q.x - w.x), abs(q.y - w.y), abs(q.z - w.z), abs(q.w - w.w)) < 1e-9
+    stamp = client.goals["robot"][-1].header.stamp
+    assert rec.times("/hrc/robot/goal")[-1] == pytest.approx(stamp.sec + stamp.nanosec / 1e9, abs=1e-6)
     stdin = "".join(json.dumps(line) + "\n" for line in ROS_SCRIPT).encode()
     plain = subprocess.run([sys.executable, "-m", "hrc", "dispatch", str(hand_out)], input=stdin,
                            capture_output=True, timeout=120, cwd=ROOT, env=dict(env, PYTHONPATH=str(ROOT)))

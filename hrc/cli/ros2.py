@@ -100,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
     if args.record:
         from hrc.record import open_folder_recording
 
-        recording = open_folder_recording(args.record, args.out_dir, dispatcher, _say, routes, args.record_format)
+        recording = open_folder_recording(args.record, args.out_dir, dispatcher, _say, routes, args.record_format,
+                                          ways=plan_routes.way)
     opened: list[Any] = []
 
     def open_log() -> Any:
