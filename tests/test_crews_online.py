@@ -1,11 +1,20 @@
 """Crews (issue 37) online: the console, hrc ros2 and the motion detector follow a joint action whose crew
-is a choice of the plan (`hrc.model.Action.crew_choice`).
+is a choice of the plan (`hrc.model.Action.crew_choice`); the MCAP recording holds the robot's home goal.
 
 The hand-worked case of tests/test_crews.py (alice and bob, one robot; carry by either person, the lift at
 J by the robot with alice or bob holding; 4 plans, worked out there by hand). What each person may do is
 worked out by hand from those 4 plans: a joint action is offered to every candidate who is in its crew in
 some remaining plan; a candidate's press keeps only the plans whose crew has them, and the other candidate
 is not offered it afterwards; the robot waits for the crew that came.
+
+- the console: its session (by hand, either holder) and two_workers_joint in Chromium (both people's pages
+  to the end of a run, each page's buttons a fresh dispatcher's, the log replayed byte for byte);
+- hrc ros2: a real rclpy node, alice taking the lift the best plan gave bob (bob refused, the robot told to
+  wait for alice), its goals J then home, and its ``--record`` holding every goal it sent (the home goal
+  last, the same pose and time); two_workers_joint played to its end by tests/team_client.py;
+- the motion detector: hand-made traces (tests/test_detect_team.py's `Walker`), a candidate seen walking
+  to the joint spot, and one seen staying there, read as joining; the same lines through ``hrc dispatch
+  --detect motion``, ``hrc detect``, the console's session and a real ``hrc ros2 --detect motion`` node.
 """
 
 from __future__ import annotations
