@@ -92,14 +92,15 @@ def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
 
 def refuse_crew_choice(task: Task, what: str) -> None:
     """Raise `InputError` (one line, exit 2) when some joint action's crew is a choice of the plan
-    (`Action.crew_choice`): the online parts (`what`: the console, ROS 2, the motion detector, the
-    simulation, the search compile and compile on demand) follow one crew per joint action for now; `hrc
-    show`, `hrc compile` and `hrc dispatch` (JSON lines) follow the plan's crew."""
+    (`Action.crew_choice`): the parts that follow one crew per joint action for now (`what`: the
+    simulation, the search compile and compile on demand) call it; `hrc show`, `hrc compile`, `hrc
+    dispatch` (JSON lines, --detect motion too), `hrc console`, `hrc ros2` and `hrc detect` follow the plan's crew."""
     for i, action in enumerate(task.actions):
         if action.crew_choice:
             raise InputError(task.source, f"actions[{i}].roles", f"{what} cannot follow a crew choice yet: "
                              f"which agents do joint action '{action.id}' is a choice of the plan (hrc show, "
-                             f"hrc compile and hrc dispatch without --detect motion or compile on demand can)")
+                             f"hrc compile, hrc dispatch without compile on demand, hrc console, hrc ros2 and "
+                             f"hrc detect can)")
 
 
 Graph = dict[str, list[str]]

@@ -286,8 +286,7 @@ def test_the_tool_agrees_on_every_two_workers_joint_stnu(cstnu_tool: Path, tmp_p
 # ------------------------------------------------------------------------------- the online parts refuse
 
 @pytest.mark.parametrize("argv", [
-    ["console", "{out}"], ["ros2", "{out}"], ["detect", "{out}", "-"], ["dispatch", "{out}", "--detect", "motion"],
-    ["dispatch", "{out}", "--on-demand", "on"],
+    ["dispatch", "{out}", "--on-demand", "on"],  # the console, hrc ros2 and the motion detector follow a crew
 ])
 def test_online_parts_refuse_a_crew_choice_in_one_line(hand_out: Path, capsys, argv: list[str]) -> None:
     assert main([a.format(out=hand_out) for a in argv]) == 2

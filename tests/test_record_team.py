@@ -81,9 +81,13 @@ def test_a_team_run_is_recorded_with_a_channel_per_robot_and_agent(team: Path, t
                 want.append((a["t"], drive.target))
         got = [(round(m.timestamp.seconds + m.timestamp.nanos / 1e9, 3), (m.pose.position.x, m.pose.position.y))
                for m in rec.of(f"/hrc/{r}/goal")]
-        assert len(got) == len(want) >= 1, (r, got, want)
-        for (t, xy), (t0, xy0) in zip(got, want, strict=True):
+        assert len(got) == len(want) + 1 >= 2, (r, got, want)
+        for (t, xy), (t0, xy0) in zip(got, want + [got[-1]], strict=True):
             assert t == pytest.approx(t0, abs=1e-6) and math.dist(xy, xy0) < 1e-9
+        # then, once its part is done, its way home (its start), as hrc ros2 sends it
+        ended = max(json.loads(x)["t"] for x in run.sent if json.loads(x).get("agent") == r
+                    and json.loads(x).get("event") == "end")
+        assert math.dist(got[-1][1], task.workspace.location(task.agent(r).start).xy) < 1e-9 and got[-1][0] >= ended
     # every agent's pose after each accepted message; the decision names every robot's step
     accepted = sum(1 for a in run.answers if a["ok"])
     assert all(rec.counts[f"/hrc/{i}/pose"] == accepted for i in ids)

@@ -223,7 +223,11 @@ def test_a_whole_workshop_run_over_ros2_answers_as_hrc_dispatch(folder: Path, tm
     # stamped with the run time of the answer that named the drive, never the wall clock
     goal_times = [g.header.stamp.sec + g.header.stamp.nanosec / 1e9 for g in client.goals]
     assert all(t < 600 for t in goal_times) and goal_times == sorted(goal_times)
-    assert read_mcap(path).counts["/hrc/robot/goal"] == len(drives)  # the recording: the answers' drives
+    # the recording: the answers' drives, then the way home (the goal the node sent last, in hrc's map)
+    recorded = read_mcap(path).of("/hrc/robot/goal")
+    assert len(recorded) == len(drives) + 1
+    start = task.workspace.location(task.agent("robot").start).xy
+    assert math.dist((recorded[-1].pose.position.x, recorded[-1].pose.position.y), start) < 1e-9
 
 
 def _at(goal: object, xy: tuple[float, float]) -> bool:

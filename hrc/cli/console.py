@@ -20,7 +20,7 @@ import sys
 from typing import Any
 
 from hrc.cli.argtypes import real, whole
-from hrc.cli.detect import add_detect_options, detect_params, refuse_crew_choice_in
+from hrc.cli.detect import add_detect_options, detect_params
 from hrc.cli.record import add_record_format
 from hrc.errors import HrcError
 
@@ -72,7 +72,6 @@ def run(args: argparse.Namespace) -> int:
     if args.resume and args.log:
         print("error: hrc console: --resume and --log cannot be used together", file=sys.stderr)
         return 2
-    refuse_crew_choice_in(args.out_dir, "hrc console")
     page = load_or_create_token(args.token_file) if args.token_file else new_token()
     robot = load_or_create_token(args.robot_token_file) if args.robot_token_file else new_token()
     if page == robot:

@@ -63,7 +63,6 @@ def open_dispatcher(args: argparse.Namespace, command: str) -> Any:
     if args.detect == "motion":
         from hrc.detect import DetectingDispatcher
 
-        refuse_crew_choice_in(args.out_dir, f"hrc {command} --detect motion")
         return DetectingDispatcher.from_folder(args.out_dir, params=detect_params(args), **options)
     if args.sensor_sigma is not None:
         print(f"error: hrc {command}: --sensor-sigma needs --detect motion", file=sys.stderr)
@@ -90,7 +89,6 @@ def run(args: argparse.Namespace) -> int:
     from hrc.io.atomic import write_text_atomic
 
     params = detect_params(args)
-    refuse_crew_choice_in(args.out_dir, "hrc detect")
     d = DetectingDispatcher.from_folder(args.out_dir, allow_partial=args.allow_partial, params=params)
     assert isinstance(d, DetectingDispatcher)
     if args.trace == "-":

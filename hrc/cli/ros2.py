@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from hrc.cli.argtypes import real
-from hrc.cli.detect import add_detect_options, open_dispatcher, refuse_crew_choice_in
+from hrc.cli.detect import add_detect_options, open_dispatcher
 from hrc.cli.record import add_record_format
 from hrc.errors import HrcError
 
@@ -73,7 +73,6 @@ def _next_log(out_dir: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    refuse_crew_choice_in(args.out_dir, "hrc ros2")
     try:
         from hrc.ros2 import node as ros_node
     except ImportError as err:  # no extra, or its libraries not found
@@ -101,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
     if args.record:
         from hrc.record import open_folder_recording
 
-        recording = open_folder_recording(args.record, args.out_dir, dispatcher, _say, routes, args.record_format)
+        recording = open_folder_recording(args.record, args.out_dir, dispatcher, _say, routes, args.record_format,
+                                          ways=plan_routes.way)
     opened: list[Any] = []
 
     def open_log() -> Any:

@@ -55,7 +55,8 @@ class SimulatedRobot:
         d = self.session.dispatcher
         wait = d.decision.robot if self.robot is None else (d.decision.robots or {}).get(self.robot)
         if not isinstance(wait, WaitFor) or wait.event != "end" or not d.task.action(wait.action).joint \
-                or d.task.lead(wait.action) != wait.agent or (self.robot is not None and wait.agent != self.robot):
+                or self.session.lead(wait.action) != wait.agent \
+                or (self.robot is not None and wait.agent != self.robot):
             return None
         started = d.seen.times.get((wait.agent, wait.action, wait.phase, "start"))
         if started is None:

@@ -64,7 +64,8 @@ def open_console(out_dir: str | os.PathLike[str], *, speed: float = 1.0, log: st
     if record is not None:  # before the log: a taken name must not leave a new log behind
         from hrc.record import open_folder_recording
 
-        recording = open_folder_recording(record, out_dir, dispatcher, report, routes.routes, record_format)
+        recording = open_folder_recording(record, out_dir, dispatcher, report, routes.routes, record_format,
+                                          ways=routes.way)
     try:
         if resume is not None:
             logged, resumed = resume_log(resume, dispatcher)

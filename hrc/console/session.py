@@ -18,6 +18,9 @@ of their own last observation only), each robot controller acknowledges for its 
 (`robot_message` with the robot's id), and the state carries each person's buttons and counter
 (``"persons"``) beside the shared view of every agent. An id not of the team is refused in one line and
 changes nothing. One person and one robot are served exactly as before (the same lines into the log).
+A joint action whose crew is a choice of the plan (`hrc.model.Action.crew_choice`) is offered to every
+candidate the remaining plans may still have in its crew (`Dispatcher.human_options`); a candidate's press
+keeps the plans whose crew has them, and the views draw it for the crew that came (`crews`).
 With the motion detector (``--detect motion``) a team's tracker sends its positions on a robot
 controller's link, each naming its person (``"agent": "alice"``, as ``hrc dispatch --detect motion``'s
 protocol), to that person's own detector; one naming no one (but in a team of one person, as there), a
@@ -110,6 +113,7 @@ class ConsoleSession:
         self.recording: Any = None  # an `hrc.record.Recording` fed by the log's listener (``--record``), or None
         self._phases = {(a.id, p.id) for a in logged.dispatcher.task.actions for p in a.phases}
         self._joint = {a.id: a.agents for a in logged.dispatcher.task.actions if a.joint}  # issue 37
+        self._choice = tuple(a.id for a in logged.dispatcher.task.actions if a.crew_choice)  # crews to choose
         agents = logged.dispatcher.task.agents
         self.people = tuple(a.id for a in agents if a.is_human)
         self.robots = tuple(a.id for a in agents if not a.is_human)
@@ -367,11 +371,11 @@ class ConsoleSession:
             "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,
             "decision": decision,
             "options": [{"action": o.action, "phase": o.phase, "event": o.event} for o in d.human_options()],
-            "under_way": [list(x) for x in under_way(d.history, "human", self._joint)],
+            "under_way": [list(x) for x in under_way(d.history, "human", self.crews())],
             "undo": self._undo(now),
             "best": None if best is None else {"plan": best.plan, "class": best.plan_class,
                                                "makespan": best.makespan, "sequences": dict(best.sequences)},
-            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now, self._joint),
+            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now, self.crews()),
             "routes": self.routes.routes(plan),
             "log": list(self.entries), "log_total": self.total, "log_error": self.log_error,
             "robot_link": self.robot_link, "where": self._where(), **self._tracked(),
@@ -382,21 +386,45 @@ class ConsoleSession:
         they have under way, their undo and their counter (``"persons"``); per robot its link."""
         d = self.dispatcher
         best = d.best
+        joint = self.crews()
         persons = {p: {"hseq": self.hseqs[p],
                        "options": [{"action": o.action, "phase": o.phase, "event": o.event}
                                    for o in d.human_options(p)],
-                       "under_way": [list(x) for x in under_way(d.history, p, self._joint)],
+                       "under_way": [list(x) for x in under_way(d.history, p, joint)],
                        "undo": self._undo(now, p), **self._tracked(p)} for p in self.people}
         return {
             "type": "state", "seq": self.seq, "hseq": self.hseq, "now": now, "finished": self.finished,
             "decision": decision, "persons": persons,
             "best": None if best is None else {"plan": best.plan, "class": best.plan_class,
                                                "makespan": best.makespan, "sequences": dict(best.sequences)},
-            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now, self._joint),
+            "gantt": gantt_bars(d.planned_times(plan) if plan else {}, d.history, now, joint),
             "routes": self.routes.routes(plan),
             "log": list(self.entries), "log_total": self.total, "log_error": self.log_error,
             "robot_link": self.robot_link, "robot_links": dict(self.robot_links), "where": self._where(),
         }
+
+    def crews(self) -> dict[str, tuple[str, ...]]:
+        """Each joint action's crew as the run has it now (issue 37): its agents when the task fixes them;
+        when its crew is a choice of the plan (`hrc.model.Action.crew_choice`), the crew of the plan
+        followed (the best remaining one, `hrc.model.Task.crew`) and every agent seen on it (a press by a
+        candidate keeps only the plans whose crew has them, so the two agree once someone has joined)."""
+        if not self._choice:
+            return self._joint
+        d = self.dispatcher
+        best = d.best
+        sequences = best.sequences if best is not None else {}
+        seen = {(o.agent, o.action) for o in d.history if o.agent and o.action}
+        out = dict(self._joint)
+        for action in self._choice:
+            out[action] = tuple(ag for ag in self._joint[action]
+                                if action in sequences.get(ag, ()) or (ag, action) in seen)
+        return out
+
+    def lead(self, action: str) -> str | None:
+        """Who starts and ends joint `action` in the run now: the first robot of its crew (`crews`; task
+        order, as `hrc.model.Task.lead`), or None when the action is not joint or its crew has no robot."""
+        crew = self.crews().get(action, ())
+        return next((r for r in self.robots if r in crew), None)
 
     def _tracked(self, person: str | None = None) -> dict[str, Any]:
         """With the motion detector: the person's (a team's `person`'s) last tracked position and the

@@ -14,7 +14,8 @@ topic                schema               what
                                           next step and its window
 /hrc/human/pose      foxglove.PoseInFrame the person's position (measured in a simulation; else where
 /hrc/robot/pose                           last seen), and the robot's
-/hrc/robot/goal      foxglove.PoseInFrame the robot's next drive's destination (as ``hrc ros2`` sends it)
+/hrc/robot/goal      foxglove.PoseInFrame the robot's next drive's destination, then its way home (as
+                                          ``hrc ros2`` sends them)
 /hrc/in              hrc.Message (JSON)   each message given to the dispatcher, as received
 /hrc/out             hrc.Answer (JSON)    each answer, as given out
 /hrc/decision        hrc.Decision (JSON)  after each accepted message: plan, class, class_rank,

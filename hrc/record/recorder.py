@@ -10,6 +10,9 @@ from the epoch, so Foxglove shows the task's start as 1970-01-01 00:00:00 UTC), 
 the same bytes, so a live run's recording equals the one made from its log (``hrc dispatch --replay LOG
 --record FILE``).
 
+Each robot's goal is its next drive (`hrc.ros2.drive.next_drive`) and, once its part is done, its way home
+(`hrc.ros2.drive.home_drive`, read off the robots' observations that stand): what ``hrc ros2`` sends.
+
 A team (issue 37: other than one person and one robot) has a pose channel per agent (``/hrc/ID/pose``)
 and a goal channel per robot (``/hrc/ROBOT/goal``, its entry of the answers' ``robots``: `scene.goal_topic`);
 ``/hrc/decision`` then names each robot's step (``robots``) and ``/hrc/agents`` labels each robot with its own.
@@ -43,12 +46,13 @@ from foxglove.messages import Log, LogLevel
 
 from hrc import __version__
 from hrc.dispatch.limits import parse_message
+from hrc.dispatch.messages import Observation
 from hrc.errors import MessageError
 from hrc.io.atomic import AtomicFile
 from hrc.io.task_file import task_digest
 from hrc.model import Task
 from hrc.record import scene
-from hrc.ros2.drive import next_drive
+from hrc.ros2.drive import Ways, home_drive, next_drive
 
 __all__ = ["CLASS_RANK", "FORMATS", "FRAME_PERIOD", "Places", "Recording", "RunRecorder", "Routes", "check_new",
            "open_folder_recording"]
@@ -233,15 +237,18 @@ class RunRecorder:
     """Writes one run to `sink` as MCAP (see the module docstring; channels: `hrc.record`).
 
     `routes` gives a plan's legs by plan id (None: no routes drawn, goals at the phases' locations);
-    `measured`: positions come from `positions` (a simulation), not from the observations. `metadata`
-    goes into the file's ``hrc`` metadata record beside the generator and the task's name. `fmt`: one of
-    `FORMATS`. Call `finish` at the end (it writes MCAP's summary; the sink is left open).
+    `ways` the planned way between two locations (`hrc.dispatch.routes.PlanRoutes.way`: the heading of a
+    robot's home goal, as ``hrc ros2`` sends it; None: heading 0); `measured`: positions come from
+    `positions` (a simulation), not from the observations. `metadata` goes into the file's ``hrc``
+    metadata record beside the generator and the task's name. `fmt`: one of `FORMATS`. Call `finish` at
+    the end (it writes MCAP's summary; the sink is left open).
     """
 
     def __init__(self, sink: BinaryIO, task: Task, routes: Routes | None = None, *, measured: bool = False,
-                 metadata: Mapping[str, str] | None = None, fmt: str = "foxglove") -> None:
+                 metadata: Mapping[str, str] | None = None, fmt: str = "foxglove", ways: Ways | None = None) -> None:
         self.task = task
         self.routes = routes
+        self.ways = ways
         self.measured = measured
         self.human = next(a.id for a in task.agents if a.is_human)
         self.robot = next(a.id for a in task.agents if not a.is_human)
@@ -334,17 +341,31 @@ class RunRecorder:
             for agent, (x, y) in self.where.items():
                 self._sink.pose(agent, self.t, x, y, ns)
         self._draw_agents()
+        # each robot's drive, and once its part is done its way home (`home_drive`), as `hrc ros2` sends them
+        history = self._robot_history()
         for r in self.team:  # a team: each robot's drive on its own channel
-            drive = next_drive(self.task, out, self._legs(), r)
+            drive = next_drive(self.task, out, self._legs(), r) or home_drive(self.task, out, history, r, self.ways)
             if drive is not None and drive.leg != self.goals.get(r):
                 self.goals[r] = drive.leg
                 self._sink.goal(self.t, *drive.target, drive.heading, ns, r)
         if self.team:
             return
-        drive = next_drive(self.task, out, self._legs())
+        drive = next_drive(self.task, out, self._legs()) or home_drive(self.task, out, history, None, self.ways)
         if drive is not None and drive.leg != self.goal:
             self.goal = drive.leg
             self._sink.goal(self.t, *drive.target, drive.heading, ns)
+
+    def _robot_history(self) -> list[Observation]:
+        """The robots' observations that stand (`Places.kept`), as the dispatcher's history has them: what
+        `home_drive` reads (a robot's last event)."""
+        robots = {a.id for a in self.task.agents if not a.is_human}
+        out = []
+        for o in self.places.kept:
+            if o.get("agent") in robots and isinstance(o.get("action"), str) and isinstance(o.get("phase"), str):
+                t = o.get("t")
+                out.append(Observation(float(t) if isinstance(t, int | float) else self.t, str(o.get("event")),
+                                       str(o["agent"]), str(o["action"]), str(o["phase"])))
+        return out
 
     def positions(self, t: float, where: Mapping[str, tuple[float, float]], present: Mapping[str, bool],
                   last: bool = False) -> None:
@@ -449,12 +470,13 @@ def check_new(path: str | os.PathLike[str]) -> None:
 
 def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLike[str], dispatcher: Any,
                           report: Callable[[str], None] | None = None, routes: Routes | None = None,
-                          fmt: str = "foxglove") -> Recording:
+                          fmt: str = "foxglove", ways: Ways | None = None) -> Recording:
     """A recording of a run of the dispatcher on the compiled folder `out_dir`. `routes`: the plans' routes
     (default: the ones the console draws, `hrc.dispatch.routes.PlanRoutes`: free-space paths planned again
     with the compile's seed, about 2 s for the workshop; detours from ``compiled.json``). The same run
     gives the same bytes whichever command records it (``hrc dispatch``, ``hrc console``, ``hrc ros2``).
-    `fmt`: one of `FORMATS`."""
+    `fmt`: one of `FORMATS`. `ways`: the planned way between two locations (the heading of a robot's home
+    goal; default with the default `routes`: theirs, `PlanRoutes.way`)."""
     check_new(path)
     if routes is None:
         from hrc.compile.output import read_header
@@ -462,9 +484,10 @@ def open_folder_recording(path: str | os.PathLike[str], out_dir: str | os.PathLi
         from hrc.motion import plan_paths
 
         compiled = read_header(out_dir)
-        routes = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
-                            plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0)))).routes
-    return Recording(path, dispatcher.task, routes, report=report,
+        planned = PlanRoutes(plan_motions(out_dir, dispatcher.plan_set),
+                             plan_paths(dispatcher.task, seed=int(compiled.get("seed", 0))))
+        routes, ways = planned.routes, ways or planned.way
+    return Recording(path, dispatcher.task, routes, report=report, ways=ways,
                      metadata={"compiled": dispatcher.plan_set.digest, "plans": str(len(dispatcher.plan_set)),
                                "task_digest": task_digest(dispatcher.task)},  # checked by `hrc learn`
                      fmt=fmt)

@@ -77,7 +77,8 @@ def record_run(ctx: SimContext, policy: str, index: int) -> tuple[bytes, RunResu
     meta = {"policy": policy, "run": str(index), "seed": str(ctx.seed), "finished": str(result.finished).lower(),
             "makespan": "" if result.makespan is None else f"{result.makespan:.3f}",
             "task_digest": task_digest(ctx.task)}  # what `hrc learn` checks a recording against
-    rec = RunRecorder(sink, ctx.task, _routes(ctx, POLICIES[policy]).routes, measured=True, metadata=meta)
+    planned = _routes(ctx, POLICIES[policy])
+    rec = RunRecorder(sink, ctx.task, planned.routes, measured=True, metadata=meta, ways=planned.way)
     frames = len(frames_of)
     seen = 0
     for t, kind, item in timeline:
