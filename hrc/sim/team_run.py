@@ -14,12 +14,14 @@ one robot here):
   hint or the plan gives them and leave and start when it says; ``preferred`` and ``free`` choose among
   what the task graph allows them, as one person does; their events reach the dispatcher through the
   detector (its delay);
-- **joint actions** as the one-pair loop does them: every agent of the action walks or drives there;
-  its lead (its first robot, `Task.lead`) starts it when every other agent of it has arrived there, and
-  ends it when every role's time is done (each person's drawn time, each robot's own); the others work
-  from the lead's start and go on at its end; the person and the robot co-work at its spot
+- **joint actions** as the one-pair loop does them: every agent of its crew walks or drives there;
+  its lead (the crew's first robot, `Task.lead`) starts it when every other agent of the crew has arrived
+  there, and ends it when every role's time is done (each person's drawn time, each robot's own); the
+  others work from the lead's start and go on at its end; the person and the robot co-work at its spot
   (`TeamFloor.cowork`) while the robot stands there over the joint stay and the person walks up, stays
-  or walks away;
+  or walks away. When the crew is a choice of the plan (`Action.crew_choice`), it is who left for the
+  action (`_TeamRun.crew`): people read their own part or join while it has room for them, and a person
+  outside it keeps off its spot (`_TeamRun._idle`); docs/simulate.md, "A crew chosen by the plan";
 - **the floor** is `hrc.sim.team_floor.TeamFloor`: a person stops short of every robot, a robot keeps the
   margin from every person and stops short of every other robot; the separation is measured for every
   robot-person pair and a robot-robot contact is counted (a violation). Under speed and separation
