@@ -15,7 +15,8 @@ What the runs must show is checked against independent truth, not the simulator'
   at it, and their disc never within a robot's disc and the margin of the spot while the crew goes there and
   does it (the recorded positions: from the crew's first arrival to the end), even when they stand on it to
   begin with (they walk off);
-- **the floor**: as for every team (`test_sim_team._check_floor`).
+- **the floor**: as for every team (`test_sim_team._check_floor`);
+- **the logs** (`--keep-logs`) replay answer for answer on a fresh dispatcher (`hrc dispatch --replay`'s loop).
 
 Default runs: 15 of the whole task with people who follow, 10 with people who choose freely, 8 with the plans
 whose crew is Alice's (the best plans are Bob's: Bob, not in the crew, keeps off the dock, his start), 3 of
@@ -40,12 +41,16 @@ from test_sim_team import _check_floor
 
 from hrc.cli import main
 from hrc.compile.compiler import CompiledPlanSet, compile_task
+from hrc.dispatch import Dispatcher
+from hrc.dispatch.logfile import read_log
+from hrc.dispatch.protocol import replay
 from hrc.io.task_file import load_task
 from hrc.model import Task
 from hrc.sim.human import HumanModel
 from hrc.sim.metrics import aggregate
-from hrc.sim.montecarlo import simulate
+from hrc.sim.montecarlo import simulate, simulation_json
 from hrc.sim.run import RunResult, SimContext, SimSettings
+from hrc.sim.runlog import log_name
 from hrc.sim.team_policies import TeamDispatched, make_team_controller
 from hrc.sim.team_run import simulate_team_run
 from hrc.temporal.graphml import read_graphml
@@ -267,6 +272,25 @@ def test_hrc_simulate_runs_a_crew_choice_deterministically(tmp_path: Path, capsy
                  "--quiet", "--out", str(tmp_path / "sim2"), "--record", str(rec)]) == 0
     assert [p.name for p in rec.iterdir()] == ["hrc-0000.mcap"]
     capsys.readouterr()
+
+
+def test_the_logs_of_runs_with_a_crew_choice_replay_answer_for_answer(joint, tmp_path: Path) -> None:
+    """`--keep-logs`: each run's dispatcher log (free people: both crews come up) replays answer for answer on
+    a fresh dispatcher over the same compile (`hrc dispatch --replay`'s loop), and keeping them changes no run."""
+    task, cps = joint
+    ctx = _ctx(task, cps, "free")
+    plain = simulate(task, 4, 0, ["hrc"], ctx.settings, jobs=1, compiles={"motion": cps})
+    kept = simulate(task, 4, 0, ["hrc"], ctx.settings, jobs=1, compiles={"motion": cps}, keep_logs=True)
+    assert simulation_json(plain) == simulation_json(kept) and kept.logs is not None
+    holders = {next(p for p in ("alice", "bob") if "load" in r.team["agents"][p]["sequence"])
+               for r in kept.results["hrc"] if r.team is not None}
+    assert holders == {"alice", "bob"}  # Alice's crew in some runs, Bob's in the others
+    pristine = Dispatcher.from_compiled(cps)
+    for i in range(4):
+        path = tmp_path / log_name("hrc", i)
+        path.write_bytes(kept.logs["hrc"][i])
+        pairs = list(replay(pristine.fork(), read_log(path), str(path)))
+        assert pairs and all(a == b for a, b in pairs), i
 
 
 @pytest.mark.parametrize("argv", [["--detector", "motion"], ["--max-plans", "10"]])
