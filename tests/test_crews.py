@@ -294,8 +294,8 @@ def test_online_parts_refuse_a_crew_choice_in_one_line(hand_out: Path, capsys, a
     assert ERROR_LINE.match(err) and "cannot follow a crew choice yet" in err, err
 
 
-@pytest.mark.parametrize("argv", [["simulate", "{task}", "--runs", "1"], ["compile", "{task}", "--plans", "best:2",
-                                                                          "--out", "{out}"]])
+@pytest.mark.parametrize("argv", [["simulate", "{task}", "--runs", "1", "--max-plans", "1", "--out", "{out}"],
+                                  ["compile", "{task}", "--plans", "best:2", "--out", "{out}"]])
 def test_simulate_and_the_search_refuse_a_crew_choice_in_one_line(tmp_path: Path, capsys, argv: list[str]) -> None:
     task = _write(tmp_path, HAND)
     assert main([a.format(task=task, out=tmp_path / "out") for a in argv]) == 2

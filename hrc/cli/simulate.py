@@ -293,9 +293,6 @@ def run(args: argparse.Namespace) -> int:
     from hrc.sim.run import SimSettings
 
     task = load_task(args.task)
-    from hrc.plans import refuse_crew_choice
-
-    refuse_crew_choice(task, "hrc simulate")
     if args.sensing is not None:
         from dataclasses import replace
 

@@ -152,6 +152,11 @@ class AgentLoop(Generic[W]):
         """Whether `agent` is a robot (its travel's excess over the prediction is counted)."""
         raise NotImplementedError
 
+    def _lead(self, action: str) -> str | None:
+        """Who starts joint `action` in this run (`Task.lead`; a team's with a crew to choose: its crew's,
+        `hrc.sim.team_run._TeamRun._lead`)."""
+        return self.task.lead(action)
+
     # -- bookkeeping ---------------------------------------------------------------------------------
 
     def _tell(self, h: Happening) -> None:
@@ -354,7 +359,7 @@ class AgentLoop(Generic[W]):
         """The first plan, whether the run kept to it (allocation and sequences; a joint action is its
         lead's) and, if so, the constraints of its network the times broke."""
         first_cp = next((cp for cp in cps.plans if cp.plan.id == self.ctl.first_plan), None)
-        alloc = {a: (self.task.lead(a) if a in self.joint else ag) for a, ag in self.started.items()}
+        alloc = {a: ((self._lead(a) or "") if a in self.joint else ag) for a, ag in self.started.items()}
         kept = first_cp is not None and finished and executed(first_cp, alloc, seqs)
         broken: tuple[str, ...] = ()
         if kept and first_cp is not None:

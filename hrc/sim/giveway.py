@@ -205,12 +205,12 @@ class Ways:
             return None
         return self._trace(nodes, pred, n, n + 1, clearance, avoid, start, also)
 
-    def spot(self, clearance: float, start: Point, avoid: Disc, way: np.ndarray,
+    def spot(self, clearance: float, start: Point, avoid: Disc | None, way: np.ndarray,
              away: float, also: tuple[Disc, ...] = ()) -> tuple[Point, ...] | None:
         """The way from `start` to the nearest milestone at least `away` from every point of `way` (an
         (m, 2) array: the co-worker's position and the rest of its way), keeping clear of `avoid` (and of
         `also`: a team's other agents, which the milestone keeps their reach from); None if no such
-        milestone is reachable."""
+        milestone is reachable. No `avoid`: nothing in the way but `also`."""
         found = self._search(clearance, start, avoid, None, also)
         if found is None:
             return None

@@ -14,12 +14,14 @@ one robot here):
   hint or the plan gives them and leave and start when it says; ``preferred`` and ``free`` choose among
   what the task graph allows them, as one person does; their events reach the dispatcher through the
   detector (its delay);
-- **joint actions** as the one-pair loop does them: every agent of the action walks or drives there;
-  its lead (its first robot, `Task.lead`) starts it when every other agent of it has arrived there, and
-  ends it when every role's time is done (each person's drawn time, each robot's own); the others work
-  from the lead's start and go on at its end; the person and the robot co-work at its spot
+- **joint actions** as the one-pair loop does them: every agent of its crew walks or drives there;
+  its lead (the crew's first robot, `Task.lead`) starts it when every other agent of the crew has arrived
+  there, and ends it when every role's time is done (each person's drawn time, each robot's own); the
+  others work from the lead's start and go on at its end; the person and the robot co-work at its spot
   (`TeamFloor.cowork`) while the robot stands there over the joint stay and the person walks up, stays
-  or walks away;
+  or walks away. When the crew is a choice of the plan (`Action.crew_choice`), it is who left for the
+  action (`_TeamRun.crew`): people read their own part or join while it has room for them, and a person
+  outside it keeps off its spot (`_TeamRun._idle`); docs/simulate.md, "A crew chosen by the plan";
 - **the floor** is `hrc.sim.team_floor.TeamFloor`: a person stops short of every robot, a robot keeps the
   margin from every person and stops short of every other robot; the separation is measured for every
   robot-person pair and a robot-robot contact is counted (a violation). Under speed and separation
@@ -67,7 +69,7 @@ from hrc.sim.human import HumanDraws, draw_people
 from hrc.sim.policies import POLICIES, Order, Policy, SimRoute
 from hrc.sim.run import AgentFrame, RunResult, SimContext
 from hrc.sim.ssm import combined
-from hrc.sim.standoff import ASIDE_AFTER, WAIT_STEP, Aside, Standoffs, yields
+from hrc.sim.standoff import ASIDE_AFTER, CLEAR, WAIT_STEP, Aside, Standoffs, yields
 from hrc.sim.team_floor import TeamFloor
 from hrc.sim.team_policies import TeamController, TeamDispatched, make_team_controller
 
@@ -103,7 +105,8 @@ class _Agent:
 
     __slots__ = ("id", "mover", "human", "home", "loc", "mode", "action", "pi", "route", "parked", "work_start",
                  "work_end", "duration", "order", "predicted", "moved", "draws", "back_at", "away_since",
-                 "absence_done", "absent", "aside", "next_way", "wait_for", "held_up", "aside_time", "blocker")
+                 "absence_done", "absent", "aside", "next_way", "wait_for", "held_up", "aside_time", "blocker",
+                 "off")
 
     def __init__(self, agent_id: str, mover: Mover, human: bool, home: str, draws: HumanDraws | None) -> None:
         self.id, self.mover, self.human, self.home = agent_id, mover, human, home
@@ -129,6 +132,7 @@ class _Agent:
         self.held_up = False
         self.aside_time = 0.0
         self.blocker: str | None = None
+        self.off = False  # walking off a joint spot whose crew it is not in (`_TeamRun._walk_off`), not home
 
 
 class _TeamRun(Standoffs[_Agent]):
@@ -153,7 +157,8 @@ class _TeamRun(Standoffs[_Agent]):
         self.robots = [self.agents[a.id] for a in task.agents if not a.is_human]
         self.robot_q = next(iter(draws.values())).robot  # the robots' duration quantiles (one per phase)
         self._init_task(task, s.time_cap)
-        self.joint = {a.id: a.agents for a in task.actions if a.joint}
+        self.joint = {a.id: a.agents for a in task.actions if a.joint}  # every candidate of each joint action
+        self.choosing = {a.id: a for a in task.actions if a.crew_choice}  # those whose crew the plan chooses
         self.joined: dict[str, set[str]] = {a: set() for a in self.agents}  # joint actions each agent left for
         self.joint_stay: dict[str, str] = {}  # agent -> the joint spot of its stay (until it is elsewhere)
         self.last: dict[str, tuple[str, str]] = {}  # agent -> the last phase it ended (a joint one: all its agents)
@@ -198,19 +203,107 @@ class _TeamRun(Standoffs[_Agent]):
     # motion tracker may stand between the person and the dispatcher, and the joint notes are the pair's.
     def _joint_note(self, a: _Agent, event: str, action: str, phase: str) -> None:
         if event == "end":
-            for ag in self.joint.get(action, (a.id,)):
+            for ag in self.crew(action) if action in self.joint else (a.id,):
                 self.last[ag] = (action, phase)
         where = self.task.action(action).phase(phase).location
         if event == "start" and action in self.joint:  # every agent's stay there covers it
-            for ag in self.joint[action]:
+            for ag in self.crew(action):
                 self.joint_stay[ag] = where
         elif event == "arrive" and self.joint_stay.get(a.id) != where:
             self.joint_stay.pop(a.id, None)
 
     def taken(self, a: _Agent) -> dict[str, str]:
-        """`started` as `a` reads it: a joint action of theirs is theirs to go to until they have left for it."""
+        """`started` as `a` reads it: a joint action of theirs is theirs to go to until they have left for it
+        (with a crew to choose: while they may still join those who left for it, `_may_join`)."""
         return {x: ag for x, ag in self.started.items()
-                if x not in self.joint or a.id not in self.joint[x] or x in self.joined[a.id]}
+                if x not in self.joint or a.id not in self.joint[x] or x in self.joined[a.id]
+                or (x in self.choosing and not self._may_join(a.id, x))}
+
+    # -- crews (issue 37): a joint action whose crew is a choice of the plan (`Action.crew_choice`) ----------
+    # Who does it is decided on the floor as an allocation is: each person reads their own part (their hint,
+    # the plan they follow) or, choosing freely, joins while the crew has room for them; the robots go where
+    # their orders send them. The crew is the agents who left for it (`joined`); the dispatcher narrows its
+    # plans by them (`hrc.dispatch`, set validation). An action with one crew keeps its agents throughout.
+
+    def came(self, action: str) -> tuple[str, ...]:
+        """The agents (task order) who left for joint `action`."""
+        return tuple(ag for ag in self.joint[action] if action in self.joined[ag])
+
+    def crew(self, action: str) -> tuple[str, ...]:
+        """The crew of joint `action` as the run knows it (task order): its one crew; with a crew to choose,
+        those who left for it, and until they fill it, the current plan's crew when it holds them (what the
+        plan expects; else those who came alone)."""
+        if action not in self.choosing:
+            return self.joint[action]
+        came = self.came(action)
+        if len(came) < self.choosing[action].needed:
+            cp = self.ctl.current()
+            planned = () if cp is None else self.task.crew(action, cp.plan)
+            if set(came) <= set(planned):
+                return planned
+        return came
+
+    def _may_join(self, agent: str, action: str) -> bool:
+        """Whether `agent` may still join those who left for `action`: with them, part of one of its crews."""
+        with_them = set(self.came(action)) | {agent}
+        return any(with_them <= set(c) for c in self.choosing[action].crews)
+
+    def _complete(self, action: str) -> bool:
+        """Whether every agent of `action`'s crew has left for it (always, with one crew to do it: its agents
+        go)."""
+        return action not in self.choosing or len(self.came(action)) == self.choosing[action].needed
+
+    def _kept_off(self, a: _Agent) -> list[tuple[float, float]]:
+        """Where `a` must not stand idle: the spots of the joint phases still to do, with a crew to choose,
+        whose crew (`crew`) they are not in."""
+        locs = self.ctx.paths.locations
+        return [locs[ph.location] for x, act in self.choosing.items() if a.id not in self.crew(x)
+                for ph in act.phases if (x, ph.id) not in self.ended]
+
+    def _off_reach(self, a: _Agent) -> float:
+        """How far `a` keeps from such a spot: a robot's reach from them driving up to it (and `CLEAR`)."""
+        return max((self._reach(a, r) for r in self.robots if r is not a), default=0.0) + CLEAR
+
+    def _idle(self, a: _Agent) -> bool:
+        """A person with nothing to do (with a crew to choose): they go home (`go_home`), but not to where a
+        joint phase whose crew they are not in is still to be done; standing within `_off_reach` of such a spot,
+        they walk off it (`_walk_off`); else they stay where they are."""
+        spots = self._kept_off(a)
+        away = self._off_reach(a)
+        near = [xy for xy in spots if math.dist(a.mover.xy, xy) < away]
+        if near:
+            return self._walk_off(a, near, away)
+        home = self.ctx.paths.locations[a.home]
+        if any(math.dist(home, xy) < away for xy in spots):
+            return False
+        return self.go_home(a)
+
+    def _walk_off(self, a: _Agent, spots: list[tuple[float, float]], away: float) -> bool:
+        """`a` walks to the nearest roadmap milestone `away` from every one of `spots` (`Ways.spot`, as making
+        room does), keeping clear of the other agents; then stands there, free (False: no such spot)."""
+        way = np.asarray(spots, dtype=float)
+        points = self.ways.spot(self._clearance(a), a.mover.xy, None, way, away, self._also(a, a))
+        if points is None or len(points) < 2:
+            return False
+        a.mover.set_route(points, a.mover.agent.speed)
+        a.mode, a.loc, a.off = "home", None, True
+        return True
+
+    def _home_reached(self, a: _Agent) -> bool:
+        """`AgentLoop._home_reached`; walking off a joint spot (`_walk_off`), it stands where it got to."""
+        if a.off and a.mode == "home" and not a.mover.moving:
+            a.mode, a.loc, a.off = "free", None, False
+            return True
+        return super()._home_reached(a)
+
+    def _lead(self, action: str) -> str | None:
+        """Who starts joint `action` (`Task.lead`): the first robot of its crew; None while a crew to choose
+        is not complete (nobody may start it yet)."""
+        if action not in self.choosing:
+            return self.task.lead(action)
+        if not self._complete(action):
+            return None
+        return next((ag for ag in self.came(action) if not self.agents[ag].human), None)
 
     # -- stand-offs (`hrc.sim.standoff`), per pair of agents ------------------------------------------------
 
@@ -298,7 +391,7 @@ class _TeamRun(Standoffs[_Agent]):
 
     def _coworks_at(self, a: _Agent, other: _Agent, target: tuple[float, float]) -> bool:
         """`other` stands at `target` for a joint phase of theirs with `a` (it is not in `a`'s way back)."""
-        if not self.joint or other.action not in self.joint or a.id not in self.joint[other.action]:
+        if not self.joint or other.action not in self.joint or a.id not in self.crew(other.action):
             return False
         where = self.task.action(other.action).phase(self.phases[other.action][other.pi]).location
         return other.mode in ("arrived", "work") and math.dist(self.ctx.paths.locations[where], target) < 1e-6
@@ -383,12 +476,15 @@ class _TeamRun(Standoffs[_Agent]):
                     return True
                 nxt = self.choose(a)
                 if nxt is None:
-                    return self.go_home(a)
+                    return self._idle(a) if self.choosing else self.go_home(a)
                 if t < self.guide(a, nxt, self.phases[nxt][0], "depart") - _EPS:
                     return False
                 a.action, a.pi = nxt, 0
                 self.choices[a.id] += 1
             action = a.action
+            if action in self.choosing and a.pi == 0 and not self._may_join(a.id, action):
+                a.action = None  # its crew filled without them (they see who left for it): they choose again
+                return True
             phase = self.phases[action][a.pi]
             if t < self.guide(a, action, phase, "depart") - _EPS:
                 return False
@@ -433,7 +529,7 @@ class _TeamRun(Standoffs[_Agent]):
     def _joint_start(self, lead: _Agent, action: str, phase: str) -> None:
         """The lead started the joint phase: every other agent of it works its role's time; the phase ends
         when the last of them is done (the lead reports it)."""
-        for ag in self.joint[action]:
+        for ag in self.crew(action):
             other = self.agents[ag]
             if other is lead:
                 continue
@@ -454,11 +550,12 @@ class _TeamRun(Standoffs[_Agent]):
             return
         self.told.add((o.action, o.phase))
         arrived = {(h.agent, h.action, h.phase) for h in self.happenings if h.event == "arrive"}
-        if any((ag, o.action, o.phase) not in arrived for ag in self.joint[o.action] if ag != r.id):
+        if not self._complete(o.action) or any((ag, o.action, o.phase) not in arrived
+                                               for ag in self.crew(o.action) if ag != r.id):
             self.told_early.add((o.action, o.phase))
 
     def _joint_at(self, step: tuple[str, str], spot: str, pair: tuple[str, str]) -> bool:
-        return step[0] in self.joint and set(pair) <= set(self.joint[step[0]]) \
+        return step[0] in self.joint and set(pair) <= set(self.crew(step[0])) \
             and self.task.action(step[0]).phase(step[1]).location == spot
 
     def _covers(self, a: _Agent, step: tuple[str, str] | None, spot: str, pair: tuple[str, str]) -> bool:
@@ -528,12 +625,12 @@ class _TeamRun(Standoffs[_Agent]):
         if a.mode == "parked":
             return self._robot_parked(a, o, mine, phase)
         joint = a.action in self.joint
-        if joint and self.task.lead(a.action) != a.id:  # another robot leads it: work from its start to its end
-            return self._joint_done(a, phase)
+        if joint and self._lead(a.action) != a.id:  # another robot leads it (or its crew is still to come):
+            return self._joint_done(a, phase)  # work from its start to its end
         if a.mode == "arrived":
             if mine and o is not None and o.event == "start" and t >= o.earliest - _EPS and self.ready(a.action, phase):
                 if joint and not all(self._there(self.agents[ag], a.action, phase)
-                                     for ag in self.joint[a.action] if ag != a.id):
+                                     for ag in self.crew(a.action) if ag != a.id):
                     return False  # a joint action starts when all its agents are there
                 self._robot_start(a, o, phase, self.robot_q[(a.action, phase)])
                 if joint:
@@ -754,7 +851,6 @@ class _TeamRun(Standoffs[_Agent]):
         return f"waiting: {robots}; {people}"
 
     def _result(self, index: int, reason: str) -> RunResult:
-        task = self.task
         finished, times, makespan, deadline_met, limits_met, span = self._outcome()
         busy = self._busy(times, span)
         seqs = {a: tuple(dict.fromkeys(h.action for h in self.happenings
@@ -809,7 +905,7 @@ class _TeamRun(Standoffs[_Agent]):
             late=self.late, robot_travel_excess=self.excess, human_sequence=seqs[people[0]] if people else (),
             robot_sequence=seqs[robots[0]] if robots else (), overruns=sum(
                 1 for p in self.people if p.draws is not None for x, ph in p.draws.overrun
-                if x in seqs[p.id] and f"{task.lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
+                if x in seqs[p.id] and f"{self._lead(x) if x in self.joint else p.id}.{ph}.{x}.end" in times),
             absent=sum(p.absent for p in self.people), latencies=tuple(ctl.latencies), joint=joint, team=team, ssm=ssm,
             detection=detection,
             late_observations=getattr(ctl, "late_observations", None),
@@ -822,7 +918,9 @@ class _TeamRun(Standoffs[_Agent]):
     def _busy(self, times: dict[str, float], span: float) -> dict[str, float]:
         busy = dict.fromkeys(self.agents, 0.0)
         for action, ags in self.joint.items():  # every other agent works it from the lead's start to its end
-            lead = self.task.lead(action)
+            lead = self._lead(action)
+            if action in self.choosing:  # its crew: those who came (none started it while incomplete)
+                ags = self.came(action)
             for phase in self.phases[action]:
                 a, b = times.get(f"{lead}.{phase}.{action}.start"), times.get(f"{lead}.{phase}.{action}.end")
                 if a is not None and b is not None:
