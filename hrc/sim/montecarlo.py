@@ -168,10 +168,6 @@ def simulate(task: Task, runs: int, seed: int, policies: Sequence[str] = tuple(P
         # find the person's start and end of each step (a team's loop gives a joint action's to its lead)
         raise SimulationError(f"{task.source}: actions[{joint}].roles: '{task.actions[joint].id}' is a joint action: "
                               f"--detector motion does not take joint actions yet (the robot starts and ends them)")
-    if settings.motion and task.has_crew_choice:  # each person's detector reads every joint action of theirs
-        from hrc.plans import refuse_crew_choice  # as one they take part in (`hrc.detect`: one crew per action)
-
-        refuse_crew_choice(task, "hrc simulate --detector motion")
     settings.human.check(task)
     compiles = dict(compiles or {})
     if "motion" not in compiles:
