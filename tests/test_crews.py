@@ -6,7 +6,8 @@ A hand-worked case on a bare floor (plan count, crews and classes worked out by 
 small random tasks against an enumeration written here (every subset of agents that fills the roles, every
 order of every agent's actions, acyclicity of the phase graph by networkx); the CSTNU Tool on every STNU of
 the hand-worked case and of tasks/two_workers_joint.yaml; the task format's refusals; and the online parts
-that cannot follow a crew refusing such a task in one line.
+that cannot follow a crew refusing such a task in one line (the search compile and compile on demand follow
+crews: tests/test_crews_search.py).
 """
 
 from __future__ import annotations
@@ -287,7 +288,6 @@ def test_the_tool_agrees_on_every_two_workers_joint_stnu(cstnu_tool: Path, tmp_p
 
 @pytest.mark.parametrize("argv", [
     ["console", "{out}"], ["ros2", "{out}"], ["detect", "{out}", "-"], ["dispatch", "{out}", "--detect", "motion"],
-    ["dispatch", "{out}", "--on-demand", "on"],
 ])
 def test_online_parts_refuse_a_crew_choice_in_one_line(hand_out: Path, capsys, argv: list[str]) -> None:
     assert main([a.format(out=hand_out) for a in argv]) == 2
@@ -295,9 +295,8 @@ def test_online_parts_refuse_a_crew_choice_in_one_line(hand_out: Path, capsys, a
     assert ERROR_LINE.match(err) and "cannot follow a crew choice yet" in err, err
 
 
-@pytest.mark.parametrize("argv", [["simulate", "{task}", "--runs", "1"], ["compile", "{task}", "--plans", "best:2",
-                                                                          "--out", "{out}"]])
-def test_simulate_and_the_search_refuse_a_crew_choice_in_one_line(tmp_path: Path, capsys, argv: list[str]) -> None:
+@pytest.mark.parametrize("argv", [["simulate", "{task}", "--runs", "1"]])
+def test_simulate_refuses_a_crew_choice_in_one_line(tmp_path: Path, capsys, argv: list[str]) -> None:
     task = _write(tmp_path, HAND)
     assert main([a.format(task=task, out=tmp_path / "out") for a in argv]) == 2
     err = capsys.readouterr().err

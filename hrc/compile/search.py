@@ -154,9 +154,17 @@ class SearchResult:
 
 
 def _plan(task: Task, node: Node) -> Plan:
-    return Plan(allocation=tuple((a, task.agent_ids[ag]) for a, ag in zip(task.action_ids, node.alloc, strict=True)),
-                sequences=tuple((agent, tuple(task.action_ids[i] for i in seq))
-                                for agent, seq in zip(task.agent_ids, node.seqs, strict=True)))
+    """A leaf's plan. A joint action's `Node.alloc` is its crew's number (`NodeBounds.crews`): the plan's
+    allocation names its lead, the first robot (task order) whose sequence holds it (`hrc.model.Task.lead`)."""
+    sequences = tuple((agent, tuple(task.action_ids[i] for i in seq))
+                      for agent, seq in zip(task.agent_ids, node.seqs, strict=True))
+    agents = task.agents
+    allocation = []
+    for i, (action, ag) in enumerate(zip(task.actions, node.alloc, strict=True)):
+        if action.joint:
+            ag = next(g for g, seq in enumerate(node.seqs) if i in seq and not agents[g].is_human)
+        allocation.append((action.id, task.agent_ids[ag]))
+    return Plan(allocation=tuple(allocation), sequences=sequences)
 
 
 @dataclass
