@@ -38,7 +38,7 @@ from hrc.dispatch.fallback import fallback_step
 from hrc.dispatch.messages import Observation, RobotStep, WaitFor
 from hrc.dispatch.validation import History
 from hrc.io.task_file import load_task
-from hrc.model import Plan, Task
+from hrc.model import Interval, Phase, Plan, Task
 from hrc.motion import plan_paths
 from hrc.plans import count_plans, generate_plans, identical_actions, is_canonical
 
@@ -84,6 +84,12 @@ def crew_tasks(draw) -> Task:  # noqa: ANN001
     """tests/test_crews.py's small crew tasks, with a deadline (or none) so that the classes differ (and every
     action with an agent: that strategy may draw one with none, which no task file can hold)."""
     task = draw(small_tasks().filter(lambda t: all(a.agents for a in t.actions)))
+    if draw(st.booleans()):  # each agent's own durations (a crew's phase lasts as its slowest role)
+        def drawn(phase: Phase) -> Phase:
+            lbs = [draw(st.integers(1, 4)) for _ in phase.durations]
+            return replace(phase, durations=tuple((ag, Interval(lb, lb + draw(st.integers(0, 3))))
+                                                  for (ag, _), lb in zip(phase.durations, lbs, strict=True)))
+        task = replace(task, actions=tuple(replace(a, phases=tuple(drawn(p) for p in a.phases)) for a in task.actions))
     return replace(task, deadline=draw(st.sampled_from([None, 9.0, 14.0, 20.0])))
 
 
@@ -124,6 +130,35 @@ def test_a_closed_search_ranks_as_the_exhaustive_compile_on_random_crew_tasks(ta
     want = exhaustive.plans[:k]
     assert [p["id"] for p in head["plans"]][:k] == [cp.plan.id for cp in want]
     assert [p["class"] for p in head["plans"]][:k] == [cp.plan_class.value for cp in want]
+
+
+def test_a_quick_and_a_slow_holder_by_hand() -> None:
+    """By hand, on the bare floor: one joint action at J, held by p1 (1 s) or p2 (9 s), lifted by the robot
+    (1 s); both people start at H (4 m from J, 1 m/s, their walks up to x1.25), the robot at S (1.5 m, 0.5 m/s:
+    3 s). Crew p1: starts when p1 is there, 4-5 s, lasts 1 s: worst case 6 s. Crew p2: 14 s. Before the crew is
+    chosen, the bound may not take the slow holder's 9 s (the root's bound is at most 6 s), and the search's
+    best is p1's crew."""
+    from hrc.model import Action, Agent, AgentKind, Location, Workspace
+
+    places = {"H": (1, 2), "S": (5, 0.5), "J": (5, 2)}
+    ws = Workspace("bare", (0, 0, 10, 4), (), tuple(Location(k, x, y) for k, (x, y) in places.items()))
+    agents = (Agent("p1", AgentKind.HUMAN, 0.3, 1.0, "H"), Agent("p2", AgentKind.HUMAN, 0.3, 1.0, "H"),
+              Agent("r1", AgentKind.ROBOT, 0.35, 0.5, "S"))
+    lift = Action("j", "j", ("p1", "p2", "r1"), (Phase("p", "J", (("p1", Interval(1, 1)), ("p2", Interval(9, 9)),
+                                                                  ("r1", Interval(1, 1)))),),
+                  roles=(("h", ("p1", "p2")), ("r", ("r1",))), needed=2)
+    task = Task("quick_and_slow", agents, (lift,), (), (), None, (), "map.yaml", ws)
+    paths = plan_paths(task, seed=0)
+    nb = NodeBounds(task, paths)
+    root = nb.bound(nb.root())
+    assert root is not None and root.key[3] <= 6.0
+    keys = {task.crew("j", p): rank_key(compile_plan(task, p, paths, graphml=False)) for p in generate_plans(task)}
+    assert keys[("p1", "r1")][3] == pytest.approx(6.0, abs=0.01)
+    assert keys[("p2", "r1")][3] == pytest.approx(14.0, abs=0.01)
+    _check_tree(task, paths)
+    with tempfile.TemporaryDirectory() as tmp:
+        result = compile_search(task, Path(tmp) / "out", 1, families=10**6, cover=0, paths=paths)
+    assert result.outcome.closed and result.plan_set.plans[0].plan.sequence("p1") == ("j",)
 
 
 @pytest.mark.parametrize("k", [1, 5, 10, 20])
@@ -168,7 +203,8 @@ def twj():
 
 
 @pytest.mark.parametrize("seen", [{"bob": ("load",)}, {"bob": ("pick_d", "load"), "alice": ("pick_a",)},
-                                  {"alice": ("inspect", "load")}])
+                                  {"alice": ("inspect", "load")},
+                                  {"alice": ("pick_a", "inspect"), "bob": ("pick_d", "load"), "robot": ("pick_e",)}])
 def test_an_extension_keeps_the_crew_seen(twj, seen: dict[str, tuple[str, ...]]) -> None:
     """The extension of a prefix with a person seen at the joint action: exactly the plans of the exhaustive
     plan set that extend it (so all with that person in the crew), best first."""
@@ -181,6 +217,9 @@ def test_an_extension_keeps_the_crew_seen(twj, seen: dict[str, tuple[str, ...]])
     assert all(task.crew("load", cp.plan) == (who, "robot") for cp in ext.plans)
     keys = [rank_key(cp) for cp in ext.plans]
     assert keys == sorted(keys)
+    # within the dispatcher's budget, no family is spent on a crew that leaves the person seen out
+    ext = extend_plans(task, paths, prefix)
+    assert ext.plans and ext.outcome.found == len(ext.plans)
 
 
 def test_the_fallback_starts_a_joint_action_only_with_a_whole_crew(twj) -> None:
