@@ -46,10 +46,14 @@ under ``--rank-by worst`` (a DC plan's worst case is measured with every human d
 and the ``lo`` bound otherwise (a plan whose upper reading has no schedule measures its worst case as
 its earliest). The preference term is unbounded (minus infinity) when the task has preferences.
 
-**Joint actions** (issue 37): allocated to their lead only, in the sequence of each agent of them; their
-first phase starts when the last of them is there (one edge or time per agent in the critical path), each
-phase lasts the roles' ``[max lb, max ub]`` (the ``hi`` reading takes the upper end when a person takes part:
-the STNU's contingent link, `hrc.compile.temporal_net_creator`), and it loads every agent of it.
+**Joint actions** (issue 37): allocated a crew (`hrc.model.Action.crews`; ``Node.alloc`` holds its number,
+a choice of the plan when there are several), in the sequence of each agent of the crew; their first
+phase starts when the last of the crew is there (one edge or time per agent in the critical path), each
+phase lasts the crew's roles' ``[max lb, max ub]`` (the ``hi`` reading takes the upper end when a person of
+the crew takes part: the STNU's contingent link, `hrc.compile.temporal_net_creator`), and it loads every
+agent of the crew. Before the crew is chosen, each of these is the least over the crews (start, duration,
+travel between phases: the least of lower bounds is one), an agent in every crew is loaded with its least
+work over them, and the least over the crews of the other agents' work goes to the sum over the agents.
 
 Cost: O(phases + precedence + agents * actions) per node.
 """

@@ -13,9 +13,12 @@ one, it extends the sequence of the agent whose sequence prefix ends first in th
 task order). Which agent is extended is a function of the node, so every plan has exactly one path
 from the root: no plan is reached twice. Identical actions (`hrc.plans.identical_actions`) are taken
 in their canonical order only, and a leaf's whole family (its relabellings) is compiled, as
-`hrc.plans.plan_families` groups them. A joint action (issue 37) is not allocated: its node fixes its lead
-(`hrc.model.Task.lead`, as `hrc.plans` names it) and it enters the sequence of every agent of it, each in
-its turn; orders that disagree on when close a cycle, which the bound finds (no plan below).
+`hrc.plans.plan_families` groups them. A joint action (issue 37) is allocated a crew (`hrc.model.Action.crews`:
+where the crew is a choice of the plan, each crew is a child of its own; the plan's allocation names its
+lead, `hrc.model.Task.lead`) and it enters the sequence of every agent of that crew, each in its turn;
+orders that disagree on when close a cycle, which the bound finds (no plan below). Identical joint
+actions with a crew choice are not put in canonical order by the tree (`NodeBounds.crew_groups`): their
+non-canonical leaves are dropped instead, so each family is still reached once.
 
 **Bounds.** `hrc.compile.bounds.NodeBounds`: a relaxation in which the co-worker costs nothing
 (interference only ever adds time: that module says where in the code this holds), per-agent loads
