@@ -30,10 +30,10 @@ from hypothesis import strategies as st
 from test_crews import HAND, HAND_CLASSES, _write, small_tasks
 
 from hrc.cli import main
-from hrc.compile.bounds import NodeBounds
+from hrc.compile.bounds import Node, NodeBounds
 from hrc.compile.compiler import compile_plan, compile_task, rank_key
 from hrc.compile.extend import Prefix, extend_plans
-from hrc.compile.search import _plan, compile_search
+from hrc.compile.search import DIVE_NODES, _dive, _plan, compile_search
 from hrc.dispatch.fallback import fallback_step
 from hrc.dispatch.messages import Observation, RobotStep, WaitFor
 from hrc.dispatch.validation import History
@@ -192,6 +192,23 @@ def test_the_hand_worked_case_searched(tmp_path: Path) -> None:
     assert all(HAND_CLASSES[who] == cls for who, cls in seen.items())
     best = {(plans[p["id"]].agent_of("carry"), task.crew("lift", plans[p["id"]])[0]) for p in head["plans"][:2]}
     assert best == {("alice", "alice"), ("alice", "bob")} and head["search"]["closed"]
+
+
+def test_coverage_dives_take_a_joint_action_with_the_persons_crew(tmp_path: Path) -> None:
+    """By hand (tests/test_crews.py's case): either person may start with the lift, in its crew, when the
+    other carries (carry must precede the lift, so whoever lifts first carries nothing); or with the carry."""
+    task = load_task(_write(tmp_path, HAND))
+    nb = NodeBounds(task, plan_paths(task, seed=0))
+    for person in ("alice", "bob"):
+        h = task.agent_ids.index(person)
+        for i, action in enumerate(task.action_ids):
+            leaf = _dive(task, nb, h, (i,), DIVE_NODES)
+            assert isinstance(leaf, Node), (person, action)
+            plan = _plan(task, leaf)
+            assert plan.sequence(person)[0] == action
+            if action == "lift":
+                assert task.crew("lift", plan) == (person, "robot") and plan.sequence(person) == ("lift",)
+                assert plan.agent_of("carry") != person
 
 
 # -------------------------------------------------------------------------------------- compile on demand
