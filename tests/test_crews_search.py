@@ -110,7 +110,7 @@ def test_the_tree_is_the_plan_set_and_its_bounds_hold_on_random_crew_tasks(task:
 
 @settings(max_examples=15, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
-@given(twin_tasks())
+@given(twin_tasks().filter(lambda t: count_plans(t) <= 1500))  # 4 agents, 5 actions, no precedence: 30,000 plans
 def test_the_tree_holds_each_family_once_with_identical_crew_choices(task: Task) -> None:
     assert any(task.action(g[0]).crew_choice for g in identical_actions(task))
     _check_tree(task, plan_paths(task, seed=0), most=20)
