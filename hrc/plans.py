@@ -33,7 +33,7 @@ __all__ = ["COUNT_STATES", "Leg", "PlanCount", "agent_legs", "allocation_count",
            "count_plans",
            "estimate_plan_count", "family_of", "generate_plans", "identical_actions", "is_canonical",
            "must_precede", "per_plan", "phase_graph", "pin_actions", "plan_code", "plan_count_bound", "plan_families",
-           "plan_from_code", "refuse_crew_choice", "relabellings", "spread_families", "symmetry_factor"]
+           "plan_from_code", "relabellings", "spread_families", "symmetry_factor"]
 
 R = TypeVar("R")
 
@@ -88,19 +88,6 @@ def allocations(task: Task) -> Iterator[tuple[tuple[str, str], ...]]:
     (a joint action to its crew's lead: two crews with one lead give the same allocation twice)."""
     for allocation, _ in _allocations(task):
         yield allocation
-
-
-def refuse_crew_choice(task: Task, what: str) -> None:
-    """Raise `InputError` (one line, exit 2) when some joint action's crew is a choice of the plan
-    (`Action.crew_choice`): the parts that follow one crew per joint action for now (`what`: the
-    simulation, the search compile and compile on demand) call it; `hrc show`, `hrc compile`, `hrc
-    dispatch` (JSON lines, --detect motion too), `hrc console`, `hrc ros2` and `hrc detect` follow the plan's crew."""
-    for i, action in enumerate(task.actions):
-        if action.crew_choice:
-            raise InputError(task.source, f"actions[{i}].roles", f"{what} cannot follow a crew choice yet: "
-                             f"which agents do joint action '{action.id}' is a choice of the plan (hrc show, "
-                             f"hrc compile, hrc dispatch without compile on demand, hrc console, hrc ros2 and "
-                             f"hrc detect can)")
 
 
 Graph = dict[str, list[str]]

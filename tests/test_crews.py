@@ -6,7 +6,8 @@ A hand-worked case on a bare floor (plan count, crews and classes worked out by 
 small random tasks against an enumeration written here (every subset of agents that fills the roles, every
 order of every agent's actions, acyclicity of the phase graph by networkx); the CSTNU Tool on every STNU of
 the hand-worked case and of tasks/two_workers_joint.yaml; the task format's refusals; and the online parts
-that cannot follow a crew refusing such a task in one line.
+that cannot follow a crew refusing such a task in one line (the search compile and compile on demand follow
+crews: tests/test_crews_search.py).
 """
 
 from __future__ import annotations
@@ -39,7 +40,6 @@ from hrc.plans import (
     plan_code,
     plan_count_bound,
     plan_from_code,
-    refuse_crew_choice,
 )
 
 cstnu_tool = test_cstnu_tool.tool
@@ -283,31 +283,7 @@ def test_the_tool_agrees_on_every_two_workers_joint_stnu(cstnu_tool: Path, tmp_p
     assert counts["DC"] and counts["NOT_DC"]
 
 
-# ------------------------------------------------------------------------------- the online parts refuse
-
-@pytest.mark.parametrize("argv", [
-    ["dispatch", "{out}", "--on-demand", "on"],  # the console, hrc ros2 and the motion detector follow a crew
-])
-def test_online_parts_refuse_a_crew_choice_in_one_line(hand_out: Path, capsys, argv: list[str]) -> None:
-    assert main([a.format(out=hand_out) for a in argv]) == 2
-    err = capsys.readouterr().err
-    assert ERROR_LINE.match(err) and "cannot follow a crew choice yet" in err, err
-
-
-@pytest.mark.parametrize("argv", [["simulate", "{task}", "--runs", "1", "--max-plans", "1", "--out", "{out}"],
-                                  ["compile", "{task}", "--plans", "best:2", "--out", "{out}"]])
-def test_simulate_and_the_search_refuse_a_crew_choice_in_one_line(tmp_path: Path, capsys, argv: list[str]) -> None:
-    task = _write(tmp_path, HAND)
-    assert main([a.format(task=task, out=tmp_path / "out") for a in argv]) == 2
-    err = capsys.readouterr().err
-    assert ERROR_LINE.match(err) and "actions[1].roles" in err and "crew choice" in err, err
-
-
-def test_refuse_crew_choice_passes_a_fixed_crew() -> None:
-    refuse_crew_choice(load_task(ROOT / "tasks" / "two_workers.yaml"), "x")  # one crew: nothing to refuse
-    with pytest.raises(Exception, match="x cannot follow a crew choice yet"):
-        refuse_crew_choice(load_task(ROOT / "tasks" / "two_workers_joint.yaml"), "x")
-
+# ------------------------------------------------------------------------------- the online parts
 
 def test_dispatch_follows_the_crew(hand_out: Path) -> None:
     """JSON lines: bob arriving at the lift keeps only the plans whose crew is bob's, and the robot waits

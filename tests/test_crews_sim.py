@@ -293,12 +293,15 @@ def test_the_logs_of_runs_with_a_crew_choice_replay_answer_for_answer(joint, tmp
         assert pairs and all(a == b for a, b in pairs), i
 
 
-def test_a_searched_compile_refuses_a_crew_choice_in_one_line(tmp_path: Path, capsys) -> None:
-    out = tmp_path / "sim"
-    assert main(["simulate", str(TASK), "--runs", "1", "--out", str(out), "--max-plans", "10"]) == 2
-    err = capsys.readouterr().err
-    assert ERROR_LINE.match(err) and "actions[4].roles" in err and "cannot follow a crew choice yet" in err, err
-    assert "--max-plans" in err and not out.exists()
+def test_a_searched_compile_follows_the_crew_too(joint) -> None:
+    """Beyond ``--max-plans`` (`hrc.sim.montecarlo`: a searched compile in memory, compiling on demand when
+    the run leaves its plans): 10 runs of people who follow finish, the robot never told to start before its
+    crew is there, every run on a DC plan keeps every constraint of it."""
+    task, _ = joint
+    settings = SimSettings(human=HumanModel(choice="follow"))
+    agg = aggregate(simulate(task, 10, 0, ["hrc"], settings, jobs=1, max_plans=10).results["hrc"])
+    assert agg["unfinished"] == 0 and agg["joint"]["told_before_arrival"] == 0
+    assert agg["first_plan_dc"] == agg["first_plan_dc_kept_all_constraints"] == 10
 
 
 def test_the_motion_detector_follows_the_crew_too(joint) -> None:

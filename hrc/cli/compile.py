@@ -254,9 +254,6 @@ def _search(args: argparse.Namespace, interrupt: DeferredInterrupt, task: Any, o
             raise InputError(args.task, flag, f"not with the search compile (--plans best:{k}); it compiles "
                                               "only the plans it needs")
     from hrc.compile.search import SEARCH_FAMILIES, compile_search
-    from hrc.plans import refuse_crew_choice
-
-    refuse_crew_choice(task, f"the search compile (--plans best:{k})")
     budget = args.search_budget or SEARCH_FAMILIES * k
     limit = "" if args.search_seconds is None else f", {args.search_seconds:g} s"
     say(f"{task.name}: searching for the best {k} plans (at most {budget} families compiled{limit}), then a plan "

@@ -18,7 +18,7 @@ from typing import Any
 
 from hrc.cli.argtypes import real
 
-__all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "refuse_crew_choice_in", "run"]
+__all__ = ["add_detect_options", "add_parser", "detect_params", "open_dispatcher", "run"]
 
 
 def add_detect_options(p: argparse.ArgumentParser, positions: str | None = None) -> None:
@@ -35,20 +35,6 @@ def detect_params(args: argparse.Namespace) -> Any:
     from hrc.detect import DetectParams
 
     return DetectParams() if args.sensor_sigma is None else DetectParams(sigma=max(args.sensor_sigma, 0.01))
-
-
-def refuse_crew_choice_in(out_dir: str, what: str) -> None:
-    """`hrc.plans.refuse_crew_choice` for the task compiled into `out_dir` (a folder that is not a compile's
-    output is left for the command itself to refuse, in its own words)."""
-    from hrc.compile.output import load_compiled_task
-    from hrc.errors import HrcError
-    from hrc.plans import refuse_crew_choice
-
-    try:
-        task = load_compiled_task(out_dir)
-    except (HrcError, OSError, KeyError, TypeError, ValueError):
-        return
-    refuse_crew_choice(task, what)
 
 
 def open_dispatcher(args: argparse.Namespace, command: str) -> Any:

@@ -114,9 +114,6 @@ def _on_demand(args: argparse.Namespace, dispatcher: Any) -> None:
             raise InputError(str(log), "on_demand", "plans and families must be whole numbers")
     elif args.on_demand == "off" or (args.on_demand == "auto" and "search" not in read_header(args.out_dir)):
         return
-    from hrc.plans import refuse_crew_choice
-
-    refuse_crew_choice(dispatcher.task, "compile on demand")
     if getattr(args, "detect", None) == "motion":  # the detector's belief is over the plans it was given
         if args.on_demand == "on":
             raise InputError("--on-demand", "", "compile on demand does not work with --detect motion yet")

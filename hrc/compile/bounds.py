@@ -46,10 +46,14 @@ under ``--rank-by worst`` (a DC plan's worst case is measured with every human d
 and the ``lo`` bound otherwise (a plan whose upper reading has no schedule measures its worst case as
 its earliest). The preference term is unbounded (minus infinity) when the task has preferences.
 
-**Joint actions** (issue 37): allocated to their lead only, in the sequence of each agent of them; their
-first phase starts when the last of them is there (one edge or time per agent in the critical path), each
-phase lasts the roles' ``[max lb, max ub]`` (the ``hi`` reading takes the upper end when a person takes part:
-the STNU's contingent link, `hrc.compile.temporal_net_creator`), and it loads every agent of it.
+**Joint actions** (issue 37): allocated a crew (`hrc.model.Action.crews`; ``Node.alloc`` holds its number,
+a choice of the plan when there are several), in the sequence of each agent of the crew; their first
+phase starts when the last of the crew is there (one edge or time per agent in the critical path), each
+phase lasts the crew's roles' ``[max lb, max ub]`` (the ``hi`` reading takes the upper end when a person of
+the crew takes part: the STNU's contingent link, `hrc.compile.temporal_net_creator`), and it loads every
+agent of the crew. Before the crew is chosen, each of these is the least over the crews (start, duration,
+travel between phases: the least of lower bounds is one), an agent in every crew is loaded with its least
+work over them, and the least over the crews of the other agents' work goes to the sum over the agents.
 
 Cost: O(phases + precedence + agents * actions) per node.
 """
@@ -132,14 +136,19 @@ class NodeBounds:
         self.n, self.m = len(task.actions), len(task.agents)
         self.agent_ids = task.agent_ids
         self.index = {a: i for i, a in enumerate(task.action_ids)}
-        # a joint action (issue 37) is allocated to its lead (`Task.lead`, as `hrc.plans` does) and is in the
-        # sequence of every agent of it (`takers`); `does`: who may work on each action (allocated or taking part)
+        # a joint action (issue 37) is allocated a crew (`hrc.model.Action.crews`: `alloc[i]` is the crew's number
+        # there, a choice of the plan when it has several, `Action.crew_choice`) and is in the sequence of every
+        # agent of that crew; `takers`: every agent that may take part in it (any crew), `does`: who may work
+        # on each action (allocated or taking part)
+        self.crews = [tuple(tuple(task.agent_ids.index(x) for x in crew) for crew in a.crews) if a.joint else ()
+                      for a in task.actions]
         self.takers = [tuple(ag for ag, agent in enumerate(task.agents) if agent.id in a.agents) if a.joint else ()
                        for a in task.actions]
-        self.may = [[task.agent_ids.index(task.lead(a.id))] if a.joint else
-                    [ag for ag, agent in enumerate(task.agents) if agent.id in a.agents] for a in task.actions]
+        self.may = [list(range(len(crews))) if crews else
+                    [ag for ag, agent in enumerate(task.agents) if agent.id in a.agents]
+                    for a, crews in zip(task.actions, self.crews, strict=True)]
         self.does = [list(t) if t else may for t, may in zip(self.takers, self.may, strict=True)]
-        self.slots = sum(max(1, len(t)) for t in self.takers)  # a leaf's sequence entries, all agents together
+        self.slots = sum(len(c[0]) if c else 1 for c in self.crews)  # a leaf's sequence entries, all agents together
         self.phases = [[p.location for p in a.phases] for a in task.actions]
         self.at = [0]  # each action's first phase's number among all phases (task order); at[n]: the count
         for ph in self.phases:
@@ -174,31 +183,36 @@ class NodeBounds:
                     self.travel[0][ag][(o, t)] = math.floor(secs * _TICKS)
                     slack = agent.travel_slack if agent.is_human else 1.0
                     self.travel[1][ag][(o, t)] = math.floor(secs * slack * _TICKS)
-        # step durations per reading, action, phase and agent (ticks; None: the agent may not do it)
-        # (a joint phase lasts until its last role is done: ``[max lb, max ub]``, contingent with a person in it,
-        # `hrc.compile.temporal_net_creator`; the same for each of its agents)
+        # step durations per reading, action, phase and agent (ticks; None: the agent may not do it); a joint
+        # action's per crew (`jdur[r][i][c][k]`): a joint phase lasts until its crew's last role is done,
+        # ``[max lb, max ub]`` over the crew, contingent with a person in it (`hrc.compile.temporal_net_creator`)
         self.dur: list[list[list[list[int | None]]]] = [[], []]
+        self.jdur: list[list[list[list[int]]]] = [[], []]
         for r in range(2):
-            for a in task.actions:
+            for a, crews in zip(task.actions, self.crews, strict=True):
                 rows = []
-                people = a.joint and any(task.agent(x).is_human for x in a.agents)
                 for p in a.phases:
                     row: list[int | None] = []
                     for agent in task.agents:
-                        if agent.id not in a.agents:
+                        if agent.id not in a.agents or a.joint:
                             row.append(None)
-                            continue
-                        if a.joint:
-                            ivs = [p.duration(x) for x in a.agents]
-                            row.append(math.floor(max(iv.ub if r and people else iv.lb for iv in ivs) * _TICKS))
                             continue
                         iv = p.duration(agent.id)
                         row.append(math.floor((iv.ub if r and agent.is_human else iv.lb) * _TICKS))
                     rows.append(row)
                 self.dur[r].append(rows)
-        # an action's own work by an agent (steps and the travel between its phases), and its cheapest way
-        # in: from the agent's start or the last place of any other action the agent may do
+                by_crew = []
+                for crew in crews:
+                    people = any(task.agents[ag].is_human for ag in crew)
+                    by_crew.append([math.floor(max(p.duration(self.agent_ids[ag]).ub if r and people else
+                                                   p.duration(self.agent_ids[ag]).lb for ag in crew) * _TICKS)
+                                    for p in a.phases])
+                self.jdur[r].append(by_crew)
+        # an action's own work by an agent (steps and the travel between its phases; a joint action's per crew,
+        # `jwork[r][i][c]`, for the crew's agents), and its cheapest way in: from the agent's start or the last
+        # place of any other action the agent may do
         self.work = [[[0] * self.n for _ in range(self.m)] for _ in range(2)]
+        self.jwork: list[list[list[dict[int, int]]]] = [[[] for _ in range(self.n)] for _ in range(2)]
         self.way_in = [[[0] * self.n for _ in range(self.m)] for _ in range(2)]
         for r in range(2):
             for ag, agent in enumerate(task.agents):
@@ -206,11 +220,15 @@ class NodeBounds:
                 for i in range(self.n):
                     if ag not in self.does[i]:
                         continue
-                    steps = sum(d[ag] or 0 for d in self.dur[r][i])
                     inside = sum(self.travel[r][ag][(x, y)] for x, y in itertools.pairwise(self.phases[i]))
-                    self.work[r][ag][i] = steps + inside
+                    if not self.crews[i]:
+                        self.work[r][ag][i] = sum(d[ag] or 0 for d in self.dur[r][i]) + inside
                     first = self.phases[i][0]
                     self.way_in[r][ag][i] = min(self.travel[r][ag][(e, first)] for e in places)
+            for i, crews in enumerate(self.crews):
+                self.jwork[r][i] = [{ag: sum(self.jdur[r][i][c]) + sum(self.travel[r][ag][(x, y)] for x, y in
+                                                                      itertools.pairwise(self.phases[i]))
+                                     for ag in crew} for c, crew in enumerate(crews)]
         prec: list[list[tuple[int, int, int]]] = [[] for _ in range(self.n)]  # (phase k, before j, its phase)
         for pr in task.precedence:
             i, j = self.index[pr.after.action], self.index[pr.before.action]
@@ -223,9 +241,37 @@ class NodeBounds:
         self.preds = [frozenset(j for j in range(self.n) if (j, i) in self.before_idx) for i in range(self.n)]
         self.groups = [tuple(self.index[a] for a in g) for g in identical_actions(task)]
         self.group_prev: dict[int, int] = {}  # action -> the action before it in its group of identical actions
+        # identical joint actions with a crew to choose: the tree's order rules (agents in task order, then
+        # task order within an agent) do not hold for them (`hrc.plans.is_canonical` places a joint action
+        # at the last agent of its crew, which crews do not order), so their leaves are checked whole
+        # (`_canonical`) instead
+        self.in_every = [tuple(ag for ag in c[0] if all(ag in o for o in c)) if c else () for c in self.crews]
+        self.crew_groups = tuple(g for g in self.groups if task.actions[g[0]].crew_choice)
         for g in self.groups:
+            if g in self.crew_groups:
+                continue
             for x, y in itertools.pairwise(g):
                 self.group_prev[y] = x
+
+    def crew(self, i: int, alloc: tuple[int, ...]) -> tuple[int, ...]:
+        """The agents (task order) whose sequences hold action `i` under `alloc`, allocated: its crew for a
+        joint action, else its one agent."""
+        return self.crews[i][alloc[i]] if self.crews[i] else (alloc[i],)
+
+    def lead(self, i: int, alloc: tuple[int, ...]) -> int:
+        """The agent a plan's allocation names for action `i` (`hrc.model.Task.lead` for a joint action:
+        its crew's first robot)."""
+        crew = self.crew(i, alloc)
+        return crew[0] if len(crew) == 1 else next(ag for ag in crew if not self.task.agents[ag].is_human)
+
+    def _canonical(self, node: Node) -> bool:
+        """Whether a leaf is canonical in its groups of identical joint actions with a crew choice
+        (`hrc.plans.is_canonical`: an action's slot is the last agent holding it, and its place there)."""
+        slot: dict[int, tuple[int, int]] = {}
+        for ag, seq in enumerate(node.seqs):
+            for pos, x in enumerate(seq):
+                slot[x] = (ag, pos)
+        return all(slot[a] < slot[b] for g in self.crew_groups for a, b in itertools.pairwise(g))
 
     def root(self) -> Node:
         return Node((), tuple(() for _ in range(self.m)))
@@ -235,8 +281,8 @@ class NodeBounds:
         latest phase end and each agent's prefix end; None on a cycle (no valid plan below)."""
         n, alloc, seqs = self.n, node.alloc, node.seqs
         full = len(alloc) == n
-        travel, dur, way_in, at = self.travel[r], self.dur[r], self.way_in[r], self.at
-        takers = self.takers
+        travel, dur, jdur, way_in, at = self.travel[r], self.dur[r], self.jdur[r], self.way_in[r], self.at
+        crews = self.crews
         # per action's first phase: where its agents' sequences let it start, as (phase it follows, gap)
         # or a time from 0; actions of an agent not in its prefix follow the prefix's last phase (a joint
         # action, issue 37, starts when every agent of it is there: one such edge or time per agent)
@@ -255,7 +301,7 @@ class NodeBounds:
         if full:
             placed = [set(seq) for seq in seqs]
             for i in range(n):
-                for ag in takers[i] or (alloc[i],):
+                for ag in crews[i][alloc[i]] if crews[i] else (alloc[i],):
                     if i in placed[ag]:
                         continue
                     own = seqs[ag]
@@ -272,8 +318,9 @@ class NodeBounds:
                 preds[base].extend(follows[i])
             for k in range(1, len(self.phases[i])):
                 a, b = self.phases[i][k - 1], self.phases[i][k]
-                if takers[i]:  # every agent of a joint action goes on to its next phase
-                    gap = max(travel[ag][(a, b)] for ag in takers[i])
+                if crews[i]:  # every agent of a joint action's crew goes on to its next phase (any crew: the least)
+                    gap = (max(travel[ag][(a, b)] for ag in crews[i][alloc[i]]) if agent >= 0 else
+                           min(max(travel[ag][(a, b)] for ag in crew) for crew in crews[i]))
                 else:
                     gap = travel[agent][(a, b)] if agent >= 0 else min(travel[ag][(a, b)] for ag in self.may[i])
                 preds[base + k].append((base + k - 1, gap))
@@ -289,8 +336,9 @@ class NodeBounds:
             agent = alloc[i] if i < len(alloc) else -1
             if i in from_zero:
                 start[at[i]] = from_zero[i]
-            elif takers[i] and i not in follows:  # a joint action no agent has sequenced yet: all must come
-                start[at[i]] = max(way_in[ag][i] for ag in takers[i])
+            elif crews[i] and i not in follows:  # a joint action no agent has sequenced yet: all its crew must come
+                start[at[i]] = (max(way_in[ag][i] for ag in crews[i][alloc[i]]) if agent >= 0 else
+                                min(max(way_in[ag][i] for ag in crew) for crew in crews[i]))
             elif i not in follows:  # allocated but not sequenced yet, or not allocated
                 start[at[i]] = way_in[agent][i] if agent >= 0 else min(way_in[ag][i] for ag in self.may[i])
         end = [0] * total
@@ -301,7 +349,10 @@ class NodeBounds:
             done += 1
             i, k = self.owner[v]
             agent = alloc[i] if i < len(alloc) else -1
-            d = dur[i][k][agent] if agent >= 0 else min(dur[i][k][ag] or 0 for ag in self.may[i])
+            if crews[i]:  # a joint action: its crew's duration (not allocated: the least crew's)
+                d: int | None = jdur[i][agent][k] if agent >= 0 else min(c[k] for c in jdur[i])
+            else:
+                d = dur[i][k][agent] if agent >= 0 else min(dur[i][k][ag] or 0 for ag in self.may[i])
             end[v] = start[v] + (d or 0)
             for u, gap in users[v]:
                 if end[v] + gap > start[u]:
@@ -326,10 +377,22 @@ class NodeBounds:
         spare = 0
         work, way_in = self.work[r], self.way_in[r]
         for i in range(n):
-            if self.takers[i]:  # a joint action: each of its agents works it (allocated or not)
-                for ag in self.takers[i]:
-                    if i not in seqs[ag]:
-                        load[ag] += work[ag][i] + way_in[ag][i]
+            crews = self.crews[i]
+            if crews:  # a joint action: each agent of its crew works it
+                if i < len(alloc):
+                    c = alloc[i]
+                    for ag in crews[c]:
+                        if i not in seqs[ag]:
+                            load[ag] += self.jwork[r][i][c][ag] + way_in[ag][i]
+                    continue
+                # no crew yet (then nothing is sequenced): an agent of every crew works it at least its least;
+                # the others' part of the least crew's work goes to the sum over the agents
+                every = self.in_every[i]
+                for ag in every:
+                    load[ag] += min(w[ag] for w in self.jwork[r][i]) + way_in[ag][i]
+                if len(crews) > 1:
+                    spare += min(sum(w[ag] + way_in[ag][i] for ag in crew if ag not in every)
+                                 for crew, w in zip(crews, self.jwork[r][i], strict=True))
                 continue
             if i in in_prefix:
                 continue
@@ -369,22 +432,23 @@ class NodeBounds:
         if len(alloc) < n:
             i = len(alloc)
             out = []
-            takes = who in self.takers[i]  # a joint action of the covered agent: in its sequence, whoever leads
-            for ag in self.may[i]:
+            mine = self.crews[i]
+            for ag in self.may[i]:  # an agent, or a joint action's crew (its number)
                 prev = None if cover is not None else self.group_prev.get(i)
                 if prev is not None and alloc[prev] > ag:
                     continue  # identical actions: agents in task order
-                if i in forced and ag != who and not takes:
+                takes = who in mine[ag] if mine else ag == who  # the action is in the covered agent's sequence
+                if i in forced and not takes:
                     continue
-                if (ag == who or takes) and not self._fits(alloc + (ag,), i, who, forced):
+                if takes and not self._fits(alloc + (ag,), i, who, forced):
                     continue  # the forced prefix would need an action of its agent before it that it lacks
                 out.append(Node(alloc + (ag,), seqs))
             return out
-        takers = self.takers
-        placed = [set(seq) for seq in seqs]  # per agent (a joint action is placed once per agent of it)
+        crews = self.crews
+        placed = [set(seq) for seq in seqs]  # per agent (a joint action is placed once per agent of its crew)
 
         def todo(i: int, ag: int) -> bool:  # action i is for agent ag's sequence and not in it yet
-            return (alloc[i] == ag if not takers[i] else ag in takers[i]) and i not in placed[ag]
+            return (alloc[i] == ag if not crews[i] else ag in crews[i][alloc[i]]) and i not in placed[ag]
 
         busy = [ag for ag in range(self.m) if any(todo(i, ag) for i in range(n))]
         if not busy:
@@ -402,7 +466,10 @@ class NodeBounds:
             prev = None if cover is not None else self.group_prev.get(i)
             if prev is not None and todo(prev, ag):
                 continue  # identical actions: in task order within an agent
-            out.append(Node(alloc, seqs[:ag] + (seqs[ag] + (i,),) + seqs[ag + 1:]))
+            child = Node(alloc, seqs[:ag] + (seqs[ag] + (i,),) + seqs[ag + 1:])
+            if self.crew_groups and cover is None and self.is_leaf(child) and not self._canonical(child):
+                continue  # its canonical relabelling is another leaf (`crew_groups`)
+            out.append(child)
         return out
 
     def _fits(self, alloc: tuple[int, ...], i: int, who: int, forced: tuple[int, ...]) -> bool:
@@ -414,7 +481,7 @@ class NodeBounds:
         for p, x in enumerate(forced):
             if (i, x) in self.before_idx and i not in forced[:p]:
                 return False
-            if x == i and any((alloc[j] == who or who in self.takers[j]) and (j, i) in self.before_idx
+            if x == i and any(who in self.crew(j, alloc) and (j, i) in self.before_idx
                               and j not in forced[:p] for j in range(len(alloc))):
                 return False
         return True

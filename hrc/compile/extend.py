@@ -3,7 +3,10 @@
 When what the person does leaves every compiled plan, the dispatcher (`hrc.dispatch.on_demand`) asks for
 plans that continue what was seen: each agent has done (or begun) the actions of its `Prefix`, in that
 order. The plans wanted are the plans of the task's plan tree whose allocation gives each of those
-actions to its agent and whose agents' sequences start with them; everything after is searched.
+actions to its agent and whose agents' sequences start with them; everything after is searched. A joint
+action seen in an agent's prefix (issue 37) puts that agent in its crew: where the crew is a choice of
+the plan (`hrc.model.Action.crews`), only crews that hold every agent seen at it are searched, so the
+plans agree with the crew the dispatcher saw.
 
 The search is `hrc.compile.search.search_plans` (best-first branch and bound with diving, Land & Doig
 1960; its bounds `hrc.compile.bounds.NodeBounds`) on that subtree: `NodeBounds.children` filtered to the
@@ -78,11 +81,14 @@ class Extension:
     outcome: SearchOutcome
 
 
-def _fits(node: Node, forced: list[tuple[int, ...]], owner: dict[int, int]) -> bool:
+def _fits(node: Node, forced: list[tuple[int, ...]], owner: dict[int, int], crews: dict[int, frozenset[int]]) -> bool:
     """Whether `node` can still lead to a plan that extends the prefix (`forced`: per agent, its action
-    indices in order; `owner`: action -> agent)."""
+    indices in order; `owner`: action -> agent; `crews`: joint action -> the crews, by number in
+    `NodeBounds.crews`, that hold every agent seen at it)."""
     for i, ag in enumerate(node.alloc):
         if owner.get(i, ag) != ag:
+            return False
+        if i in crews and ag not in crews[i]:
             return False
     for ag, seq in enumerate(node.seqs):
         want = forced[ag]
@@ -112,13 +118,20 @@ def extend_plans(task: Task, paths: PathLibrary, prefix: Prefix, *, k: int = EXT
     for agent, seq in prefix.sequences:
         g = agents[agent]
         forced[g] = tuple(index[a] for a in seq)
-        owner.update((i, g) for i in forced[g] if not task.actions[i].joint)  # a joint one: every agent's
+        owner.update((i, g) for i in forced[g] if not task.actions[i].joint)  # a joint one: its crew's
+    # a joint action seen with some of its agents (issue 37): only crews that hold all of them (a crew is a
+    # choice of the plan, `hrc.model.Action.crews`; an agent whose prefix has it is in the plan's crew)
+    crews: dict[int, frozenset[int]] = {}
+    for i, action in enumerate(task.actions):
+        seen = {g for g, f in enumerate(forced) if i in f}
+        if action.joint and seen:
+            crews[i] = frozenset(c for c, crew in enumerate(bounds.crews[i]) if seen <= set(crew))
     # `cover` lifts the canonical order of identical actions (the prefix names the very actions done) and
     # prunes allocations of the most constrained agent's prefix early; the filter keeps every agent's prefix
     lead = max(range(len(forced)), key=lambda g: (len(forced[g]), -g))
 
     def children(node: Node, ends: tuple[int, ...]) -> list[Node]:
-        return [c for c in bounds.children(node, ends, (lead, forced[lead])) if _fits(c, forced, owner)]
+        return [c for c in bounds.children(node, ends, (lead, forced[lead])) if _fits(c, forced, owner, crews)]
 
     compiled: dict[str, tuple[tuple, CompiledPlan]] = {}
 

@@ -13,9 +13,12 @@ one, it extends the sequence of the agent whose sequence prefix ends first in th
 task order). Which agent is extended is a function of the node, so every plan has exactly one path
 from the root: no plan is reached twice. Identical actions (`hrc.plans.identical_actions`) are taken
 in their canonical order only, and a leaf's whole family (its relabellings) is compiled, as
-`hrc.plans.plan_families` groups them. A joint action (issue 37) is not allocated: its node fixes its lead
-(`hrc.model.Task.lead`, as `hrc.plans` names it) and it enters the sequence of every agent of it, each in
-its turn; orders that disagree on when close a cycle, which the bound finds (no plan below).
+`hrc.plans.plan_families` groups them. A joint action (issue 37) is allocated a crew (`hrc.model.Action.crews`:
+where the crew is a choice of the plan, each crew is a child of its own; the plan's allocation names its
+lead, `hrc.model.Task.lead`) and it enters the sequence of every agent of that crew, each in its turn;
+orders that disagree on when close a cycle, which the bound finds (no plan below). Identical joint
+actions with a crew choice are not put in canonical order by the tree (`NodeBounds.crew_groups`): their
+non-canonical leaves are dropped instead, so each family is still reached once.
 
 **Bounds.** `hrc.compile.bounds.NodeBounds`: a relaxation in which the co-worker costs nothing
 (interference only ever adds time: that module says where in the code this holds), per-agent loads
@@ -154,9 +157,17 @@ class SearchResult:
 
 
 def _plan(task: Task, node: Node) -> Plan:
-    return Plan(allocation=tuple((a, task.agent_ids[ag]) for a, ag in zip(task.action_ids, node.alloc, strict=True)),
-                sequences=tuple((agent, tuple(task.action_ids[i] for i in seq))
-                                for agent, seq in zip(task.agent_ids, node.seqs, strict=True)))
+    """A leaf's plan. A joint action's `Node.alloc` is its crew's number (`NodeBounds.crews`): the plan's
+    allocation names its lead, the first robot (task order) whose sequence holds it (`hrc.model.Task.lead`)."""
+    sequences = tuple((agent, tuple(task.action_ids[i] for i in seq))
+                      for agent, seq in zip(task.agent_ids, node.seqs, strict=True))
+    agents = task.agents
+    allocation = []
+    for i, (action, ag) in enumerate(zip(task.actions, node.alloc, strict=True)):
+        if action.joint:
+            ag = next(g for g, seq in enumerate(node.seqs) if i in seq and not agents[g].is_human)
+        allocation.append((action.id, task.agent_ids[ag]))
+    return Plan(allocation=tuple(allocation), sequences=sequences)
 
 
 @dataclass

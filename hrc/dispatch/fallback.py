@@ -19,7 +19,9 @@ answer meanwhile is the robot's next step that *every* plan extending the histor
 own legs, so a robot is only ever told the next event of a leg it is on itself: never the start of an
 action another robot or a person is doing or has done (History refuses a second doer), never a new leg.
 A joint action (`hrc.model.Action.roles`; its start and end are its lead's, `hrc.model.Task.lead`) is
-started only when every agent of it has been seen arriving at the place: until then its lead waits for
+started only when every agent of its crew has been seen arriving at the place (a crew the plan chooses,
+`hrc.model.Action.crews`: the agents seen on it, once they are one of its crews; until then it is held,
+waiting for the arrival of one seen on it, or with no step): until then its lead waits for
 the first missing arrival (``wait_for``, as `Dispatcher._joint_hold` with a plan); its end is nature's
 when a person takes part (the lead is told to wait for it), else within the longest of its agents'
 duration bounds; an agent of it that is not its lead has no start or end of its own and waits. The
@@ -34,6 +36,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
+
+from hrc.model import Action
 
 from .messages import Decision, RobotStep, WaitFor
 from .validation import History
@@ -58,8 +62,9 @@ def fallback_step(history: History, robot: str, told: RobotStep | WaitFor | None
         return None
     now = history.now
     act = task.action(action)
+    crew = _crew(history, act) if act.joint else (robot,)
     if act.joint and event in ("start", "end"):
-        held, instead = _joint(history, robot, act.agents, action, phase, event)
+        held, instead = _joint(history, robot, crew, action, phase, event)
         if held:
             return instead
     if isinstance(told, RobotStep) and (told.action, told.phase, told.event) == (action, phase, event):
@@ -70,7 +75,7 @@ def fallback_step(history: History, robot: str, told: RobotStep | WaitFor | None
                 return None
         return RobotStep(action, phase, event, now, None)
     if event == "end":
-        ph, doers = act.phase(phase), act.agents if act.joint else (robot,)  # a joint one: its slowest role
+        ph, doers = act.phase(phase), crew or (robot,)  # a joint one: its crew's slowest role
         lb, ub = max(ph.duration(a).lb for a in doers), max(ph.duration(a).ub for a in doers)
         began = history.times[(robot, action, phase, "start")]
         latest = None if ub == float("inf") else round(max(now, began + ub), 3)
@@ -78,12 +83,31 @@ def fallback_step(history: History, robot: str, told: RobotStep | WaitFor | None
     return RobotStep(action, phase, event, now, None)
 
 
-def _joint(history: History, robot: str, agents: tuple[str, ...], action: str, phase: str,
+def _crew(history: History, act: Action) -> tuple[str, ...] | None:
+    """The agents of a joint action's crew (task order): its one crew, or where the plan chooses it
+    (`Action.crew_choice`) the agents seen on it (a leg of it begun) once they are one of its crews; None
+    until then."""
+    if not act.crew_choice:
+        return act.agents
+    seen = tuple(ag for ag in act.agents if act.id in history.actions_seen(ag))
+    return seen if seen in act.crews else None
+
+
+def _joint(history: History, robot: str, agents: tuple[str, ...] | None, action: str, phase: str,
            event: str) -> tuple[bool, WaitFor | None]:
-    """The start or end of a joint action for `robot`: whether it is held, and what it is told instead
-    (module docstring); not held, it is told as any leg's."""
+    """The start or end of a joint action for `robot` (`agents`: its crew, `_crew`): whether it is held, and
+    what it is told instead (module docstring); not held, it is told as any leg's. A crew not complete yet
+    (a choice of the plan, only some of it seen): held, waiting for the arrival of the first agent seen on
+    it that has not arrived, else with no step."""
     task = history.task
-    lead = task.lead(action)
+    if agents is None:
+        act = task.action(action)
+        for other in act.agents:
+            if (other != robot and action in history.actions_seen(other)
+                    and (other, action, phase, "arrive") not in history.times):
+                return True, WaitFor(other, action, phase, "arrive")
+        return True, None
+    lead = next(a.id for a in task.agents if a.id in agents and not a.is_human)  # `Task.lead` of the crew
     if robot != lead:
         return True, None  # its lead starts and ends it
     if event == "start":

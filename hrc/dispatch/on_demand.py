@@ -105,7 +105,9 @@ def enable(dispatcher: Dispatcher, settings: OnDemandSettings) -> None:
 
 def wanted(dispatcher: Dispatcher) -> Prefix | None:
     """What plans compiled now must extend: None while some plan agrees with what was seen; else each
-    agent's actions seen in order, and the one it announced next (`Observation.next`)."""
+    agent's actions seen in order, and the one it announced next (`Observation.next`). A joint action in an
+    agent's prefix says the agent is in its crew (issue 37): where the crew is a choice of the plan,
+    `hrc.compile.extend.extend_plans` keeps only the crews holding every agent seen on it."""
     if len(dispatcher.remaining):
         return None
     history = dispatcher.seen

@@ -203,9 +203,7 @@ def _compile(task: Task, seed: int, jobs: int | None, executor: str | None, prog
         return kept_compile("motion", task, seed, executor, lambda: compile_task(
             task, seed=seed, jobs=jobs, executor=executor, progress=progress), progress)
     from hrc.compile.search import search_in_memory
-    from hrc.plans import refuse_crew_choice
 
-    refuse_crew_choice(task, f"hrc simulate beyond --max-plans {limit} (a searched compile, compiling on demand)")
     return search_in_memory(task, seed=seed)
 
 
