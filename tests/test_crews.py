@@ -208,7 +208,8 @@ def small_tasks(draw) -> Task:
             actions.append(Action(f"j{i}", f"j{i}", who, (Phase("p", loc, tuple((a, Interval(1, 2)) for a in who)),),
                                   roles=tuple((a, (a,)) for a in who), needed=3))
         else:
-            who = tuple(a for a in ids if a in draw(st.lists(st.sampled_from(ids), min_size=1, unique=True)))
+            chosen = draw(st.lists(st.sampled_from(ids), min_size=1, unique=True))  # once, not once per agent
+            who = tuple(a for a in ids if a in chosen)
             actions.append(Action(f"a{i}", f"a{i}", who, (Phase("p", loc, tuple((a, Interval(1, 2)) for a in who)),)))
     precedence = tuple(Precedence(PhaseRef(actions[i].id, "p"), PhaseRef(actions[j].id, "p"))
                        for i, j in itertools.combinations(range(len(actions)), 2) if draw(st.booleans()))
