@@ -106,3 +106,48 @@ def test_random_histories_get_the_same_answers(plan_set: Any, data: st.DataObjec
         else:
             msg = {"t": t, "agent": person, "event": "away" if data.draw(st.booleans()) else "back"}
         both(d, msg)
+
+
+def test_idle_counts_a_joint_phase_another_agent_leads_from_the_arrival(plan_set: Any) -> None:
+    """A crew member who does not lead the joint load has no start or end of their own for it (the lead's:
+    -1 in the form's nodes). Their idle ends with their arrival there, in the C core, the Python ranking
+    and the definition (`reference_evaluate`) alike, and by hand from the definition's schedule. The core
+    read the word before its schedule for that end (ASan: heap-buffer-overflow, found by ``crew_history``)
+    and Python the plan's last timepoint."""
+    import numpy as np
+
+    from hrc.compile.temporal_net_creator import ORIGIN
+    from hrc.dispatch.ranking import Ranker, reference_evaluate, schedule
+    from hrc.dispatch.validation import History, seen_arrays
+    from hrc.temporal.execution import residual_network
+
+    ranker = Ranker(plan_set, 1)
+    if ranker.native is None:
+        pytest.skip("the C core is not built (python setup.py build_ext --inplace)")
+    python = copy.copy(ranker)
+    python.native = None
+    seen, legs_seen = seen_arrays(History.start(plan_set.task), plan_set.form.nodes.shape[2])
+    plans = np.arange(len(plan_set))
+    native_idle = ranker.evaluate(plans, seen, legs_seen, 0)[2]
+    python_idle = python.evaluate(plans, seen, legs_seen, 0)[2]
+    assert native_idle.tolist() == python_idle.tolist()
+    for p in range(0, len(plan_set), 17):
+        entry = plan_set.entry(p)
+        ev = reference_evaluate(entry, {ORIGIN: 0}, 0, plan_set.rank_by)
+        residual = residual_network(entry.stnu, {ORIGIN: 0}, 0)
+        found = schedule(residual, plan_set.rank_by)
+        assert found is not None
+        times = {v: t - found[residual.timepoints[0]] for v, t in found.items()}
+        by_hand = 0
+        for agent, legs in entry.legs.items():
+            busy, last = 0, 0
+            for action, phase in legs:
+                points = dict(entry.leg_points[(agent, action, phase)])
+                busy += times[points["arrive"]] - times[points["depart"]]
+                if "park" in points:
+                    busy -= times[points["unpark"]] - times[points["park"]]
+                if "end" in points:
+                    busy += times[points["end"]] - times[points["start"]]
+                last = times[points["end"] if "end" in points else points["arrive"]]
+            by_hand += max(0, last - busy) if legs else 0
+        assert ev.idle == by_hand == native_idle[p], p

@@ -501,9 +501,12 @@ static int evaluate(const HrcForm *f, const HrcState *s, int64_t p, HrcWork *w, 
         for (int leg = 0; leg < L; leg++) {
             const int16_t *nd = nodes + (g * L + leg) * EVENTS;
             if (nd[0] < 0) break;
-            busy += t[nd[3]] - t[nd[0]] + t[nd[5]] - t[nd[4]];
+            busy += t[nd[3]] - t[nd[0]];
             if (nd[1] >= 0) busy -= t[nd[2]] - t[nd[1]];
-            end = t[nd[5]];
+            /* a joint phase another agent leads has no start and end of this agent's (the lead's): its
+             * part ends with its arrival there, as the compile's idle counts it (hrc.compile.classify) */
+            if (nd[5] >= 0) busy += t[nd[5]] - t[nd[4]];
+            end = t[nd[5] >= 0 ? nd[5] : nd[3]];
         }
         if (end != NONE) total += max64(0, end - busy);
     }

@@ -148,8 +148,11 @@ class PlanNet:
                 continue
             busy = 0
             for dep, park, unpark, arr, start, end in legs:
-                busy += times[arr] - times[dep] + times[end] - times[start]
+                busy += times[arr] - times[dep]
+                if end >= 0:  # (a joint phase another agent leads has none of this agent's: `_dispatchcore.c`)
+                    busy += times[end] - times[start]
                 if park >= 0:
                     busy -= times[unpark] - times[park]
-            total += max(0, times[legs[-1][5]] - busy)
+            last = legs[-1]
+            total += max(0, times[last[5] if last[5] >= 0 else last[3]] - busy)
         return total

@@ -120,8 +120,9 @@ def _idle(entry: PlanEntry, times: Mapping[str, int]) -> int:
             busy += times[points["arrive"]] - times[points["depart"]]
             if "park" in points:  # the wait at a waiting place is standing still
                 busy -= times[points["unpark"]] - times[points["park"]]
-            busy += times[points["end"]] - times[points["start"]]
-            last = times[points["end"]]
+            if "end" in points:  # a joint phase another agent leads: its part ends with its arrival there
+                busy += times[points["end"]] - times[points["start"]]
+            last = times[points.get("end", points["arrive"])]
         total += max(0, last - busy)
     return total
 
