@@ -75,7 +75,7 @@ from hrc.compile.temporal_net_creator import (
 )
 from hrc.model import Plan, Task
 from hrc.motion import Conflict, Motion, PathLibrary, Separation, TimeRef, detour, find_conflicts, plan_motions
-from hrc.motion.conflicts import people_meetings
+from hrc.motion.conflicts import joint_spot_starts, people_meetings
 from hrc.motion.motions import Route, Routes
 from hrc.plans import agent_legs, per_plan
 from hrc.temporal import STNU, DCResult, RequirementLink, Verdict, check_consistency, check_dc
@@ -805,6 +805,24 @@ _BLOCKED = Classification(PlanClass.INCONSISTENT, "the co-workers would block ea
                           "start (Z), so that file alone checks inconsistent", None, (), ())
 
 
+def _blocked(task: Task, plan: Plan) -> Classification:
+    """`_BLOCKED`, naming the cause when it is a co-worker standing at a joint action's spot from the start
+    (`hrc.motion.conflicts.joint_spot_starts`: the robot may not drive in to them, and they cannot leave
+    before the joint phase, docs/motion.md, "Joint actions"); the first such pair, the plan's other
+    blocks aside. Every other blocked plan keeps the words it had."""
+    found = joint_spot_starts(task, plan)
+    if not found:
+        return _BLOCKED
+    s = found[0]
+    why = (f"the co-workers would block each other: {s.agent} stands at {s.spot} from the start until "
+           f"{s.action}.{s.phase} ends, and {s.robot} must drive to {s.spot} for that joint action; at a joint spot "
+           f"the robot arrives first and never drives within reach of someone standing there, so no order of "
+           f"passing lets {s.robot} in (with a start out of reach of {s.robot}'s way to {s.spot}, {s.agent} would "
+           f"walk up after it); its STNU file says so: it puts the plan's first event before the start (Z), so "
+           f"that file alone checks inconsistent")
+    return replace(_BLOCKED, explanation=why)
+
+
 def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool = True,
                    rank_by: str = "worst") -> PlanChoice:
     """The plan's best motion pattern, its STNU and its classification (see the module docstring). The
@@ -840,7 +858,7 @@ def choose_pattern(task: Task, plan: Plan, paths: PathLibrary, human_waits: bool
                 best_key, best = more[0]
     if best is None:
         # the co-workers block each other whatever the order and route: no schedule keeps them apart
-        return PlanChoice(MotionPattern(shortest.motions, (), count, exhaustive), shortest.base, _BLOCKED)
+        return PlanChoice(MotionPattern(shortest.motions, (), count, exhaustive), shortest.base, _blocked(task, plan))
     kept = best()
     pattern = kept.pattern
     found = MotionPattern(pattern.motions, pattern.orders, count, exhaustive, _meetings(task, plan, paths, pattern))
@@ -872,7 +890,7 @@ def apply_pattern(task: Task, plan: Plan, pattern: MotionPattern, human_waits: b
     result on the plan's STNU, if known (`classify`)."""
     net = pattern_network(task, plan, pattern, human_waits)
     if pattern.candidates == 0:  # no pattern at all: the co-workers block each other (`choose_pattern`)
-        return PlanChoice(pattern, net, _BLOCKED)
+        return PlanChoice(pattern, net, _blocked(task, plan))
     return PlanChoice(pattern, net, classify(task, net, known=known))
 
 

@@ -46,6 +46,8 @@ This module turns that into constraints the temporal net can carry, for every hu
 **Joint actions** (issue 37): for a task with joint actions, the pairs of the two working together at a
 joint action's spot are no conflicts (`_coworking`: the robot's stay there against the person's walk up,
 stay and walk away); the robot's drives keep their separations, so it arrives first and leaves last.
+A co-worker who stands at the spot from the start therefore blocks the robot's drive in, whatever the
+order (`joint_spot_starts` names such pairs, for the blocked plan's explanation).
 
 **More agents** (issue 37): every pair of agents that shares the floor (`floor_pairs`). A robot and a
 person as above; two robots alike, both controllable, so the plan chooses which passes first as it does
@@ -73,8 +75,8 @@ from hrc.motion.motions import Route, Routes
 from hrc.motion.paths import Path, PathLibrary
 from hrc.plans import Leg, agent_legs
 
-__all__ = ["STEP", "Conflict", "Occupancy", "Separation", "TimeRef", "find_conflicts", "floor_pairs", "occupancies",
-           "people_meetings", "route_samples"]
+__all__ = ["STEP", "Conflict", "JointSpotStart", "Occupancy", "Separation", "TimeRef", "find_conflicts", "floor_pairs",
+           "joint_spot_starts", "occupancies", "people_meetings", "route_samples"]
 
 STEP = 0.02  # m, arc-length spacing of route samples
 
@@ -482,6 +484,48 @@ def _coworking(task: Task, plan: Plan, robot: str, human: str):  # noqa: ANN202
         return False
 
     return together
+
+
+@dataclass(frozen=True, slots=True)
+class JointSpotStart:
+    """`agent` starts at `spot` and stays there (no leg takes it elsewhere) until the joint phase
+    ``action.phase`` it does there with `robot`, which drives in for it (`joint_spot_starts`)."""
+
+    agent: str
+    robot: str
+    action: str
+    phase: str
+    spot: str
+
+
+def joint_spot_starts(task: Task, plan: Plan) -> tuple[JointSpotStart, ...]:
+    """Where `plan` asks a robot to drive into a joint action's spot while a co-worker of that phase stands
+    there from the start: the co-worker starts at the spot and every leg of theirs up to the joint phase is
+    at the spot, and the robot is not at the spot all along (it starts elsewhere, or leaves and comes back).
+
+    No order of passing can keep such a pair apart (`_coworking`): the robot's drive in keeps the
+    separation from the co-worker standing at the spot, "robot first" would need the robot there before
+    the task's start (the co-worker stands there from T = 0) and "co-worker first" would need the
+    co-worker gone before the joint phase ends, which waits for the robot. So the plan is blocked, and the
+    compile names the cause (`hrc.compile.motion_pattern`). Pairs of `floor_pairs` only (two people are
+    left to themselves); in task order of the robots, then of the co-workers; () for a task without
+    joint actions."""
+    if not task.has_joint:
+        return ()
+    out: list[JointSpotStart] = []
+    for robot, other in floor_pairs(task):
+        r_legs, o_legs = agent_legs(task, plan, robot.id), agent_legs(task, plan, other.id)
+        o_index = {(leg.action, leg.phase): leg.index for leg in o_legs}
+        for leg in r_legs:
+            i = o_index.get((leg.action, leg.phase))
+            if i is None or not task.action(leg.action).joint:
+                continue
+            spot = leg.location
+            there = other.start == spot and _at_spot(o_legs, 0, i, spot)
+            robot_there = robot.start == spot and _at_spot(r_legs, 0, leg.index, spot)
+            if there and not robot_there:
+                out.append(JointSpotStart(other.id, robot.id, leg.action, leg.phase, spot))
+    return tuple(out)
 
 
 def _path_key(p: Path) -> tuple[str, str, str, float]:
