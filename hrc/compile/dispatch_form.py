@@ -121,10 +121,16 @@ def _positions(task: Task, plan: Plan, graphml_names: bool) -> dict[str, tuple[i
     out: dict[str, tuple[int, int, int]] = {}
     table = leg_names(task, plan)
     for g, agent in enumerate(task.agents):
+        legs = agent_legs(task, plan, agent.id) if task.has_joint else ()
         for k, names in enumerate(table[agent.id]):
+            # a joint phase's one start and end sit in its lead's slots (`Task.lead`, the first robot of its
+            # crew), not in the last crew member's: a crew of two robots has another robot after its lead
+            other = bool(legs) and task.action(legs[k].action).joint and plan.agent_of(legs[k].action) != agent.id
             for e, event in enumerate(LEG_EVENTS):
-                name = names[event]
-                out[tool_name(name) if graphml_names else name] = (g, k, e)
+                name = tool_name(names[event]) if graphml_names else names[event]
+                if other and event in ("start", "end") and name in out:
+                    continue
+                out[name] = (g, k, e)
     return out
 
 
@@ -312,6 +318,10 @@ class DispatchForm:
             row = [task.action_ids[int(a)] for a in self.seq[p, g] if a >= 0]
             sequences.append((agent, tuple(row)))
             agent_of.update((a, agent) for a in row)
+        if task.has_joint:  # a joint action is its crew's lead's (`Task.lead`: the first robot), not its last
+            for a in task.actions:  # agent's (two robots in a crew: robot2 is last, robot leads; issue 37)
+                if a.joint:
+                    agent_of[a.id] = next(ag for ag, row in sequences if a.id in row and not task.agent(ag).is_human)
         return Plan(tuple((a, agent_of[a]) for a in task.action_ids), tuple(sequences))
 
     def arrays(self, p: int) -> PlanArrays:
