@@ -12,14 +12,17 @@ rules taken pair by pair (`Mover`, the route walking and the closest-approach ge
   keeps coming closer), and **stops `CONTACT` short of every other robot**: two robots are kept apart by
   the passing order their plan chose (`hrc.motion.conflicts`), and the floor never pushes one into the
   other;
-- **co-work at a joint spot** (`cowork`: the pairs ``(person, robot)`` the run loop says co-work now,
-  `hrc.sim.team_run`): the separation is not asked for between the two of a pair, and their distance is
-  not measured, as on the one-pair floor.
+- **co-work at a joint spot** (`cowork`: the pairs the run loop says co-work now, `hrc.sim.team_run`):
+  ``(person, robot)``, the separation is not asked for between the two of a pair, and their distance is
+  not measured, as on the one-pair floor; ``(robot, robot)`` (two robots of one joint phase, the one driving
+  up to, standing at or driving away from the spot first, the one standing there second), neither stops
+  short of the other and their distance and contacts are not measured: a location is a point, so both stand
+  at it, as a person and a robot do (docs/simulate.md, "Two robots at a joint spot").
 
 Measured: `min_free` per robot-person pair (the separation, outside co-work) and per other pair, and pymunk
 contacts per pair (`contacts`: each step in which two discs touched, asked of pymunk only when two discs
 are closer than `QUERY_GAP`): a robot-person contact is an `overlaps` of the one-pair floor, a robot-robot
-contact a violation (0 expected; `robot_contacts`).
+contact a violation (0 expected; `robot_contacts`: co-working robots left out).
 
 **Under speed and separation monitoring** (a task with `safety:`), each robot obeys `hrc.sim.ssm` against
 every person present (`hrc.sim.ssm.ssm_limit`, the one pair's rule, taken person by person): towards each
@@ -86,7 +89,7 @@ class TeamFloor:
         self.pairs = tuple(combinations(task.agent_ids, 2))  # task order: (a, b) with a before b
         self.min_free: dict[tuple[str, str], float] = {p: math.inf for p in self.pairs}
         self.contacts: dict[tuple[str, str], int] = {p: 0 for p in self.pairs}
-        self.cowork: frozenset[tuple[str, str]] = frozenset()  # (person, robot) pairs co-working now
+        self.cowork: frozenset[tuple[str, str]] = frozenset()  # pairs co-working now (module docstring)
         self.cowork_time = 0.0  # s in which some pair co-worked
         # speed and separation monitoring (a task with safety:): one tally per robot; every robot keeps S_p(0)
         # from every person, and driving the band up to S_p at its own speed (`safe_step`)
@@ -113,9 +116,10 @@ class TeamFloor:
         x, y = a.agent.id, b.agent.id
         return (x, y) if (x, y) in self.min_free else (y, x)
 
-    def shared(self, person: Mover, robot: Mover) -> bool:
-        """The two co-work now (their separation is not asked for)."""
-        return (person.agent.id, robot.agent.id) in self.cowork
+    def shared(self, a: Mover, b: Mover) -> bool:
+        """The two co-work now (a person and a robot: their separation is not asked for; two robots: neither
+        stops short of the other)."""
+        return (a.agent.id, b.agent.id) in self.cowork or (b.agent.id, a.agent.id) in self.cowork
 
     def separation(self) -> float:
         """The smallest free distance seen between a robot and a person (outside co-work), inf: never both
@@ -160,6 +164,8 @@ class TeamFloor:
                 if self.shared(person, robot):
                     continue
                 keep = self.margin + (self.slowdown if self.ssm is None else self._band[robot.agent.id])
+            elif self.shared(m, n):
+                continue
             else:
                 keep = CONTACT
             g = self.gap(m, n) - keep
@@ -199,7 +205,7 @@ class TeamFloor:
         want = min(m.speed * h, m.remaining)
         ahead = m.at(m.s + min(want, 1e-3) if want > 0 else m.s)
         people = [p for p in self.people if p.present and not self.shared(p, m)]
-        others = [r for r in self.robots if r is not m]
+        others = [r for r in self.robots if r is not m and not self.shared(m, r)]
         ssm = None if self.ssm is None else self.ssm[m.agent.id]
         scale, closing_in, allowed = 1.0, False, m.speed
         keeps: list[float] = []  # per person, the free distance the step keeps from them
@@ -275,7 +281,8 @@ class TeamFloor:
         s = max(0.0, m.s - distance)
         p = m.at(s)
         if min(self.gap(m, q, p) for q in people) > min(self.gap(m, q) for q in people) and \
-                all(self.gap(m, r, p) >= min(CONTACT, self.gap(m, r)) for r in self.robots if r is not m):
+                all(self.gap(m, r, p) >= min(CONTACT, self.gap(m, r)) for r in self.robots
+                    if r is not m and not self.shared(m, r)):
             m.s, m.xy = s, p
 
     def _sync(self, h: float) -> None:
@@ -284,10 +291,8 @@ class TeamFloor:
         close: list[tuple[Mover, Mover]] = []
         for a, b in self.pairs:
             m, n = self.movers[a], self.movers[b]
-            if {m.agent.is_human, n.agent.is_human} == {True, False}:
-                person, robot = (m, n) if m.agent.is_human else (n, m)
-                if self.shared(person, robot):
-                    continue
+            if not (m.agent.is_human and n.agent.is_human) and self.shared(m, n):
+                continue
             d = self.gap(m, n)
             if math.isfinite(d):
                 self.min_free[(a, b)] = min(self.min_free[(a, b)], d)

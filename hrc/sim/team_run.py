@@ -570,16 +570,20 @@ class _TeamRun(Standoffs[_Agent]):
             and self._joint_at(nxt, spot, pair)
 
     def _cowork(self) -> frozenset[tuple[str, str]]:
-        """The (person, robot) pairs co-working now (the one-pair loop's `_Run._cowork`, per pair of a joint
-        action): the robot stands at the spot over a stay that covers their joint phase, and the person
-        walks up to it for that stay, stays there or walks away after it."""
+        """The pairs co-working now (the one-pair loop's `_Run._cowork`, per pair of a joint action): a robot
+        stands at the spot over a stay that covers their joint phase, and the other of the pair (a person, or
+        another robot of that phase) comes up to it for that stay, stays there or goes away after it. A
+        (person, robot) pair is named so; two robots as (the other, the one standing), and, both standing
+        there, as (the later, the earlier in task order): the earlier is the lead, which the compile has
+        arrive first and leave last (`hrc.motion.conflicts._coworking`, the first robot of a pair in the
+        robot's slot)."""
         out = set()
         for r in self.robots:
             spot = r.loc
             if spot is None or r.mover.moving:
                 continue
             now = self._now(r) if r.mode in ("arrived", "work") else self.last.get(r.id)
-            for p in self.people:
+            for p in self.people + [o for o in self.robots if o is not r]:
                 pair = (p.id, r.id)
                 if not (self.joint_stay.get(r.id) == spot or self._covers(r, now, spot, pair)):
                     continue
@@ -598,7 +602,8 @@ class _TeamRun(Standoffs[_Agent]):
                         and self.joint_stay.get(p.id) == spot
                 if shared:
                     out.add(pair)
-        return frozenset(out)
+        # two robots both standing there: named once, the earlier one standing
+        return frozenset((a, b) for a, b in out if (b, a) not in out or self.rank[b] < self.rank[a])
 
     # -- the robots ------------------------------------------------------------------------------------
 
