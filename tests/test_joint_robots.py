@@ -32,10 +32,12 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from conftest import ROOT, dispatched_team_run
 from dispatch_client import broken_links
 from test_cstnu_tool import _agree, _compiled_classes
@@ -59,16 +61,24 @@ def shipping() -> SimContext:
     return SimContext(task, {"motion": compile_task(task, seed=0, jobs=1)}, SimSettings(), 0)
 
 
+def _crew(task: Task, result: RunResult, action: str) -> tuple[tuple[str, ...], str]:
+    """Who left for joint `action` (task order) and its lead, the first robot of them (`Task.lead`)."""
+    came = tuple(a.id for a in task.agents if any((h.agent, h.action, h.event) == (a.id, action, "depart")
+                                                  for h in result.happenings))
+    return came, next(a for a in came if not task.agent(a).is_human)
+
+
 def _check_joint(task: Task, result: RunResult) -> None:
-    """Each joint phase: started and ended once, by its lead, after every agent of it arrived there."""
+    """Each joint phase: started and ended once, by its lead, after every agent of its crew arrived there."""
     for action in (a for a in task.actions if a.joint):
-        lead = task.lead(action.id)
+        crew, lead = _crew(task, result, action.id)
+        assert tuple(sorted(crew)) in {tuple(sorted(c)) for c in action.crews}
         for phase in action.phases:
             on = [h for h in result.happenings if (h.action, h.phase) == (action.id, phase.id)]
             starts = [h for h in on if h.event == "start"]
             ends = [h for h in on if h.event == "end"]
             assert [h.agent for h in starts] == [lead] and [h.agent for h in ends] == [lead]
-            for ag in action.agents:
+            for ag in crew:
                 (arrive,) = [h.t for h in on if (h.agent, h.event) == (ag, "arrive")]
                 assert arrive <= starts[0].t + 1e-9, (ag, action.id)
 
@@ -78,7 +88,8 @@ def _check_floor(task: Task, result: RunResult) -> None:
     lead arrived there; else they keep contact; a robot and the person keep the margin (no co-work here)."""
     agents = task.agents
     joint = {a.id: a for a in task.actions if a.joint}
-    lead_there = {x: min(h.t for h in result.happenings if (h.agent, h.action, h.event) == (task.lead(x), x, "arrive"))
+    crews = {x: _crew(task, result, x) for x in joint}
+    lead_there = {x: min(h.t for h in result.happenings if (h.agent, h.action, h.event) == (crews[x][1], x, "arrive"))
                   for x in joint}
     assert result.agent_frames
     for t, where, cowork in result.agent_frames:
@@ -98,7 +109,7 @@ def _check_floor(task: Task, result: RunResult) -> None:
                     continue
                 assert shared, (t, a.id, b.id, free)  # an overlap: at a joint spot of both, after the lead came
                 spots = [(x_, task.workspace.location(ph.location)) for x_, act in joint.items()
-                         if {a.id, b.id} <= set(act.agents) for ph in act.phases]
+                         if {a.id, b.id} <= set(crews[x_][0]) for ph in act.phases]
                 assert any(t >= lead_there[x_] - 1e-9  # one of them stands on it
                            and min(math.dist((x, y), loc.xy), math.dist((u, v), loc.xy)) < 1e-6
                            for x_, loc in spots), (t, a.id, b.id)
@@ -150,6 +161,29 @@ def test_the_tool_agrees_on_every_stnu_of_the_task(cstnu_tool: Path, tmp_path: P
     classes = _compiled_classes(out)
     assert len(classes) == 60  # 3! C(5, 2): each robot's shipping last, by the precedence
     assert _agree(cstnu_tool, classes) == {"DC": 36, "NOT_DC": 24}
+
+
+def test_a_crew_of_two_robots_chosen_by_the_plan(tmp_path: Path) -> None:
+    """The shipping as a crew choice (`agents_needed: 2` over the person and the two robots; the person's role
+    2-3 s), with only the plans whose crew is the two robots (the best plans have the person ship with robot2):
+    the robots' crew ships the kit, every constraint kept, the floor as above; the person never joins it."""
+    doc = yaml.safe_load(TASK.read_text("utf-8"))
+    doc["map"] = str(ROOT / "maps" / "kitting_cell.yaml")
+    ship = next(a for a in doc["actions"] if a["id"] == "ship_kit")
+    del ship["roles"]
+    ship["agents"], ship["agents_needed"] = ["human", "robot", "robot2"], 2
+    ship["phases"][0]["duration"] = {"human": [2, 3], "robot": [3, 4], "robot2": [3, 4]}
+    (tmp_path / "task.yaml").write_text(yaml.safe_dump(doc, sort_keys=False), "utf-8")
+    task = load_task(tmp_path / "task.yaml")
+    full = compile_task(task, seed=0, jobs=1)
+    robots = ("robot", "robot2")
+    cps = replace(full, plans=tuple(cp for cp in full.plans if task.crew("ship_kit", cp.plan) == robots))
+    assert sum(cp.plan_class.value == "DC" for cp in cps.plans) == 36  # the plans of the task with roles
+    ctx = SimContext(task, {"motion": cps}, SimSettings(), 0)
+    for i in range(10):
+        result, ctl = dispatched_team_run(ctx, i)
+        _check(ctx, result, ctl)
+        assert _crew(task, result, "ship_kit") == (robots, "robot")
 
 
 # ------------------------------------------------------------------------------------- hand-worked
