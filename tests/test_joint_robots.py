@@ -22,6 +22,8 @@ which leads, 7 m away): the compile has the lead arrive first (`hrc.motion.confl
 drives up to the robot standing there), so robot2 waits and arrives the reach the compile keeps after it,
 ``(0.35 + 0.35 + 0.1 + STEP) / 0.5`` = 1.64 s, and the phase starts then: 15.64 s, ends 18.64 s.
 
+The dispatch form names the lead as the joint action's agent, its leg with the start and end (robot2's: the drive).
+
 The floor by hand (`TeamFloor`, no run loop): robot2 driving at the robot standing on the dock stops 2 cm
 short of it, and, the two co-working, drives on to the spot.
 
@@ -141,6 +143,19 @@ def test_two_robots_ship_the_kit_200_runs(shipping: SimContext) -> None:
     for i in range(200):
         result, ctl = dispatched_team_run(shipping, i)
         _check(shipping, result, ctl)
+
+
+def test_the_dispatcher_has_the_lead_start_the_shipping(shipping: SimContext) -> None:
+    """Every plan as the dispatcher reads it (the dispatch form): the shipping is the robot's (its lead,
+    `Task.lead`), whose leg has its start and end; robot2's leg has its drive only."""
+    from hrc.dispatch.plan_set import plan_set_from_compiled
+
+    ps = plan_set_from_compiled(shipping.compiles["motion"])
+    for p in range(len(ps)):
+        entry = ps.entry(p)
+        assert entry.plan.agent_of("ship_kit") == "robot"
+        assert [e for e, _ in entry.leg_points[("robot", "ship_kit", "load")]] == ["depart", "arrive", "start", "end"]
+        assert [e for e, _ in entry.leg_points[("robot2", "ship_kit", "load")]] == ["depart", "arrive"]
 
 
 def test_hrc_simulate_finishes_every_run_of_the_task(tmp_path: Path) -> None:
