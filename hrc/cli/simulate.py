@@ -234,7 +234,7 @@ def format_joint(sim: Any) -> list[str]:
         j = m.get("joint")
         if j is None:
             continue
-        lines.append(f"joint actions ({name}): told to start {j['told_to_start']}, before the person was there "
+        lines.append(f"joint actions ({name}): told to start {j['told_to_start']}, before its crew was there "
                      f"{j['told_before_arrival']} (in {j['runs_told_before_arrival']} runs); DC first plan "
                      f"{m['first_plan_dc']} runs, kept {m['first_plan_dc_kept']}, every constraint kept "
                      f"{m['first_plan_dc_kept_all_constraints']}; closest outside co-work {m['min_distance']} m, "
