@@ -282,3 +282,19 @@ def test_a_robot_keeps_the_margin_from_every_person_and_a_person_stops_short_of_
     _settle(floor)
     assert abs(math.dist(person.xy, r2.xy) - 0.65 - CONTACT) < 1e-6
     assert floor.overlaps() == 0 and floor.separation() >= CONTACT - 1e-6
+
+
+def test_a_free_person_leaves_to_the_robot_what_it_sets_out_for_at_the_same_instant(workers: SimContext) -> None:
+    """Run 0 of two_workers, people who choose freely, the motion detector: at t = 0 the robot sets out for
+    pick_e as told and Bob, choosing at that instant, for pick_e too. Before, his departure took the action
+    (the first emitted), the robot went on with its order, no remaining plan had both, his detector gave none
+    of his events and the robot waited for him at the load until the time cap. The robot's order came first:
+    the action is the robot's, Bob sees it and chooses again, and the run finishes."""
+    from hrc.sim.human import HumanModel
+
+    ctx = replace(workers, settings=SimSettings(human=HumanModel(choice="free"), detector="motion"))
+    result = simulate_team_run(ctx, "hrc", 0, record=True)
+    assert result.finished, result.reason
+    first = [(h.agent, h.action) for h in result.happenings if h.event == "depart" and h.t == 0.0]
+    assert first.index(("bob", "pick_e")) < first.index(("robot", "pick_e")) < first.index(("bob", "pick_a"))
+    assert not any(h.agent == "bob" and h.action == "pick_e" and h.event == "start" for h in result.happenings)

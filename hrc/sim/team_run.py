@@ -157,6 +157,7 @@ class _TeamRun(Standoffs[_Agent]):
         self.robots = [self.agents[a.id] for a in task.agents if not a.is_human]
         self.robot_q = next(iter(draws.values())).robot  # the robots' duration quantiles (one per phase)
         self._init_task(task, s.time_cap)
+        self.started_at: dict[str, float] = {}  # action -> when `started` took it
         self.joint = {a.id: a.agents for a in task.actions if a.joint}  # every candidate of each joint action
         self.choosing = {a.id: a for a in task.actions if a.crew_choice}  # those whose crew the plan chooses
         self.joined: dict[str, set[str]] = {a: set() for a in self.agents}  # joint actions each agent left for
@@ -181,7 +182,12 @@ class _TeamRun(Standoffs[_Agent]):
         h = Happening(self.t, a.id, event, action, phase)
         self.happenings.append(h)
         if action is not None and event == "depart":
-            self.started.setdefault(action, a.id)
+            first = self.started.get(action)
+            # the same instant, a robot's departure takes it over a person's who chose freely: the robot's
+            # order was given before their choice (a robot never chooses again; the person sees it and does)
+            if first is None or (not a.human and self.agents[first].human and self.started_at[action] == self.t):
+                self.started[action] = a.id
+                self.started_at[action] = self.t
             if action in self.joint:
                 self.joined[a.id].add(action)
         if action is not None and phase is not None:
