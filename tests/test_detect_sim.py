@@ -5,6 +5,7 @@ person did. A few runs by default; the issue's targets on the workshop and kitti
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import pytest
 from conftest import ROOT
@@ -13,8 +14,10 @@ from hrc.compile.compiler import compile_task
 from hrc.detect.sensor import SensorModel
 from hrc.io.task_file import load_task
 from hrc.sim.detection import detection_of
+from hrc.sim.detector import Happening
 from hrc.sim.metrics import aggregate
 from hrc.sim.montecarlo import simulate, simulation_json
+from hrc.sim.policies import DispatchedController
 from hrc.sim.run import SimSettings
 
 WORKSHOP = ROOT / "tasks" / "cube_stacking.yaml"
@@ -68,6 +71,23 @@ def test_a_buttons_simulation_writes_what_it_wrote_before(workshop):
     doc = json.loads(simulation_json(sim))
     assert "detector" not in doc["settings"] and "comparison" not in doc
     assert all("detection" not in r for r in doc["policies"]["hrc"]["runs"])
+
+
+def test_a_step_the_detector_gave_already_is_not_held_back_by_the_stay_it_begins():
+    """kitting: the person at Q (check, then label there) is told to leave for the label 20 s after a
+    robot event; that bounds the check's start while the dispatcher has not learnt it (a detector cannot
+    tell the steps at one place apart), not once it has: the coarse sensor gave a start at an arrival
+    dated 0.45 s early, before the person was there, and the simulated person then waited 8 s to start."""
+    task = load_task(KITTING)
+    c = DispatchedController.__new__(DispatchedController)
+    times: dict = {}
+    c.cps = SimpleNamespace(task=task)
+    c.d = SimpleNamespace(seen=SimpleNamespace(times=times))
+    c.known = [Happening(55.1, "human", "arrive", "inspect", "check")]
+    assert c._in_stay("human.label.stick.depart", "inspect", "check", "start")
+    times[("human", "inspect", "check", "start")] = 55.1
+    assert not c._in_stay("human.label.stick.depart", "inspect", "check", "start")
+    assert c._in_stay("human.label.stick.depart", "label", "stick", "start")  # the steps after it still are
 
 
 @pytest.mark.slow

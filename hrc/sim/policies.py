@@ -388,6 +388,10 @@ class DispatchedController(Answering, Controller):
         if event not in ("depart", "start") or not self.known or not named.endswith(".depart"):
             return False
         task = self.cps.task
+        if (_human(task), action, phase, event) in self.d.seen.times:
+            # learnt already (a motion detector may date a start at an arrival it gave before the person
+            # was there): the stay's bound is for the steps after it, which this one does not wait for
+            return False
         _, n_action, n_phase, _ = named.split(".")
         here = task.action(n_action).phase(n_phase).location
         last = self.known[-1]
