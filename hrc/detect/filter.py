@@ -111,6 +111,7 @@ class Track:
     stuck: float | None = None
     belief: Belief = Belief("idle")
     left_span: tuple[float, float] | None = None  # where the departure in `left` may truly be (`Detected.span`)
+    arrived_span: tuple[float, float] | None = None  # where the last arrival given may truly be (`Detected.span`)
 
     @property
     def t(self) -> float | None:
@@ -165,16 +166,21 @@ def _at(t: float, track: Track, sit: Situation) -> float:
     return round(min(max(t, track.last), track.samples[-1][0]), 3)
 
 
-def _start_time(model: DetectorModel, sit: Situation, leg: Leg, arrived: float) -> float | None:
+def _start_time(model: DetectorModel, sit: Situation, leg: Leg, arrived: float,
+                doubt: float | None = None) -> float | None:
     """When the person starts `leg` after arriving at `arrived`: at once, or when the task graph lets them,
     or when the dispatcher's hint asks them to (None: not yet known: a predecessor has not ended, or the
-    hint tells them to wait for the robot)."""
+    hint tells them to wait for the robot). `doubt`: the latest the arrival may truly have happened as the
+    dispatcher reads it (`Dispatcher._windows`: a hint's earliest holds for every time within the
+    estimate's tolerance or stated span); a hint's earliest up to it is that doubt, not a wait asked of
+    the person, who started on arriving (issue 32's windows had the detector date every start after an
+    arrival up to 0.8 s late, and an end timed from it past its match)."""
     ready = sit.ready(leg)
     if ready is None:
         return None
     t = max(arrived, ready)
     if isinstance(sit.hint, tuple) and sit.hint[:2] == leg and sit.hint[2] in ("start", "depart") \
-            and sit.hint[3] > sit.now + 0.05:  # the plan asks them to wait (not merely "from now on")
+            and sit.hint[3] > max(sit.now, doubt or 0.0) + 0.05:  # the plan asks them to wait (not "from now on")
         t = max(t, sit.hint[3])
     elif isinstance(sit.hint, str) and sit.hint.startswith("robot.") and sit.leg == leg:
         return None
@@ -200,13 +206,16 @@ def decide(model: DetectorModel, track: Track, sit: Situation) -> tuple[Track, l
                 arrived = arrived_at(model, track.samples, sit.since)
                 if arrived <= t - _STANDING:  # standing, not still coming
                     span = arrived_span(model, track.samples, sit.since, arrived)
-                    return track, [Detected(_at(arrived, track, sit), "arrive", *leg, span)]
+                    return replace(track, arrived_span=span), [Detected(_at(arrived, track, sit), "arrive", *leg, span)]
             wrong = _wrong_way(model, track, sit, place, x, y, here)
             if wrong is not None:
                 return wrong
             return replace(track, belief=Belief("walk", *leg, 1.0, leg[0], 1.0)), []
         if sit.last == "arrive":  # at the place, not started
-            start = _start_time(model, sit, leg, sit.since)
+            doubt = sit.since + model.tolerance
+            if track.arrived_span is not None:
+                doubt = max(doubt, track.arrived_span[1])
+            start = _start_time(model, sit, leg, sit.since, doubt)
             if start is not None and start <= t and sit.allows(*leg, "start"):
                 return track, [Detected(_at(start, track, sit), "start", *leg)]
             if dist > gone and track.left is None:  # left without starting: it started and ended meanwhile

@@ -86,6 +86,13 @@ class DetectorModel:
         """Walking distance (m) from (x, y) to `location`."""
         return self.geo.distance(self.geo.index(location), x, y)
 
+    @property
+    def tolerance(self) -> float:
+        """s: the error of an event time estimated from positions, three standard deviations of the
+        position noise in this person's walking time (`hrc.detect.online.DetectingDispatcher` gives a
+        dispatcher the slowest person's as its `bound_tolerance`)."""
+        return round(3 * self.params.sigma / self.speed, 3)
+
     def mid(self, leg: tuple[str, str]) -> float:
         """The middle of the person's duration bounds for `leg` (the mode of the simulator's triangle)."""
         lb, ub = self.durations.get(leg, (0.0, 0.0))
