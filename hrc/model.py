@@ -15,7 +15,7 @@ import enum
 import functools
 import hashlib
 import itertools
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 __all__ = [
@@ -415,7 +415,15 @@ class Task:
         if not action.joint or (plan is None and action.crew_choice):
             raise KeyError(action_id)
         crew = action.agents if plan is None else self.crew(action_id, plan)
-        return next(a.id for a in self.agents if a.id in crew and not a.is_human)
+        lead = self.crew_lead(crew)
+        assert lead is not None  # a joint action's every crew holds a robot (`hrc.io.task_file`)
+        return lead
+
+    def crew_lead(self, crew: Iterable[str]) -> str | None:
+        """The lead of a crew (agent ids): its first robot in task order (`lead`), None without one (a crew
+        the run has only partly seen)."""
+        members = set(crew)
+        return next((a.id for a in self.agents if a.id in members and not a.is_human), None)
 
     def action_precedence(self) -> tuple[tuple[str, str], ...]:
         """Distinct action pairs ``(a, b)`` such that some phase of `b` must follow some phase of `a`."""

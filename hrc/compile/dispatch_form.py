@@ -321,7 +321,9 @@ class DispatchForm:
         if task.has_joint:  # a joint action is its crew's lead's (`Task.lead`: the first robot), not its last
             for a in task.actions:  # agent's (two robots in a crew: robot2 is last, robot leads; issue 37)
                 if a.joint:
-                    agent_of[a.id] = next(ag for ag, row in sequences if a.id in row and not task.agent(ag).is_human)
+                    lead = task.crew_lead(ag for ag, row in sequences if a.id in row)
+                    assert lead is not None
+                    agent_of[a.id] = lead
         return Plan(tuple((a, agent_of[a]) for a in task.action_ids), tuple(sequences))
 
     def arrays(self, p: int) -> PlanArrays:

@@ -423,8 +423,7 @@ class ConsoleSession:
     def lead(self, action: str) -> str | None:
         """Who starts and ends joint `action` in the run now: the first robot of its crew (`crews`; task
         order, as `hrc.model.Task.lead`), or None when the action is not joint or its crew has no robot."""
-        crew = self.crews().get(action, ())
-        return next((r for r in self.robots if r in crew), None)
+        return self.dispatcher.task.crew_lead(self.crews().get(action, ()))
 
     def _tracked(self, person: str | None = None) -> dict[str, Any]:
         """With the motion detector: the person's (a team's `person`'s) last tracked position and the

@@ -1167,7 +1167,7 @@ class Dispatcher:
                                           else (r[0], None if r[1] == NO_BOUND else r[1]) for r in results]
         # a time the person's event may have had can be after the last message's (`_estimates`): the clock
         # stays at now, as in the C core (reading it at that time instead held every other event of the
-        # plan back to it: a hint 0.5 s late on the detect-team case, tests/test_dispatch_native.py)
+        # plan back to it: a hint 0.5 s late on the detect-team case, tests/test_detect_team.py)
         state = real_time_state(entry.stnu, done, ticks(history.now), ahead=True)
         if _rank(state.default_mode()) > _rank(mode):
             mode = state.default_mode()
@@ -1364,8 +1364,7 @@ def _in_order(entry: PlanEntry, history: History, moved: dict[str, int],
     with the reported one after them, as the C core derives them from the same reading. Else a start read
     0.5 s before its press came before its own unreported arrival, or before a departure told to be on
     time (found by fuzz/targets.py ``crew_history``; the Python reading and the core's differed)."""
-    agents = {key[0] for key in times}
-    for agent in agents:
+    for agent in dict.fromkeys(key[0] for key in times):
         seq = [((agent, action, phase, ev), node) for action, phase in history.legs.get(agent, ())
                for ev, node in entry.leg_points[(agent, action, phase)]
                if (agent, action, phase, ev) in history.times and node in moved]

@@ -107,7 +107,7 @@ def _joint(history: History, robot: str, agents: tuple[str, ...] | None, action:
                     and (other, action, phase, "arrive") not in history.times):
                 return True, WaitFor(other, action, phase, "arrive")
         return True, None
-    lead = next(a.id for a in task.agents if a.id in agents and not a.is_human)  # `Task.lead` of the crew
+    lead = task.crew_lead(agents)
     if robot != lead:
         return True, None  # its lead starts and ends it
     if event == "start":

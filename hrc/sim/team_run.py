@@ -309,7 +309,7 @@ class _TeamRun(Standoffs[_Agent]):
             return self.task.lead(action)
         if not self._complete(action):
             return None
-        return next((ag for ag in self.came(action) if not self.agents[ag].human), None)
+        return self.task.crew_lead(self.came(action))
 
     # -- stand-offs (`hrc.sim.standoff`), per pair of agents ------------------------------------------------
 
