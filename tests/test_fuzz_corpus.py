@@ -19,7 +19,7 @@ sys.path.insert(0, str(ROOT / "fuzz"))
 import targets  # noqa: E402
 
 CORPUS = ROOT / "fuzz" / "corpus"
-NEEDS_MORE = set(targets.COMPILED) | set(targets.NATIVE) | set(targets.TEAM)
+NEEDS_MORE = set(targets.COMPILED) | set(targets.NATIVE) | set(targets.TEAM) | set(targets.CREW)
 
 
 def _inputs(name: str) -> list[Path]:
@@ -52,13 +52,22 @@ def team(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return compiled_folder(tmp_path_factory.mktemp("fuzz") / "team", ROOT / "tasks" / "two_workers.yaml", "--jobs", "1")
 
 
+@pytest.fixture(scope="module")
+def crew(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from conftest import compiled_folder
+
+    return compiled_folder(tmp_path_factory.mktemp("fuzz") / "crew", ROOT / "tasks" / "two_workers_joint.yaml",
+                           "--jobs", "1")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(NEEDS_MORE))
-def test_the_protocols_and_cores_keep_their_contract_on_the_corpus(name: str, workshop: Path, team: Path,
+def test_the_protocols_and_cores_keep_their_contract_on_the_corpus(name: str, workshop: Path, team: Path, crew: Path,
                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("atheris")
     monkeypatch.setitem(os.environ, targets.COMPILED_VARIABLE, str(workshop))
     monkeypatch.setitem(os.environ, targets.TEAM_VARIABLE, str(team))
+    monkeypatch.setitem(os.environ, targets.CREW_VARIABLE, str(crew))
     for path in _inputs(name):
         targets.TARGETS[name](path.read_bytes())
 
