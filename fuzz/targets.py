@@ -416,6 +416,18 @@ def dispatch_history(data: bytes) -> None:
         assert a == b, (msg, a, b)
 
 
+def team_messages(d: Any, person: str, t: float) -> list[dict[str, Any]]:
+    """What a random team history may send `d` at `t` (`crew_history`, tests/test_dispatch_parity.py): an
+    event `person` may report now (`human_options`), each robot's step, a tick, `person` away, back."""
+    robots = d.decision.to_json().get("robots") or {}
+    return [*({"t": t, "agent": person, "action": o.action, "phase": o.phase, "event": o.event}
+              for o in d.human_options(person)),
+            *({"t": t, "agent": r, **{k: s[k] for k in ("action", "phase", "event")}}
+              for r, s in sorted(robots.items()) if isinstance(s, dict) and "action" in s),
+            {"t": t, "event": "tick"}, {"t": t, "agent": person, "event": "away"},
+            {"t": t, "agent": person, "event": "back"}]
+
+
 def crew_history(data: bytes) -> None:
     """Random histories of a team whose joint action's crew is a choice of the plan (issue 37,
     ``tasks/two_workers_joint.yaml``: either worker lifts with the robot), under a sensing path the input
@@ -444,23 +456,8 @@ def crew_history(data: bytes) -> None:
     for _ in range(fdp.ConsumeIntInRange(1, 30)):
         t += fdp.ConsumeIntInRange(0, 4000) / 100
         person = people[fdp.ConsumeIntInRange(0, len(people) - 1)]
-        choices = fast.human_options(person)
-        robots = fast.decision.to_json().get("robots") or {}
-        steps = [(r, s) for r, s in sorted(robots.items()) if isinstance(s, dict) and "action" in s]
-        pick = fdp.ConsumeIntInRange(0, len(choices) + len(steps) + 2)
-        msg: dict[str, Any]
-        if pick < len(choices):
-            o = choices[pick]
-            msg = {"t": t, "agent": person, "action": o.action, "phase": o.phase, "event": o.event}
-        elif pick < len(choices) + len(steps):
-            robot, step = steps[pick - len(choices)]
-            msg = {"t": t, "agent": robot, **{k: step[k] for k in ("action", "phase", "event")}}
-        elif pick == len(choices) + len(steps):
-            msg = {"t": t, "event": "tick"}
-        elif pick == len(choices) + len(steps) + 1:
-            msg = {"t": t, "agent": person, "event": "away" if fdp.ConsumeBool() else "back"}
-        else:
-            msg = {"t": -t, "event": "tick"}
+        messages = [*team_messages(fast, person, t), {"t": -t, "event": "tick"}]  # the last one refused
+        msg = messages[fdp.ConsumeIntInRange(0, len(messages) - 1)]
         line = json.dumps(msg).encode()
         a, b = answer(fast, line), answer(slow, line)
         _answer_ok(a)

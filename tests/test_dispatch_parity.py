@@ -16,12 +16,16 @@ from __future__ import annotations
 
 import copy
 import json
+import sys
 from typing import Any
 
 import pytest
 from conftest import ROOT, compiled_folder
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
+sys.path.insert(0, str(ROOT / "fuzz"))
+import targets  # noqa: E402  (the fuzz targets' team_messages: one way to draw a team's next message)
 
 from hrc.dispatch import Dispatcher
 from hrc.dispatch.plan_set import load_plan_set
@@ -83,29 +87,15 @@ def _done(d: Dispatcher) -> dict[str, int]:
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_random_histories_get_the_same_answers(plan_set: Any, data: st.DataObject) -> None:
-    """Random histories (as the fuzz target builds them): each step an event some person may report now, a
-    robot's step, a tick, an away or a back, at a time that never goes back."""
+    """Random histories, drawn as the fuzz target draws them (`targets.team_messages`): each step an event
+    some person may report now, a robot's step, a tick, an away or a back, at a time that never goes back."""
     d = pair(plan_set, **data.draw(st.sampled_from(SENSING), label="sensing"))
     people = [a.id for a in plan_set.task.agents if a.is_human]
     t = 0.0
     for _ in range(data.draw(st.integers(1, 24), label="messages")):
         t = round(t + data.draw(st.integers(0, 4000), label="dt") / 100, 2)
         person = data.draw(st.sampled_from(people), label="person")
-        choices = d[0].human_options(person)
-        robots = d[0].decision.to_json().get("robots") or {}
-        steps = [(r, s) for r, s in sorted(robots.items()) if isinstance(s, dict) and "action" in s]
-        pick = data.draw(st.integers(0, len(choices) + len(steps) + 1), label="pick")
-        if pick < len(choices):
-            o = choices[pick]
-            msg = {"t": t, "agent": person, "action": o.action, "phase": o.phase, "event": o.event}
-        elif pick < len(choices) + len(steps):
-            robot, step = steps[pick - len(choices)]
-            msg = {"t": t, "agent": robot, **{k: step[k] for k in ("action", "phase", "event")}}
-        elif pick == len(choices) + len(steps):
-            msg = {"t": t, "event": "tick"}
-        else:
-            msg = {"t": t, "agent": person, "event": "away" if data.draw(st.booleans()) else "back"}
-        both(d, msg)
+        both(d, data.draw(st.sampled_from(targets.team_messages(d[0], person, t)), label="message"))
 
 
 def test_idle_counts_a_joint_phase_another_agent_leads_from_the_arrival(plan_set: Any) -> None:
