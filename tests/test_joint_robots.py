@@ -44,6 +44,7 @@ from conftest import ROOT, dispatched_team_run
 from dispatch_client import broken_links
 from test_cstnu_tool import _agree, _compiled_classes
 from test_cstnu_tool import tool as cstnu_tool  # noqa: F401  (the fixture, as tests/test_cstnu_tool.py finds it)
+from test_sim_team import floor_gaps
 
 from hrc.cli import main
 from hrc.compile.compiler import compile_task
@@ -88,33 +89,22 @@ def _check_joint(task: Task, result: RunResult) -> None:
 def _check_floor(task: Task, result: RunResult) -> None:
     """From the recorded positions: two robots overlap only at a joint spot of theirs, co-working, after the
     lead arrived there; else they keep contact; a robot and the person keep the margin (no co-work here)."""
-    agents = task.agents
     joint = {a.id: a for a in task.actions if a.joint}
     crews = {x: _crew(task, result, x) for x in joint}
     lead_there = {x: min(h.t for h in result.happenings if (h.agent, h.action, h.event) == (crews[x][1], x, "arrive"))
                   for x in joint}
-    assert result.agent_frames
-    for t, where, cowork in result.agent_frames:
-        for i, a in enumerate(agents):
-            for j, b in enumerate(agents):
-                if j <= i or (a.is_human and b.is_human):
-                    continue
-                (x, y, here), (u, v, there) = where[i], where[j]
-                if not (here and there):
-                    continue
-                free = math.hypot(x - u, y - v) - a.radius - b.radius
-                shared = (a.id, b.id) in cowork or (b.id, a.id) in cowork
-                if a.is_human or b.is_human:
-                    assert not shared and free >= task.safety_margin - 1e-6, (t, a.id, b.id, free)
-                    continue
-                if free >= -1e-6:
-                    continue
-                assert shared, (t, a.id, b.id, free)  # an overlap: at a joint spot of both, after the lead came
-                spots = [(x_, task.workspace.location(ph.location)) for x_, act in joint.items()
-                         if {a.id, b.id} <= set(crews[x_][0]) for ph in act.phases]
-                assert any(t >= lead_there[x_] - 1e-9  # one of them stands on it
-                           and min(math.dist((x, y), loc.xy), math.dist((u, v), loc.xy)) < 1e-6
-                           for x_, loc in spots), (t, a.id, b.id)
+    for t, a, b, free, shared, (p, q) in floor_gaps(task, result):
+        if a.is_human or b.is_human:
+            assert not shared and free >= task.safety_margin - 1e-6, (t, a.id, b.id, free)
+            continue
+        if free >= -1e-6:
+            continue
+        assert shared, (t, a.id, b.id, free)  # an overlap: at a joint spot of both, after the lead came
+        spots = [(x_, task.workspace.location(ph.location)) for x_, act in joint.items()
+                 if {a.id, b.id} <= set(crews[x_][0]) for ph in act.phases]
+        assert any(t >= lead_there[x_] - 1e-9  # one of them stands on it
+                   and min(math.dist(p, loc.xy), math.dist(q, loc.xy)) < 1e-6
+                   for x_, loc in spots), (t, a.id, b.id)
     team = result.team
     assert team is not None and team["robot_contacts"] == 0 and result.overlaps == 0
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -35,7 +36,7 @@ from dispatch_client import broken_links
 from hrc.cli import main
 from hrc.compile.compiler import CompiledPlanSet, compile_task
 from hrc.io.task_file import load_task
-from hrc.model import SENSING_PATHS, Sensing, Task
+from hrc.model import SENSING_PATHS, Agent, Sensing, Task
 from hrc.sim.floor import CONTACT
 from hrc.sim.montecarlo import simulate, simulation_json
 from hrc.sim.run import RunResult, SimContext, SimSettings
@@ -100,12 +101,12 @@ def _check_joint(task: Task, result: RunResult) -> None:
                     assert ends[0].t - starts[0].t >= bounds.lb - 1e-6
 
 
-def _check_floor(task: Task, result: RunResult) -> None:
-    """From the recorded positions: robots never closer than contact (less a rounding hair), every robot and
-    person apart by the margin outside co-work."""
+def floor_gaps(task: Task, result: RunResult) -> Iterator[tuple[float, Agent, Agent, float, bool, tuple]]:
+    """From the recorded positions, per frame, each pair of agents on the floor but two people: the time,
+    the two, the free distance between their discs, whether they co-work, and their positions."""
     agents = task.agents
     assert result.agent_frames
-    for _, where, cowork in result.agent_frames:
+    for t, where, cowork in result.agent_frames:
         for i, a in enumerate(agents):
             for j, b in enumerate(agents):
                 if j <= i or (a.is_human and b.is_human):
@@ -114,10 +115,18 @@ def _check_floor(task: Task, result: RunResult) -> None:
                 if not (here and there):
                     continue
                 free = math.hypot(x - u, y - v) - a.radius - b.radius
-                if not a.is_human and not b.is_human:
-                    assert free >= min(CONTACT, 0.0) - 1e-6, (a.id, b.id, free)
-                elif (a.id, b.id) not in cowork and (b.id, a.id) not in cowork:
-                    assert free >= task.safety_margin - 1e-6, (a.id, b.id, free)
+                shared = (a.id, b.id) in cowork or (b.id, a.id) in cowork
+                yield t, a, b, free, shared, ((x, y), (u, v))
+
+
+def _check_floor(task: Task, result: RunResult) -> None:
+    """From the recorded positions: robots never closer than contact (less a rounding hair), every robot and
+    person apart by the margin outside co-work."""
+    for _, a, b, free, shared, _ in floor_gaps(task, result):
+        if not a.is_human and not b.is_human:
+            assert free >= min(CONTACT, 0.0) - 1e-6, (a.id, b.id, free)
+        elif not shared:
+            assert free >= task.safety_margin - 1e-6, (a.id, b.id, free)
     team = result.team
     assert team is not None and team["robot_contacts"] == 0 and result.overlaps == 0
 
